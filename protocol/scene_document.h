@@ -1,0 +1,156 @@
+// The scene document: the one public description of a Refract scene (see protocol/README.md).
+// Parsed and validated only here; the CLI, the daemon and the tests all go through this header.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include <nlohmann/json_fwd.hpp>
+
+namespace refract::protocol {
+
+using Vec3 = std::array<double, 3>;
+
+enum class LightType { point, spot, directional };
+enum class PhaseModel { isotropic, schlick, henyey_greenstein };
+enum class IndexFieldKind { uniform, luneburg, maxwell, grid };
+
+struct Phase {
+    PhaseModel model = PhaseModel::isotropic;
+    double g = 0.0;  // Henyey-Greenstein g or Schlick k, in (-1, 1); > 0 favours forward scattering
+
+    bool operator==(const Phase&) const = default;
+};
+
+struct Camera {
+    Vec3 position{0.0, 0.4, 4.0};
+    Vec3 target{0.0, 0.0, 0.0};
+    Vec3 up{0.0, 1.0, 0.0};
+    double fov_deg = 40.0;  // vertical
+
+    bool operator==(const Camera&) const = default;
+};
+
+struct Image {
+    uint32_t width = 512;
+    uint32_t height = 512;
+    double exposure = 0.0;  // stops: linear radiance is scaled by 2^exposure before tone mapping
+
+    bool operator==(const Image&) const = default;
+};
+
+struct Light {
+    LightType type = LightType::spot;
+    Vec3 position{2.0, 3.0, 1.0};
+    Vec3 direction{-2.0, -3.0, -1.0};  // spot axis or directional travel direction (normalized on use)
+    Vec3 color{1.0, 1.0, 1.0};         // linear RGB, multiplies intensity
+    double intensity = 20.0;           // W/sr for point and spot, W/m^2 for directional
+    double cone_deg = 25.0;            // spot half-angle
+
+    bool operator==(const Light&) const = default;
+};
+
+struct Object {
+    std::string mesh = "sphere";  // "sphere" | "cube" | "torus" | "upload:NAME"
+    Vec3 position{0.0, 0.0, 0.0};
+    Vec3 rotation_deg{0.0, 0.0, 0.0};  // XYZ Euler angles, applied X then Y then Z
+    double scale = 1.0;
+    IndexFieldKind index_field = IndexFieldKind::uniform;
+    double ior = 1.5;        // for uniform; luneburg ignores it; maxwell uses it as n0 when set via maxwell_n0
+    double maxwell_n0 = 2.0; // n0 of the Maxwell fish-eye
+    Vec3 extinction{0.05, 0.05, 0.05};  // per metre
+    Vec3 scattering{0.02, 0.02, 0.02};  // per metre, each channel <= extinction
+    Phase phase{};
+    // Set only for index_field == grid (PUT /api/scenes/{id}/index-field): the name of the stored grid.
+    std::string grid;
+
+    bool operator==(const Object&) const = default;
+};
+
+struct Medium {
+    double ior = 1.0;
+    Vec3 extinction{0.08, 0.08, 0.08};
+    Vec3 scattering{0.08, 0.08, 0.08};
+    Phase phase{PhaseModel::henyey_greenstein, 0.3};
+
+    bool operator==(const Medium&) const = default;
+};
+
+struct Bounds {
+    Vec3 min{-1.0, -1.0, -1.0};
+    Vec3 max{1.0, 1.0, 1.0};
+
+    bool operator==(const Bounds&) const = default;
+};
+
+struct Volume {
+    uint32_t resolution = 128;  // voxels along the longest axis, 32..512
+    double smoothing = 0.75;    // Gaussian sigma in voxels
+    double octree_epsilon = 0.005;
+    std::optional<Bounds> bounds;  // world box the grid covers; absent: object bounds grown by margin
+    double margin = 0.35;          // metres added on every side when bounds is absent
+
+    bool operator==(const Volume&) const = default;
+};
+
+struct Photons {
+    uint32_t count = 1u << 18;
+    uint32_t seed = 1;
+
+    bool operator==(const Photons&) const = default;
+};
+
+struct Floor {
+    bool enabled = true;
+    double height = -1.0;
+    Vec3 albedo{0.8, 0.8, 0.8};
+    bool checker = true;
+    double checker_size = 0.25;  // metres
+
+    bool operator==(const Floor&) const = default;
+};
+
+struct SceneDocument {
+    Camera camera;
+    Image image;
+    Light light;
+    Object object;
+    Medium medium;
+    Volume volume;
+    Photons photons;
+    Floor floor;
+
+    bool operator==(const SceneDocument&) const = default;
+};
+
+// A rejected document or edit: `pointer` is the JSON pointer of the offending value, `rule` what it broke.
+class ValidationError : public std::runtime_error {
+public:
+    ValidationError(std::string pointer, std::string rule);
+    const std::string& pointer() const { return pointer_; }
+    const std::string& rule() const { return rule_; }
+
+private:
+    std::string pointer_;
+    std::string rule_;
+};
+
+// Hard limits that keep a request from exhausting the service; the daemon may lower them by flags.
+struct Limits {
+    uint32_t max_resolution = 512;
+    uint32_t max_photons = 1u << 24;
+    uint32_t max_image_side = 4096;
+};
+
+// Builds a document from JSON (missing fields take defaults). Throws ValidationError.
+SceneDocument parse_scene(const nlohmann::json& j, const Limits& limits = {});
+// The full document as JSON, every field present; parse_scene(to_json(d)) == d.
+nlohmann::json to_json(const SceneDocument& d);
+// Applies an RFC 7396 merge patch to `current` and validates the result; `current` is never modified.
+SceneDocument apply_merge_patch(const SceneDocument& current, const nlohmann::json& patch,
+                                const Limits& limits = {});
+
+}  // namespace refract::protocol

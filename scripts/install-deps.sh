@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# The one list of what Refract needs on Debian 12. README, .ci/run and docker/Dockerfile all call this.
+# Idempotent and non-interactive; run as root (or with sudo available).
+set -euo pipefail
+export DEBIAN_FRONTEND=noninteractive
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+
+packages=(
+  build-essential cmake pkg-config git ca-certificates curl
+  libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
+  glslang-tools
+  libcpp-httplib-dev nlohmann-json3-dev libpng-dev libglm-dev libgtest-dev
+  libtinyobjloader-dev libboost1.81-dev
+  assimp-testmodels
+)
+# Browser end-to-end test: Debian's Chromium driven by playwright-core from npm.
+if [ "${REFRACT_NO_BROWSER:-0}" != "1" ]; then
+  packages+=(chromium)
+  # A machine may already carry Node.js from elsewhere (whose nodejs bundles npm); only add Debian's when absent.
+  command -v npm >/dev/null 2>&1 || packages+=(nodejs npm)
+fi
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ "${#missing[@]}" -gt 0 ]; then
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi

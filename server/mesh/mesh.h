@@ -1,0 +1,63 @@
+// Triangle meshes: the built-in shapes and uploaded OBJ files, validated and inspected the same way.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace refract::mesh {
+
+struct Mesh {
+    std::vector<glm::vec3> positions;
+    std::vector<glm::uvec3> triangles;  // indices into positions, counter-clockwise seen from outside
+};
+
+// A mesh that cannot be used; the message says why in words a user can act on.
+class MeshError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+struct MeshLimits {
+    size_t max_bytes = 64u << 20;      // OBJ text
+    size_t max_triangles = 2'000'000;  // after triangulation
+    float max_abs_coordinate = 1e6f;
+};
+
+// Topology facts a user should know about an upload (a hole leaks nothing, but they should hear of it).
+struct MeshReport {
+    size_t vertices = 0;
+    size_t triangles = 0;
+    size_t boundary_edges = 0;      // edges used by exactly one triangle
+    size_t non_manifold_edges = 0;  // edges used by three or more triangles
+    size_t degenerate_triangles = 0;
+    bool watertight() const { return boundary_edges == 0 && non_manifold_edges == 0; }
+    glm::vec3 min{0.0f}, max{0.0f};  // axis-aligned bounds
+};
+
+// Built-ins, centred at the origin: sphere of radius 1, cube from -1 to 1, torus of radii 1 and 0.35 in
+// the XZ plane. Closed and consistently oriented.
+Mesh make_sphere(uint32_t subdivisions = 5);
+Mesh make_cube();
+Mesh make_torus(uint32_t major_segments = 96, uint32_t minor_segments = 48);
+
+// Parses OBJ text (polygons are triangulated). Throws MeshError on empty/unparseable input, no faces,
+// NaN or absurd coordinates, out-of-range indices, or limits exceeded.
+Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits = {});
+// Reads and parses an OBJ file. Throws MeshError (unreadable file included).
+Mesh load_obj_file(const std::string& path, const MeshLimits& limits = {});
+
+MeshReport inspect(const Mesh& mesh);
+
+// Applies scale, then rotation (degrees, X then Y then Z), then translation.
+Mesh transformed(const Mesh& mesh, float scale, glm::vec3 rotation_deg, glm::vec3 translation);
+
+// Signed volume by the divergence theorem (positive for outward-facing triangles).
+double signed_volume(const Mesh& mesh);
+
+}  // namespace refract::mesh

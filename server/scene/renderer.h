@@ -1,0 +1,90 @@
+// The renderer: owns every scene's resident GPU state (index field, octree, radiance grid) and runs the
+// paper's passes on the one Vulkan queue, rerunning only the passes an edit made stale.
+// Thread-compatible: exactly one thread (the daemon's render thread, or the CLI) calls it.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "protocol/scene_document.h"
+#include "scene/passes.h"
+
+namespace refract::mesh {
+struct Mesh;
+}
+namespace refract::vk {
+class Context;
+}
+
+namespace refract::scene {
+
+// A refractive index field sampled on a regular grid (from a simulation), covering `bounds` in world space.
+struct IndexGrid {
+    uint32_t nx = 0, ny = 0, nz = 0;
+    protocol::Bounds bounds;
+    std::vector<float> n;  // x fastest, then y, then z; every value finite and >= 1
+};
+
+// Where the renderer finds uploaded assets named by a scene document. A lookup returns nullptr when the
+// name is unknown. A re-upload under the same name must return a different pointer (that invalidates).
+struct Assets {
+    std::function<std::shared_ptr<const mesh::Mesh>(const std::string& name)> mesh;
+    std::function<std::shared_ptr<const IndexGrid>(const std::string& name)> grid;
+};
+
+enum class Quality { interactive, still };
+
+struct PassTiming {
+    std::string name;  // "voxelize", "octree", "photons", "view", "encode"
+    double gpu_ms = 0.0;
+    double host_ms = 0.0;
+};
+
+struct FrameResult {
+    std::vector<uint8_t> png;
+    uint32_t width = 0, height = 0;
+    PassSet rerun = 0;                // passes that ran for this frame
+    std::vector<PassTiming> timings;  // one entry per pass that ran, plus "encode"
+    uint64_t photons_traced = 0;
+    double mean_steps_per_photon = 0.0;
+};
+
+// Raised for a scene that is valid JSON but cannot be rendered (unknown mesh name, over the memory
+// budget, ...). The message is for the user; the resident state of every scene is unchanged.
+class RenderError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+struct RendererOptions {
+    size_t max_resident_scenes = 8;     // least recently used scene's GPU state is dropped past this
+    int64_t device_memory_budget = 0;  // bytes; 0 = no budget beyond the device's own
+};
+
+class Renderer {
+public:
+    Renderer(vk::Context& context, RendererOptions options = {});
+    ~Renderer();
+    Renderer(const Renderer&) = delete;
+    Renderer& operator=(const Renderer&) = delete;
+
+    // Renders `document` for scene `scene_id`, reusing whatever resident state is still valid for it.
+    // Throws RenderError for an unrenderable scene (resident state untouched), vk::Error for device faults.
+    FrameResult render(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
+                       Quality quality = Quality::still);
+    // Drops a scene's GPU state (its document lives elsewhere).
+    void evict(const std::string& scene_id);
+    size_t resident_scenes() const;
+    int64_t device_bytes() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace refract::scene

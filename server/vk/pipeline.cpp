@@ -1,0 +1,103 @@
+#include "vk/pipeline.h"
+
+#include <string>
+
+namespace refract::vk {
+
+Binding Binding::storage_buffer(uint32_t binding, const Buffer& buffer) {
+    return {binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, buffer.get(), VK_NULL_HANDLE, VK_NULL_HANDLE};
+}
+Binding Binding::storage_image(uint32_t binding, const Image3D& image) {
+    return {binding, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, VK_NULL_HANDLE, image.view(), VK_NULL_HANDLE};
+}
+Binding Binding::sampled_image(uint32_t binding, const Image3D& image, VkSampler sampler) {
+    return {binding, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, VK_NULL_HANDLE, image.view(), sampler};
+}
+
+ComputePipeline::ComputePipeline(Context& context, std::span<const uint32_t> spirv,
+                                 std::initializer_list<std::pair<uint32_t, VkDescriptorType>> layout,
+                                 uint32_t push_constant_bytes, const char* name)
+    : context_(context), push_constant_bytes_(push_constant_bytes), name_(name) {
+    const VkDevice device = context.device();
+    if (push_constant_bytes > context.limits().maxPushConstantsSize)
+        throw Error(std::string(name) + ": push constants exceed the device limit");
+
+    VkShaderModuleCreateInfo module_info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+    module_info.codeSize = spirv.size_bytes();
+    module_info.pCode = spirv.data();
+    VkShaderModule module = VK_NULL_HANDLE;
+    REFRACT_VK_CHECK(vkCreateShaderModule(device, &module_info, nullptr, &module));
+    module_ = UniqueShaderModule(device, module);
+    context.set_name(VK_OBJECT_TYPE_SHADER_MODULE, module, name);
+
+    std::vector<VkDescriptorSetLayoutBinding> bindings;
+    for (const auto& [binding, type] : layout)
+        bindings.push_back({binding, type, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
+    VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    set_info.flags = VK_DESCRIPTOR_SET_LAYOUT_CREATE_PUSH_DESCRIPTOR_BIT_KHR;
+    set_info.bindingCount = static_cast<uint32_t>(bindings.size());
+    set_info.pBindings = bindings.data();
+    VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
+    REFRACT_VK_CHECK(vkCreateDescriptorSetLayout(device, &set_info, nullptr, &set_layout));
+    set_layout_ = UniqueDescriptorSetLayout(device, set_layout);
+
+    VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, push_constant_bytes};
+    VkPipelineLayoutCreateInfo layout_info{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+    layout_info.setLayoutCount = 1;
+    layout_info.pSetLayouts = &set_layout;
+    layout_info.pushConstantRangeCount = push_constant_bytes ? 1u : 0u;
+    layout_info.pPushConstantRanges = &range;
+    VkPipelineLayout pipeline_layout = VK_NULL_HANDLE;
+    REFRACT_VK_CHECK(vkCreatePipelineLayout(device, &layout_info, nullptr, &pipeline_layout));
+    layout_ = UniquePipelineLayout(device, pipeline_layout);
+
+    VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+    info.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+    info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+    info.stage.module = module;
+    info.stage.pName = "main";
+    info.layout = pipeline_layout;
+    VkPipeline pipeline = VK_NULL_HANDLE;
+    REFRACT_VK_CHECK(vkCreateComputePipelines(device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline));
+    pipeline_ = UniquePipeline(device, pipeline);
+    context.set_name(VK_OBJECT_TYPE_PIPELINE, pipeline, name);
+}
+
+void ComputePipeline::dispatch(VkCommandBuffer cmd, std::initializer_list<Binding> bindings,
+                               const void* push_constants, uint32_t push_bytes, uint32_t groups_x,
+                               uint32_t groups_y, uint32_t groups_z) const {
+    if (push_bytes != push_constant_bytes_)
+        throw Error(std::string(name_) + ": push constants of " + std::to_string(push_bytes) +
+                    " bytes, pipeline declares " + std::to_string(push_constant_bytes_));
+    const auto& limits = context_.limits();
+    if (groups_x > limits.maxComputeWorkGroupCount[0] || groups_y > limits.maxComputeWorkGroupCount[1] ||
+        groups_z > limits.maxComputeWorkGroupCount[2])
+        throw Error(std::string(name_) + ": dispatch exceeds the device's workgroup count limit");
+    std::vector<VkDescriptorBufferInfo> buffer_infos(bindings.size());
+    std::vector<VkDescriptorImageInfo> image_infos(bindings.size());
+    std::vector<VkWriteDescriptorSet> writes;
+    size_t i = 0;
+    for (const Binding& b : bindings) {
+        VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+        write.dstBinding = b.binding;
+        write.descriptorCount = 1;
+        write.descriptorType = b.type;
+        if (b.type == VK_DESCRIPTOR_TYPE_STORAGE_BUFFER) {
+            buffer_infos[i] = {b.buffer, 0, VK_WHOLE_SIZE};
+            write.pBufferInfo = &buffer_infos[i];
+        } else {
+            image_infos[i] = {b.sampler, b.view, VK_IMAGE_LAYOUT_GENERAL};
+            write.pImageInfo = &image_infos[i];
+        }
+        writes.push_back(write);
+        ++i;
+    }
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.get());
+    context_.push_descriptor_set(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), 0,
+                                 static_cast<uint32_t>(writes.size()), writes.data());
+    if (push_bytes)
+        vkCmdPushConstants(cmd, layout_.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push_constants);
+    vkCmdDispatch(cmd, groups_x, groups_y, groups_z);
+}
+
+}  // namespace refract::vk

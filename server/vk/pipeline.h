@@ -1,0 +1,56 @@
+// Compute pipelines with push descriptors: a pass declares its bindings once and pushes resources at
+// record time, so there are no descriptor pools or sets to own.
+#pragma once
+
+#include <cstdint>
+#include <initializer_list>
+#include <span>
+#include <vector>
+
+#include "vk/context.h"
+#include "vk/resources.h"
+
+namespace refract::vk {
+
+// One resource bound at one binding number of the pass's only descriptor set.
+struct Binding {
+    uint32_t binding = 0;
+    VkDescriptorType type = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    VkBuffer buffer = VK_NULL_HANDLE;
+    VkImageView view = VK_NULL_HANDLE;
+    VkSampler sampler = VK_NULL_HANDLE;
+
+    static Binding storage_buffer(uint32_t binding, const Buffer& buffer);
+    static Binding storage_image(uint32_t binding, const Image3D& image);
+    static Binding sampled_image(uint32_t binding, const Image3D& image, VkSampler sampler);
+};
+
+class ComputePipeline {
+public:
+    ComputePipeline(Context& context, std::span<const uint32_t> spirv,
+                    std::initializer_list<std::pair<uint32_t, VkDescriptorType>> layout,
+                    uint32_t push_constant_bytes, const char* name);
+
+    // Binds the pipeline, pushes the descriptors and push constants and dispatches `groups`.
+    void dispatch(VkCommandBuffer cmd, std::initializer_list<Binding> bindings, const void* push_constants,
+                  uint32_t push_bytes, uint32_t groups_x, uint32_t groups_y = 1, uint32_t groups_z = 1) const;
+    template <typename PushConstants>
+    void dispatch(VkCommandBuffer cmd, std::initializer_list<Binding> bindings, const PushConstants& push,
+                  uint32_t groups_x, uint32_t groups_y = 1, uint32_t groups_z = 1) const {
+        dispatch(cmd, bindings, &push, sizeof(push), groups_x, groups_y, groups_z);
+    }
+
+private:
+    Context& context_;
+    UniqueShaderModule module_;
+    UniqueDescriptorSetLayout set_layout_;
+    UniquePipelineLayout layout_;
+    UniquePipeline pipeline_;
+    uint32_t push_constant_bytes_ = 0;
+    const char* name_;
+};
+
+// Workgroups needed to cover `items` with groups of `group_size`.
+constexpr uint32_t group_count(uint32_t items, uint32_t group_size) { return (items + group_size - 1) / group_size; }
+
+}  // namespace refract::vk
