@@ -1,41 +1,31 @@
 // refract: the command-line face of the renderer (devices, voxelize, trace, render, bench).
-#include <cstdio>
-#include <cstring>
 #include <exception>
 #include <iostream>
 #include <string>
 #include <vector>
 
-#include "vk/context.h"
+#include "cli/commands.h"
+#include "protocol/scene_document.h"
 
 namespace {
 
 constexpr const char* kUsage = R"(usage: refract COMMAND [options]
 
 Commands:
-  devices                       list Vulkan devices and whether each is usable
-  help                          this text
+  devices                                 list Vulkan devices and whether each is usable
+  voxelize SCENE.json --out DIR           voxelize + index field + octree; writes slice PNGs and summary.json
+  trace SCENE.json --out DIR              ... + photons; writes radiance slices, floor caustic map, summary.json
+  render SCENE.json -o FRAME.png          the whole pipeline once
+         [--hdr FRAME.pfm] [--stats STATS.json]
+  bench [--scene FILE | --suite standard] [--runs N] [--json]
+                                          per-pass GPU milliseconds (timestamp queries) for fixed scenes
+  help                                    this text
 
-Common options:
-  --device NAME                 use the device whose name contains NAME (also REFRACT_DEVICE)
+Options for every command:
+  --mesh NAME=FILE.obj                    make FILE.obj available to the scene as "upload:NAME"
+  --device NAME                           use the device whose name contains NAME (also REFRACT_DEVICE)
+SCENE.json may be - for the default scene {}.
 )";
-
-int devices_command() {
-    const auto devices = refract::vk::list_devices();
-    if (devices.empty()) {
-        std::cout << "no Vulkan devices found (install mesa-vulkan-drivers for lavapipe)\n";
-        return 1;
-    }
-    for (const auto& d : devices) {
-        std::cout << d.index << ": " << d.name << " [" << d.type << "] driver " << d.driver_name << " ("
-                  << d.driver_info << "), Vulkan " << d.api_version << ", "
-                  << d.device_local_bytes / (1024 * 1024) << " MiB device-local: "
-                  << (d.suitable ? "usable" : "NOT usable");
-        for (const auto& m : d.missing) std::cout << "\n     missing: " << m;
-        std::cout << "\n";
-    }
-    return 0;
-}
 
 }  // namespace
 
@@ -46,9 +36,17 @@ int main(int argc, char** argv) {
         return args.empty() ? 2 : 0;
     }
     try {
-        if (args[0] == "devices") return devices_command();
+        const auto parsed = refract::cli::parse_arguments({args.begin() + 1, args.end()});
+        if (args[0] == "devices") return refract::cli::devices_command();
+        if (args[0] == "voxelize") return refract::cli::voxelize_command(parsed);
+        if (args[0] == "trace") return refract::cli::trace_command(parsed);
+        if (args[0] == "render") return refract::cli::render_command(parsed);
+        if (args[0] == "bench") return refract::cli::bench_command(parsed);
         std::cerr << "refract: unknown command '" << args[0] << "'\n" << kUsage;
         return 2;
+    } catch (const refract::protocol::ValidationError& e) {
+        std::cerr << "refract: invalid scene: " << e.what() << "\n";
+        return 1;
     } catch (const std::exception& e) {
         std::cerr << "refract: " << e.what() << "\n";
         return 1;

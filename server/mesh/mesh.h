@@ -45,16 +45,31 @@ struct MeshReport {
 Mesh make_sphere(uint32_t subdivisions = 5);
 Mesh make_cube();
 Mesh make_torus(uint32_t major_segments = 96, uint32_t minor_segments = 48);
+// A closed, watertight "Stanford-bunny-like" test shape (body, haunches, head, two ears, tail, paws):
+// an implicit surface of a few ellipsoidal metaballs polygonized by marching tetrahedra, fitted so its
+// largest half-extent is 1, centred at the origin, coordinates rounded to 5 decimals: 28,496 triangles.
+// Deterministic: examples/meshes/bunny.obj is to_obj() of this mesh (tests/mesh_test.cpp checks it and
+// rewrites the file when REFRACT_WRITE_EXAMPLES=1).
+Mesh make_blobby_bunny();
+
+// Writes the mesh as OBJ text ("v x y z" with `decimals` decimals, then "f a b c" with 1-based indices),
+// preceded by `comment` as '#' lines when it is not empty.
+std::string to_obj(const Mesh& mesh, std::string_view comment = {}, int decimals = 5);
 
 // Parses OBJ text (polygons are triangulated). Throws MeshError on empty/unparseable input, no faces,
-// NaN or absurd coordinates, out-of-range indices, or limits exceeded.
+// NaN or absurd coordinates, out-of-range indices, or limits exceeded. All objects/groups are merged into
+// one mesh; triangles are kept as given; vertices no face refers to (normals, texture coordinates, points
+// and lines are ignored) are dropped.
 Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits = {});
 // Reads and parses an OBJ file. Throws MeshError (unreadable file included).
 Mesh load_obj_file(const std::string& path, const MeshLimits& limits = {});
 
+// Vertices are welded by exact position before edges are counted, so split vertices do not count as holes.
+// Degenerate: a repeated (welded) index, or an area that is zero to float precision.
 MeshReport inspect(const Mesh& mesh);
 
-// Applies scale, then rotation (degrees, X then Y then Z), then translation.
+// Applies scale, then rotation (degrees, X then Y then Z), then translation. A negative scale mirrors the
+// mesh, so the triangles are flipped to stay outward-facing.
 Mesh transformed(const Mesh& mesh, float scale, glm::vec3 rotation_deg, glm::vec3 translation);
 
 // Signed volume by the divergence theorem (positive for outward-facing triangles).

@@ -63,7 +63,7 @@ ComputePipeline::ComputePipeline(Context& context, std::span<const uint32_t> spi
     context.set_name(VK_OBJECT_TYPE_PIPELINE, pipeline, name);
 }
 
-void ComputePipeline::dispatch(VkCommandBuffer cmd, std::initializer_list<Binding> bindings,
+void ComputePipeline::dispatch(VkCommandBuffer cmd, std::span<const Binding> bindings,
                                const void* push_constants, uint32_t push_bytes, uint32_t groups_x,
                                uint32_t groups_y, uint32_t groups_z) const {
     if (push_bytes != push_constant_bytes_)

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <initializer_list>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 #include "vk/context.h"
@@ -32,12 +33,25 @@ public:
                     uint32_t push_constant_bytes, const char* name);
 
     // Binds the pipeline, pushes the descriptors and push constants and dispatches `groups`.
-    void dispatch(VkCommandBuffer cmd, std::initializer_list<Binding> bindings, const void* push_constants,
+    void dispatch(VkCommandBuffer cmd, std::span<const Binding> bindings, const void* push_constants,
                   uint32_t push_bytes, uint32_t groups_x, uint32_t groups_y = 1, uint32_t groups_z = 1) const;
+    void dispatch(VkCommandBuffer cmd, std::initializer_list<Binding> bindings, const void* push_constants,
+                  uint32_t push_bytes, uint32_t groups_x, uint32_t groups_y = 1, uint32_t groups_z = 1) const {
+        dispatch(cmd, std::span<const Binding>(bindings.begin(), bindings.size()), push_constants, push_bytes,
+                 groups_x, groups_y, groups_z);
+    }
     template <typename PushConstants>
-    void dispatch(VkCommandBuffer cmd, std::initializer_list<Binding> bindings, const PushConstants& push,
+        requires std::is_class_v<PushConstants>
+    void dispatch(VkCommandBuffer cmd, std::span<const Binding> bindings, const PushConstants& push,
                   uint32_t groups_x, uint32_t groups_y = 1, uint32_t groups_z = 1) const {
         dispatch(cmd, bindings, &push, sizeof(push), groups_x, groups_y, groups_z);
+    }
+    template <typename PushConstants>
+        requires std::is_class_v<PushConstants>
+    void dispatch(VkCommandBuffer cmd, std::initializer_list<Binding> bindings, const PushConstants& push,
+                  uint32_t groups_x, uint32_t groups_y = 1, uint32_t groups_z = 1) const {
+        dispatch(cmd, std::span<const Binding>(bindings.begin(), bindings.size()), &push, sizeof(push), groups_x,
+                 groups_y, groups_z);
     }
 
 private:
@@ -52,5 +66,17 @@ private:
 
 // Workgroups needed to cover `items` with groups of `group_size`.
 constexpr uint32_t group_count(uint32_t items, uint32_t group_size) { return (items + group_size - 1) / group_size; }
+
+// Groups (x, y) covering `items` in 1D work with groups of `group_size`, folded into a second
+// dimension past the 65535-group limit (shaders recover the index with linear_invocation()).
+struct LinearGroups {
+    uint32_t x = 1, y = 1;
+};
+constexpr LinearGroups linear_groups(uint64_t items, uint32_t group_size) {
+    const uint64_t groups = (items + group_size - 1) / group_size;
+    constexpr uint64_t max_x = 65535;
+    if (groups <= max_x) return {static_cast<uint32_t>(groups == 0 ? 1 : groups), 1};
+    return {static_cast<uint32_t>(max_x), static_cast<uint32_t>((groups + max_x - 1) / max_x)};
+}
 
 }  // namespace refract::vk

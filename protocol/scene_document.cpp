@@ -1,0 +1,602 @@
+// Parsing, validation, serialisation and merge-patch editing of the scene document.
+// The field names, defaults and ranges here are the public contract; protocol/README.md and
+// protocol/scene.schema.json describe the same rules and must be kept in step with this file.
+#include "protocol/scene_document.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <initializer_list>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+namespace refract::protocol {
+
+namespace {
+
+using nlohmann::json;
+
+std::string make_message(const std::string& pointer, const std::string& rule) {
+    return (pointer.empty() ? std::string("(root)") : pointer) + ": " + rule;
+}
+
+}  // namespace
+
+ValidationError::ValidationError(std::string pointer, std::string rule)
+    : std::runtime_error(make_message(pointer, rule)), pointer_(std::move(pointer)), rule_(std::move(rule)) {}
+
+namespace {
+
+// RFC 6901 escaping of one reference token.
+std::string escape_token(std::string_view key) {
+    std::string out;
+    out.reserve(key.size());
+    for (char c : key) {
+        if (c == '~') {
+            out += "~0";
+        } else if (c == '/') {
+            out += "~1";
+        } else {
+            out += c;
+        }
+    }
+    return out;
+}
+
+std::string child(const std::string& base, std::string_view key) {
+    return base + "/" + escape_token(key);
+}
+std::string child(const std::string& base, std::size_t index) {
+    return base + "/" + std::to_string(index);
+}
+
+// A closed or open interval with the words used to report it.
+struct Range {
+    double lo;
+    double hi;
+    bool lo_open;
+    bool hi_open;
+    const char* text;  // e.g. "a number in [0, 1e6]"
+
+    bool contains(double v) const {
+        if (!std::isfinite(v)) return false;
+        if (lo_open ? !(v > lo) : !(v >= lo)) return false;
+        if (hi_open ? !(v < hi) : !(v <= hi)) return false;
+        return true;
+    }
+};
+
+constexpr double kCoordMax = 1e4;
+
+constexpr Range kCoord{-kCoordMax, kCoordMax, false, false, "a number in [-1e4, 1e4]"};
+constexpr Range kFov{1.0, 170.0, true, true, "a number in (1, 170)"};
+constexpr Range kExposure{-20.0, 20.0, false, false, "a number in [-20, 20]"};
+constexpr Range kColor{0.0, 1e3, false, false, "a number in [0, 1e3]"};
+constexpr Range kIntensity{0.0, 1e6, false, false, "a number in [0, 1e6]"};
+constexpr Range kCone{0.0, 90.0, true, false, "a number in (0, 90]"};
+constexpr Range kScale{0.0, 1e3, true, false, "a number in (0, 1e3]"};
+constexpr Range kIor{1.0, 4.0, false, false, "a number in [1, 4]"};
+constexpr Range kCoefficient{0.0, 1e3, false, false, "a number in [0, 1000] (per metre)"};
+constexpr Range kPhaseG{-0.99, 0.99, false, false, "a number in [-0.99, 0.99]"};
+constexpr Range kSmoothing{0.0, 4.0, false, false, "a number in [0, 4]"};
+constexpr Range kEpsilon{0.0, 1.0, true, false, "a number in (0, 1]"};
+constexpr Range kMargin{0.0, kCoordMax, false, false, "a number in [0, 1e4]"};
+constexpr Range kAlbedo{0.0, 1.0, false, false, "a number in [0, 1]"};
+constexpr Range kChecker{0.0, kCoordMax, true, false, "a number in (0, 1e4]"};
+
+constexpr std::size_t kMaxNameLength = 64;
+
+bool valid_name(std::string_view name) {
+    if (name.empty() || name.size() > kMaxNameLength) return false;
+    if (name == "." || name == "..") return false;  // never a usable file or key name
+    return std::all_of(name.begin(), name.end(), [](char c) {
+        return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' ||
+               c == '.' || c == '-';
+    });
+}
+
+double length(const Vec3& v) {
+    // Scaled so that tiny or large components neither underflow nor overflow.
+    const double m = std::max({std::fabs(v[0]), std::fabs(v[1]), std::fabs(v[2])});
+    if (m == 0.0) return 0.0;
+    const double x = v[0] / m, y = v[1] / m, z = v[2] / m;
+    return m * std::sqrt(x * x + y * y + z * z);
+}
+
+Vec3 normalized(const Vec3& v) {
+    const double l = length(v);
+    return {v[0] / l, v[1] / l, v[2] / l};
+}
+
+Vec3 cross(const Vec3& a, const Vec3& b) {
+    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+
+// Vectors shorter than this are treated as zero (directions) or as "the same point" (positions).
+constexpr double kTiny = 1e-9;
+// |sin| of the angle between two unit vectors below which they count as parallel.
+constexpr double kParallel = 1e-6;
+
+struct Blame {
+    std::string pointer;
+    std::string rule;
+};
+
+// Reads one document. `touched` is the JSON the caller supplied (the input of parse_scene or the
+// merge patch); when a rule ties several values together, the error names the first candidate the
+// caller actually wrote, so that an edit is blamed rather than the untouched value it conflicts with.
+class Reader {
+public:
+    Reader(const Limits& limits, const json* touched) : limits_(limits), touched_(touched) {}
+
+    SceneDocument document(const json& root) {
+        SceneDocument d;
+        check_object(root, "", {"camera", "image", "light", "object", "medium", "volume", "photons", "floor"},
+                     "must be a JSON object");
+        read_camera(root, d.camera);
+        read_image(root, d.image);
+        read_light(root, d.light);
+        read_object(root, d.object);
+        read_medium(root, d.medium);
+        read_volume(root, d.volume);
+        read_photons(root, d.photons);
+        read_floor(root, d.floor);
+        return d;
+    }
+
+private:
+    [[noreturn]] static void fail(const std::string& pointer, std::string rule) {
+        throw ValidationError(pointer, std::move(rule));
+    }
+
+    // Whether the caller's JSON wrote the value at `pointer` (or replaced an enclosing value whole).
+    bool touched(const std::string& pointer) const {
+        if (touched_ == nullptr) return false;
+        const json* cur = touched_;
+        std::size_t pos = 0;
+        while (pos < pointer.size()) {
+            if (!cur->is_object()) return true;  // replaced whole (arrays, scalars, null)
+            const std::size_t next = pointer.find('/', pos + 1);
+            std::string token =
+                pointer.substr(pos + 1, next == std::string::npos ? std::string::npos : next - pos - 1);
+            std::string key;
+            for (std::size_t i = 0; i < token.size(); ++i) {
+                if (token[i] == '~' && i + 1 < token.size()) {
+                    key += token[i + 1] == '1' ? '/' : '~';
+                    ++i;
+                } else {
+                    key += token[i];
+                }
+            }
+            const auto it = cur->find(key);
+            if (it == cur->end()) return false;
+            cur = &*it;
+            pos = next == std::string::npos ? pointer.size() : next;
+        }
+        return true;
+    }
+
+    [[noreturn]] void fail_blaming(std::initializer_list<Blame> candidates) const {
+        for (const Blame& b : candidates) {
+            if (touched(b.pointer)) fail(b.pointer, b.rule);
+        }
+        fail(candidates.begin()->pointer, candidates.begin()->rule);
+    }
+
+    static void check_object(const json& j, const std::string& pointer,
+                             std::initializer_list<std::string_view> allowed, const char* rule) {
+        if (!j.is_object()) fail(pointer, rule);
+        for (auto it = j.begin(); it != j.end(); ++it) {
+            if (std::find(allowed.begin(), allowed.end(), std::string_view(it.key())) == allowed.end()) {
+                std::string list;
+                for (std::string_view a : allowed) {
+                    if (!list.empty()) list += ", ";
+                    list += a;
+                }
+                fail(child(pointer, it.key()), "unknown field (allowed here: " + list + ")");
+            }
+        }
+    }
+
+    // The member `key` of the object `parent` (at `base`) if present, checked to be an object with only
+    // the `allowed` members; nullptr when absent.
+    static const json* section(const json& parent, const std::string& base, const char* key,
+                               std::initializer_list<std::string_view> allowed) {
+        const auto it = parent.find(key);
+        if (it == parent.end()) return nullptr;
+        check_object(*it, child(base, key), allowed, "must be a JSON object");
+        return &*it;
+    }
+
+    static double number_value(const json& v, const std::string& pointer, const Range& r) {
+        if (!v.is_number()) fail(pointer, std::string("must be ") + r.text);
+        const double x = v.get<double>();
+        if (!std::isfinite(x)) fail(pointer, std::string("must be ") + r.text + " (finite)");
+        if (!r.contains(x)) fail(pointer, std::string("must be ") + r.text);
+        return x;
+    }
+
+    static double number(const json& obj, const std::string& base, const char* key, double dflt,
+                         const Range& r) {
+        const auto it = obj.find(key);
+        return it == obj.end() ? dflt : number_value(*it, child(base, key), r);
+    }
+
+    static uint32_t uinteger(const json& obj, const std::string& base, const char* key, uint32_t dflt,
+                             uint32_t lo, uint32_t hi) {
+        const auto it = obj.find(key);
+        if (it == obj.end()) return dflt;
+        const std::string pointer = child(base, key);
+        const std::string rule =
+            "must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+        const json& v = *it;
+        if (v.is_number_unsigned()) {
+            const auto x = v.get<uint64_t>();
+            if (x < lo || x > hi) fail(pointer, rule);
+            return static_cast<uint32_t>(x);
+        }
+        if (v.is_number_integer()) {
+            const auto x = v.get<int64_t>();
+            if (x < 0 || static_cast<uint64_t>(x) < lo || static_cast<uint64_t>(x) > hi) fail(pointer, rule);
+            return static_cast<uint32_t>(x);
+        }
+        if (v.is_number_float()) {
+            // A float with no fractional part is an integer, as in JSON Schema.
+            const double x = v.get<double>();
+            if (!std::isfinite(x) || std::floor(x) != x || x < static_cast<double>(lo) ||
+                x > static_cast<double>(hi)) {
+                fail(pointer, rule);
+            }
+            return static_cast<uint32_t>(x);
+        }
+        fail(pointer, rule);
+    }
+
+    static bool boolean(const json& obj, const std::string& base, const char* key, bool dflt) {
+        const auto it = obj.find(key);
+        if (it == obj.end()) return dflt;
+        if (!it->is_boolean()) fail(child(base, key), "must be true or false");
+        return it->get<bool>();
+    }
+
+    static Vec3 vec3(const json& obj, const std::string& base, const char* key, const Vec3& dflt,
+                     const Range& r) {
+        const auto it = obj.find(key);
+        if (it == obj.end()) return dflt;
+        const std::string pointer = child(base, key);
+        if (!it->is_array() || it->size() != 3) {
+            fail(pointer, std::string("must be an array of 3 numbers, each ") + r.text);
+        }
+        Vec3 out{};
+        for (std::size_t i = 0; i < 3; ++i) out[i] = number_value((*it)[i], child(pointer, i), r);
+        return out;
+    }
+
+    template <class E>
+    static E enumeration(const json& obj, const std::string& base, const char* key, E dflt,
+                         std::initializer_list<std::pair<std::string_view, E>> names) {
+        const auto it = obj.find(key);
+        if (it == obj.end()) return dflt;
+        if (it->is_string()) {
+            const auto& s = it->get_ref<const std::string&>();
+            for (const auto& [name, value] : names) {
+                if (s == name) return value;
+            }
+        }
+        std::string rule = "must be one of";
+        bool first = true;
+        for (const auto& entry : names) {
+            rule += first ? " \"" : ", \"";
+            rule += entry.first;
+            rule += '"';
+            first = false;
+        }
+        fail(child(base, key), rule);
+    }
+
+    static const std::string* string_member(const json& obj, const std::string& base, const char* key,
+                                            const char* rule) {
+        const auto it = obj.find(key);
+        if (it == obj.end()) return nullptr;
+        if (!it->is_string()) fail(child(base, key), rule);
+        return &it->get_ref<const std::string&>();
+    }
+
+    static Phase phase(const json& parent, const std::string& base, Phase p) {
+        const json* j = section(parent, base, "phase", {"model", "g"});
+        if (j == nullptr) return p;
+        const std::string pointer = child(base, "phase");
+        p.model = enumeration(*j, pointer, "model", p.model,
+                              {{"isotropic", PhaseModel::isotropic},
+                               {"schlick", PhaseModel::schlick},
+                               {"henyey-greenstein", PhaseModel::henyey_greenstein}});
+        p.g = number(*j, pointer, "g", p.g, kPhaseG);
+        return p;
+    }
+
+    // Extinction and scattering of a participating medium: scattering may not exceed extinction.
+    void coefficients(const json& obj, const std::string& base, Vec3& extinction, Vec3& scattering) const {
+        extinction = vec3(obj, base, "extinction", extinction, kCoefficient);
+        scattering = vec3(obj, base, "scattering", scattering, kCoefficient);
+        check_coefficients(base, extinction, scattering);
+    }
+
+    void check_coefficients(const std::string& base, const Vec3& extinction, const Vec3& scattering) const {
+        for (std::size_t i = 0; i < 3; ++i) {
+            if (scattering[i] > extinction[i]) {
+                const std::string c = std::to_string(i);
+                fail_blaming({{child(child(base, "scattering"), i),
+                               "must be <= extinction[" + c + "] (scattering cannot exceed extinction)"},
+                              {child(child(base, "extinction"), i),
+                               "must be >= scattering[" + c + "] (scattering cannot exceed extinction)"}});
+            }
+        }
+    }
+
+    void read_camera(const json& root, Camera& c) const {
+        const std::string base = "/camera";
+        if (const json* j = section(root, "", "camera", {"position", "target", "up", "fov_deg"})) {
+            c.position = vec3(*j, base, "position", c.position, kCoord);
+            c.target = vec3(*j, base, "target", c.target, kCoord);
+            c.up = vec3(*j, base, "up", c.up, kCoord);
+            c.fov_deg = number(*j, base, "fov_deg", c.fov_deg, kFov);
+        }
+        const Vec3 view{c.target[0] - c.position[0], c.target[1] - c.position[1],
+                        c.target[2] - c.position[2]};
+        if (length(view) < kTiny) {
+            fail_blaming(
+                {{"/camera/target", "must differ from /camera/position (the camera needs a view direction)"},
+                 {"/camera/position",
+                  "must differ from /camera/target (the camera needs a view direction)"}});
+        }
+        if (length(c.up) < kTiny) fail("/camera/up", "must be a non-zero vector");
+        if (length(cross(normalized(view), normalized(c.up))) < kParallel) {
+            fail_blaming(
+                {{"/camera/up", "must not be parallel to the view direction (target - position)"},
+                 {"/camera/target", "view direction (target - position) must not be parallel to /camera/up"},
+                 {"/camera/position",
+                  "view direction (target - position) must not be parallel to /camera/up"}});
+        }
+    }
+
+    void read_image(const json& root, Image& im) const {
+        const std::string base = "/image";
+        const json* j = section(root, "", "image", {"width", "height", "exposure"});
+        if (j == nullptr) return;
+        im.width = uinteger(*j, base, "width", im.width, 1, limits_.max_image_side);
+        im.height = uinteger(*j, base, "height", im.height, 1, limits_.max_image_side);
+        im.exposure = number(*j, base, "exposure", im.exposure, kExposure);
+    }
+
+    void read_light(const json& root, Light& l) const {
+        const std::string base = "/light";
+        if (const json* j = section(root, "", "light",
+                                    {"type", "position", "direction", "color", "intensity", "cone_deg"})) {
+            l.type = enumeration(*j, base, "type", l.type,
+                                 {{"point", LightType::point},
+                                  {"spot", LightType::spot},
+                                  {"directional", LightType::directional}});
+            l.position = vec3(*j, base, "position", l.position, kCoord);
+            l.direction = vec3(*j, base, "direction", l.direction, kCoord);
+            l.color = vec3(*j, base, "color", l.color, kColor);
+            l.intensity = number(*j, base, "intensity", l.intensity, kIntensity);
+            l.cone_deg = number(*j, base, "cone_deg", l.cone_deg, kCone);
+        }
+        if (l.type != LightType::point && length(l.direction) < kTiny) {
+            fail_blaming({{"/light/direction", "must be a non-zero vector for spot and directional lights"},
+                          {"/light/type", "a spot or directional light needs a non-zero /light/direction"}});
+        }
+    }
+
+    void read_object(const json& root, Object& o) const {
+        const std::string base = "/object";
+        if (const json* j = section(root, "", "object",
+                                    {"mesh", "position", "rotation_deg", "scale", "index_field", "ior",
+                                     "maxwell_n0", "extinction", "scattering", "phase", "grid"})) {
+            static constexpr const char* kMeshRule =
+                "must be \"sphere\", \"cube\", \"torus\" or \"upload:NAME\" with NAME 1..64 characters of "
+                "[A-Za-z0-9_.-]";
+            if (const std::string* mesh = string_member(*j, base, "mesh", kMeshRule)) {
+                constexpr std::string_view upload = "upload:";
+                const bool builtin = *mesh == "sphere" || *mesh == "cube" || *mesh == "torus";
+                const bool uploaded = mesh->compare(0, upload.size(), upload) == 0 &&
+                                      valid_name(std::string_view(*mesh).substr(upload.size()));
+                if (!builtin && !uploaded) fail(child(base, "mesh"), kMeshRule);
+                o.mesh = *mesh;
+            }
+            o.position = vec3(*j, base, "position", o.position, kCoord);
+            o.rotation_deg = vec3(*j, base, "rotation_deg", o.rotation_deg, kCoord);
+            o.scale = number(*j, base, "scale", o.scale, kScale);
+            o.index_field = enumeration(*j, base, "index_field", o.index_field,
+                                        {{"uniform", IndexFieldKind::uniform},
+                                         {"luneburg", IndexFieldKind::luneburg},
+                                         {"maxwell", IndexFieldKind::maxwell},
+                                         {"grid", IndexFieldKind::grid}});
+            o.ior = number(*j, base, "ior", o.ior, kIor);
+            o.maxwell_n0 = number(*j, base, "maxwell_n0", o.maxwell_n0, kIor);
+            coefficients(*j, base, o.extinction, o.scattering);
+            o.phase = phase(*j, base, o.phase);
+            static constexpr const char* kGridRule =
+                "must be \"\" or a name of 1..64 characters of [A-Za-z0-9_.-]";
+            if (const std::string* grid = string_member(*j, base, "grid", kGridRule)) {
+                if (!grid->empty() && !valid_name(*grid)) fail(child(base, "grid"), kGridRule);
+                o.grid = *grid;
+            }
+        }
+        if (o.index_field == IndexFieldKind::grid && o.grid.empty()) {
+            fail_blaming({{"/object/grid", "must name a stored grid when /object/index_field is \"grid\""},
+                          {"/object/index_field", "\"grid\" requires a non-empty /object/grid"}});
+        }
+    }
+
+    void read_medium(const json& root, Medium& m) const {
+        const std::string base = "/medium";
+        const json* j = section(root, "", "medium", {"ior", "extinction", "scattering", "phase"});
+        if (j == nullptr) return;
+        m.ior = number(*j, base, "ior", m.ior, kIor);
+        coefficients(*j, base, m.extinction, m.scattering);
+        m.phase = phase(*j, base, m.phase);
+    }
+
+    void read_volume(const json& root, Volume& v) const {
+        const std::string base = "/volume";
+        const json* j =
+            section(root, "", "volume", {"resolution", "smoothing", "octree_epsilon", "bounds", "margin"});
+        if (j == nullptr) return;
+        v.resolution = uinteger(*j, base, "resolution", v.resolution, 32, limits_.max_resolution);
+        v.smoothing = number(*j, base, "smoothing", v.smoothing, kSmoothing);
+        v.octree_epsilon = number(*j, base, "octree_epsilon", v.octree_epsilon, kEpsilon);
+        const auto bit = j->find("bounds");
+        if (bit != j->end() && !bit->is_null()) {  // null: no bounds, as a merge patch would leave it
+            const std::string pointer = child(base, "bounds");
+            check_object(*bit, pointer, {"min", "max"}, "must be a JSON object {min, max} or null");
+            Bounds b;
+            b.min = vec3(*bit, pointer, "min", b.min, kCoord);
+            b.max = vec3(*bit, pointer, "max", b.max, kCoord);
+            for (std::size_t i = 0; i < 3; ++i) {
+                if (!(b.min[i] < b.max[i])) {
+                    const std::string c = std::to_string(i);
+                    fail_blaming({{child(child(pointer, "max"), i), "must be greater than min[" + c + "]"},
+                                  {child(child(pointer, "min"), i), "must be less than max[" + c + "]"}});
+                }
+            }
+            v.bounds = b;
+        }
+        v.margin = number(*j, base, "margin", v.margin, kMargin);
+    }
+
+    void read_photons(const json& root, Photons& p) const {
+        const std::string base = "/photons";
+        const json* j = section(root, "", "photons", {"count", "seed"});
+        if (j == nullptr) return;
+        p.count = uinteger(*j, base, "count", p.count, 1, limits_.max_photons);
+        p.seed = uinteger(*j, base, "seed", p.seed, 0, std::numeric_limits<uint32_t>::max());
+    }
+
+    static void read_floor(const json& root, Floor& f) {
+        const std::string base = "/floor";
+        const json* j =
+            section(root, "", "floor", {"enabled", "height", "albedo", "checker", "checker_size"});
+        if (j == nullptr) return;
+        f.enabled = boolean(*j, base, "enabled", f.enabled);
+        f.height = number(*j, base, "height", f.height, kCoord);
+        f.albedo = vec3(*j, base, "albedo", f.albedo, kAlbedo);
+        f.checker = boolean(*j, base, "checker", f.checker);
+        f.checker_size = number(*j, base, "checker_size", f.checker_size, kChecker);
+    }
+
+    const Limits& limits_;
+    const json* touched_;
+};
+
+json vec(const Vec3& v) {
+    return json::array({v[0], v[1], v[2]});
+}
+
+const char* name(LightType t) {
+    switch (t) {
+        case LightType::point:
+            return "point";
+        case LightType::spot:
+            return "spot";
+        case LightType::directional:
+            return "directional";
+    }
+    return "spot";
+}
+
+const char* name(PhaseModel m) {
+    switch (m) {
+        case PhaseModel::isotropic:
+            return "isotropic";
+        case PhaseModel::schlick:
+            return "schlick";
+        case PhaseModel::henyey_greenstein:
+            return "henyey-greenstein";
+    }
+    return "isotropic";
+}
+
+const char* name(IndexFieldKind k) {
+    switch (k) {
+        case IndexFieldKind::uniform:
+            return "uniform";
+        case IndexFieldKind::luneburg:
+            return "luneburg";
+        case IndexFieldKind::maxwell:
+            return "maxwell";
+        case IndexFieldKind::grid:
+            return "grid";
+    }
+    return "uniform";
+}
+
+json phase_json(const Phase& p) {
+    return {{"model", name(p.model)}, {"g", p.g}};
+}
+
+}  // namespace
+
+SceneDocument parse_scene(const json& j, const Limits& limits) {
+    return Reader(limits, &j).document(j);
+}
+
+json to_json(const SceneDocument& d) {
+    json volume = {{"resolution", d.volume.resolution},
+                   {"smoothing", d.volume.smoothing},
+                   {"octree_epsilon", d.volume.octree_epsilon},
+                   {"margin", d.volume.margin}};
+    if (d.volume.bounds)
+        volume["bounds"] = {{"min", vec(d.volume.bounds->min)}, {"max", vec(d.volume.bounds->max)}};
+    return {
+        {"camera",
+         {{"position", vec(d.camera.position)},
+          {"target", vec(d.camera.target)},
+          {"up", vec(d.camera.up)},
+          {"fov_deg", d.camera.fov_deg}}},
+        {"image", {{"width", d.image.width}, {"height", d.image.height}, {"exposure", d.image.exposure}}},
+        {"light",
+         {{"type", name(d.light.type)},
+          {"position", vec(d.light.position)},
+          {"direction", vec(d.light.direction)},
+          {"color", vec(d.light.color)},
+          {"intensity", d.light.intensity},
+          {"cone_deg", d.light.cone_deg}}},
+        {"object",
+         {{"mesh", d.object.mesh},
+          {"position", vec(d.object.position)},
+          {"rotation_deg", vec(d.object.rotation_deg)},
+          {"scale", d.object.scale},
+          {"index_field", name(d.object.index_field)},
+          {"ior", d.object.ior},
+          {"maxwell_n0", d.object.maxwell_n0},
+          {"extinction", vec(d.object.extinction)},
+          {"scattering", vec(d.object.scattering)},
+          {"phase", phase_json(d.object.phase)},
+          {"grid", d.object.grid}}},
+        {"medium",
+         {{"ior", d.medium.ior},
+          {"extinction", vec(d.medium.extinction)},
+          {"scattering", vec(d.medium.scattering)},
+          {"phase", phase_json(d.medium.phase)}}},
+        {"volume", std::move(volume)},
+        {"photons", {{"count", d.photons.count}, {"seed", d.photons.seed}}},
+        {"floor",
+         {{"enabled", d.floor.enabled},
+          {"height", d.floor.height},
+          {"albedo", vec(d.floor.albedo)},
+          {"checker", d.floor.checker},
+          {"checker_size", d.floor.checker_size}}},
+    };
+}
+
+SceneDocument apply_merge_patch(const SceneDocument& current, const json& patch, const Limits& limits) {
+    json merged = to_json(current);
+    merged.merge_patch(patch);  // RFC 7396: objects merge recursively, null deletes, anything else replaces
+    return Reader(limits, &patch).document(merged);
+}
+
+}  // namespace refract::protocol

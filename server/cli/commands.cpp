@@ -1,0 +1,257 @@
+#include "cli/commands.h"
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/slices.h"
+#include "image/png.h"
+#include "mesh/mesh.h"
+#include "protocol/scene_document.h"
+#include "scene/renderer.h"
+#include "scene/scene_gpu.h"
+#include "vk/context.h"
+
+namespace refract::cli {
+namespace {
+
+using nlohmann::json;
+
+struct Loaded {
+    protocol::SceneDocument document;
+    std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;
+};
+
+Loaded load(const Arguments& args) {
+    if (args.positional.empty()) throw std::runtime_error("missing SCENE.json (use - for an empty scene {})");
+    Loaded loaded;
+    json j = json::object();
+    if (args.positional[0] != "-") {
+        std::ifstream in(args.positional[0]);
+        if (!in) throw std::runtime_error("cannot read " + args.positional[0]);
+        try {
+            j = json::parse(in);
+        } catch (const json::parse_error& e) {
+            throw std::runtime_error(args.positional[0] + ": not valid JSON: " + e.what());
+        }
+    }
+    loaded.document = protocol::parse_scene(j);
+    for (const auto& [name, file] : args.meshes)
+        loaded.meshes[name] = std::make_shared<mesh::Mesh>(mesh::load_obj_file(file));
+    return loaded;
+}
+
+// The object's mesh in world space, resolved as the renderer does (procedural lenses fill a sphere).
+mesh::Mesh world_mesh(const Loaded& loaded) {
+    const auto& o = loaded.document.object;
+    mesh::Mesh base;
+    if (o.index_field == protocol::IndexFieldKind::luneburg || o.index_field == protocol::IndexFieldKind::maxwell ||
+        o.mesh == "sphere")
+        base = mesh::make_sphere(5);
+    else if (o.mesh == "cube") base = mesh::make_cube();
+    else if (o.mesh == "torus") base = mesh::make_torus();
+    else if (o.mesh.rfind("upload:", 0) == 0) {
+        auto it = loaded.meshes.find(o.mesh.substr(7));
+        if (it == loaded.meshes.end()) throw std::runtime_error("scene names " + o.mesh + ": pass --mesh " + o.mesh.substr(7) + "=FILE.obj");
+        base = *it->second;
+    } else {
+        throw std::runtime_error("unknown mesh " + o.mesh);
+    }
+    auto f = [](const protocol::Vec3& v) { return glm::vec3(static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])); };
+    return mesh::transformed(base, static_cast<float>(o.scale), f(o.rotation_deg), f(o.position));
+}
+
+std::filesystem::path output_dir(const Arguments& args) {
+    if (args.out.empty()) throw std::runtime_error("missing --out DIR");
+    std::filesystem::create_directories(args.out);
+    return args.out;
+}
+
+json timings_json(const std::vector<std::pair<std::string, double>>& gpu_ms) {
+    json t = json::object();
+    for (const auto& [name, ms] : gpu_ms) t[name] = ms;
+    return t;
+}
+
+json grid_json(const scene::GridGeometry& g) {
+    const glm::vec3 hi = g.max_corner();
+    return {{"dims", {g.dims.x, g.dims.y, g.dims.z}},
+            {"voxel_size", g.voxel_size},
+            {"bounds", {{"min", {g.origin.x, g.origin.y, g.origin.z}}, {"max", {hi.x, hi.y, hi.z}}}}};
+}
+
+void write_json(const std::filesystem::path& path, const json& j) {
+    std::ofstream out(path);
+    out << j.dump(2) << "\n";
+    if (!out) throw std::runtime_error("cannot write " + path.string());
+}
+
+vk::Context make_context_for(const Arguments& args) {
+    vk::ContextOptions options;
+    options.device_name = args.device;
+    return vk::Context(vk::options_from_environment(options));
+}
+
+void write_index_slices(const std::filesystem::path& dir, const scene::SceneGpu& gpu) {
+    const auto field = gpu.read_index_field();
+    std::vector<float> n(field.size());
+    for (size_t i = 0; i < n.size(); ++i) n[i] = field[i].x;
+    const auto [lo, hi] = std::minmax_element(n.begin(), n.end());
+    write_slice_png((dir / "index_xy.png").string(), n, gpu.grid().dims, SliceAxis::xy, *lo, *hi);
+    write_slice_png((dir / "index_xz.png").string(), n, gpu.grid().dims, SliceAxis::xz, *lo, *hi);
+    const auto levels = gpu.read_levels();
+    std::vector<float> l(levels.begin(), levels.end());
+    write_slice_png((dir / "octree_levels_xy.png").string(), l, gpu.grid().dims, SliceAxis::xy, 0.0f, 5.0f);
+}
+
+}  // namespace
+
+Arguments parse_arguments(const std::vector<std::string>& args) {
+    Arguments out;
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        auto value = [&]() -> std::string {
+            if (i + 1 >= args.size()) throw std::runtime_error(a + " needs a value");
+            return args[++i];
+        };
+        if (a == "--out" || a == "-o") out.out = value();
+        else if (a == "--hdr") out.hdr = value();
+        else if (a == "--stats") out.stats = value();
+        else if (a == "--device") out.device = value();
+        else if (a == "--scene") out.scene_file = value();
+        else if (a == "--suite") out.suite = value();
+        else if (a == "--runs") out.runs = std::stoi(value());
+        else if (a == "--json") out.json = true;
+        else if (a == "--mesh") {
+            const std::string spec = value();
+            const auto eq = spec.find('=');
+            if (eq == std::string::npos || eq == 0) throw std::runtime_error("--mesh takes NAME=FILE.obj");
+            out.meshes.emplace_back(spec.substr(0, eq), spec.substr(eq + 1));
+        } else if (!a.empty() && a[0] == '-' && a != "-") throw std::runtime_error("unknown option " + a);
+        else out.positional.push_back(a);
+    }
+    return out;
+}
+
+int devices_command() {
+    const auto devices = vk::list_devices();
+    if (devices.empty()) {
+        std::cout << "no Vulkan devices found (install mesa-vulkan-drivers for lavapipe)\n";
+        return 1;
+    }
+    for (const auto& d : devices) {
+        std::cout << d.index << ": " << d.name << " [" << d.type << "] driver " << d.driver_name << " ("
+                  << d.driver_info << "), Vulkan " << d.api_version << ", " << d.device_local_bytes / (1024 * 1024)
+                  << " MiB device-local: " << (d.suitable ? "usable" : "NOT usable");
+        for (const auto& m : d.missing) std::cout << "\n     missing: " << m;
+        std::cout << "\n";
+    }
+    return 0;
+}
+
+int voxelize_command(const Arguments& args) {
+    const Loaded loaded = load(args);
+    const auto dir = output_dir(args);
+    vk::Context context = make_context_for(args);
+    scene::PassKit kit(context);
+    scene::SceneGpu gpu(kit);
+    const mesh::Mesh world = world_mesh(loaded);
+    scene::RunOptions options;
+    options.limit = scene::kVoxelize | scene::kIndexField | scene::kOctree;
+    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world, nullptr, options);
+    write_index_slices(dir, gpu);
+    const auto coverage = gpu.read_coverage();
+    double filled = 0.0;
+    for (float c : coverage) filled += static_cast<double>(c);
+    const double h = gpu.grid().voxel_size;
+    const auto report = mesh::inspect(world);
+    json summary = {{"device", context.info().name},
+                    {"resolution", loaded.document.volume.resolution},
+                    {"grid", grid_json(gpu.grid())},
+                    {"filled_volume_m3", filled * h * h * h},
+                    {"mesh", {{"triangles", report.triangles}, {"boundary_edges", report.boundary_edges},
+                              {"non_manifold_edges", report.non_manifold_edges}, {"watertight", report.watertight()}}},
+                    {"gpu_ms", timings_json(stats.gpu_ms)}};
+    write_json(dir / "summary.json", summary);
+    std::cout << summary.dump(2) << "\n";
+    return 0;
+}
+
+int trace_command(const Arguments& args) {
+    const Loaded loaded = load(args);
+    const auto dir = output_dir(args);
+    vk::Context context = make_context_for(args);
+    scene::PassKit kit(context);
+    scene::SceneGpu gpu(kit);
+    scene::RunOptions options;
+    options.limit = scene::kAllPasses & ~scene::kView;
+    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_mesh(loaded), nullptr, options);
+    write_index_slices(dir, gpu);
+    const auto radiance = gpu.read_radiance();
+    std::vector<float> fluence(radiance.size());
+    for (size_t i = 0; i < fluence.size(); ++i) fluence[i] = (radiance[i].r + radiance[i].g + radiance[i].b) / 3.0f;
+    std::vector<float> sorted = fluence;
+    std::sort(sorted.begin(), sorted.end());
+    const float p999 = sorted[static_cast<size_t>(0.999 * static_cast<double>(sorted.size() - 1))];
+    // Log scale: three decades below the 99.9th percentile.
+    std::vector<float> log_fluence(fluence.size());
+    for (size_t i = 0; i < fluence.size(); ++i)
+        log_fluence[i] = std::log10(std::max(fluence[i], p999 * 1e-3f) / std::max(p999, 1e-30f));
+    write_slice_png((dir / "radiance_xy.png").string(), log_fluence, gpu.grid().dims, SliceAxis::xy, -3.0f, 0.0f);
+    write_slice_png((dir / "radiance_xz.png").string(), log_fluence, gpu.grid().dims, SliceAxis::xz, -3.0f, 0.0f);
+    const auto floor = gpu.read_floor_map();
+    float floor_peak = 0.0f;
+    for (const auto& v : floor) floor_peak = std::max(floor_peak, (v.r + v.g + v.b) / 3.0f);
+    write_map_png((dir / "floor_caustics.png").string(), floor, gpu.floor_map_side(), gpu.floor_map_side(), floor_peak);
+    json summary = {{"device", context.info().name},
+                    {"grid", grid_json(gpu.grid())},
+                    {"photons_emitted", loaded.document.photons.count},
+                    {"photons_traced", stats.photons_entered},
+                    {"mean_steps_per_photon", stats.photons_entered ? static_cast<double>(stats.photon_steps) /
+                                                                          static_cast<double>(stats.photons_entered) : 0.0},
+                    {"floor_hits", stats.floor_hits},
+                    {"peak_fluence_w_m2", sorted.back()},
+                    {"gpu_ms", timings_json(stats.gpu_ms)}};
+    write_json(dir / "summary.json", summary);
+    std::cout << summary.dump(2) << "\n";
+    return 0;
+}
+
+int render_command(const Arguments& args) {
+    const Loaded loaded = load(args);
+    if (args.out.empty()) throw std::runtime_error("missing -o frame.png");
+    vk::Context context = make_context_for(args);
+    scene::PassKit kit(context);
+    scene::SceneGpu gpu(kit);
+    const auto host_start = std::chrono::steady_clock::now();
+    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_mesh(loaded), nullptr);
+    const auto encode_start = std::chrono::steady_clock::now();
+    const auto png = image::encode_png(gpu.read_ldr(), gpu.width(), gpu.height());
+    const auto end = std::chrono::steady_clock::now();
+    image::write_file(args.out, png);
+    if (!args.hdr.empty()) {
+        const auto hdr = gpu.read_hdr();
+        image::write_pfm(args.hdr, std::span<const float>(&hdr[0].x, hdr.size() * 4), gpu.width(), gpu.height());
+    }
+    json summary = {{"device", context.info().name},
+                    {"width", gpu.width()},
+                    {"height", gpu.height()},
+                    {"photons_traced", stats.photons_entered},
+                    {"mean_steps_per_photon", stats.photons_entered ? static_cast<double>(stats.photon_steps) /
+                                                                          static_cast<double>(stats.photons_entered) : 0.0},
+                    {"gpu_ms", timings_json(stats.gpu_ms)},
+                    {"encode_ms", std::chrono::duration<double, std::milli>(end - encode_start).count()},
+                    {"host_ms", std::chrono::duration<double, std::milli>(end - host_start).count()}};
+    if (!args.stats.empty()) write_json(args.stats, summary);
+    std::cout << summary.dump(2) << "\n";
+    return 0;
+}
+
+}  // namespace refract::cli

@@ -1,0 +1,34 @@
+// Pass 3 (octree): min/max pyramid of n and the per-voxel leaf level (the paper's data-parallel octree),
+// so photons and eye rays can step to the exit of the leaf cube they are in.
+#pragma once
+
+#include <array>
+
+#include "vk/commands.h"
+#include "vk/pipeline.h"
+
+namespace refract::passes {
+
+struct OctreeLayout {
+    uint32_t max_level = 0;
+    std::array<uint32_t, 6> offsets{};  // first node of each level in the pyramid buffer
+    uint64_t node_count = 0;            // all levels
+};
+
+// Levels 0..max_level for a grid of `dims`; max_level = min(5, floor(log2(longest side)) - 1).
+OctreeLayout octree_layout(vk::Extent3 dims);
+
+class OctreePass {
+public:
+    explicit OctreePass(vk::Context& context);
+
+    // Reads n from `index_field`; writes the pyramid (vec2 per node, octree_layout(dims).node_count of
+    // them) and `levels` (uint per voxel).
+    void record(vk::CommandRecorder& recorder, const vk::Image3D& index_field, float epsilon,
+                const vk::Buffer& pyramid, const vk::Buffer& levels) const;
+
+private:
+    vk::ComputePipeline pipeline_;
+};
+
+}  // namespace refract::passes

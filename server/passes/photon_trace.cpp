@@ -1,0 +1,68 @@
+#include "passes/photon_trace.h"
+
+#include <algorithm>
+
+#include "photon_trace_spv.h"
+#include "transport.h"
+
+namespace refract::passes {
+
+PhotonAccumulators make_photon_accumulators(vk::Context& context, uint64_t voxels, uint32_t floor_texels,
+                                            uint32_t exit_count) {
+    const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    PhotonAccumulators accum;
+    const char* names[6] = {"radiance sum red", "radiance sum green", "radiance sum blue",
+                            "direction sum x", "direction sum y", "direction sum z"};
+    for (size_t i = 0; i < 6; ++i)
+        accum.voxel[i] = vk::Buffer(context, voxels * sizeof(uint32_t), usage, vk::MemoryUse::device, names[i]);
+    accum.floor = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * 3 * sizeof(uint32_t), usage,
+                             vk::MemoryUse::device, "floor flux sum");
+    accum.stats = vk::Buffer(context, sizeof(shaders::PhotonStats), usage, vk::MemoryUse::readback, "photon stats");
+    accum.exits = vk::Buffer(context, uint64_t{std::max(exit_count, 1u)} * sizeof(shaders::PhotonExit), usage,
+                             vk::MemoryUse::readback, "photon exits");
+    return accum;
+}
+
+PhotonTracePass::PhotonTracePass(vk::Context& context)
+    : pipeline_(context, photon_trace_spv,
+                {{TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+                 {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+                 {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_RED, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_GREEN, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_BLUE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_DIR_X, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_DIR_Y, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_DIR_Z, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_PHOTON_EXITS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
+                0, "photon trace") {}
+
+void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
+                             const PhotonAccumulators& accum, uint32_t photon_count) const {
+    for (const auto& b : accum.voxel) recorder.fill(b, 0);
+    recorder.fill(accum.floor, 0);
+    recorder.fill(accum.stats, 0);
+    recorder.fill(accum.exits, 0);
+    recorder.transfer_to_compute_barrier();
+    const auto groups = vk::linear_groups(photon_count, TRANSPORT_GROUP_SIZE);
+    pipeline_.dispatch(recorder.get(),
+                       {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, in.params),
+                        vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
+                        vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RED, accum.voxel[0]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_GREEN, accum.voxel[1]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_BLUE, accum.voxel[2]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_DIR_X, accum.voxel[3]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_DIR_Y, accum.voxel[4]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_DIR_Z, accum.voxel[5]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits)},
+                       nullptr, 0, groups.x, groups.y);
+}
+
+}  // namespace refract::passes

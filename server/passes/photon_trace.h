@@ -1,0 +1,43 @@
+// Passes 4-5 (photon generation + tracing): fills the radiance grid's fixed-point sums and the floor
+// caustic map from one dispatch, one thread per photon.
+#pragma once
+
+#include <array>
+
+#include "vk/commands.h"
+#include "vk/pipeline.h"
+
+namespace refract::passes {
+
+// Everything the photon pass writes and the resolve pass reads.
+struct PhotonAccumulators {
+    std::array<vk::Buffer, 6> voxel;  // red, green, blue, direction x, y, z
+    vk::Buffer floor;                 // 3 uints per floor texel
+    vk::Buffer stats;                 // PhotonStats (host-readable)
+    vk::Buffer exits;                 // PhotonExit per photon when recorded (tests), else one entry
+};
+
+PhotonAccumulators make_photon_accumulators(vk::Context& context, uint64_t voxels, uint32_t floor_texels,
+                                            uint32_t exit_count);
+
+// Inputs shared by the photon and viewing passes.
+struct TransportInputs {
+    const vk::Buffer& params;
+    const vk::Image3D& index_field;
+    const vk::Image3D& coverage;
+    const vk::Buffer& levels;
+    VkSampler sampler;
+};
+
+class PhotonTracePass {
+public:
+    explicit PhotonTracePass(vk::Context& context);
+    // Clears the accumulators and traces `photon_count` photons.
+    void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const PhotonAccumulators& accum,
+                uint32_t photon_count) const;
+
+private:
+    vk::ComputePipeline pipeline_;
+};
+
+}  // namespace refract::passes

@@ -1,0 +1,43 @@
+#include "passes/radiance_resolve.h"
+
+#include "radiance_resolve_spv.h"
+#include "transport.h"
+
+namespace refract::passes {
+
+RadianceResolvePass::RadianceResolvePass(vk::Context& context)
+    : pipeline_(context, radiance_resolve_spv,
+                {{TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_RED, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_GREEN, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_BLUE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_DIR_X, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_DIR_Y, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_DIR_Z, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+                 {TRANSPORT_BINDING_DIRECTION, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+                 {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE}},
+                0, "radiance resolve") {}
+
+void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer& params,
+                                 const PhotonAccumulators& accum, const vk::Image3D& radiance,
+                                 const vk::Image3D& direction, const vk::Image3D& floor_map) const {
+    const uint64_t items = radiance.extent().count() + uint64_t{floor_map.extent().x} * floor_map.extent().y;
+    const auto groups = vk::linear_groups(items, TRANSPORT_GROUP_SIZE);
+    pipeline_.dispatch(recorder.get(),
+                       {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RED, accum.voxel[0]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_GREEN, accum.voxel[1]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_BLUE, accum.voxel[2]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_DIR_X, accum.voxel[3]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_DIR_Y, accum.voxel[4]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_DIR_Z, accum.voxel[5]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
+                        vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
+                        vk::Binding::storage_image(TRANSPORT_BINDING_DIRECTION, direction),
+                        vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map)},
+                       nullptr, 0, groups.x, groups.y);
+}
+
+}  // namespace refract::passes

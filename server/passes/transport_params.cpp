@@ -1,0 +1,181 @@
+#include "passes/transport_params.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+
+namespace refract::passes {
+namespace {
+
+using protocol::LightType;
+using protocol::PhaseModel;
+
+glm::vec3 vec(const protocol::Vec3& v) {
+    return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])};
+}
+
+uint32_t phase_model(PhaseModel m) {
+    switch (m) {
+        case PhaseModel::isotropic: return PHASE_ISOTROPIC_ID;
+        case PhaseModel::schlick: return PHASE_SCHLICK_ID;
+        case PhaseModel::henyey_greenstein: return PHASE_HG_ID;
+    }
+    return PHASE_ISOTROPIC_ID;
+}
+
+std::array<glm::vec3, 8> corners(const scene::GridGeometry& grid) {
+    const glm::vec3 lo = grid.origin, hi = grid.max_corner();
+    std::array<glm::vec3, 8> c;
+    for (int i = 0; i < 8; ++i) c[static_cast<size_t>(i)] = glm::vec3(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
+    return c;
+}
+
+// Largest power of two not above x (x >= 1).
+float power_of_two_below(double x) { return static_cast<float>(std::exp2(std::floor(std::log2(std::max(x, 1.0))))); }
+
+}  // namespace
+
+uint32_t floor_map_texels(const scene::GridGeometry& grid) {
+    // The map spans up to 4 grid extents; about two voxels per texel keeps the photon noise down.
+    const float extent = static_cast<float>(std::max({grid.dims.x, grid.dims.y, grid.dims.z}));
+    return std::clamp(static_cast<uint32_t>(extent * 4.0f / 2.0f), 64u, 1024u);
+}
+
+shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
+                                               const scene::GridGeometry& grid, const TransportOptions& options) {
+    shaders::TransportParams p{};
+    p.grid_origin = glm::vec4(grid.origin, grid.voxel_size);
+    p.grid_dims = glm::uvec4(grid.dims.x, grid.dims.y, grid.dims.z, options.max_level);
+
+    const auto& medium = document.medium;
+    const auto& object = document.object;
+    p.medium_extinction = glm::vec4(vec(medium.extinction), static_cast<float>(medium.ior));
+    p.medium_scattering = glm::vec4(vec(medium.scattering), static_cast<float>(medium.phase.g));
+    p.object_extinction = glm::vec4(vec(object.extinction), static_cast<float>(object.ior));
+    p.object_scattering = glm::vec4(vec(object.scattering), static_cast<float>(object.phase.g));
+
+    // Light and its photon emitter.
+    const auto& light = document.light;
+    const glm::vec3 light_position = vec(light.position);
+    const glm::vec3 light_direction = glm::normalize(vec(light.direction));
+    const float cos_spot = std::cos(glm::radians(static_cast<float>(light.cone_deg)));
+    const glm::vec3 power = vec(light.color) * static_cast<float>(light.intensity);
+    uint32_t light_type = LIGHT_POINT;
+    if (light.type == LightType::spot) light_type = LIGHT_SPOT;
+    if (light.type == LightType::directional) light_type = LIGHT_DIRECTIONAL;
+    p.models = glm::uvec4(phase_model(medium.phase.model), phase_model(object.phase.model), light_type, CHANNEL_ALL);
+    p.light_position = glm::vec4(light_position, cos_spot);
+    p.light_direction = glm::vec4(light_direction, 0.0f);
+    p.light_power = glm::vec4(power, 0.0f);
+
+    const uint32_t photons = document.photons.count;
+    const glm::vec3 centre = 0.5f * (grid.origin + grid.max_corner());
+    const float bound_radius = 0.5f * glm::length(grid.max_corner() - grid.origin);
+    glm::vec3 flux(0.0f);
+    if (light_type == LIGHT_DIRECTIONAL) {
+        // A rectangle perpendicular to the light covering the grid's projection, just in front of it.
+        const glm::vec3 d = light_direction;
+        const glm::vec3 u = glm::normalize(std::abs(d.x) < 0.9f ? glm::cross(d, glm::vec3(1, 0, 0))
+                                                                 : glm::cross(d, glm::vec3(0, 1, 0)));
+        const glm::vec3 v = glm::cross(d, u);
+        glm::vec3 lo(1e30f), hi(-1e30f);
+        for (const auto& c : corners(grid)) {
+            const glm::vec3 s(glm::dot(c - centre, u), glm::dot(c - centre, v), glm::dot(c - centre, d));
+            lo = glm::min(lo, s);
+            hi = glm::max(hi, s);
+        }
+        const float before = lo.z - 0.01f * bound_radius;
+        p.emit_axis = glm::vec4(d, 1.0f);
+        p.emit_u = glm::vec4((hi.x - lo.x) * u, 0.0f);
+        p.emit_v = glm::vec4((hi.y - lo.y) * v, 0.0f);
+        p.emit_origin = glm::vec4(centre + lo.x * u + lo.y * v + before * d, 1.0f);
+        flux = power * (hi.x - lo.x) * (hi.y - lo.y) / static_cast<float>(photons);
+    } else {
+        // A cone from the light around the grid's bounding sphere (the whole sphere of directions when
+        // the light is inside it); a spot's own cone when that is the smaller, contained one.
+        const glm::vec3 to_centre = centre - light_position;
+        const float distance = glm::length(to_centre);
+        glm::vec3 axis(0.0f, -1.0f, 0.0f);
+        float cos_cone = -1.0f;
+        if (distance > bound_radius * 1.0001f) {
+            axis = to_centre / distance;
+            cos_cone = std::sqrt(1.0f - (bound_radius / distance) * (bound_radius / distance));
+        }
+        if (light_type == LIGHT_SPOT) {
+            const float spot_half = std::acos(cos_spot);
+            const float bound_half = std::acos(cos_cone);
+            const float between = std::acos(std::clamp(glm::dot(axis, light_direction), -1.0f, 1.0f));
+            if (between + spot_half <= bound_half) {
+                axis = light_direction;
+                cos_cone = cos_spot;
+            }
+        }
+        p.emit_axis = glm::vec4(axis, cos_cone);
+        p.emit_origin = glm::vec4(light_position, 1.0f);
+        const float solid_angle = 2.0f * std::numbers::pi_v<float> * (1.0f - cos_cone);
+        flux = power * solid_angle / static_cast<float>(photons);
+    }
+    const float reference = std::max({flux.r, flux.g, flux.b, 1e-30f});
+    p.photon_flux = glm::vec4(flux, reference);
+    const uint32_t max_steps = 4 * (grid.dims.x + grid.dims.y + grid.dims.z);
+    p.photon_info = glm::uvec4(photons, document.photons.seed, max_steps, options.fixed_step ? 1u : 0u);
+    // Fixed-point scales chosen so no voxel or texel sum can overflow 2^31 even if every photon
+    // deposited its full weight (a voxel crossing is at most sqrt(3) voxel lengths) into it.
+    const double n = static_cast<double>(photons);
+    p.stepping = glm::vec4(options.shell_step, 0.02f, power_of_two_below(2147483647.0 / (2.0 * n)),
+                           power_of_two_below(2147483647.0 / n));
+
+    // Floor and the caustic map's footprint: where the grid's shadow (and the grid itself) falls.
+    const auto& floor = document.floor;
+    const float floor_height = static_cast<float>(floor.height);
+    p.floor_plane = glm::vec4(floor_height, static_cast<float>(floor.checker_size), floor.enabled ? 1.0f : 0.0f,
+                              floor.checker ? 1.0f : 0.0f);
+    p.floor_albedo = glm::vec4(vec(floor.albedo), 0.0f);
+    const float grid_extent = glm::length(grid.max_corner() - grid.origin);
+    glm::vec2 lo(centre.x, centre.z), hi = lo;
+    for (const auto& c : corners(grid)) {
+        lo = glm::min(lo, glm::vec2(c.x, c.z));
+        hi = glm::max(hi, glm::vec2(c.x, c.z));
+        glm::vec3 hit;
+        bool lands = false;
+        if (light_type == LIGHT_DIRECTIONAL) {
+            if (light_direction.y < -1e-4f && c.y > floor_height) {
+                hit = c + light_direction * ((c.y - floor_height) / -light_direction.y);
+                lands = true;
+            }
+        } else if (light_position.y > c.y + 1e-4f && c.y > floor_height) {
+            hit = light_position + (c - light_position) * ((light_position.y - floor_height) / (light_position.y - c.y));
+            lands = true;
+        }
+        if (lands) {
+            lo = glm::min(lo, glm::vec2(hit.x, hit.z));
+            hi = glm::max(hi, glm::vec2(hit.x, hit.z));
+        }
+    }
+    const glm::vec2 centre_xz(centre.x, centre.z);
+    lo = glm::max(lo, centre_xz - 2.0f * grid_extent);
+    hi = glm::min(hi, centre_xz + 2.0f * grid_extent);
+    const float side = std::max(hi.x - lo.x, hi.y - lo.y) * 1.02f;
+    const glm::vec2 mid = 0.5f * (lo + hi);
+    p.floor_map = glm::vec4(mid.x - 0.5f * side, mid.y - 0.5f * side, side,
+                            static_cast<float>(floor_map_texels(grid)));
+
+    // Camera and image.
+    const auto& camera = document.camera;
+    const glm::vec3 eye = vec(camera.position);
+    const glm::vec3 forward = glm::normalize(vec(camera.target) - eye);
+    const glm::vec3 right = glm::normalize(glm::cross(forward, vec(camera.up)));
+    const glm::vec3 up = glm::cross(right, forward);
+    p.camera_position = glm::vec4(eye, std::tan(glm::radians(static_cast<float>(camera.fov_deg)) * 0.5f));
+    p.camera_forward = glm::vec4(forward, 0.0f);
+    p.camera_right = glm::vec4(right, 0.0f);
+    p.camera_up = glm::vec4(up, 0.0f);
+    p.image = glm::uvec4(document.image.width, document.image.height, 0u, 0u);
+    p.tone = glm::vec4(std::exp2(static_cast<float>(document.image.exposure)), options.view_step, 0.0f, 0.0f);
+    p.sky_zenith = glm::vec4(0.010f, 0.014f, 0.024f, 0.0f);
+    p.sky_horizon = glm::vec4(0.045f, 0.050f, 0.060f, 0.0f);
+    return p;
+}
+
+}  // namespace refract::passes

@@ -1,0 +1,26 @@
+// Fills the frame description shared by the photon, resolve and viewing passes from the scene
+// document: materials, the light and its photon emitter (a cone or a rectangle covering the grid),
+// fixed-point scales, the floor's caustic map footprint and the camera.
+#pragma once
+
+#include "protocol/scene_document.h"
+#include "scene/grid_geometry.h"
+#include "transport.h"
+#include "phase.h"
+
+namespace refract::passes {
+
+struct TransportOptions {
+    bool fixed_step = false;   // photons step one shell step everywhere (the unaccelerated reference)
+    float shell_step = 1.0f;   // voxels, where n varies (octree level 0)
+    float view_step = 1.0f;    // voxels, eye-ray step where the medium scatters
+    uint32_t max_level = 0;    // octree levels present
+};
+
+shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
+                                               const scene::GridGeometry& grid, const TransportOptions& options);
+
+// Texels per side of the floor caustic map for this grid.
+uint32_t floor_map_texels(const scene::GridGeometry& grid);
+
+}  // namespace refract::passes

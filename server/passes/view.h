@@ -1,0 +1,25 @@
+// Pass 6 (viewing pass): eye rays through the index field, single scattering from the radiance grid,
+// background, exposure and tone mapping -> linear HDR and sRGB8 pixels.
+#pragma once
+
+#include "passes/photon_trace.h"
+
+namespace refract::passes {
+
+struct ViewOutputs {
+    const vk::Buffer& hdr;  // vec4 per pixel
+    const vk::Buffer& ldr;  // RGBA8 per pixel
+};
+
+class ViewPass {
+public:
+    explicit ViewPass(vk::Context& context);
+    void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const vk::Image3D& radiance,
+                const vk::Image3D& direction, const vk::Image3D& floor_map, const ViewOutputs& outputs,
+                uint32_t width, uint32_t height) const;
+
+private:
+    vk::ComputePipeline pipeline_;
+};
+
+}  // namespace refract::passes

@@ -1,0 +1,137 @@
+#include "passes/voxelize.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "smooth_spv.h"
+#include "volume_build.h"
+#include "voxelize_spv.h"
+
+namespace refract::passes {
+
+using shaders::SmoothPush;
+using shaders::VoxelizePush;
+
+VoxelizePass::VoxelizePass(vk::Context& context)
+    : context_(context),
+      voxelize_(context, voxelize_spv,
+                {{VOXELIZE_BINDING_TRIANGLES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {VOXELIZE_BINDING_TILE_RANGES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {VOXELIZE_BINDING_TILE_ITEMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {VOXELIZE_BINDING_COVERAGE_X, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {VOXELIZE_BINDING_COVERAGE_Y, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {VOXELIZE_BINDING_COVERAGE_Z, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {VOXELIZE_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
+                sizeof(VoxelizePush), "voxelize"),
+      smooth_(context, smooth_spv,
+              {{SMOOTH_BINDING_SOURCE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+               {SMOOTH_BINDING_TARGET, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
+              sizeof(SmoothPush), "smooth") {}
+
+VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::Mesh& mesh_world,
+                                     const scene::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
+                                     const vk::Buffer& coverage) const {
+    if (mesh_world.triangles.empty()) throw vk::Error("voxelize: the mesh has no triangles");
+    const std::array<uint32_t, 3> dims{grid.dims.x, grid.dims.y, grid.dims.z};
+    const VkDeviceSize voxel_bytes = grid.dims.count() * sizeof(float);
+    const auto storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+    VoxelizeUploads uploads;
+
+    // Triangles in voxel coordinates, 3 x vec4 each.
+    const size_t triangle_count = mesh_world.triangles.size();
+    uploads.triangles = vk::Buffer(context_, triangle_count * 3 * sizeof(glm::vec4), storage,
+                                   vk::MemoryUse::upload, "voxelize triangles");
+    auto vertices = uploads.triangles.mapped_span<glm::vec4>();
+    std::vector<glm::vec3> voxel_positions(mesh_world.positions.size());
+    for (size_t i = 0; i < voxel_positions.size(); ++i) voxel_positions[i] = grid.to_voxel(mesh_world.positions[i]);
+    for (size_t t = 0; t < triangle_count; ++t)
+        for (int k = 0; k < 3; ++k) vertices[3 * t + static_cast<size_t>(k)] = glm::vec4(voxel_positions[mesh_world.triangles[t][k]], 1.0f);
+
+    // Bin triangles into tiles of kTileSize x kTileSize columns on each axis's column plane.
+    for (uint32_t axis = 0; axis < 3; ++axis) {
+        const int ua = static_cast<int>((axis + 1) % 3), va = static_cast<int>((axis + 2) % 3);
+        const uint32_t dim_u = dims[static_cast<size_t>(ua)], dim_v = dims[static_cast<size_t>(va)];
+        const uint32_t tiles_u = (dim_u + kTileSize - 1) / kTileSize;
+        const uint32_t tiles_v = (dim_v + kTileSize - 1) / kTileSize;
+        std::vector<std::vector<uint32_t>> bins(size_t{tiles_u} * tiles_v);
+        for (size_t t = 0; t < triangle_count; ++t) {
+            glm::vec3 lo(1e30f), hi(-1e30f);
+            for (int k = 0; k < 3; ++k) {
+                lo = glm::min(lo, voxel_positions[mesh_world.triangles[t][k]]);
+                hi = glm::max(hi, voxel_positions[mesh_world.triangles[t][k]]);
+            }
+            auto tile_of = [&](float x, uint32_t count) {
+                return static_cast<uint32_t>(std::clamp(std::floor(x / static_cast<float>(kTileSize)), 0.0f,
+                                                        static_cast<float>(count - 1)));
+            };
+            if (hi[ua] < 0.0f || hi[va] < 0.0f || lo[ua] > static_cast<float>(dim_u) ||
+                lo[va] > static_cast<float>(dim_v))
+                continue;
+            for (uint32_t tv = tile_of(lo[va], tiles_v); tv <= tile_of(hi[va], tiles_v); ++tv)
+                for (uint32_t tu = tile_of(lo[ua], tiles_u); tu <= tile_of(hi[ua], tiles_u); ++tu)
+                    bins[size_t{tv} * tiles_u + tu].push_back(static_cast<uint32_t>(t));
+        }
+        std::vector<glm::uvec2> ranges(bins.size());
+        std::vector<uint32_t> items;
+        for (size_t b = 0; b < bins.size(); ++b) {
+            ranges[b] = glm::uvec2(static_cast<uint32_t>(items.size()), static_cast<uint32_t>(bins[b].size()));
+            items.insert(items.end(), bins[b].begin(), bins[b].end());
+        }
+        if (items.empty()) items.push_back(0);
+        uploads.tile_ranges[axis] = vk::Buffer(context_, ranges.size() * sizeof(glm::uvec2), storage,
+                                               vk::MemoryUse::upload, "voxelize tile ranges");
+        uploads.tile_ranges[axis].write(ranges.data(), ranges.size() * sizeof(glm::uvec2));
+        uploads.tile_items[axis] = vk::Buffer(context_, items.size() * sizeof(uint32_t), storage,
+                                              vk::MemoryUse::upload, "voxelize tile items");
+        uploads.tile_items[axis].write(items.data(), items.size() * sizeof(uint32_t));
+        uploads.axis_coverage[axis] = vk::Buffer(context_, voxel_bytes, storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                                 vk::MemoryUse::device, "axis coverage");
+    }
+
+    const VkCommandBuffer cmd = recorder.get();
+    for (const auto& b : uploads.axis_coverage) recorder.fill(b, 0);
+    recorder.transfer_to_compute_barrier();
+    // With no smoothing the combined coverage is the result; otherwise it goes to scratch first.
+    const bool smoothing = sigma >= 0.05f;
+    const vk::Buffer& combined = smoothing ? scratch : coverage;
+    auto bindings = [&](uint32_t axis) {
+        return std::array<vk::Binding, 7>{
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_TRIANGLES, uploads.triangles),
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_TILE_RANGES, uploads.tile_ranges[axis]),
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_TILE_ITEMS, uploads.tile_items[axis]),
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE_X, uploads.axis_coverage[0]),
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE_Y, uploads.axis_coverage[1]),
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE_Z, uploads.axis_coverage[2]),
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE, combined)};
+    };
+    for (uint32_t axis = 0; axis < 3; ++axis) {
+        const uint32_t ua = (axis + 1) % 3, va = (axis + 2) % 3;
+        VoxelizePush push{glm::uvec4(dims[0], dims[1], dims[2], VOXELIZE_MODE_COLUMNS), axis, kTileSize,
+                          (dims[ua] + kTileSize - 1) / kTileSize, kSubsamples};
+        const auto groups = vk::linear_groups(uint64_t{dims[ua]} * dims[va], VOLUME_GROUP_SIZE);
+        voxelize_.dispatch(cmd, std::span<const vk::Binding>(bindings(axis)), push, groups.x, groups.y);
+    }
+    recorder.compute_barrier();
+    const auto voxel_groups = vk::linear_groups(grid.dims.count(), VOLUME_GROUP_SIZE);
+    VoxelizePush combine{glm::uvec4(dims[0], dims[1], dims[2], VOXELIZE_MODE_COMBINE), 0, kTileSize, 1, kSubsamples};
+    voxelize_.dispatch(cmd, std::span<const vk::Binding>(bindings(0)), combine, voxel_groups.x, voxel_groups.y);
+    recorder.compute_barrier();
+    if (smoothing) {
+        // x: scratch -> coverage, y: coverage -> scratch, z: scratch -> coverage.
+        const vk::Buffer* source = &scratch;
+        const vk::Buffer* target = &coverage;
+        const int radius = static_cast<int>(std::ceil(3.0f * sigma));
+        for (uint32_t axis = 0; axis < 3; ++axis) {
+            SmoothPush push{glm::uvec4(dims[0], dims[1], dims[2], axis), sigma, radius, 0, 0};
+            smooth_.dispatch(cmd,
+                             {vk::Binding::storage_buffer(SMOOTH_BINDING_SOURCE, *source),
+                              vk::Binding::storage_buffer(SMOOTH_BINDING_TARGET, *target)},
+                             push, voxel_groups.x, voxel_groups.y);
+            recorder.compute_barrier();
+            std::swap(source, target);
+        }
+    }
+    return uploads;
+}
+
+}  // namespace refract::passes

@@ -1,0 +1,42 @@
+// Pass 1 (voxelize + smooth): a world-space triangle mesh -> fractional coverage per voxel, Gaussian
+// smoothed. Triangles are binned on the host into tiles of voxel columns per axis; the GPU casts S x S
+// rays per column along each axis (see shaders/voxelize.comp) and smooths separably (smooth.comp).
+#pragma once
+
+#include <array>
+
+#include "mesh/mesh.h"
+#include "scene/grid_geometry.h"
+#include "vk/commands.h"
+#include "vk/gpu_timer.h"
+#include "vk/pipeline.h"
+
+namespace refract::passes {
+
+// Buffers the voxelization reads while it runs; kept alive by the caller until the submission completes.
+struct VoxelizeUploads {
+    vk::Buffer triangles;
+    std::array<vk::Buffer, 3> tile_ranges, tile_items;
+    std::array<vk::Buffer, 3> axis_coverage;
+};
+
+class VoxelizePass {
+public:
+    explicit VoxelizePass(vk::Context& context);
+
+    // Records voxelization of `mesh_world` into `coverage` (float per voxel; `scratch` is the same size),
+    // smoothing with `sigma` voxels. Returns the uploads the recorded commands use.
+    VoxelizeUploads record(vk::CommandRecorder& recorder, const mesh::Mesh& mesh_world,
+                           const scene::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
+                           const vk::Buffer& coverage) const;
+
+    static constexpr uint32_t kSubsamples = 4;  // 4 x 4 rays per voxel column and axis
+    static constexpr uint32_t kTileSize = 4;
+
+private:
+    vk::Context& context_;
+    vk::ComputePipeline voxelize_;
+    vk::ComputePipeline smooth_;
+};
+
+}  // namespace refract::passes

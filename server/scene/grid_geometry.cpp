@@ -1,0 +1,41 @@
+#include "scene/grid_geometry.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "mesh/mesh.h"
+
+namespace refract::scene {
+
+GridGeometry fit_grid(glm::vec3 lo, glm::vec3 hi, uint32_t resolution) {
+    const glm::vec3 extent = hi - lo;
+    const float longest = std::max({extent.x, extent.y, extent.z});
+    GridGeometry grid;
+    grid.voxel_size = longest / static_cast<float>(resolution);
+    auto count = [&](float e) { return std::max(1u, static_cast<uint32_t>(std::ceil(e / grid.voxel_size - 1e-4f))); };
+    grid.dims = {count(extent.x), count(extent.y), count(extent.z)};
+    // Centre the (slightly larger) voxel box on the requested box.
+    const glm::vec3 covered = grid.voxel_size * glm::vec3(static_cast<float>(grid.dims.x),
+                                                          static_cast<float>(grid.dims.y),
+                                                          static_cast<float>(grid.dims.z));
+    grid.origin = lo - 0.5f * (covered - extent);
+    return grid;
+}
+
+GridGeometry grid_for(const protocol::SceneDocument& document, const mesh::Mesh& object_world) {
+    const auto& volume = document.volume;
+    if (volume.bounds) {
+        const auto& b = *volume.bounds;
+        return fit_grid(glm::vec3(b.min[0], b.min[1], b.min[2]), glm::vec3(b.max[0], b.max[1], b.max[2]),
+                        volume.resolution);
+    }
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const auto& p : object_world.positions) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    const float margin = static_cast<float>(volume.margin);
+    return fit_grid(lo - margin, hi + margin, volume.resolution);
+}
+
+}  // namespace refract::scene

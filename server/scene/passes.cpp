@@ -1,0 +1,46 @@
+#include "scene/passes.h"
+
+namespace refract::scene {
+
+std::string pass_names(PassSet passes) {
+    std::string out;
+    const std::pair<Pass, const char*> names[] = {{kVoxelize, "voxelize"}, {kIndexField, "index_field"},
+                                                  {kOctree, "octree"}, {kPhotons, "photons"}, {kView, "view"}};
+    for (const auto& [pass, name] : names) {
+        if (!(passes & pass)) continue;
+        if (!out.empty()) out += ",";
+        out += name;
+    }
+    return out;
+}
+
+PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol::SceneDocument& after) {
+    PassSet stale = 0;
+    const auto& a = before.object;
+    const auto& b = after.object;
+    // Geometry and the grid: everything.
+    if (a.mesh != b.mesh || a.position != b.position || a.rotation_deg != b.rotation_deg || a.scale != b.scale ||
+        !(before.volume.resolution == after.volume.resolution) || before.volume.smoothing != after.volume.smoothing ||
+        !(before.volume.bounds == after.volume.bounds) || before.volume.margin != after.volume.margin ||
+        (a.index_field == protocol::IndexFieldKind::grid) != (b.index_field == protocol::IndexFieldKind::grid) ||
+        a.grid != b.grid)
+        stale |= kAllPasses;
+    // The index itself: index field onwards (coverage is reused).
+    if (a.index_field != b.index_field || a.ior != b.ior || a.maxwell_n0 != b.maxwell_n0 ||
+        before.medium.ior != after.medium.ior)
+        stale |= kIndexField | kOctree | kPhotons | kView;
+    if (before.volume.octree_epsilon != after.volume.octree_epsilon) stale |= kOctree | kPhotons | kView;
+    // What photons see: the light, their number, extinction (Beer-Lambert) and where the floor stops them.
+    if (!(before.light == after.light) || !(before.photons == after.photons) || a.extinction != b.extinction ||
+        before.medium.extinction != after.medium.extinction || before.floor.enabled != after.floor.enabled ||
+        before.floor.height != after.floor.height)
+        stale |= kPhotons | kView;
+    // Only the viewing pass reads scattering, phase functions, the floor's look, the camera and the image.
+    if (!(before.camera == after.camera) || !(before.image == after.image) || a.scattering != b.scattering ||
+        !(a.phase == b.phase) || before.medium.scattering != after.medium.scattering ||
+        !(before.medium.phase == after.medium.phase) || !(before.floor == after.floor))
+        stale |= kView;
+    return stale;
+}
+
+}  // namespace refract::scene

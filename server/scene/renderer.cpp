@@ -1,0 +1,192 @@
+#include "scene/renderer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <list>
+#include <map>
+#include <mutex>
+
+#include "image/png.h"
+#include "mesh/mesh.h"
+#include "scene/scene_gpu.h"
+#include "vk/context.h"
+
+namespace refract::scene {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point start) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+glm::vec3 vec(const protocol::Vec3& v) {
+    return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])};
+}
+
+// `interactive` frames trade resolution and photons for latency; the volume stays, so switching back
+// to `still` reruns photons and view only.
+protocol::SceneDocument for_quality(protocol::SceneDocument document, Quality quality) {
+    if (quality == Quality::interactive) {
+        document.image.width = std::max(32u, document.image.width / 2);
+        document.image.height = std::max(32u, document.image.height / 2);
+        document.photons.count = std::max(4096u, document.photons.count / 4);
+    }
+    return document;
+}
+
+}  // namespace
+
+struct Renderer::Impl {
+    struct Resident {
+        std::unique_ptr<SceneGpu> gpu;
+        protocol::SceneDocument document;  // as last rendered
+        std::shared_ptr<const mesh::Mesh> mesh;
+        std::shared_ptr<const IndexGrid> grid;
+        uint64_t last_used = 0;
+    };
+
+    Impl(vk::Context& ctx, RendererOptions opts) : context(ctx), options(opts), kit(ctx) {}
+
+    std::shared_ptr<const mesh::Mesh> builtin(const std::string& name) {
+        auto it = builtins.find(name);
+        if (it != builtins.end()) return it->second;
+        std::shared_ptr<const mesh::Mesh> m;
+        if (name == "sphere") m = std::make_shared<mesh::Mesh>(mesh::make_sphere(5));
+        else if (name == "cube") m = std::make_shared<mesh::Mesh>(mesh::make_cube());
+        else if (name == "torus") m = std::make_shared<mesh::Mesh>(mesh::make_torus());
+        else return nullptr;
+        builtins.emplace(name, m);
+        return m;
+    }
+
+    void evict_least_recent(const std::string& keep) {
+        while (scenes.size() > std::max<size_t>(options.max_resident_scenes, 1)) {
+            auto oldest = scenes.end();
+            for (auto it = scenes.begin(); it != scenes.end(); ++it)
+                if (it->first != keep && (oldest == scenes.end() || it->second.last_used < oldest->second.last_used))
+                    oldest = it;
+            if (oldest == scenes.end()) return;
+            scenes.erase(oldest);
+        }
+    }
+
+    vk::Context& context;
+    RendererOptions options;
+    PassKit kit;
+    std::map<std::string, std::shared_ptr<const mesh::Mesh>> builtins;
+    std::map<std::string, Resident> scenes;
+    uint64_t clock = 0;
+    mutable std::mutex mutex;  // guards `scenes` for the read-only queries from other threads
+};
+
+Renderer::Renderer(vk::Context& context, RendererOptions options)
+    : impl_(std::make_unique<Impl>(context, options)) {}
+
+Renderer::~Renderer() = default;
+
+FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneDocument& requested,
+                             const Assets& assets, Quality quality) {
+    const protocol::SceneDocument document = for_quality(requested, quality);
+    const auto& object = document.object;
+
+    // Resolve assets first: an unknown name must not touch resident state.
+    std::shared_ptr<const mesh::Mesh> mesh;
+    std::shared_ptr<const IndexGrid> grid;
+    const bool procedural_sphere = object.index_field == protocol::IndexFieldKind::luneburg ||
+                                   object.index_field == protocol::IndexFieldKind::maxwell;
+    if (object.index_field == protocol::IndexFieldKind::grid) {
+        grid = assets.grid ? assets.grid(object.grid) : nullptr;
+        if (!grid) throw RenderError("index field grid '" + object.grid + "' is not loaded");
+        const double h = (grid->bounds.max[0] - grid->bounds.min[0]) / grid->nx;
+        for (int axis = 1; axis < 3; ++axis) {
+            const uint32_t n = axis == 1 ? grid->ny : grid->nz;
+            const double ha = (grid->bounds.max[static_cast<size_t>(axis)] - grid->bounds.min[static_cast<size_t>(axis)]) / n;
+            if (std::abs(ha - h) > 0.01 * h) throw RenderError("index field grid voxels must be cubic (within 1%)");
+        }
+    } else if (procedural_sphere) {
+        mesh = impl_->builtin("sphere");
+    } else if (object.mesh.rfind("upload:", 0) == 0) {
+        mesh = assets.mesh ? assets.mesh(object.mesh.substr(7)) : nullptr;
+        if (!mesh) throw RenderError("mesh '" + object.mesh + "' has not been uploaded");
+    } else {
+        mesh = impl_->builtin(object.mesh);
+        if (!mesh) throw RenderError("unknown built-in mesh '" + object.mesh + "'");
+    }
+
+    std::unique_lock lock(impl_->mutex);
+    auto it = impl_->scenes.find(scene_id);
+    PassSet stale = kAllPasses;
+    if (it != impl_->scenes.end() && it->second.gpu->built() == kAllPasses) {
+        stale = passes_invalidated(it->second.document, document);
+        if (it->second.mesh != mesh || it->second.grid != grid) stale |= kAllPasses;
+    }
+    const int64_t budget = impl_->options.device_memory_budget;
+    if (budget > 0 && (stale & kVoxelize)) {
+        // Estimate against the grid this document asks for before allocating anything.
+        const mesh::Mesh world = mesh ? mesh::transformed(*mesh, static_cast<float>(object.scale),
+                                                          vec(object.rotation_deg), vec(object.position))
+                                      : mesh::Mesh{};
+        const GridGeometry g = grid ? GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : grid_for(document, world);
+        const int64_t need = estimate_scene_bytes(g, document.image.width, document.image.height);
+        const int64_t held = it != impl_->scenes.end() ? impl_->context.allocated_bytes() : 0;
+        if (impl_->context.allocated_bytes() - held / 2 + need > budget)
+            throw RenderError("scene needs about " + std::to_string(need >> 20) + " MiB of device memory; budget is " +
+                              std::to_string(budget >> 20) + " MiB");
+    }
+    if (it == impl_->scenes.end()) {
+        Impl::Resident resident;
+        resident.gpu = std::make_unique<SceneGpu>(impl_->kit);
+        it = impl_->scenes.emplace(scene_id, std::move(resident)).first;
+    }
+    Impl::Resident& resident = it->second;
+    resident.last_used = ++impl_->clock;
+    lock.unlock();
+
+    FrameResult frame;
+    try {
+        // The grid is fitted to the object's world bounds, so the transformed mesh is needed every frame.
+        const mesh::Mesh world = mesh ? mesh::transformed(*mesh, static_cast<float>(object.scale),
+                                                          vec(object.rotation_deg), vec(object.position))
+                                      : mesh::Mesh{};
+        const RunStats stats = resident.gpu->run(stale, document, world, grid.get());
+        frame.rerun = stale;
+        for (const auto& [name, ms] : stats.gpu_ms) frame.timings.push_back({name, ms, 0.0});
+        if (stats.photons_entered || (stale & kPhotons)) {
+            frame.photons_traced = stats.photons_entered;
+            frame.mean_steps_per_photon =
+                stats.photons_entered ? static_cast<double>(stats.photon_steps) / static_cast<double>(stats.photons_entered) : 0.0;
+        }
+        const auto encode_start = Clock::now();
+        const auto pixels = resident.gpu->read_ldr();
+        frame.png = image::encode_png(pixels, resident.gpu->width(), resident.gpu->height());
+        frame.timings.push_back({"encode", 0.0, ms_since(encode_start)});
+        frame.width = resident.gpu->width();
+        frame.height = resident.gpu->height();
+    } catch (...) {
+        // Partially rebuilt state is not trusted: drop it, the next render rebuilds from the document.
+        std::lock_guard relock(impl_->mutex);
+        impl_->scenes.erase(scene_id);
+        throw;
+    }
+    resident.document = document;
+    resident.mesh = mesh;
+    resident.grid = grid;
+    std::lock_guard relock(impl_->mutex);
+    impl_->evict_least_recent(scene_id);
+    return frame;
+}
+
+void Renderer::evict(const std::string& scene_id) {
+    std::lock_guard lock(impl_->mutex);
+    impl_->scenes.erase(scene_id);
+}
+
+size_t Renderer::resident_scenes() const {
+    std::lock_guard lock(impl_->mutex);
+    return impl_->scenes.size();
+}
+
+int64_t Renderer::device_bytes() const { return impl_->context.allocated_bytes(); }
+
+}  // namespace refract::scene

@@ -1,0 +1,283 @@
+#include "scene/scene_gpu.h"
+
+#include <cstring>
+
+#include "scene/renderer.h"
+
+namespace refract::scene {
+
+PassKit::PassKit(vk::Context& ctx)
+    : context(ctx),
+      voxelize(ctx),
+      index_field(ctx),
+      octree(ctx),
+      photon_trace(ctx),
+      radiance_resolve(ctx),
+      view(ctx),
+      linear_sampler(vk::make_linear_sampler(ctx)) {}
+
+int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t height) {
+    const int64_t voxels = static_cast<int64_t>(grid.dims.count());
+    // coverage + scratch (4+4), index field (16), coverage image (4), pyramid (8 x 8/7), levels (4),
+    // six accumulators (24), radiance (16), direction (8); voxelize's per-axis scratch (12) while it runs.
+    const int64_t per_voxel = 4 + 4 + 16 + 4 + 10 + 4 + 24 + 16 + 8 + 12;
+    const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
+    return voxels * per_voxel + floor + int64_t{width} * height * 20;
+}
+
+SceneGpu::SceneGpu(PassKit& kit) : kit_(kit), recorder_(kit.context, "scene passes"), timer_(kit.context) {}
+
+void SceneGpu::allocate_volume(const GridGeometry& grid) {
+    vk::Context& ctx = kit_.context;
+    const VkDeviceSize voxel_bytes = grid.dims.count() * sizeof(float);
+    const auto storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                         VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+    // Drop the old volume first so peak memory is one volume, not two.
+    coverage_ = {};
+    scratch_ = {};
+    pyramid_ = {};
+    levels_ = {};
+    index_field_ = {};
+    coverage_image_ = {};
+    accum_.reset();
+    radiance_ = {};
+    direction_ = {};
+    floor_map_ = {};
+    coverage_ = vk::Buffer(ctx, voxel_bytes, storage, vk::MemoryUse::device, "coverage");
+    scratch_ = vk::Buffer(ctx, voxel_bytes, storage, vk::MemoryUse::device, "coverage scratch");
+    index_field_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "index field");
+    coverage_image_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32_SFLOAT, "coverage image");
+    pyramid_ = vk::Buffer(ctx, passes::octree_layout(grid.dims).node_count * 2 * sizeof(float), storage,
+                          vk::MemoryUse::device, "octree pyramid");
+    levels_ = vk::Buffer(ctx, grid.dims.count() * sizeof(uint32_t), storage, vk::MemoryUse::device, "octree levels");
+    grid_ = grid;
+    built_ = 0;
+}
+
+void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits) {
+    vk::Context& ctx = kit_.context;
+    const uint32_t floor_texels = passes::floor_map_texels(grid_);
+    const uint32_t exits = record_exits ? photon_count : 1u;
+    if (accum_ && floor_texels == floor_texels_ && exits == exit_capacity_) return;
+    accum_.reset();
+    accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims.count(), floor_texels, exits));
+    exit_capacity_ = exits;
+    if (!radiance_.get()) {
+        radiance_ = vk::Image3D(ctx, grid_.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "radiance grid");
+        direction_ = vk::Image3D(ctx, grid_.dims, VK_FORMAT_R16G16B16A16_SFLOAT, "light direction grid");
+    }
+    if (floor_texels != floor_texels_ || !floor_map_.get()) {
+        floor_map_ = vk::Image3D(ctx, {floor_texels, floor_texels, 1}, VK_FORMAT_R16G16B16A16_SFLOAT,
+                                 "floor caustic map");
+        floor_texels_ = floor_texels;
+    }
+}
+
+void SceneGpu::allocate_frame(uint32_t width, uint32_t height) {
+    if (width == width_ && height == height_ && hdr_.get()) return;
+    vk::Context& ctx = kit_.context;
+    const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+    hdr_ = {};
+    ldr_ = {};
+    hdr_ = vk::Buffer(ctx, uint64_t{width} * height * sizeof(glm::vec4), usage, vk::MemoryUse::readback, "hdr frame");
+    ldr_ = vk::Buffer(ctx, uint64_t{width} * height * sizeof(uint32_t), usage, vk::MemoryUse::readback, "ldr frame");
+    width_ = width;
+    height_ = height;
+}
+
+RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, const mesh::Mesh& object_world,
+                       const IndexGrid* grid_asset, const RunOptions& options) {
+    using protocol::IndexFieldKind;
+    const bool imported = document.object.index_field == IndexFieldKind::grid;
+    GridGeometry grid;
+    if (imported) {
+        if (!grid_asset) throw RenderError("the scene's index field grid is not loaded");
+        const auto& b = grid_asset->bounds;
+        grid.origin = glm::vec3(static_cast<float>(b.min[0]), static_cast<float>(b.min[1]), static_cast<float>(b.min[2]));
+        grid.voxel_size = static_cast<float>((b.max[0] - b.min[0]) / grid_asset->nx);
+        grid.dims = {grid_asset->nx, grid_asset->ny, grid_asset->nz};
+    } else {
+        grid = grid_for(document, object_world);
+    }
+    // Anything never built, or built for another grid, runs whatever it needs.
+    if (!(grid == grid_) || !index_field_.get()) {
+        allocate_volume(grid);
+        stale = kAllPasses;
+    }
+    stale |= kAllPasses & ~built_;
+    // Each pass depends on all before it.
+    for (PassSet p : {kVoxelize, kIndexField, kOctree, kPhotons})
+        if (stale & p) stale |= (kAllPasses & ~(p - 1));
+    stale &= options.limit;
+    if (stale & kPhotons) allocate_transport(document.photons.count, options.record_photon_exits);
+    allocate_frame(document.image.width, document.image.height);
+
+    passes::TransportOptions transport_options;
+    transport_options.fixed_step = options.fixed_step;
+    transport_options.max_level = passes::octree_layout(grid_.dims).max_level;
+    params_ = passes::make_transport_params(document, grid_, transport_options);
+    params_.debug = glm::uvec4(options.record_photon_exits ? 1u : 0u, 0u, 0u, 0u);
+    if (!params_buffer_.get())
+        params_buffer_ = vk::Buffer(kit_.context, sizeof(params_), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                    vk::MemoryUse::upload, "transport params");
+    params_buffer_.write(&params_, sizeof(params_));
+
+    // Grid values for the index-field pass: the imported field, or a placeholder it never reads.
+    if (stale & kIndexField) {
+        const uint64_t count = imported ? grid_.dims.count() : 1;
+        grid_values_ = vk::Buffer(kit_.context, count * sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                  vk::MemoryUse::upload, "imported index grid");
+        if (imported) grid_values_.write(grid_asset->n.data(), count * sizeof(float));
+    }
+
+    // One submission for every stale pass; each pass is bracketed by timestamps.
+    const VkCommandBuffer cmd = recorder_.begin();
+    timer_.reset(cmd);
+    std::optional<passes::VoxelizeUploads> uploads;
+    const bool first_use = built_ == 0;
+    if (first_use) {
+        for (const vk::Image3D* image : {&index_field_, &coverage_image_}) recorder_.init_image(*image);
+    }
+    if (stale & kPhotons && !(built_ & kPhotons)) {
+        for (const vk::Image3D* image : {&radiance_, &direction_, &floor_map_}) recorder_.init_image(*image);
+    }
+    if (stale & kVoxelize) {
+        timer_.begin(cmd, "voxelize");
+        if (imported) {
+            // An imported field has no mesh: coverage is where n departs from the medium.
+            std::vector<float> coverage(grid_.dims.count());
+            float n_max = static_cast<float>(document.medium.ior);
+            for (float n : grid_asset->n) n_max = std::max(n_max, n);
+            const float span = std::max(n_max - static_cast<float>(document.medium.ior), 1e-6f);
+            for (size_t i = 0; i < coverage.size(); ++i)
+                coverage[i] = std::clamp((grid_asset->n[i] - static_cast<float>(document.medium.ior)) / span, 0.0f, 1.0f);
+            vk::Buffer staging(kit_.context, coverage.size() * sizeof(float), VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                               vk::MemoryUse::upload, "coverage upload");
+            staging.write(coverage.data(), coverage.size() * sizeof(float));
+            recorder_.copy(staging, coverage_, coverage.size() * sizeof(float));
+            uploads.emplace();
+            uploads->triangles = std::move(staging);
+        } else {
+            uploads = kit_.voxelize.record(recorder_, object_world, grid_, static_cast<float>(document.volume.smoothing),
+                                           scratch_, coverage_);
+        }
+        recorder_.compute_barrier();
+        timer_.end(cmd);
+    }
+    if (stale & kIndexField) {
+        timer_.begin(cmd, "index_field");
+        kit_.index_field.record(recorder_, document, grid_, coverage_, grid_values_, index_field_, coverage_image_);
+        recorder_.compute_barrier();
+        timer_.end(cmd);
+    }
+    if (stale & kOctree) {
+        timer_.begin(cmd, "octree");
+        kit_.octree.record(recorder_, index_field_, static_cast<float>(document.volume.octree_epsilon), pyramid_,
+                           levels_);
+        recorder_.compute_barrier();
+        timer_.end(cmd);
+    }
+    const passes::TransportInputs inputs{params_buffer_, index_field_, coverage_image_, levels_,
+                                         kit_.linear_sampler.get()};
+    if (stale & kPhotons) {
+        timer_.begin(cmd, "photons");
+        kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count);
+        recorder_.compute_barrier();
+        kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, radiance_, direction_, floor_map_);
+        recorder_.compute_barrier();
+        timer_.end(cmd);
+    }
+    if (stale & kView) {
+        timer_.begin(cmd, "view");
+        kit_.view.record(recorder_, inputs, radiance_, direction_, floor_map_, {hdr_, ldr_}, width_, height_);
+        timer_.end(cmd);
+    }
+    recorder_.to_host_barrier();
+    // A failure here leaves built_ as it was: the caller drops this scene's state and rebuilds.
+    recorder_.submit_and_wait();
+    built_ |= stale;
+
+    RunStats stats;
+    stats.gpu_ms = timer_.read();
+    if (stale & kPhotons) {
+        shaders::PhotonStats photon_stats{};
+        accum_->stats.read(&photon_stats, sizeof(photon_stats));
+        stats.photons_entered = photon_stats.photons_entered;
+        stats.photon_steps = photon_stats.steps;
+        stats.floor_hits = photon_stats.floor_hits;
+    }
+    return stats;
+}
+
+template <typename T>
+std::vector<T> SceneGpu::read_buffer(const vk::Buffer& buffer) const {
+    vk::Buffer staging(kit_.context, buffer.size(), VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::readback,
+                       "readback");
+    vk::run_once(kit_.context, [&](vk::CommandRecorder& r) {
+        r.copy(buffer, staging, buffer.size());
+        r.to_host_barrier();
+    });
+    std::vector<T> out(buffer.size() / sizeof(T));
+    staging.read(out.data(), out.size() * sizeof(T));
+    return out;
+}
+
+template <typename T>
+std::vector<T> SceneGpu::read_image(const vk::Image3D& image) const {
+    const VkDeviceSize bytes = image.extent().count() * image.texel_bytes();
+    vk::Buffer staging(kit_.context, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::readback, "readback");
+    vk::run_once(kit_.context, [&](vk::CommandRecorder& r) {
+        r.copy(image, staging);
+        r.to_host_barrier();
+    });
+    std::vector<T> out(bytes / sizeof(T));
+    staging.read(out.data(), bytes);
+    return out;
+}
+
+namespace {
+// Half floats (the direction grid and floor map) widened to float on the host.
+std::vector<glm::vec4> widen(const std::vector<uint16_t>& half) {
+    std::vector<glm::vec4> out(half.size() / 4);
+    for (size_t i = 0; i < out.size(); ++i)
+        for (int c = 0; c < 4; ++c) {
+            const uint16_t h = half[4 * i + static_cast<size_t>(c)];
+            const uint32_t sign = (h & 0x8000u) << 16;
+            const uint32_t exponent = (h >> 10) & 0x1fu;
+            const uint32_t mantissa = h & 0x3ffu;
+            float value;
+            if (exponent == 0) value = std::ldexp(static_cast<float>(mantissa), -24);
+            else if (exponent == 31) value = mantissa ? std::numeric_limits<float>::quiet_NaN() : std::numeric_limits<float>::infinity();
+            else value = std::ldexp(static_cast<float>(mantissa | 0x400u), static_cast<int>(exponent) - 25);
+            out[i][c] = sign ? -value : value;
+        }
+    return out;
+}
+}  // namespace
+
+std::vector<float> SceneGpu::read_coverage() const { return read_image<float>(coverage_image_); }
+std::vector<glm::vec4> SceneGpu::read_index_field() const { return read_image<glm::vec4>(index_field_); }
+std::vector<uint32_t> SceneGpu::read_levels() const { return read_buffer<uint32_t>(levels_); }
+std::vector<glm::vec4> SceneGpu::read_radiance() const { return read_image<glm::vec4>(radiance_); }
+std::vector<glm::vec4> SceneGpu::read_direction() const { return widen(read_image<uint16_t>(direction_)); }
+std::vector<glm::vec4> SceneGpu::read_floor_map() const { return widen(read_image<uint16_t>(floor_map_)); }
+
+std::vector<glm::vec4> SceneGpu::read_hdr() const {
+    std::vector<glm::vec4> out(size_t{width_} * height_);
+    hdr_.read(out.data(), out.size() * sizeof(glm::vec4));
+    return out;
+}
+
+std::vector<uint32_t> SceneGpu::read_ldr() const {
+    std::vector<uint32_t> out(size_t{width_} * height_);
+    ldr_.read(out.data(), out.size() * sizeof(uint32_t));
+    return out;
+}
+
+std::vector<shaders::PhotonExit> SceneGpu::read_photon_exits() const {
+    std::vector<shaders::PhotonExit> out(exit_capacity_);
+    accum_->exits.read(out.data(), out.size() * sizeof(shaders::PhotonExit));
+    return out;
+}
+
+}  // namespace refract::scene

@@ -1,0 +1,113 @@
+// One scene's resident GPU state (index field, octree, radiance grid, floor caustic map, frame buffers)
+// and the recording of its stale passes into one submission. The renderer owns one per resident scene;
+// tests and the CLI use it directly to read intermediate volumes back.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mesh/mesh.h"
+#include "passes/index_field.h"
+#include "passes/octree.h"
+#include "passes/photon_trace.h"
+#include "passes/radiance_resolve.h"
+#include "passes/transport_params.h"
+#include "passes/view.h"
+#include "passes/voxelize.h"
+#include "protocol/scene_document.h"
+#include "scene/grid_geometry.h"
+#include "scene/passes.h"
+#include "transport.h"
+
+namespace refract::scene {
+
+struct IndexGrid;
+
+// The compiled pipelines of every pass, created once per Vulkan context.
+struct PassKit {
+    explicit PassKit(vk::Context& context);
+    vk::Context& context;
+    passes::VoxelizePass voxelize;
+    passes::IndexFieldPass index_field;
+    passes::OctreePass octree;
+    passes::PhotonTracePass photon_trace;
+    passes::RadianceResolvePass radiance_resolve;
+    passes::ViewPass view;
+    vk::UniqueSampler linear_sampler;
+};
+
+// What one run of the stale passes measured.
+struct RunStats {
+    std::vector<std::pair<std::string, double>> gpu_ms;  // per pass that ran
+    uint64_t photons_entered = 0;
+    uint64_t photon_steps = 0;
+    uint64_t floor_hits = 0;
+};
+
+struct RunOptions {
+    bool fixed_step = false;      // photons step one voxel everywhere (reference for the octree's gain)
+    bool record_photon_exits = false;
+    PassSet limit = kAllPasses;   // passes outside this set are not run (the CLI's voxelize and trace)
+};
+
+// Device memory a scene of this size holds (bytes), for budgets before allocating.
+int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t height);
+
+class SceneGpu {
+public:
+    explicit SceneGpu(PassKit& kit);
+
+    // Runs `stale` passes (plus whatever they depend on that was never built) for `document`.
+    // `object_world` is the object's mesh in world space (ignored for imported grids); `grid_asset` the
+    // imported index grid for index_field == grid. Throws vk::Error on device failures.
+    RunStats run(PassSet stale, const protocol::SceneDocument& document, const mesh::Mesh& object_world,
+                 const IndexGrid* grid_asset, const RunOptions& options = {});
+
+    const GridGeometry& grid() const { return grid_; }
+    PassSet built() const { return built_; }
+    uint32_t width() const { return width_; }
+    uint32_t height() const { return height_; }
+
+    // Read-backs (each a separate submission): float per voxel / texel, x fastest.
+    std::vector<float> read_coverage() const;
+    std::vector<glm::vec4> read_index_field() const;
+    std::vector<uint32_t> read_levels() const;
+    std::vector<glm::vec4> read_radiance() const;   // fluence rate rgb (W/m^2)
+    std::vector<glm::vec4> read_direction() const;  // mean light direction xyz, coherence w
+    std::vector<glm::vec4> read_floor_map() const;  // irradiance rgb (W/m^2), floor_map_side()^2 texels
+    std::vector<glm::vec4> read_hdr() const;
+    std::vector<uint32_t> read_ldr() const;
+    std::vector<shaders::PhotonExit> read_photon_exits() const;
+    const shaders::TransportParams& params() const { return params_; }
+    uint32_t floor_map_side() const { return floor_texels_; }
+
+private:
+    void allocate_volume(const GridGeometry& grid);
+    void allocate_transport(uint32_t photon_count, bool record_exits);
+    void allocate_frame(uint32_t width, uint32_t height);
+    template <typename T>
+    std::vector<T> read_image(const vk::Image3D& image) const;
+    template <typename T>
+    std::vector<T> read_buffer(const vk::Buffer& buffer) const;
+
+    PassKit& kit_;
+    GridGeometry grid_{};
+    PassSet built_ = 0;
+    uint32_t width_ = 0, height_ = 0, floor_texels_ = 0, exit_capacity_ = 0;
+    shaders::TransportParams params_{};
+    // Volume (voxelize, index field, octree)
+    vk::Buffer coverage_, scratch_, grid_values_, pyramid_, levels_;
+    vk::Image3D index_field_, coverage_image_;
+    // Transport (photons, resolve)
+    std::optional<passes::PhotonAccumulators> accum_;
+    vk::Buffer params_buffer_, exits_;
+    vk::Image3D radiance_, direction_, floor_map_;
+    // Frame
+    vk::Buffer hdr_, ldr_;
+    vk::CommandRecorder recorder_;
+    vk::GpuTimer timer_;
+};
+
+}  // namespace refract::scene

@@ -1,0 +1,69 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// The refractive index field: n and grad n per voxel in one texel, so one trilinear fetch serves a ray
+// step. Gradients are per voxel length (the tracers step in voxel units). Uniform objects map coverage
+// to n between the medium's and the object's index; Luneburg and Maxwell lenses are the analytic test
+// beds, evaluated exactly at voxel centres; imported grids come from a simulation.
+#include "volume_build.h"
+
+layout(local_size_x = VOLUME_GROUP_3D, local_size_y = VOLUME_GROUP_3D, local_size_z = VOLUME_GROUP_3D) in;
+layout(std430, binding = INDEX_BINDING_COVERAGE) readonly buffer Coverage { float coverage[]; };
+layout(std430, binding = INDEX_BINDING_GRID) readonly buffer Grid { float grid[]; };
+layout(binding = INDEX_BINDING_INDEX_FIELD, rgba32f) uniform writeonly image3D index_field;
+layout(binding = INDEX_BINDING_COVERAGE_IMAGE, r32f) uniform writeonly image3D coverage_image;
+layout(push_constant) uniform Push { IndexFieldPush push; };
+
+float coverage_at(ivec3 v) {
+    ivec3 c = clamp(v, ivec3(0), ivec3(push.dims.xyz) - 1);
+    return coverage[(uint(c.z) * push.dims.y + uint(c.y)) * push.dims.x + uint(c.x)];
+}
+
+float grid_at(ivec3 v) {
+    ivec3 c = clamp(v, ivec3(0), ivec3(push.dims.xyz) - 1);
+    return grid[(uint(c.z) * push.dims.y + uint(c.y)) * push.dims.x + uint(c.x)];
+}
+
+// Central differences (one-sided at the border), per voxel length.
+vec3 gradient_of_coverage(ivec3 v) {
+    return 0.5 * vec3(coverage_at(v + ivec3(1, 0, 0)) - coverage_at(v - ivec3(1, 0, 0)),
+                      coverage_at(v + ivec3(0, 1, 0)) - coverage_at(v - ivec3(0, 1, 0)),
+                      coverage_at(v + ivec3(0, 0, 1)) - coverage_at(v - ivec3(0, 0, 1)));
+}
+
+vec3 gradient_of_grid(ivec3 v) {
+    return 0.5 * vec3(grid_at(v + ivec3(1, 0, 0)) - grid_at(v - ivec3(1, 0, 0)),
+                      grid_at(v + ivec3(0, 1, 0)) - grid_at(v - ivec3(0, 1, 0)),
+                      grid_at(v + ivec3(0, 0, 1)) - grid_at(v - ivec3(0, 0, 1)));
+}
+
+void main() {
+    uvec3 id = gl_GlobalInvocationID;
+    if (any(greaterThanEqual(id, push.dims.xyz))) return;
+    ivec3 v = ivec3(id);
+    float h = push.origin.w;
+    float c = coverage_at(v);
+    vec4 texel;
+    uint kind = push.dims.w;
+    if (kind == INDEX_KIND_UNIFORM) {
+        texel = vec4(push.n_medium + (push.n_object - push.n_medium) * c,
+                     (push.n_object - push.n_medium) * gradient_of_coverage(v));
+    } else if (kind == INDEX_KIND_GRID) {
+        texel = vec4(grid_at(v), gradient_of_grid(v));
+    } else {
+        vec3 x = push.origin.xyz + (vec3(v) + 0.5) * h;
+        vec3 d = x - push.sphere.xyz;
+        float radius = push.sphere.w;
+        float q = dot(d, d) / (radius * radius);  // (r / R)^2
+        if (q >= 1.0) {
+            texel = vec4(push.n_medium, 0.0, 0.0, 0.0);
+        } else if (kind == INDEX_KIND_LUNEBURG) {
+            float n = sqrt(2.0 - q);
+            texel = vec4(n, -d / (radius * radius * n) * h);
+        } else {
+            float s = 1.0 + q;
+            texel = vec4(push.n_object / s, -2.0 * push.n_object * d / (radius * radius * s * s) * h);
+        }
+    }
+    imageStore(index_field, v, texel);
+    imageStore(coverage_image, v, vec4(c));
+}

@@ -1,0 +1,192 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// Photon generation and tracing (passes 3-5 of Sun et al. 2008), one thread per photon run to
+// completion. Photons start where the light's rays enter the grid, follow the ray equation with the
+// octree's largest safe step, lose flux to extinction (Beer-Lambert per channel), and add flux x path
+// length to every voxel they cross (the track-length estimator of fluence) plus a flux-weighted
+// direction. Accumulation is fixed-point integer atomics: deterministic on every device.
+#include "transport_common.glsl"
+#include "linear_id.glsl"
+
+layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_RED) buffer AccumRed { uint accum_red[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_GREEN) buffer AccumGreen { uint accum_green[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_BLUE) buffer AccumBlue { uint accum_blue[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_X) buffer AccumDirX { int accum_dir_x[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_Y) buffer AccumDirY { int accum_dir_y[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_Z) buffer AccumDirZ { int accum_dir_z[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) buffer AccumFloor { uint accum_floor[]; };
+layout(std430, binding = TRANSPORT_BINDING_STATS) buffer Stats { PhotonStats stats; };
+layout(std430, binding = TRANSPORT_BINDING_PHOTON_EXITS) writeonly buffer Exits { PhotonExit exits[]; };
+
+const float kPi = 3.14159265358979;
+
+uint hash(uint x) {
+    x ^= x >> 16u;
+    x *= 0x7feb352du;
+    x ^= x >> 15u;
+    x *= 0x846ca68bu;
+    x ^= x >> 16u;
+    return x;
+}
+
+float to_unit(uint x) { return float(x >> 8u) * (1.0 / 16777216.0); }
+
+// Per-photon random stream for stochastic rounding of fixed-point deposits: rounding up with probability
+// equal to the fraction keeps small deposits (dim, attenuated photons) unbiased instead of lost.
+uint rng_state;
+float next_unit() {
+    rng_state = hash(rng_state + 0x9e3779b9u);
+    return to_unit(rng_state);
+}
+
+// Stratified 2D sample i of n: a Hammersley point shifted by a seed-dependent rotation.
+vec2 stratified(uint i, uint n, uint seed) {
+    vec2 shift = vec2(to_unit(hash(seed * 2u + 1u)), to_unit(hash(seed * 2u + 2u)));
+    vec2 h = vec2((float(i) + 0.5) / float(n), float(bitfieldReverse(i)) * 2.3283064365386963e-10);
+    return fract(h + shift);
+}
+
+vec3 perpendicular(vec3 a) {
+    return normalize(abs(a.x) < 0.9 ? cross(a, vec3(1.0, 0.0, 0.0)) : cross(a, vec3(0.0, 1.0, 0.0)));
+}
+
+// Emits photon i: world origin and unit direction; returns false for a photon outside a spot's cone.
+bool emit(uint i, out vec3 origin, out vec3 direction) {
+    vec2 s = stratified(i, params.photon_info.x, params.photon_info.y);
+    if (params.models.z == LIGHT_DIRECTIONAL) {
+        origin = params.emit_origin.xyz + s.x * params.emit_u.xyz + s.y * params.emit_v.xyz;
+        direction = params.emit_axis.xyz;
+        return true;
+    }
+    // Uniform in solid angle over the cone around emit_axis.
+    float cos_t = 1.0 - s.x * (1.0 - params.emit_axis.w);
+    float sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
+    float phi = 2.0 * kPi * s.y;
+    vec3 w = params.emit_axis.xyz;
+    vec3 u = perpendicular(w);
+    vec3 v = cross(w, u);
+    direction = normalize(cos_t * w + sin_t * (cos(phi) * u + sin(phi) * v));
+    origin = params.emit_origin.xyz;
+    if (params.models.z == LIGHT_SPOT && dot(direction, params.light_direction.xyz) < params.light_position.w)
+        return false;
+    return true;
+}
+
+uint voxel_index(ivec3 v) { return (uint(v.z) * params.grid_dims.y + uint(v.y)) * params.grid_dims.x + uint(v.x); }
+
+// Adds weight x length to each voxel the straight segment p + t d, t in [0, len), crosses (3D DDA),
+// attenuating by exp(-kappa t) along the way.
+void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa) {
+    float scale = params.stepping.z;
+    ivec3 cell = ivec3(floor(p));
+    ivec3 step_dir = ivec3(sign(d));
+    vec3 inv = 1.0 / d;
+    vec3 t_max = mix((vec3(cell) - p) * inv, (vec3(cell + 1) - p) * inv, greaterThan(d, vec3(0.0)));
+    t_max = mix(t_max, vec3(1e30), equal(d, vec3(0.0)));
+    vec3 t_delta = mix(abs(inv), vec3(1e30), equal(d, vec3(0.0)));
+    ivec3 dims = ivec3(params.grid_dims.xyz);
+    float t = 0.0;
+    for (int guard = 0; guard < 4096 && t < len; ++guard) {
+        float t_next = min(min(t_max.x, t_max.y), min(t_max.z, len));
+        float piece = t_next - t;
+        if (piece > 0.0 && all(greaterThanEqual(cell, ivec3(0))) && all(lessThan(cell, dims))) {
+            vec3 w = weight * exp(-kappa * (t + 0.5 * piece)) * piece * scale;
+            uint index = voxel_index(cell);
+            uvec3 q = uvec3(w + next_unit());
+            if (q.r != 0u) atomicAdd(accum_red[index], q.r);
+            if (q.g != 0u) atomicAdd(accum_green[index], q.g);
+            if (q.b != 0u) atomicAdd(accum_blue[index], q.b);
+            ivec3 dq = ivec3(floor(d * (w.r + w.g + w.b) * (1.0 / 3.0) + next_unit()));
+            if (dq.x != 0) atomicAdd(accum_dir_x[index], dq.x);
+            if (dq.y != 0) atomicAdd(accum_dir_y[index], dq.y);
+            if (dq.z != 0) atomicAdd(accum_dir_z[index], dq.z);
+        }
+        t = t_next;
+        if (t_max.x <= t_max.y && t_max.x <= t_max.z) { cell.x += step_dir.x; t_max.x += t_delta.x; }
+        else if (t_max.y <= t_max.z) { cell.y += step_dir.y; t_max.y += t_delta.y; }
+        else { cell.z += step_dir.z; t_max.z += t_delta.z; }
+    }
+}
+
+// Splats the photon's flux bilinearly into the floor caustic map at world point x.
+void deposit_floor(vec3 x, vec3 weight) {
+    float texels = params.floor_map.w;
+    vec2 m = (x.xz - params.floor_map.xy) / params.floor_map.z * texels - 0.5;
+    if (any(lessThan(m, vec2(-1.0))) || any(greaterThan(m, vec2(texels)))) return;
+    ivec2 base = ivec2(floor(m));
+    vec2 f = m - vec2(base);
+    int side = int(texels);
+    for (int k = 0; k < 4; ++k) {
+        ivec2 t = base + ivec2(k & 1, k >> 1);
+        if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, ivec2(side)))) continue;
+        float bw = ((k & 1) == 1 ? f.x : 1.0 - f.x) * ((k >> 1) == 1 ? f.y : 1.0 - f.y);
+        uvec3 q = uvec3(weight * bw * params.stepping.w + next_unit());
+        uint index = 3u * uint(t.y * side + t.x);
+        if (q.r != 0u) atomicAdd(accum_floor[index], q.r);
+        if (q.g != 0u) atomicAdd(accum_floor[index + 1u], q.g);
+        if (q.b != 0u) atomicAdd(accum_floor[index + 2u], q.b);
+    }
+    atomicAdd(stats.floor_hits, 1u);
+}
+
+void main() {
+    uint i = linear_invocation();
+    if (i >= params.photon_info.x) return;
+    vec3 origin, direction;
+    if (!emit(i, origin, direction)) return;
+    rng_state = hash(i ^ hash(params.photon_info.y));
+    vec3 weight = params.photon_flux.rgb / params.photon_flux.w;  // relative to the reference flux
+
+    vec3 p = to_voxel(origin);
+    vec2 span = grid_interval(p, direction);
+    bool floor_on = floor_enabled();
+    float floor_y = floor_height_voxels();
+    if (span.x >= span.y) {
+        // Misses the grid: straight to the floor (light outside the grid's shadow is lit analytically).
+        return;
+    }
+    p += direction * (span.x + 1e-3);
+    if (floor_on && p.y <= floor_y) return;  // entered the grid below the floor
+    atomicAdd(stats.photons_entered, 1u);
+
+    vec3 v = direction * index_at(p).x;
+    float shell_step = params.stepping.x;
+    bool fixed_step = params.photon_info.w == 1u;
+    uint steps = 0u;
+    float h = voxel_size();
+    float outcome = 0.0;
+    for (; steps < params.photon_info.z; ++steps) {
+        vec3 d = normalize(v);
+        float ds = fixed_step ? shell_step : safe_step(p, d, shell_step);
+        vec3 kappa = extinction_at(coverage_at(p)) * h;  // per voxel length
+        // Stop at the floor or the grid's far side within this step.
+        float to_exit = grid_interval(p, d).y;
+        bool hits_floor = floor_on && d.y < 0.0 && p.y + ds * d.y <= floor_y;
+        float to_floor = hits_floor ? (p.y - floor_y) / -d.y : 1e30;
+        float len = min(ds, min(to_exit, to_floor));
+        deposit(p, d, len, weight, kappa);
+        if (to_floor <= min(ds, to_exit)) {
+            weight *= exp(-kappa * to_floor);
+            p += d * to_floor;
+            deposit_floor(to_world(p), weight);
+            outcome = 2.0;
+            break;
+        }
+        weight *= exp(-kappa * len);
+        if (to_exit <= ds) {
+            p += d * to_exit;
+            outcome = 1.0;
+            // Left the grid: continue straight (outside is empty) to the floor.
+            if (floor_on && d.y < 0.0) {
+                float t = (p.y - floor_y) / -d.y;
+                deposit_floor(to_world(p + d * t), weight);
+            }
+            break;
+        }
+        ray_step(p, v, ds);
+        if (max(weight.r, max(weight.g, weight.b)) < 1e-4) break;
+    }
+    atomicAdd(stats.steps, steps + 1u);
+    if (params.debug.x == 1u) exits[i] = PhotonExit(vec4(to_world(p), outcome), vec4(normalize(v), float(steps + 1u)));
+}

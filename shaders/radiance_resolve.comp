@@ -1,0 +1,49 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// Turns the photon pass's fixed-point sums into physical units for the viewing pass:
+// fluence rate (W/m^2) = sum(flux x path length) / voxel volume, the mean light direction, and floor
+// irradiance (W/m^2) = sum(flux) / texel area. Independent of photon count and grid resolution.
+#include "transport.h"
+#include "linear_id.glsl"
+
+layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
+layout(std430, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams params; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_RED) readonly buffer AccumRed { uint accum_red[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_GREEN) readonly buffer AccumGreen { uint accum_green[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_BLUE) readonly buffer AccumBlue { uint accum_blue[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_X) readonly buffer AccumDirX { int accum_dir_x[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_Y) readonly buffer AccumDirY { int accum_dir_y[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_Z) readonly buffer AccumDirZ { int accum_dir_z[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) readonly buffer AccumFloor { uint accum_floor[]; };
+layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform writeonly image3D radiance;
+layout(binding = TRANSPORT_BINDING_DIRECTION, rgba16f) uniform writeonly image3D direction;
+layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D floor_map;
+
+void main() {
+    uint i = linear_invocation();
+    uvec3 dims = params.grid_dims.xyz;
+    uint voxels = dims.x * dims.y * dims.z;
+    float reference_flux = params.photon_flux.w;
+    if (i < voxels) {
+        ivec3 v = ivec3(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
+        float h = params.grid_origin.w;
+        // sum is in photon-voxel-lengths x scale; flux x length / volume = sum / scale x flux x h / h^3.
+        float to_fluence = reference_flux / (params.stepping.z * h * h);
+        vec3 fluence = vec3(float(accum_red[i]), float(accum_green[i]), float(accum_blue[i])) * to_fluence;
+        vec3 dir_sum = vec3(float(accum_dir_x[i]), float(accum_dir_y[i]), float(accum_dir_z[i]));
+        float total = (float(accum_red[i]) + float(accum_green[i]) + float(accum_blue[i])) * (1.0 / 3.0);
+        float len = length(dir_sum);
+        vec4 dir = len > 0.0 ? vec4(dir_sum / len, min(len / max(total, 1.0), 1.0)) : vec4(0.0);
+        imageStore(radiance, v, vec4(fluence, 0.0));
+        imageStore(direction, v, dir);
+        return;
+    }
+    uint texel = i - voxels;
+    uint side = uint(params.floor_map.w);
+    if (texel >= side * side) return;
+    float texel_area = (params.floor_map.z / float(side)) * (params.floor_map.z / float(side));
+    float to_irradiance = reference_flux / (params.stepping.w * texel_area);
+    vec3 irradiance = vec3(float(accum_floor[3u * texel]), float(accum_floor[3u * texel + 1u]),
+                           float(accum_floor[3u * texel + 2u])) * to_irradiance;
+    imageStore(floor_map, ivec3(texel % side, texel / side, 0), vec4(irradiance, 0.0));
+}

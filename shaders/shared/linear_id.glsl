@@ -1,0 +1,5 @@
+// 1D work larger than one dispatch dimension allows (65535 groups) is dispatched as a 2D grid of
+// groups; this recovers the linear item index (see vk::linear_groups on the host).
+uint linear_invocation() {
+    return gl_GlobalInvocationID.y * (gl_NumWorkGroups.x * gl_WorkGroupSize.x) + gl_GlobalInvocationID.x;
+}

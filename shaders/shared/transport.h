@@ -1,0 +1,100 @@
+// Layouts of the light-transport passes (photon trace, radiance resolve, viewing pass), shared by the
+// shaders and server/passes/. One TransportParams block describes the frame; the host fills it from
+// the scene document (server/passes/transport_params.cpp).
+#ifndef REFRACT_SHADERS_TRANSPORT_H
+#define REFRACT_SHADERS_TRANSPORT_H
+
+#include "shared_types.h"
+
+REFRACT_SHADERS_BEGIN
+
+#define TRANSPORT_GROUP_SIZE 64
+#define VIEW_GROUP_SIZE 8  // 8x8 pixel tiles
+
+#define TRANSPORT_BINDING_PARAMS 0
+#define TRANSPORT_BINDING_INDEX_FIELD 1     // sampler3D rgba32f (n, grad n per voxel)
+#define TRANSPORT_BINDING_COVERAGE 2        // sampler3D r32f
+#define TRANSPORT_BINDING_LEVELS 3          // uint per voxel (octree leaf level)
+#define TRANSPORT_BINDING_ACCUM_RED 4       // fixed-point flux x path length per voxel, per channel
+#define TRANSPORT_BINDING_ACCUM_GREEN 5
+#define TRANSPORT_BINDING_ACCUM_BLUE 6
+#define TRANSPORT_BINDING_ACCUM_DIR_X 7     // fixed-point flux-weighted direction (signed)
+#define TRANSPORT_BINDING_ACCUM_DIR_Y 8
+#define TRANSPORT_BINDING_ACCUM_DIR_Z 9
+#define TRANSPORT_BINDING_ACCUM_FLOOR 10    // fixed-point floor flux, 3 uints per texel
+#define TRANSPORT_BINDING_STATS 11          // photon statistics (see PhotonStats)
+#define TRANSPORT_BINDING_RADIANCE 12       // rgba32f: fluence rate (W/m^2) rgb
+#define TRANSPORT_BINDING_DIRECTION 13      // rgba16f: mean light direction xyz, w coherence
+#define TRANSPORT_BINDING_FLOOR_MAP 14      // rgba16f (z = 1): floor irradiance from photons (W/m^2)
+#define TRANSPORT_BINDING_HDR 15            // vec4 per pixel: linear radiance before exposure
+#define TRANSPORT_BINDING_LDR 16            // uint per pixel: tone-mapped sRGB RGBA8
+#define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when debug.x == 1
+
+#define LIGHT_POINT 0u
+#define LIGHT_SPOT 1u
+#define LIGHT_DIRECTIONAL 2u
+
+#define CHANNEL_ALL 3u  // a photon carries all three channels (no dispersion)
+
+struct TransportParams {
+    // Grid
+    vec4 grid_origin;     // xyz: world min corner; w: voxel size h (m)
+    uvec4 grid_dims;      // xyz: voxels; w: max octree level
+    // Materials: coverage 0 is the surrounding medium, 1 the object
+    vec4 medium_extinction;   // rgb per metre; w: medium ior
+    vec4 medium_scattering;   // rgb per metre; w: phase g
+    vec4 object_extinction;   // rgb per metre; w: object ior (uniform field)
+    vec4 object_scattering;   // rgb per metre; w: phase g
+    uvec4 models;             // x: medium phase model, y: object phase model, z: light type, w: channel
+    // Light
+    vec4 light_position;      // xyz world; w: cos of the spot half-angle
+    vec4 light_direction;     // xyz: spot axis / directional travel direction; w: unused
+    vec4 light_power;         // rgb: intensity x colour (W/sr or W/m^2); w: unused
+    // Photon generation: photons cover a cone (point, spot) or a rectangle (directional)
+    vec4 emit_axis;           // cone axis or rectangle normal (= travel direction); w: cos of cone half-angle
+    vec4 emit_u;              // rectangle first edge (world, full length); w: unused
+    vec4 emit_v;              // rectangle second edge; w: unused
+    vec4 emit_origin;         // rectangle corner (world) or cone apex (light position)
+    vec4 photon_flux;         // rgb: flux carried by each photon at emission (W); w: reference flux
+    uvec4 photon_info;        // x: photon count, y: seed, z: max steps per photon, w: fixed step (1) or adaptive (0)
+    vec4 stepping;            // x: shell step (voxels), y: leaf-exit overshoot (voxels), z: deposit scale
+                              // (fixed-point units per photon-voxel), w: floor deposit scale
+    // Floor and its caustic map
+    vec4 floor_plane;         // x: height, y: checker size, z: enabled (1/0), w: checker (1/0)
+    vec4 floor_albedo;        // rgb; w: unused
+    vec4 floor_map;           // x, y: world x, z of the map's min corner; z: map side (m); w: texels per side
+    // Camera and image
+    vec4 camera_position;     // xyz; w: tan(fov_y / 2)
+    vec4 camera_forward;
+    vec4 camera_right;
+    vec4 camera_up;
+    uvec4 image;              // x: width, y: height, z: view step mode, w: unused
+    vec4 tone;                // x: exposure multiplier (2^exposure), y: view step (voxels), zw: unused
+    vec4 sky_zenith;          // rgb background above the horizon
+    vec4 sky_horizon;         // rgb background at the horizon
+    uvec4 debug;              // x: 1 = record each photon's exit state (tests); yzw: unused
+};
+
+// Where a photon left the grid (or stopped), for the optics tests.
+struct PhotonExit {
+    vec4 position;   // world; w: 1 if it left the grid, 2 if it hit the floor, 0 otherwise
+    vec4 direction;  // unit travel direction; w: steps taken
+};
+
+// Written by the photon pass for statistics (atomic counters).
+struct PhotonStats {
+    uint photons_entered;   // photons that reached the grid
+    uint steps;             // integration steps taken
+    uint floor_hits;
+    uint pad;
+};
+
+REFRACT_SHADERS_END
+
+#ifdef __cplusplus
+static_assert(sizeof(refract::shaders::TransportParams) == 29 * 16);
+static_assert(sizeof(refract::shaders::PhotonStats) == 16);
+static_assert(sizeof(refract::shaders::PhotonExit) == 32);
+#endif
+
+#endif

@@ -1,0 +1,68 @@
+// GLSL shared by the photon and viewing passes: the frame parameters, index-field lookups, octree
+// stepping and the ray equation. Positions are in voxel units (voxel i spans [i, i+1)).
+#include "transport.h"
+
+layout(std430, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams params; };
+layout(binding = TRANSPORT_BINDING_INDEX_FIELD) uniform sampler3D index_field;
+layout(binding = TRANSPORT_BINDING_COVERAGE) uniform sampler3D coverage_field;
+layout(std430, binding = TRANSPORT_BINDING_LEVELS) readonly buffer Levels { uint levels[]; };
+
+vec3 grid_dims() { return vec3(params.grid_dims.xyz); }
+float voxel_size() { return params.grid_origin.w; }
+vec3 to_voxel(vec3 world) { return (world - params.grid_origin.xyz) / params.grid_origin.w; }
+vec3 to_world(vec3 voxel) { return params.grid_origin.xyz + voxel * params.grid_origin.w; }
+
+// (n, dn/dx, dn/dy, dn/dz) per voxel length, trilinearly interpolated.
+vec4 index_at(vec3 p) { return textureLod(index_field, p / grid_dims(), 0.0); }
+float coverage_at(vec3 p) { return textureLod(coverage_field, p / grid_dims(), 0.0).r; }
+
+vec3 extinction_at(float c) { return mix(params.medium_extinction.rgb, params.object_extinction.rgb, c); }
+vec3 scattering_at(float c) { return mix(params.medium_scattering.rgb, params.object_scattering.rgb, c); }
+
+bool inside_grid(vec3 p) { return all(greaterThanEqual(p, vec3(0.0))) && all(lessThan(p, grid_dims())); }
+
+uint octree_level(vec3 p) {
+    uvec3 v = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0));
+    return levels[(v.z * params.grid_dims.y + v.y) * params.grid_dims.x + v.x];
+}
+
+// Distance along unit direction d from p to the exit of the axis-aligned cube of side `size` (voxels)
+// that contains p and is aligned to multiples of `size`.
+float cell_exit(vec3 p, vec3 d, float size) {
+    vec3 lo = floor(p / size) * size;
+    vec3 hi = lo + size;
+    vec3 t = mix((lo - p) / d, (hi - p) / d, greaterThan(d, vec3(0.0)));
+    t = mix(t, vec3(1e30), equal(d, vec3(0.0)));
+    return max(min(t.x, min(t.y, t.z)), 0.0);
+}
+
+// Ray-box slab test in voxel space: returns (t_enter, t_exit); t_enter > t_exit means a miss.
+vec2 grid_interval(vec3 origin, vec3 d) {
+    vec3 inv = 1.0 / d;
+    vec3 t0 = (vec3(0.0) - origin) * inv;
+    vec3 t1 = (grid_dims() - origin) * inv;
+    vec3 lo = min(t0, t1), hi = max(t0, t1);
+    return vec2(max(max(lo.x, lo.y), max(lo.z, 0.0)), min(hi.x, min(hi.y, hi.z)));
+}
+
+// The largest safe step (voxels) at p along d: the exit of the octree leaf, slightly past it, or the
+// shell step where n varies.
+float safe_step(vec3 p, vec3 d, float shell_step) {
+    uint level = octree_level(p);
+    if (level == 0u) return shell_step;
+    return max(cell_exit(p, d, float(1u << level)) + params.stepping.y, shell_step);
+}
+
+// One Euler step of d/ds (n dx/ds) = grad n with v = n dx/ds (Sun et al. 2008, Ihrke et al. 2007):
+// x += ds/n v, v += ds grad n, then |v| renormalized to the index at the new point.
+void ray_step(inout vec3 p, inout vec3 v, float ds) {
+    vec4 here = index_at(p);
+    p += (ds / here.x) * v;
+    v += ds * here.yzw;
+    float n_next = index_at(p).x;
+    float len = length(v);
+    if (len > 0.0) v *= n_next / len;
+}
+
+float floor_height_voxels() { return (params.floor_plane.x - params.grid_origin.y) / params.grid_origin.w; }
+bool floor_enabled() { return params.floor_plane.z > 0.5; }

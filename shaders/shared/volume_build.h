@@ -1,0 +1,91 @@
+// Layouts of the volume-building passes (voxelize, smooth, index field, octree), shared by the
+// shaders and their host files in server/passes/.
+#ifndef REFRACT_SHADERS_VOLUME_BUILD_H
+#define REFRACT_SHADERS_VOLUME_BUILD_H
+
+#include "shared_types.h"
+
+REFRACT_SHADERS_BEGIN
+
+#define VOLUME_GROUP_SIZE 64
+#define VOLUME_GROUP_3D 4  // 4x4x4 workgroups for per-voxel passes
+
+// --- voxelize ---------------------------------------------------------------------------------------
+#define VOXELIZE_BINDING_TRIANGLES 0   // 3 x vec4 per triangle, positions in voxel coordinates
+#define VOXELIZE_BINDING_TILE_RANGES 1 // uvec2 (first, count) per tile of the column plane
+#define VOXELIZE_BINDING_TILE_ITEMS 2  // triangle indices, grouped by tile
+#define VOXELIZE_BINDING_COVERAGE_X 3  // per-axis coverage, -1 where that axis's columns were unreliable
+#define VOXELIZE_BINDING_COVERAGE_Y 4
+#define VOXELIZE_BINDING_COVERAGE_Z 5
+#define VOXELIZE_BINDING_COVERAGE 6    // combined (median) coverage
+#define VOXELIZE_MAX_CROSSINGS 32
+#define VOXELIZE_MODE_COLUMNS 0u
+#define VOXELIZE_MODE_COMBINE 1u
+
+struct VoxelizePush {
+    uvec4 dims;    // xyz: grid size; w: mode
+    uint axis;     // column direction of this dispatch (0, 1, 2)
+    uint tile_size;   // voxels per tile side on the column plane
+    uint tiles_u;     // tiles along the plane's first axis ((axis + 1) % 3)
+    uint subsamples;  // S: S x S rays per voxel column
+};
+
+// --- smooth -----------------------------------------------------------------------------------------
+#define SMOOTH_BINDING_SOURCE 0
+#define SMOOTH_BINDING_TARGET 1
+
+struct SmoothPush {
+    uvec4 dims;    // xyz: grid size; w: axis of this 1D pass
+    float sigma;   // Gaussian sigma in voxels (> 0)
+    int radius;    // taps each side
+    uint pad0, pad1;
+};
+
+// --- index field ------------------------------------------------------------------------------------
+#define INDEX_BINDING_COVERAGE 0      // smoothed coverage (float per voxel)
+#define INDEX_BINDING_GRID 1          // imported index grid (float per voxel), for INDEX_KIND_GRID
+#define INDEX_BINDING_INDEX_FIELD 2   // out: rgba32f (n, dn/dx, dn/dy, dn/dz), gradient per voxel length
+#define INDEX_BINDING_COVERAGE_IMAGE 3 // out: r32f coverage, for extinction and scattering
+
+#define INDEX_KIND_UNIFORM 0u
+#define INDEX_KIND_LUNEBURG 1u
+#define INDEX_KIND_MAXWELL 2u
+#define INDEX_KIND_GRID 3u
+
+struct IndexFieldPush {
+    uvec4 dims;        // xyz: grid size; w: index kind
+    vec4 origin;       // xyz: world position of the grid's min corner; w: voxel size (m)
+    vec4 sphere;       // procedural fields: xyz centre (world), w radius
+    float n_medium;
+    float n_object;    // uniform: object index; maxwell: n0
+    float pad0, pad1;
+};
+
+// --- octree -----------------------------------------------------------------------------------------
+#define OCTREE_BINDING_INDEX_FIELD 0  // rgba32f storage image (n in .r)
+#define OCTREE_BINDING_PYRAMID 1      // vec2 (min, max) per node, all levels back to back
+#define OCTREE_BINDING_LEVELS 2       // uint per voxel: level of the leaf covering it
+#define OCTREE_MAX_LEVEL 5            // leaves up to 32 voxels on a side
+#define OCTREE_MODE_LEAF_RANGE 0u
+#define OCTREE_MODE_REDUCE 1u
+#define OCTREE_MODE_LEVEL_MAP 2u
+
+struct OctreePush {
+    uvec4 dims;        // xyz: grid size; w: mode
+    uvec4 level_dims;  // xyz: node count of the level being written (REDUCE); w: level
+    uvec4 offsets0;    // node offset of levels 0..3 in the pyramid buffer
+    uvec4 offsets1;    // node offset of levels 4..5; z: max level; w: unused
+    float epsilon;     // a node is a leaf when max n - min n < epsilon
+    float pad0, pad1, pad2;
+};
+
+REFRACT_SHADERS_END
+
+#ifdef __cplusplus
+static_assert(sizeof(refract::shaders::VoxelizePush) == 32);
+static_assert(sizeof(refract::shaders::SmoothPush) == 32);
+static_assert(sizeof(refract::shaders::IndexFieldPush) == 64);
+static_assert(sizeof(refract::shaders::OctreePush) == 80);
+#endif
+
+#endif

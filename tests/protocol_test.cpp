@@ -1,0 +1,560 @@
+// The scene document: defaults, round trip, merge-patch editing and validation (protocol/scene_document.h).
+#include <gtest/gtest.h>
+
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "protocol/scene_document.h"
+
+namespace refract::protocol {
+namespace {
+
+using nlohmann::json;
+
+// The pointer of the ValidationError `f` throws; fails the test if it throws nothing or something else.
+template <class F>
+std::string rejected_pointer(F&& f) {
+    try {
+        f();
+    } catch (const ValidationError& e) {
+        EXPECT_FALSE(e.rule().empty());
+        const std::string shown = e.pointer().empty() ? "(root)" : e.pointer();
+        EXPECT_EQ(std::string(e.what()), shown + ": " + e.rule());
+        return e.pointer();
+    } catch (const std::exception& e) {
+        ADD_FAILURE() << "threw something other than ValidationError: " << e.what();
+        return "<other exception>";
+    }
+    ADD_FAILURE() << "was accepted";
+    return "<accepted>";
+}
+
+SceneDocument customised() {
+    SceneDocument d;
+    d.camera.position = {1.25, -0.5, 3.0};
+    d.camera.target = {0.1, 0.2, 0.3};
+    d.camera.up = {0.0, 0.0, 1.0};
+    d.camera.fov_deg = 55.5;
+    d.image = {800, 600, -1.5};
+    d.light.type = LightType::directional;
+    d.light.position = {-3.0, 4.0, 5.0};
+    d.light.direction = {0.0, -1.0, 0.1};
+    d.light.color = {1.0, 0.9, 0.8};
+    d.light.intensity = 3.3;
+    d.light.cone_deg = 90.0;
+    d.object.mesh = "upload:bunny_v2.obj";
+    d.object.position = {0.5, 0.25, -0.125};
+    d.object.rotation_deg = {10.0, 20.0, 30.0};
+    d.object.scale = 0.7;
+    d.object.index_field = IndexFieldKind::grid;
+    d.object.ior = 1.0 / 3.0 + 1.0;
+    d.object.maxwell_n0 = 2.5;
+    d.object.extinction = {0.1, 0.2, 0.3};
+    d.object.scattering = {0.1, 0.1, 0.1};
+    d.object.phase = {PhaseModel::schlick, -0.4};
+    d.object.grid = "lens-01";
+    d.medium.ior = 1.33;
+    d.medium.extinction = {0.0, 0.0, 0.0};
+    d.medium.scattering = {0.0, 0.0, 0.0};
+    d.medium.phase = {PhaseModel::isotropic, 0.0};
+    d.volume.resolution = 200;
+    d.volume.smoothing = 0.0;
+    d.volume.octree_epsilon = 1.0;
+    d.volume.bounds = Bounds{{-2.0, -1.5, -1.0}, {2.0, 1.5, 1.0}};
+    d.volume.margin = 0.0;
+    d.photons = {12345, 4294967295u};
+    d.floor = {false, -2.5, {0.1, 0.5, 1.0}, false, 1.0};
+    return d;
+}
+
+// ---- defaults -------------------------------------------------------------------------------------------
+
+TEST(SceneDocument, EmptyObjectGivesDefaults) {
+    const SceneDocument d = parse_scene(json::object());
+    EXPECT_EQ(d, SceneDocument{});
+    // A glass sphere in light fog under a spot light, seen from the front.
+    EXPECT_EQ(d.object.mesh, "sphere");
+    EXPECT_EQ(d.object.index_field, IndexFieldKind::uniform);
+    EXPECT_DOUBLE_EQ(d.object.ior, 1.5);
+    EXPECT_EQ(d.light.type, LightType::spot);
+    EXPECT_GT(d.medium.extinction[0], 0.0);
+    EXPECT_EQ(d.medium.phase.model, PhaseModel::henyey_greenstein);
+    EXPECT_GT(d.camera.position[2], 0.0);
+    EXPECT_FALSE(d.volume.bounds.has_value());
+    EXPECT_EQ(d.volume.resolution, 128u);
+    EXPECT_EQ(d.photons.count, 1u << 18);
+}
+
+TEST(SceneDocument, EmptySectionsGiveDefaults) {
+    const json j = {{"camera", json::object()},  {"image", json::object()},  {"light", json::object()},
+                    {"object", json::object()},  {"medium", json::object()}, {"volume", json::object()},
+                    {"photons", json::object()}, {"floor", json::object()}};
+    EXPECT_EQ(parse_scene(j), SceneDocument{});
+}
+
+TEST(SceneDocument, MissingFieldsKeepDefaultsBesideGivenOnes) {
+    const SceneDocument d =
+        parse_scene(json::parse(R"({"light": {"intensity": 7}, "object": {"phase": {"g": 0.5}}})"));
+    SceneDocument expected;
+    expected.light.intensity = 7.0;
+    expected.object.phase.g = 0.5;
+    EXPECT_EQ(d, expected);
+}
+
+// ---- round trip -----------------------------------------------------------------------------------------
+
+TEST(SceneDocument, RoundTripDefaults) {
+    const SceneDocument d;
+    EXPECT_EQ(parse_scene(to_json(d)), d);
+    EXPECT_EQ(parse_scene(json::parse(to_json(d).dump())), d);
+}
+
+TEST(SceneDocument, RoundTripCustomisedThroughText) {
+    const SceneDocument d = customised();
+    EXPECT_EQ(parse_scene(to_json(d)), d);
+    EXPECT_EQ(parse_scene(json::parse(to_json(d).dump())), d);
+    EXPECT_EQ(parse_scene(json::parse(to_json(d).dump(2))), d);
+}
+
+TEST(SceneDocument, RoundTripEveryEnumValue) {
+    for (LightType t : {LightType::point, LightType::spot, LightType::directional}) {
+        SceneDocument d;
+        d.light.type = t;
+        EXPECT_EQ(parse_scene(to_json(d)), d);
+    }
+    for (PhaseModel m : {PhaseModel::isotropic, PhaseModel::schlick, PhaseModel::henyey_greenstein}) {
+        SceneDocument d;
+        d.object.phase.model = m;
+        d.medium.phase.model = m;
+        EXPECT_EQ(parse_scene(to_json(d)), d);
+    }
+    for (IndexFieldKind k :
+         {IndexFieldKind::uniform, IndexFieldKind::luneburg, IndexFieldKind::maxwell, IndexFieldKind::grid}) {
+        SceneDocument d;
+        d.object.index_field = k;
+        d.object.grid = "g";
+        EXPECT_EQ(parse_scene(to_json(d)), d);
+    }
+    for (const char* mesh : {"sphere", "cube", "torus", "upload:A-z_0.9"}) {
+        SceneDocument d;
+        d.object.mesh = mesh;
+        EXPECT_EQ(parse_scene(to_json(d)), d);
+    }
+}
+
+TEST(SceneDocument, ToJsonEmitsEveryField) {
+    const json j = to_json(SceneDocument{});
+    const std::vector<std::pair<std::string, std::vector<std::string>>> expected = {
+        {"camera", {"position", "target", "up", "fov_deg"}},
+        {"image", {"width", "height", "exposure"}},
+        {"light", {"type", "position", "direction", "color", "intensity", "cone_deg"}},
+        {"object",
+         {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "extinction",
+          "scattering", "phase", "grid"}},
+        {"medium", {"ior", "extinction", "scattering", "phase"}},
+        {"volume", {"resolution", "smoothing", "octree_epsilon", "margin"}},
+        {"photons", {"count", "seed"}},
+        {"floor", {"enabled", "height", "albedo", "checker", "checker_size"}},
+    };
+    ASSERT_EQ(j.size(), expected.size());
+    for (const auto& [section, fields] : expected) {
+        ASSERT_TRUE(j.contains(section)) << section;
+        EXPECT_EQ(j[section].size(), fields.size()) << section;
+        for (const auto& f : fields) EXPECT_TRUE(j[section].contains(f)) << section << "." << f;
+    }
+    EXPECT_FALSE(j["volume"].contains("bounds"));
+    EXPECT_EQ(j["medium"]["phase"]["model"], "henyey-greenstein");
+    EXPECT_EQ(j["light"]["type"], "spot");
+    EXPECT_EQ(j["image"]["width"], 512);
+
+    const json c = to_json(customised());
+    ASSERT_TRUE(c["volume"].contains("bounds"));
+    EXPECT_EQ(c["volume"]["bounds"]["min"], json::array({-2.0, -1.5, -1.0}));
+    EXPECT_EQ(c["volume"]["bounds"]["max"], json::array({2.0, 1.5, 1.0}));
+}
+
+// ---- parse_scene specifics ------------------------------------------------------------------------------
+
+TEST(SceneDocument, RootMustBeObject) {
+    for (const json& j : {json::array(), json("scene"), json(nullptr), json(3), json(true)}) {
+        EXPECT_EQ(rejected_pointer([&] { parse_scene(j); }), "") << j.dump();
+    }
+}
+
+TEST(SceneDocument, RuleWording) {
+    try {
+        parse_scene(json::parse(R"({"light": {"intensity": -1}})"));
+        FAIL() << "accepted";
+    } catch (const ValidationError& e) {
+        EXPECT_EQ(e.pointer(), "/light/intensity");
+        EXPECT_EQ(e.rule(), "must be a number in [0, 1e6]");
+        EXPECT_STREQ(e.what(), "/light/intensity: must be a number in [0, 1e6]");
+    }
+    try {
+        parse_scene(json::array());
+        FAIL() << "accepted";
+    } catch (const ValidationError& e) {
+        EXPECT_EQ(e.pointer(), "");
+        EXPECT_EQ(e.rule(), "must be a JSON object");
+    }
+}
+
+TEST(SceneDocument, NullBoundsMeansNoBounds) {
+    const SceneDocument d = parse_scene(json::parse(R"({"volume": {"bounds": null}})"));
+    EXPECT_FALSE(d.volume.bounds.has_value());
+}
+
+TEST(SceneDocument, IntegersMayBeWrittenAsWholeFloats) {
+    const SceneDocument d =
+        parse_scene(json::parse(R"({"volume": {"resolution": 64.0}, "image": {"width": 100}})"));
+    EXPECT_EQ(d.volume.resolution, 64u);
+    EXPECT_EQ(d.image.width, 100u);
+    // Signed-integer JSON values built in code are accepted when non-negative.
+    EXPECT_EQ(parse_scene(json{{"photons", {{"seed", static_cast<int64_t>(7)}}}}).photons.seed, 7u);
+}
+
+TEST(SceneDocument, PartialBoundsTakeDefaultsForTheRest) {
+    const SceneDocument d = parse_scene(json::parse(R"({"volume": {"bounds": {"min": [-3, -3, -3]}}})"));
+    ASSERT_TRUE(d.volume.bounds.has_value());
+    EXPECT_EQ(d.volume.bounds->min, (Vec3{-3.0, -3.0, -3.0}));
+    EXPECT_EQ(d.volume.bounds->max, Bounds{}.max);
+}
+
+TEST(SceneDocument, BoundaryValuesAccepted) {
+    const json j = json::parse(R"({
+        "camera": {"fov_deg": 169.9, "position": [10000, -10000, 10000]},
+        "image": {"width": 1, "height": 4096, "exposure": -20},
+        "light": {"type": "point", "direction": [0, 0, 0], "intensity": 1e6, "color": [0, 1000, 0], "cone_deg": 90},
+        "object": {"scale": 1000, "ior": 4, "maxwell_n0": 1, "extinction": [1000, 0, 0], "scattering": [1000, 0, 0],
+                   "phase": {"model": "henyey-greenstein", "g": -0.99}},
+        "medium": {"ior": 1, "phase": {"g": 0.99}},
+        "volume": {"resolution": 32, "smoothing": 4, "octree_epsilon": 1, "margin": 0},
+        "photons": {"count": 1, "seed": 4294967295},
+        "floor": {"albedo": [0, 1, 0.5], "checker_size": 0.001}
+    })");
+    const SceneDocument d = parse_scene(j);
+    EXPECT_EQ(d.photons.seed, 4294967295u);
+    EXPECT_EQ(parse_scene(to_json(d)), d);
+}
+
+// ---- merge patch ----------------------------------------------------------------------------------------
+
+TEST(MergePatch, EmptyPatchChangesNothing) {
+    const SceneDocument d = customised();
+    EXPECT_EQ(apply_merge_patch(d, json::object()), d);
+}
+
+TEST(MergePatch, NestedMergeKeepsSiblings) {
+    const SceneDocument current = customised();
+    const SceneDocument before = current;
+    const SceneDocument d = apply_merge_patch(
+        current, json::parse(R"({"light": {"intensity": 5}, "object": {"phase": {"g": 0.25}}})"));
+    SceneDocument expected = customised();
+    expected.light.intensity = 5.0;
+    expected.object.phase.g = 0.25;
+    EXPECT_EQ(d, expected);
+    EXPECT_EQ(d.object.phase.model, PhaseModel::schlick);  // sibling inside the nested object kept
+    EXPECT_EQ(current, before);
+}
+
+TEST(MergePatch, NullDeletesAndFieldReturnsToDefault) {
+    const SceneDocument current = customised();
+    SceneDocument d = apply_merge_patch(current, json::parse(R"({"light": {"intensity": null}})"));
+    EXPECT_DOUBLE_EQ(d.light.intensity, Light{}.intensity);
+    EXPECT_EQ(d.light.type, LightType::directional);  // the rest of the section kept
+
+    d = apply_merge_patch(current, json::parse(R"({"camera": null})"));
+    EXPECT_EQ(d.camera, Camera{});
+    EXPECT_EQ(d.light, current.light);
+
+    d = apply_merge_patch(current, json::parse(R"({"object": {"phase": {"model": null}}})"));
+    EXPECT_EQ(d.object.phase.model, Phase{}.model);
+    EXPECT_DOUBLE_EQ(d.object.phase.g, -0.4);
+
+    // Deleting a member that is not there is a no-op, even under a name the document does not know.
+    EXPECT_EQ(apply_merge_patch(current, json::parse(R"({"camera": {"no_such_field": null}})")), current);
+}
+
+TEST(MergePatch, BoundsAddMergeRemove) {
+    const SceneDocument start;
+    ASSERT_FALSE(start.volume.bounds.has_value());
+    SceneDocument d = apply_merge_patch(
+        start, json::parse(R"({"volume": {"bounds": {"min": [-2, -2, -2], "max": [2, 2, 2]}}})"));
+    ASSERT_TRUE(d.volume.bounds.has_value());
+    EXPECT_EQ(d.volume.bounds->min, (Vec3{-2.0, -2.0, -2.0}));
+    EXPECT_EQ(d.volume.bounds->max, (Vec3{2.0, 2.0, 2.0}));
+    EXPECT_DOUBLE_EQ(d.volume.margin, Volume{}.margin);
+
+    d = apply_merge_patch(d, json::parse(R"({"volume": {"bounds": {"max": [3, 3, 3]}}})"));
+    ASSERT_TRUE(d.volume.bounds.has_value());
+    EXPECT_EQ(d.volume.bounds->min, (Vec3{-2.0, -2.0, -2.0}));
+    EXPECT_EQ(d.volume.bounds->max, (Vec3{3.0, 3.0, 3.0}));
+
+    const SceneDocument with_bounds = d;
+    d = apply_merge_patch(with_bounds, json::parse(R"({"volume": {"bounds": null}})"));
+    EXPECT_FALSE(d.volume.bounds.has_value());
+    EXPECT_EQ(d.volume.resolution, with_bounds.volume.resolution);
+    EXPECT_TRUE(with_bounds.volume.bounds.has_value());
+}
+
+TEST(MergePatch, ArraysAreReplacedWhole) {
+    const SceneDocument current = customised();
+    const SceneDocument d = apply_merge_patch(current, json::parse(R"({"camera": {"position": [1, 2, 3]}})"));
+    EXPECT_EQ(d.camera.position, (Vec3{1.0, 2.0, 3.0}));
+    EXPECT_EQ(d.camera.target, current.camera.target);
+    // An array cannot be patched element by element: an object patch turns it into an object.
+    EXPECT_EQ(rejected_pointer(
+                  [&] { apply_merge_patch(current, json::parse(R"({"camera": {"position": {"0": 5}}})")); }),
+              "/camera/position");
+    // A shorter array replaces the whole value too and is then the wrong length.
+    EXPECT_EQ(rejected_pointer(
+                  [&] { apply_merge_patch(current, json::parse(R"({"camera": {"position": [1]}})")); }),
+              "/camera/position");
+}
+
+TEST(MergePatch, NonObjectPatchReplacesTheDocument) {
+    const SceneDocument current = customised();
+    for (const json& patch : {json::array({1, 2}), json("scene"), json(42), json(nullptr)}) {
+        EXPECT_EQ(rejected_pointer([&] { apply_merge_patch(current, patch); }), "") << patch.dump();
+        EXPECT_EQ(current, customised());
+    }
+}
+
+TEST(MergePatch, SectionReplacedByScalarIsRejected) {
+    EXPECT_EQ(
+        rejected_pointer([] { apply_merge_patch(SceneDocument{}, json::parse(R"({"floor": false})")); }),
+        "/floor");
+}
+
+TEST(MergePatch, CrossFieldErrorsBlameTheEditedValue) {
+    // Lowering extinction below the (untouched) scattering blames extinction...
+    EXPECT_EQ(rejected_pointer([] {
+                  apply_merge_patch(SceneDocument{},
+                                    json::parse(R"({"medium": {"extinction": [0.08, 0.01, 0.08]}})"));
+              }),
+              "/medium/extinction/1");
+    // ...raising scattering above extinction blames scattering, and so does a document written whole.
+    EXPECT_EQ(rejected_pointer([] {
+                  apply_merge_patch(SceneDocument{},
+                                    json::parse(R"({"medium": {"scattering": [0.08, 0.09, 0.08]}})"));
+              }),
+              "/medium/scattering/1");
+    EXPECT_EQ(
+        rejected_pointer([] {
+            parse_scene(json::parse(R"({"medium": {"extinction": [1, 1, 1], "scattering": [1, 1, 2]}})"));
+        }),
+        "/medium/scattering/2");
+}
+
+// ---- limits ---------------------------------------------------------------------------------------------
+
+TEST(Limits, AreHonoured) {
+    Limits limits;
+    limits.max_resolution = 128;
+    limits.max_photons = 1u << 20;
+    limits.max_image_side = 1024;
+    const SceneDocument current;
+    EXPECT_EQ(rejected_pointer([&] {
+                  apply_merge_patch(current, json::parse(R"({"volume": {"resolution": 256}})"), limits);
+              }),
+              "/volume/resolution");
+    EXPECT_EQ(apply_merge_patch(current, json::parse(R"({"volume": {"resolution": 128}})"), limits)
+                  .volume.resolution,
+              128u);
+    // With the default limits 256 is fine.
+    EXPECT_EQ(apply_merge_patch(current, json::parse(R"({"volume": {"resolution": 256}})")).volume.resolution,
+              256u);
+
+    EXPECT_EQ(
+        rejected_pointer([&] { parse_scene(json::parse(R"({"photons": {"count": 1048577}})"), limits); }),
+        "/photons/count");
+    EXPECT_EQ(parse_scene(json::parse(R"({"photons": {"count": 1048576}})"), limits).photons.count, 1u << 20);
+    EXPECT_EQ(rejected_pointer([&] { parse_scene(json::parse(R"({"image": {"height": 1025}})"), limits); }),
+              "/image/height");
+    EXPECT_EQ(parse_scene(json::parse(R"({"image": {"width": 1024}})"), limits).image.width, 1024u);
+
+    try {
+        parse_scene(json::parse(R"({"volume": {"resolution": 256}})"), limits);
+        FAIL() << "accepted";
+    } catch (const ValidationError& e) {
+        EXPECT_EQ(e.rule(), "must be an integer in [32, 128]");
+    }
+}
+
+// ---- rejected patches -----------------------------------------------------------------------------------
+
+struct BadPatch {
+    const char* what;
+    json patch;
+    const char* pointer;
+};
+
+std::vector<BadPatch> bad_patches() {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const double inf = std::numeric_limits<double>::infinity();
+    const std::string long_name(65, 'a');
+    return {
+        // root and unknown keys
+        {"unknown section", json::parse(R"({"cameras": {}})"), "/cameras"},
+        {"unknown camera field", json::parse(R"({"camera": {"zoom": 2}})"), "/camera/zoom"},
+        {"unknown key is pointer-escaped", json::parse(R"({"camera": {"a/b~c": 1}})"), "/camera/a~1b~0c"},
+        {"unknown medium field", json::parse(R"({"medium": {"density": 1}})"), "/medium/density"},
+        {"unknown phase field", json::parse(R"({"object": {"phase": {"k": 0.1}}})"), "/object/phase/k"},
+        {"unknown bounds field", json::parse(R"({"volume": {"bounds": {"centre": [0, 0, 0]}}})"),
+         "/volume/bounds/centre"},
+        {"section not an object", json::parse(R"({"camera": 5})"), "/camera"},
+        {"phase not an object", json::parse(R"({"object": {"phase": "isotropic"}})"), "/object/phase"},
+        {"bounds not an object", json::parse(R"({"volume": {"bounds": [0, 0, 0]}})"), "/volume/bounds"},
+        // camera
+        {"fov as string", json::parse(R"({"camera": {"fov_deg": "40"}})"), "/camera/fov_deg"},
+        {"fov at upper bound", json::parse(R"({"camera": {"fov_deg": 170}})"), "/camera/fov_deg"},
+        {"fov at lower bound", json::parse(R"({"camera": {"fov_deg": 1}})"), "/camera/fov_deg"},
+        {"up of two numbers", json::parse(R"({"camera": {"up": [0, 1]}})"), "/camera/up"},
+        {"up not an array", json::parse(R"({"camera": {"up": "y"}})"), "/camera/up"},
+        {"zero up", json::parse(R"({"camera": {"up": [0, 0, 0]}})"), "/camera/up"},
+        {"up parallel to view", json::parse(R"({"camera": {"up": [0, -0.4, -4]}})"), "/camera/up"},
+        {"view moved parallel to up", json::parse(R"({"camera": {"position": [0, 5, 0]}})"),
+         "/camera/position"},
+        {"target onto position", json::parse(R"({"camera": {"target": [0, 0.4, 4]}})"), "/camera/target"},
+        {"position onto target", json::parse(R"({"camera": {"position": [0, 0, 0]}})"), "/camera/position"},
+        {"position too far", json::parse(R"({"camera": {"position": [1e5, 0, 4]}})"), "/camera/position/0"},
+        {"position element bool", json::parse(R"({"camera": {"target": [0, true, 0]}})"), "/camera/target/1"},
+        // image
+        {"zero width", json::parse(R"({"image": {"width": 0}})"), "/image/width"},
+        {"width over limit", json::parse(R"({"image": {"width": 4097}})"), "/image/width"},
+        {"negative height", json::parse(R"({"image": {"height": -5}})"), "/image/height"},
+        {"fractional height", json::parse(R"({"image": {"height": 512.5}})"), "/image/height"},
+        {"height as string", json::parse(R"({"image": {"height": "512"}})"), "/image/height"},
+        {"exposure too high", json::parse(R"({"image": {"exposure": 21}})"), "/image/exposure"},
+        // light
+        {"negative intensity", json::parse(R"({"light": {"intensity": -1}})"), "/light/intensity"},
+        {"intensity too high", json::parse(R"({"light": {"intensity": 2e6}})"), "/light/intensity"},
+        {"intensity NaN", json{{"light", {{"intensity", nan}}}}, "/light/intensity"},
+        {"intensity infinite", json{{"light", {{"intensity", inf}}}}, "/light/intensity"},
+        {"unknown light type", json::parse(R"({"light": {"type": "area"}})"), "/light/type"},
+        {"light type wrong case", json::parse(R"({"light": {"type": "Spot"}})"), "/light/type"},
+        {"zero spot direction", json::parse(R"({"light": {"direction": [0, 0, 0]}})"), "/light/direction"},
+        {"zero directional direction",
+         json::parse(R"({"light": {"type": "directional", "direction": [0, 0, 0]}})"), "/light/direction"},
+        {"zero cone", json::parse(R"({"light": {"cone_deg": 0}})"), "/light/cone_deg"},
+        {"cone over 90", json::parse(R"({"light": {"cone_deg": 90.5}})"), "/light/cone_deg"},
+        {"colour channel too bright", json::parse(R"({"light": {"color": [1, 1, 1001]}})"), "/light/color/2"},
+        {"colour channel negative", json::parse(R"({"light": {"color": [1, -0.1, 1]}})"), "/light/color/1"},
+        {"colour of four", json::parse(R"({"light": {"color": [1, 1, 1, 1]}})"), "/light/color"},
+        // object
+        {"unknown mesh", json::parse(R"({"object": {"mesh": "teapot"}})"), "/object/mesh"},
+        {"empty upload name", json::parse(R"({"object": {"mesh": "upload:"}})"), "/object/mesh"},
+        {"upload name with slash", json::parse(R"({"object": {"mesh": "upload:a/b"}})"), "/object/mesh"},
+        {"upload name dot-dot", json::parse(R"({"object": {"mesh": "upload:.."}})"), "/object/mesh"},
+        {"upload name too long", json{{"object", {{"mesh", "upload:" + long_name}}}}, "/object/mesh"},
+        {"mesh not a string", json::parse(R"({"object": {"mesh": 3}})"), "/object/mesh"},
+        {"zero scale", json::parse(R"({"object": {"scale": 0}})"), "/object/scale"},
+        {"scale too big", json::parse(R"({"object": {"scale": 1001}})"), "/object/scale"},
+        {"non-uniform scale", json::parse(R"({"object": {"scale": [1, 1, 1]}})"), "/object/scale"},
+        {"rotation of four", json::parse(R"({"object": {"rotation_deg": [0, 0, 0, 0]}})"),
+         "/object/rotation_deg"},
+        {"position infinite", json{{"object", {{"position", {0.0, inf, 0.0}}}}}, "/object/position/1"},
+        {"ior below 1", json::parse(R"({"object": {"ior": 0.9}})"), "/object/ior"},
+        {"ior above 4", json::parse(R"({"object": {"ior": 4.5}})"), "/object/ior"},
+        {"maxwell n0 above 4", json::parse(R"({"object": {"maxwell_n0": 5}})"), "/object/maxwell_n0"},
+        {"unknown index field", json::parse(R"({"object": {"index_field": "Uniform"}})"),
+         "/object/index_field"},
+        {"negative extinction", json::parse(R"({"object": {"extinction": [0.05, -1, 0.05]}})"),
+         "/object/extinction/1"},
+        {"extinction too high", json::parse(R"({"object": {"extinction": [1001, 1001, 1001]}})"),
+         "/object/extinction/0"},
+        {"scattering above extinction", json::parse(R"({"object": {"scattering": [0.02, 0.1, 0.02]}})"),
+         "/object/scattering/1"},
+        {"extinction below scattering", json::parse(R"({"object": {"extinction": [0.05, 0.05, 0.01]}})"),
+         "/object/extinction/2"},
+        {"scattering NaN", json{{"object", {{"scattering", {0.0, nan, 0.0}}}}}, "/object/scattering/1"},
+        {"grid field without a grid", json::parse(R"({"object": {"index_field": "grid"}})"),
+         "/object/index_field"},
+        {"grid field with empty grid", json::parse(R"({"object": {"index_field": "grid", "grid": ""}})"),
+         "/object/grid"},
+        {"grid name with space", json::parse(R"({"object": {"grid": "my grid"}})"), "/object/grid"},
+        {"grid not a string", json::parse(R"({"object": {"grid": 5}})"), "/object/grid"},
+        {"grid deleted for a grid field", json::parse(R"({"object": {"grid": null, "index_field": "grid"}})"),
+         "/object/grid"},
+        {"phase model underscore", json::parse(R"({"object": {"phase": {"model": "henyey_greenstein"}}})"),
+         "/object/phase/model"},
+        {"phase g of 1", json::parse(R"({"object": {"phase": {"g": 1}}})"), "/object/phase/g"},
+        {"phase g of -1", json::parse(R"({"object": {"phase": {"g": -1}}})"), "/object/phase/g"},
+        // medium
+        {"medium ior below 1", json::parse(R"({"medium": {"ior": 0.5}})"), "/medium/ior"},
+        {"medium scattering above extinction", json::parse(R"({"medium": {"scattering": [0.1, 0.1, 0.1]}})"),
+         "/medium/scattering/0"},
+        {"medium phase g too close to 1", json::parse(R"({"medium": {"phase": {"g": 0.995}}})"),
+         "/medium/phase/g"},
+        // volume
+        {"resolution too low", json::parse(R"({"volume": {"resolution": 16}})"), "/volume/resolution"},
+        {"resolution too high", json::parse(R"({"volume": {"resolution": 1024}})"), "/volume/resolution"},
+        {"negative resolution", json::parse(R"({"volume": {"resolution": -128}})"), "/volume/resolution"},
+        {"smoothing too high", json::parse(R"({"volume": {"smoothing": 4.5}})"), "/volume/smoothing"},
+        {"zero octree epsilon", json::parse(R"({"volume": {"octree_epsilon": 0}})"),
+         "/volume/octree_epsilon"},
+        {"octree epsilon above 1", json::parse(R"({"volume": {"octree_epsilon": 1.5}})"),
+         "/volume/octree_epsilon"},
+        {"negative margin", json::parse(R"({"volume": {"margin": -0.1}})"), "/volume/margin"},
+        {"empty bounds axis", json::parse(R"({"volume": {"bounds": {"min": [0, 0, 0], "max": [1, 0, 1]}}})"),
+         "/volume/bounds/max/1"},
+        {"bounds min above default max", json::parse(R"({"volume": {"bounds": {"min": [-1, 2, -1]}}})"),
+         "/volume/bounds/min/1"},
+        {"bounds max of two", json::parse(R"({"volume": {"bounds": {"max": [1, 1]}}})"),
+         "/volume/bounds/max"},
+        // photons
+        {"zero photons", json::parse(R"({"photons": {"count": 0}})"), "/photons/count"},
+        {"photons over limit", json::parse(R"({"photons": {"count": 16777217}})"), "/photons/count"},
+        {"seed over 32 bits", json::parse(R"({"photons": {"seed": 4294967296}})"), "/photons/seed"},
+        {"seed as bool", json::parse(R"({"photons": {"seed": true}})"), "/photons/seed"},
+        // floor
+        {"enabled as number", json::parse(R"({"floor": {"enabled": 1}})"), "/floor/enabled"},
+        {"checker as string", json::parse(R"({"floor": {"checker": "yes"}})"), "/floor/checker"},
+        {"albedo above 1", json::parse(R"({"floor": {"albedo": [0.5, 1.5, 0.5]}})"), "/floor/albedo/1"},
+        {"zero checker size", json::parse(R"({"floor": {"checker_size": 0}})"), "/floor/checker_size"},
+        {"height as string", json::parse(R"({"floor": {"height": "low"}})"), "/floor/height"},
+    };
+}
+
+TEST(MergePatch, BadPatchesAreRejectedWithTheirPointer) {
+    const std::vector<BadPatch> cases = bad_patches();
+    ASSERT_GE(cases.size(), 25u);
+    for (const BadPatch& c : cases) {
+        SCOPED_TRACE(std::string(c.what) + ": " + c.patch.dump());
+        const SceneDocument current;
+        EXPECT_EQ(rejected_pointer([&] { apply_merge_patch(current, c.patch); }), c.pointer);
+        EXPECT_EQ(current, SceneDocument{});  // the document passed in is unchanged
+    }
+}
+
+TEST(MergePatch, BadPatchesLeaveACustomisedDocumentUnchanged) {
+    // Some rules tie values together (camera, scattering <= extinction, grid), so against this document a
+    // few of the patches are valid; whatever the outcome, the document passed in must not change.
+    const SceneDocument current = customised();
+    std::size_t rejected = 0;
+    for (const BadPatch& c : bad_patches()) {
+        SCOPED_TRACE(std::string(c.what) + ": " + c.patch.dump());
+        try {
+            (void)apply_merge_patch(current, c.patch);
+        } catch (const ValidationError&) {
+            ++rejected;
+        }
+        EXPECT_EQ(current, customised());
+    }
+    EXPECT_GE(rejected, bad_patches().size() - 6);
+}
+
+TEST(MergePatch, BadPatchesAreAlsoRejectedAsWholeDocuments) {
+    // The same values written into a fresh document (not as an edit) are rejected as well.
+    for (const BadPatch& c : bad_patches()) {
+        SCOPED_TRACE(std::string(c.what) + ": " + c.patch.dump());
+        json doc = to_json(SceneDocument{});
+        doc.merge_patch(c.patch);
+        EXPECT_THROW(parse_scene(doc), ValidationError);
+    }
+}
+
+}  // namespace
+}  // namespace refract::protocol
