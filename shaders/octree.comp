@@ -4,9 +4,11 @@
 // covers it (the coarsest node whose n range is below epsilon). Level-0 ranges span each voxel's 3x3x3
 // neighbourhood so that trilinear interpolation anywhere inside a leaf stays within its range.
 #include "volume_build.h"
+// The workgroup size comes before linear_id.glsl: gl_WorkGroupSize used ahead of the declaration folds
+// to 1, which breaks every dispatch folded past 65535 groups.
+layout(local_size_x = VOLUME_GROUP_SIZE) in;
 #include "linear_id.glsl"
 
-layout(local_size_x = VOLUME_GROUP_SIZE) in;
 layout(binding = OCTREE_BINDING_INDEX_FIELD, rgba32f) uniform readonly image3D index_field;
 layout(std430, binding = OCTREE_BINDING_PYRAMID) buffer Pyramid { vec2 pyramid[]; };
 layout(std430, binding = OCTREE_BINDING_LEVELS) writeonly buffer Levels { uint levels[]; };

@@ -1,5 +1,7 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_EXT_shader_atomic_int64 : require
 // Photon generation and tracing (passes 3-5 of Sun et al. 2008), one thread per photon run to
 // completion. Photons start where the light's rays enter the grid, follow the ray equation with the
 // octree's largest safe step, lose flux to extinction (Beer-Lambert per channel), and add flux x path
@@ -9,12 +11,9 @@
 #include "linear_id.glsl"
 
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_RED) buffer AccumRed { uint accum_red[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_GREEN) buffer AccumGreen { uint accum_green[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_BLUE) buffer AccumBlue { uint accum_blue[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_X) buffer AccumDirX { int accum_dir_x[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_Y) buffer AccumDirY { int accum_dir_y[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_Z) buffer AccumDirZ { int accum_dir_z[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) buffer AccumRG { uint64_t accum_rg[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_BX) buffer AccumBX { uint64_t accum_bx[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_YZ) buffer AccumYZ { uint64_t accum_yz[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) buffer AccumFloor { uint accum_floor[]; };
 layout(std430, binding = TRANSPORT_BINDING_STATS) buffer Stats { PhotonStats stats; };
 layout(std430, binding = TRANSPORT_BINDING_PHOTON_EXITS) writeonly buffer Exits { PhotonExit exits[]; };
@@ -75,8 +74,11 @@ bool emit(uint i, out vec3 origin, out vec3 direction) {
 
 uint voxel_index(ivec3 v) { return (uint(v.z) * params.grid_dims.y + uint(v.y)) * params.grid_dims.x + uint(v.x); }
 
+// Two fixed-point values as one 64-bit addend: `low` sign-extended plus `high` << 32 (see transport.h).
+uint64_t pack(int low, int high) { return uint64_t(int64_t(low)) + (uint64_t(int64_t(high)) << 32); }
+
 // Adds weight x length to each voxel the straight segment p + t d, t in [0, len), crosses (3D DDA),
-// attenuating by exp(-kappa t) along the way.
+// attenuated by exp(-kappa t): per voxel where the segment absorbs noticeably, else once at its middle.
 void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa) {
     float scale = params.stepping.z;
     ivec3 cell = ivec3(floor(p));
@@ -86,21 +88,21 @@ void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa) {
     t_max = mix(t_max, vec3(1e30), equal(d, vec3(0.0)));
     vec3 t_delta = mix(abs(inv), vec3(1e30), equal(d, vec3(0.0)));
     ivec3 dims = ivec3(params.grid_dims.xyz);
+    bool absorbs = max(kappa.r, max(kappa.g, kappa.b)) * len > 0.02;
+    vec3 segment_weight = weight * exp(-kappa * (0.5 * len)) * scale;
     float t = 0.0;
     for (int guard = 0; guard < 4096 && t < len; ++guard) {
         float t_next = min(min(t_max.x, t_max.y), min(t_max.z, len));
         float piece = t_next - t;
         if (piece > 0.0 && all(greaterThanEqual(cell, ivec3(0))) && all(lessThan(cell, dims))) {
-            vec3 w = weight * exp(-kappa * (t + 0.5 * piece)) * piece * scale;
+            vec3 w = (absorbs ? weight * exp(-kappa * (t + 0.5 * piece)) * scale : segment_weight) * piece;
             uint index = voxel_index(cell);
-            uvec3 q = uvec3(w + next_unit());
-            if (q.r != 0u) atomicAdd(accum_red[index], q.r);
-            if (q.g != 0u) atomicAdd(accum_green[index], q.g);
-            if (q.b != 0u) atomicAdd(accum_blue[index], q.b);
-            ivec3 dq = ivec3(floor(d * (w.r + w.g + w.b) * (1.0 / 3.0) + next_unit()));
-            if (dq.x != 0) atomicAdd(accum_dir_x[index], dq.x);
-            if (dq.y != 0) atomicAdd(accum_dir_y[index], dq.y);
-            if (dq.z != 0) atomicAdd(accum_dir_z[index], dq.z);
+            float jitter = next_unit();
+            ivec3 q = ivec3(w + jitter);
+            ivec3 dq = ivec3(floor(d * ((w.r + w.g + w.b) * (1.0 / 3.0)) + jitter));
+            atomicAdd(accum_rg[index], pack(q.r, q.g));
+            atomicAdd(accum_bx[index], pack(q.b, dq.x));
+            atomicAdd(accum_yz[index], pack(dq.y, dq.z));
         }
         t = t_next;
         if (t_max.x <= t_max.y && t_max.x <= t_max.z) { cell.x += step_dir.x; t_max.x += t_delta.x; }
@@ -150,43 +152,48 @@ void main() {
     if (floor_on && p.y <= floor_y) return;  // entered the grid below the floor
     atomicAdd(stats.photons_entered, 1u);
 
-    vec3 v = direction * index_at(p).x;
+    Ray ray = start_ray(p, direction);
+    vec3 entry = to_world(p);
     float shell_step = params.stepping.x;
     bool fixed_step = params.photon_info.w == 1u;
+    bool deposits = params.flags.w == 1u;
     uint steps = 0u;
     float h = voxel_size();
     float outcome = 0.0;
+    float path = 0.0;  // voxels travelled inside the grid
     for (; steps < params.photon_info.z; ++steps) {
-        vec3 d = normalize(v);
-        float ds = fixed_step ? shell_step : safe_step(p, d, shell_step);
-        vec3 kappa = extinction_at(coverage_at(p)) * h;  // per voxel length
+        uint level = fixed_step ? 0u : octree_level(ray.p);
+        float ds = safe_step(level, ray.p, ray.d, shell_step);
+        vec3 kappa = extinction_at(coverage_for(params.flags.y, ray.p, ray.field.x)) * h;  // per voxel length
         // Stop at the floor or the grid's far side within this step.
-        float to_exit = grid_interval(p, d).y;
-        bool hits_floor = floor_on && d.y < 0.0 && p.y + ds * d.y <= floor_y;
-        float to_floor = hits_floor ? (p.y - floor_y) / -d.y : 1e30;
+        float to_exit = grid_interval(ray.p, ray.d).y;
+        bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
+        float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
         float len = min(ds, min(to_exit, to_floor));
-        deposit(p, d, len, weight, kappa);
+        if (deposits) deposit(ray.p, ray.d, len, weight, kappa);
+        path += len;
         if (to_floor <= min(ds, to_exit)) {
             weight *= exp(-kappa * to_floor);
-            p += d * to_floor;
-            deposit_floor(to_world(p), weight);
+            ray.p += ray.d * to_floor;
+            deposit_floor(to_world(ray.p), weight);
             outcome = 2.0;
             break;
         }
         weight *= exp(-kappa * len);
         if (to_exit <= ds) {
-            p += d * to_exit;
+            ray.p += ray.d * to_exit;
             outcome = 1.0;
             // Left the grid: continue straight (outside is empty) to the floor.
-            if (floor_on && d.y < 0.0) {
-                float t = (p.y - floor_y) / -d.y;
-                deposit_floor(to_world(p + d * t), weight);
+            if (floor_on && ray.d.y < 0.0) {
+                float t = (ray.p.y - floor_y) / -ray.d.y;
+                deposit_floor(to_world(ray.p + ray.d * t), weight);
             }
             break;
         }
-        ray_step(p, v, ds);
+        ray_step(ray, ds);
         if (max(weight.r, max(weight.g, weight.b)) < 1e-4) break;
     }
     atomicAdd(stats.steps, steps + 1u);
-    if (params.debug.x == 1u) exits[i] = PhotonExit(vec4(to_world(p), outcome), vec4(normalize(v), float(steps + 1u)));
+    if (params.flags.x == 1u) exits[i] = PhotonExit(vec4(entry, 1.0), vec4(direction, path * h), vec4(to_world(ray.p), outcome),
+                                                vec4(ray.d, float(steps + 1u)));
 }

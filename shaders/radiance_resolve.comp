@@ -1,5 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Turns the photon pass's fixed-point sums into physical units for the viewing pass:
 // fluence rate (W/m^2) = sum(flux x path length) / voxel volume, the mean light direction, and floor
 // irradiance (W/m^2) = sum(flux) / texel area. Independent of photon count and grid resolution.
@@ -8,12 +9,9 @@
 
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 layout(std430, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams params; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_RED) readonly buffer AccumRed { uint accum_red[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_GREEN) readonly buffer AccumGreen { uint accum_green[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_BLUE) readonly buffer AccumBlue { uint accum_blue[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_X) readonly buffer AccumDirX { int accum_dir_x[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_Y) readonly buffer AccumDirY { int accum_dir_y[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_DIR_Z) readonly buffer AccumDirZ { int accum_dir_z[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) readonly buffer AccumRG { uint64_t accum_rg[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_BX) readonly buffer AccumBX { uint64_t accum_bx[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_YZ) readonly buffer AccumYZ { uint64_t accum_yz[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) readonly buffer AccumFloor { uint accum_floor[]; };
 layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform writeonly image3D radiance;
 layout(binding = TRANSPORT_BINDING_DIRECTION, rgba16f) uniform writeonly image3D direction;
@@ -29,9 +27,17 @@ void main() {
         float h = params.grid_origin.w;
         // sum is in photon-voxel-lengths x scale; flux x length / volume = sum / scale x flux x h / h^3.
         float to_fluence = reference_flux / (params.stepping.z * h * h);
-        vec3 fluence = vec3(float(accum_red[i]), float(accum_green[i]), float(accum_blue[i])) * to_fluence;
-        vec3 dir_sum = vec3(float(accum_dir_x[i]), float(accum_dir_y[i]), float(accum_dir_z[i]));
-        float total = (float(accum_red[i]) + float(accum_green[i]) + float(accum_blue[i])) * (1.0 / 3.0);
+        // Unpack (transport.h): the low half of each word is its own sum (signed where it can be
+        // negative); the high half is what remains once the low half is taken out.
+        uint64_t rg = accum_rg[i], bx = accum_bx[i], yz = accum_yz[i];
+        float red = float(uint(rg & 0xffffffffUL)), green = float(uint(rg >> 32));
+        float blue = float(uint(bx & 0xffffffffUL));
+        float dir_x = float(int(int64_t(bx) >> 32));
+        int dir_y = int(uint(yz & 0xffffffffUL));
+        float dir_z = float(int((int64_t(yz) - int64_t(dir_y)) >> 32));
+        vec3 fluence = vec3(red, green, blue) * to_fluence;
+        vec3 dir_sum = vec3(dir_x, float(dir_y), dir_z);
+        float total = (red + green + blue) * (1.0 / 3.0);
         float len = length(dir_sum);
         vec4 dir = len > 0.0 ? vec4(dir_sum / len, min(len / max(total, 1.0), 1.0)) : vec4(0.0);
         imageStore(radiance, v, vec4(fluence, 0.0));

@@ -3,9 +3,11 @@
 // One axis of the separable Gaussian that smooths coverage (Ihrke et al.: sigma of about one voxel keeps
 // the refracting shell 2-3 voxels wide without halos). Edges clamp: the grid's border is medium.
 #include "volume_build.h"
+// The workgroup size comes before linear_id.glsl: gl_WorkGroupSize used ahead of the declaration folds
+// to 1, which breaks every dispatch folded past 65535 groups.
+layout(local_size_x = VOLUME_GROUP_SIZE) in;
 #include "linear_id.glsl"
 
-layout(local_size_x = VOLUME_GROUP_SIZE) in;
 layout(std430, binding = SMOOTH_BINDING_SOURCE) readonly buffer Source { float source[]; };
 layout(std430, binding = SMOOTH_BINDING_TARGET) writeonly buffer Target { float target[]; };
 layout(push_constant) uniform Push { SmoothPush push; };

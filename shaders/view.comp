@@ -90,50 +90,52 @@ void main() {
     float floor_t = (floor_on && d.y < 0.0) ? (p.y - floor_y) / -d.y : 1e30;
     if (span.x < span.y && span.x < floor_t) {
         p += d * (span.x + 1e-3);
-        vec3 v = d * index_at(p).x;
+        Ray ray = start_ray(p, d);
         float view_step = params.tone.y;
         for (uint steps = 0u; steps < 8192u; ++steps) {
-            d = normalize(v);
-            float c = coverage_at(p);
-            vec3 sigma_s = scattering_at(c) * h;
-            vec3 kappa = extinction_at(c) * h;
+            float n = ray.field.x;
+            vec3 sigma_s = scattering_at(coverage_for(params.flags.z, ray.p, n)) * h;
+            vec3 kappa = extinction_at(coverage_for(params.flags.y, ray.p, n)) * h;
             bool scatters = max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0;
-            float ds = scatters ? view_step : safe_step(p, d, view_step);
-            float to_exit = grid_interval(p, d).y;
-            bool hits_floor = floor_on && d.y < 0.0 && p.y + ds * d.y <= floor_y;
-            float to_floor = hits_floor ? (p.y - floor_y) / -d.y : 1e30;
+            uint level = octree_level(ray.p);
+            float ds = scatters ? view_step : safe_step(level, ray.p, ray.d, view_step);
+            float to_exit = grid_interval(ray.p, ray.d).y;
+            bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
+            float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
             float len = min(ds, min(to_exit, to_floor));
             if (scatters) {
-                vec3 q = (p + 0.5 * len * d) / grid_dims();
+                vec3 q = (ray.p + 0.5 * len * ray.d) / grid_dims();
                 vec3 fluence = textureLod(radiance, q, 0.0).rgb;
                 vec4 light_dir = textureLod(light_direction, q, 0.0);
-                bool in_object = c > 0.5;
+                bool in_object = coverage_for(params.flags.z, ray.p, n) > 0.5;
                 uint model = in_object ? params.models.y : params.models.x;
                 float g = in_object ? params.object_scattering.w : params.medium_scattering.w;
                 // Where photons arrive from many directions the mean direction is short: blend towards
                 // isotropic by its length (coherence).
                 float coherence = clamp(light_dir.w, 0.0, 1.0);
-                float cos_theta = dot(light_dir.xyz / max(length(light_dir.xyz), 1e-6), -d);
+                float cos_theta = dot(light_dir.xyz / max(length(light_dir.xyz), 1e-6), -ray.d);
                 float phase = mix(phase_isotropic(), phase_value(model, cos_theta, g), coherence);
                 vec3 path = mix(vec3(len), (1.0 - exp(-kappa * len)) / kappa, greaterThan(kappa, vec3(1e-7)));
                 radiance_sum += transmittance * sigma_s * phase * fluence * path;
             }
             transmittance *= exp(-kappa * len);
             if (to_floor <= min(ds, to_exit)) {
-                p += d * to_floor;
+                ray.p += ray.d * to_floor;
                 on_floor = true;
                 break;
             }
             if (to_exit <= ds) {
-                p += d * to_exit;
+                ray.p += ray.d * to_exit;
                 break;
             }
-            ray_step(p, v, ds);
+            ray_step(ray, ds);
             if (max(transmittance.r, max(transmittance.g, transmittance.b)) < 1e-3) {
                 transmittance = vec3(0.0);
                 break;
             }
         }
+        p = ray.p;
+        d = ray.d;
         position = to_world(p);
     }
     if (any(greaterThan(transmittance, vec3(0.0)))) {

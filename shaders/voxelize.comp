@@ -2,14 +2,17 @@
 #extension GL_GOOGLE_include_directive : require
 // Voxelization: fractional coverage of a triangle mesh on the grid.
 // COLUMNS: one thread per voxel column along `axis`; S x S rays per column find every surface crossing,
-// turn them into inside intervals by the winding number (robust to inconsistent parity), and add the
-// exact inside length per voxel. A column whose crossings do not balance (a hole in the mesh) or
-// overflow is marked unreliable (-1) so the other two axes decide there.
+// turn them into inside intervals by the nonzero winding rule (robust to inconsistent parity and to
+// meshes wound inside out, as some OBJ exporters write them), and add the exact inside length per
+// voxel. A column whose crossings do not balance (a hole in the mesh) or overflow is marked unreliable
+// (-1) so the other two axes decide there.
 // COMBINE: per voxel, the median of the reliable axes' coverage (a majority vote that keeps fractions).
 #include "volume_build.h"
+// The workgroup size comes before linear_id.glsl: gl_WorkGroupSize used ahead of the declaration folds
+// to 1, which breaks every dispatch folded past 65535 groups.
+layout(local_size_x = VOLUME_GROUP_SIZE) in;
 #include "linear_id.glsl"
 
-layout(local_size_x = VOLUME_GROUP_SIZE) in;
 layout(std430, binding = VOXELIZE_BINDING_TRIANGLES) readonly buffer Triangles { vec4 vertices[]; };
 layout(std430, binding = VOXELIZE_BINDING_TILE_RANGES) readonly buffer TileRanges { uvec2 tile_ranges[]; };
 layout(std430, binding = VOXELIZE_BINDING_TILE_ITEMS) readonly buffer TileItems { uint tile_items[]; };
@@ -96,7 +99,8 @@ void columns() {
         // Walk the sorted crossings and add each inside interval's overlap with every voxel.
         for (int i = 0; i < count; ++i) {
             winding += crossing_wind[i];
-            if (winding <= 0 || i + 1 >= count) continue;
+            // Nonzero rule: an inside-out mesh winds -1 inside and must fill the same.
+            if (winding == 0 || i + 1 >= count) continue;
             float w_in = clamp(crossing_w[i], 0.0, float(length_along));
             float w_out = clamp(crossing_w[i + 1], 0.0, float(length_along));
             if (w_out <= w_in) continue;

@@ -11,10 +11,9 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, uint64_t voxel
                                             uint32_t exit_count) {
     const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     PhotonAccumulators accum;
-    const char* names[6] = {"radiance sum red", "radiance sum green", "radiance sum blue",
-                            "direction sum x", "direction sum y", "direction sum z"};
-    for (size_t i = 0; i < 6; ++i)
-        accum.voxel[i] = vk::Buffer(context, voxels * sizeof(uint32_t), usage, vk::MemoryUse::device, names[i]);
+    const char* names[3] = {"radiance sums red+green", "radiance sums blue+direction x", "direction sums y+z"};
+    for (size_t i = 0; i < 3; ++i)
+        accum.voxel[i] = vk::Buffer(context, voxels * sizeof(uint64_t), usage, vk::MemoryUse::device, names[i]);
     accum.floor = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * 3 * sizeof(uint32_t), usage,
                              vk::MemoryUse::device, "floor flux sum");
     accum.stats = vk::Buffer(context, sizeof(shaders::PhotonStats), usage, vk::MemoryUse::readback, "photon stats");
@@ -29,12 +28,9 @@ PhotonTracePass::PhotonTracePass(vk::Context& context)
                  {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
                  {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
                  {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_ACCUM_RED, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_ACCUM_GREEN, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_ACCUM_BLUE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_ACCUM_DIR_X, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_ACCUM_DIR_Y, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_ACCUM_DIR_Z, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_RG, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_BX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_ACCUM_YZ, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
                  {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
                  {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
                  {TRANSPORT_BINDING_PHOTON_EXITS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
@@ -53,12 +49,9 @@ void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInput
                         vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
                         vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RED, accum.voxel[0]),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_GREEN, accum.voxel[1]),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_BLUE, accum.voxel[2]),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_DIR_X, accum.voxel[3]),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_DIR_Y, accum.voxel[4]),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_DIR_Z, accum.voxel[5]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.voxel[0]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_BX, accum.voxel[1]),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_YZ, accum.voxel[2]),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits)},

@@ -11,7 +11,7 @@ namespace refract::passes {
 
 // Everything the photon pass writes and the resolve pass reads.
 struct PhotonAccumulators {
-    std::array<vk::Buffer, 6> voxel;  // red, green, blue, direction x, y, z
+    std::array<vk::Buffer, 3> voxel;  // packed 64-bit sums RG, BX, YZ (see shaders/shared/transport.h)
     vk::Buffer floor;                 // 3 uints per floor texel
     vk::Buffer stats;                 // PhotonStats (host-readable)
     vk::Buffer exits;                 // PhotonExit per photon when recorded (tests), else one entry

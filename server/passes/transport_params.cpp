@@ -153,6 +153,10 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
             hi = glm::max(hi, glm::vec2(hit.x, hit.z));
         }
     }
+    // Refracted light spreads past the straight shadow (behind a focus, say): leave room around it.
+    const float spread = 0.5f * std::max(grid.max_corner().x - grid.origin.x, grid.max_corner().z - grid.origin.z);
+    lo -= spread;
+    hi += spread;
     const glm::vec2 centre_xz(centre.x, centre.z);
     lo = glm::max(lo, centre_xz - 2.0f * grid_extent);
     hi = glm::min(hi, centre_xz + 2.0f * grid_extent);
@@ -173,6 +177,18 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     p.camera_up = glm::vec4(up, 0.0f);
     p.image = glm::uvec4(document.image.width, document.image.height, 0u, 0u);
     p.tone = glm::vec4(std::exp2(static_cast<float>(document.image.exposure)), options.view_step, 0.0f, 0.0f);
+    // How passes find coverage for each coefficient, and whether photons need to deposit at all.
+    const bool uniform_index = object.index_field == protocol::IndexFieldKind::uniform &&
+                               std::abs(object.ior - medium.ior) > 1e-4;
+    auto coverage_mode = [&](bool coefficients_equal) {
+        if (coefficients_equal) return COVERAGE_CONSTANT;
+        return uniform_index ? COVERAGE_FROM_INDEX : COVERAGE_FETCH;
+    };
+    const bool any_scattering = std::max({medium.scattering[0], medium.scattering[1], medium.scattering[2],
+                                          object.scattering[0], object.scattering[1], object.scattering[2]}) > 0.0;
+    p.flags = glm::uvec4(0u, coverage_mode(medium.extinction == object.extinction),
+                         coverage_mode(medium.scattering == object.scattering && medium.phase == object.phase),
+                         any_scattering ? 1u : 0u);
     p.sky_zenith = glm::vec4(0.010f, 0.014f, 0.024f, 0.0f);
     p.sky_horizon = glm::vec4(0.045f, 0.050f, 0.060f, 0.0f);
     return p;

@@ -19,7 +19,7 @@ PassKit::PassKit(vk::Context& ctx)
 int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t height) {
     const int64_t voxels = static_cast<int64_t>(grid.dims.count());
     // coverage + scratch (4+4), index field (16), coverage image (4), pyramid (8 x 8/7), levels (4),
-    // six accumulators (24), radiance (16), direction (8); voxelize's per-axis scratch (12) while it runs.
+    // packed accumulators (24), radiance (16), direction (8); voxelize's per-axis scratch (12) while it runs.
     const int64_t per_voxel = 4 + 4 + 16 + 4 + 10 + 4 + 24 + 16 + 8 + 12;
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
     return voxels * per_voxel + floor + int64_t{width} * height * 20;
@@ -116,7 +116,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     transport_options.fixed_step = options.fixed_step;
     transport_options.max_level = passes::octree_layout(grid_.dims).max_level;
     params_ = passes::make_transport_params(document, grid_, transport_options);
-    params_.debug = glm::uvec4(options.record_photon_exits ? 1u : 0u, 0u, 0u, 0u);
+    params_.flags.x = options.record_photon_exits ? 1u : 0u;
     if (!params_buffer_.get())
         params_buffer_ = vk::Buffer(kit_.context, sizeof(params_), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                                     vk::MemoryUse::upload, "transport params");

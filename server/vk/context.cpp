@@ -130,8 +130,15 @@ uint32_t inspect_device(VkPhysicalDevice device, uint32_t index, DeviceInfo& inf
         if ((fp.optimalTilingFeatures & need) != need)
             info.missing.push_back("storage + linear-filtered sampling for format " + std::to_string(format));
     }
-    VkPhysicalDeviceFeatures features{};
-    vkGetPhysicalDeviceFeatures(device, &features);
+    // Photon deposits add two fixed-point sums with one 64-bit atomic.
+    VkPhysicalDeviceVulkan12Features features12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+    VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    features.pNext = &features12;
+    if (p.apiVersion >= VK_API_VERSION_1_2) {
+        vkGetPhysicalDeviceFeatures2(device, &features);
+        if (!features.features.shaderInt64) info.missing.push_back("shaderInt64");
+        if (!features12.shaderBufferInt64Atomics) info.missing.push_back("shaderBufferInt64Atomics");
+    }
     info.suitable = info.missing.empty();
     return family;
 }
@@ -232,13 +239,17 @@ Context::Context(const ContextOptions& options) {
         queue_info.queueCount = 1;
         queue_info.pQueuePriorities = &priority;
         const char* extensions[] = {VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME};
-        VkPhysicalDeviceFeatures features{};
+        VkPhysicalDeviceVulkan12Features features12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+        features12.shaderBufferInt64Atomics = VK_TRUE;
+        VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+        features.pNext = &features12;
+        features.features.shaderInt64 = VK_TRUE;
         VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+        device_info.pNext = &features;
         device_info.queueCreateInfoCount = 1;
         device_info.pQueueCreateInfos = &queue_info;
         device_info.enabledExtensionCount = 1;
         device_info.ppEnabledExtensionNames = extensions;
-        device_info.pEnabledFeatures = &features;
         REFRACT_VK_CHECK(vkCreateDevice(physical_device_, &device_info, nullptr, &device_));
         vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
         push_descriptor_set = reinterpret_cast<PFN_vkCmdPushDescriptorSetKHR>(

@@ -15,12 +15,13 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_INDEX_FIELD 1     // sampler3D rgba32f (n, grad n per voxel)
 #define TRANSPORT_BINDING_COVERAGE 2        // sampler3D r32f
 #define TRANSPORT_BINDING_LEVELS 3          // uint per voxel (octree leaf level)
-#define TRANSPORT_BINDING_ACCUM_RED 4       // fixed-point flux x path length per voxel, per channel
-#define TRANSPORT_BINDING_ACCUM_GREEN 5
-#define TRANSPORT_BINDING_ACCUM_BLUE 6
-#define TRANSPORT_BINDING_ACCUM_DIR_X 7     // fixed-point flux-weighted direction (signed)
-#define TRANSPORT_BINDING_ACCUM_DIR_Y 8
-#define TRANSPORT_BINDING_ACCUM_DIR_Z 9
+// Per voxel, six fixed-point sums packed in pairs into 64-bit words, so one 64-bit atomic adds two:
+// RG = red | green << 32, BX = blue | dir_x << 32, YZ = dir_y | dir_z << 32 (dir_* are signed and
+// flux-weighted; colour sums are flux x path length). Every half-sum stays within 31 bits by the choice
+// of fixed-point scale, so halves never carry into each other beyond what decoding undoes exactly.
+#define TRANSPORT_BINDING_ACCUM_RG 4
+#define TRANSPORT_BINDING_ACCUM_BX 5
+#define TRANSPORT_BINDING_ACCUM_YZ 6
 #define TRANSPORT_BINDING_ACCUM_FLOOR 10    // fixed-point floor flux, 3 uints per texel
 #define TRANSPORT_BINDING_STATS 11          // photon statistics (see PhotonStats)
 #define TRANSPORT_BINDING_RADIANCE 12       // rgba32f: fluence rate (W/m^2) rgb
@@ -28,13 +29,19 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_FLOOR_MAP 14      // rgba16f (z = 1): floor irradiance from photons (W/m^2)
 #define TRANSPORT_BINDING_HDR 15            // vec4 per pixel: linear radiance before exposure
 #define TRANSPORT_BINDING_LDR 16            // uint per pixel: tone-mapped sRGB RGBA8
-#define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when debug.x == 1
+#define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when flags.x == 1
 
 #define LIGHT_POINT 0u
 #define LIGHT_SPOT 1u
 #define LIGHT_DIRECTIONAL 2u
 
 #define CHANNEL_ALL 3u  // a photon carries all three channels (no dispersion)
+
+// How a pass finds the coverage that mixes medium and object coefficients: not at all when both are
+// equal, from n when the field is the uniform object's (n is linear in coverage), else by a fetch.
+#define COVERAGE_CONSTANT 0u
+#define COVERAGE_FROM_INDEX 1u
+#define COVERAGE_FETCH 2u
 
 struct TransportParams {
     // Grid
@@ -72,13 +79,17 @@ struct TransportParams {
     vec4 tone;                // x: exposure multiplier (2^exposure), y: view step (voxels), zw: unused
     vec4 sky_zenith;          // rgb background above the horizon
     vec4 sky_horizon;         // rgb background at the horizon
-    uvec4 debug;              // x: 1 = record each photon's exit state (tests); yzw: unused
+    uvec4 flags;              // x: 1 = record each photon's exit state (tests)
+                              // y: how extinction finds coverage, z: how scattering does (COVERAGE_*)
+                              // w: 1 = something scatters (photons deposit into the radiance grid)
 };
 
 // Where a photon left the grid (or stopped), for the optics tests.
 struct PhotonExit {
-    vec4 position;   // world; w: 1 if it left the grid, 2 if it hit the floor, 0 otherwise
-    vec4 direction;  // unit travel direction; w: steps taken
+    vec4 entry;            // world point where it entered the grid; w: 1 if it entered
+    vec4 entry_direction;  // unit direction there; w: path length inside the grid (m)
+    vec4 position;         // world point where it left the grid or stopped; w: 1 left, 2 hit the floor
+    vec4 direction;        // unit travel direction there; w: steps taken
 };
 
 // Written by the photon pass for statistics (atomic counters).
@@ -94,7 +105,7 @@ REFRACT_SHADERS_END
 #ifdef __cplusplus
 static_assert(sizeof(refract::shaders::TransportParams) == 29 * 16);
 static_assert(sizeof(refract::shaders::PhotonStats) == 16);
-static_assert(sizeof(refract::shaders::PhotonExit) == 32);
+static_assert(sizeof(refract::shaders::PhotonExit) == 64);
 #endif
 
 #endif

@@ -19,6 +19,16 @@ float coverage_at(vec3 p) { return textureLod(coverage_field, p / grid_dims(), 0
 vec3 extinction_at(float c) { return mix(params.medium_extinction.rgb, params.object_extinction.rgb, c); }
 vec3 scattering_at(float c) { return mix(params.medium_scattering.rgb, params.object_scattering.rgb, c); }
 
+// Coverage at p where the index there is n, found the cheapest way `mode` allows (COVERAGE_*).
+float coverage_for(uint mode, vec3 p, float n) {
+    if (mode == COVERAGE_CONSTANT) return 0.0;
+    if (mode == COVERAGE_FROM_INDEX) {
+        float n_medium = params.medium_extinction.w, n_object = params.object_extinction.w;
+        return clamp((n - n_medium) / (n_object - n_medium), 0.0, 1.0);
+    }
+    return coverage_at(p);
+}
+
 bool inside_grid(vec3 p) { return all(greaterThanEqual(p, vec3(0.0))) && all(lessThan(p, grid_dims())); }
 
 uint octree_level(vec3 p) {
@@ -45,23 +55,38 @@ vec2 grid_interval(vec3 origin, vec3 d) {
     return vec2(max(max(lo.x, lo.y), max(lo.z, 0.0)), min(hi.x, min(hi.y, hi.z)));
 }
 
-// The largest safe step (voxels) at p along d: the exit of the octree leaf, slightly past it, or the
-// shell step where n varies.
-float safe_step(vec3 p, vec3 d, float shell_step) {
-    uint level = octree_level(p);
+// The largest safe step (voxels) at p along d for a leaf of `level`: the exit of the leaf cube,
+// slightly past it; the shell step where n varies (level 0).
+float safe_step(uint level, vec3 p, vec3 d, float shell_step) {
     if (level == 0u) return shell_step;
     return max(cell_exit(p, d, float(1u << level)) + params.stepping.y, shell_step);
 }
 
-// One Euler step of d/ds (n dx/ds) = grad n with v = n dx/ds (Sun et al. 2008, Ihrke et al. 2007):
-// x += ds/n v, v += ds grad n, then |v| renormalized to the index at the new point.
-void ray_step(inout vec3 p, inout vec3 v, float ds) {
-    vec4 here = index_at(p);
-    p += (ds / here.x) * v;
-    v += ds * here.yzw;
-    float n_next = index_at(p).x;
+// A ray in the index field: position, unit direction and the field sample (n, grad n) at the position,
+// carried from one step to the next so each step fetches the field once.
+struct Ray {
+    vec3 p;
+    vec3 d;
+    vec4 field;
+};
+
+Ray start_ray(vec3 p, vec3 d) { return Ray(p, d, index_at(p)); }
+
+// One step of d/ds (n dx/ds) = grad n with v = n dx/ds (Sun et al. 2008, Ihrke et al. 2007). The
+// paper's Euler update (x += ds/n v, v += ds grad n) is first order; here the position also takes the
+// curvature term ds^2/(2n) (grad n across the ray) and v the trapezoid of grad n at both ends. The
+// field at the far end is fetched anyway (to renormalize |v| = n there), so second order costs no
+// extra fetch, and the octree's long leaf steps stay accurate in smooth fields (Luneburg, Maxwell).
+void ray_step(inout Ray ray, float ds) {
+    float n = ray.field.x;
+    vec3 g = ray.field.yzw;
+    vec3 across = g - dot(g, ray.d) * ray.d;
+    ray.p += ds * ray.d + (0.5 * ds * ds / n) * across;
+    vec4 next = index_at(ray.p);
+    vec3 v = n * ray.d + (0.5 * ds) * (g + next.yzw);
+    ray.field = next;
     float len = length(v);
-    if (len > 0.0) v *= n_next / len;
+    if (len > 0.0) ray.d = v / len;
 }
 
 float floor_height_voxels() { return (params.floor_plane.x - params.grid_origin.y) / params.grid_origin.w; }
