@@ -8,9 +8,9 @@
 // length to every voxel they cross (the track-length estimator of fluence) plus a flux-weighted
 // direction. Accumulation is fixed-point integer atomics: deterministic on every device.
 #include "transport_common.glsl"
+layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
 
-layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) buffer AccumRG { uint64_t accum_rg[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_BX) buffer AccumBX { uint64_t accum_bx[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_YZ) buffer AccumYZ { uint64_t accum_yz[]; };
@@ -111,8 +111,12 @@ void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa) {
     }
 }
 
-// Splats the photon's flux bilinearly into the floor caustic map at world point x.
-void deposit_floor(vec3 x, vec3 weight) {
+// Splats flux bilinearly into the floor map at world point x, added (sign +1) or taken away (-1). The
+// map holds how the grid changes the floor's irradiance: each photon that enters the grid takes its
+// flux away from where its straight path from the light would have landed and adds what arrives where
+// it actually lands. The viewing pass adds the map to the analytic unobstructed irradiance, so the
+// floor has no seam at the edge of the grid's shadow and no photon noise where nothing changed.
+void deposit_floor(vec3 x, vec3 weight, int sign) {
     float texels = params.floor_map.w;
     vec2 m = (x.xz - params.floor_map.xy) / params.floor_map.z * texels - 0.5;
     if (any(lessThan(m, vec2(-1.0))) || any(greaterThan(m, vec2(texels)))) return;
@@ -123,13 +127,13 @@ void deposit_floor(vec3 x, vec3 weight) {
         ivec2 t = base + ivec2(k & 1, k >> 1);
         if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, ivec2(side)))) continue;
         float bw = ((k & 1) == 1 ? f.x : 1.0 - f.x) * ((k >> 1) == 1 ? f.y : 1.0 - f.y);
-        uvec3 q = uvec3(weight * bw * params.stepping.w + next_unit());
+        ivec3 q = sign * ivec3(weight * bw * params.stepping.w + next_unit());
         uint index = 3u * uint(t.y * side + t.x);
-        if (q.r != 0u) atomicAdd(accum_floor[index], q.r);
-        if (q.g != 0u) atomicAdd(accum_floor[index + 1u], q.g);
-        if (q.b != 0u) atomicAdd(accum_floor[index + 2u], q.b);
+        if (q.r != 0) atomicAdd(accum_floor[index], uint(q.r));
+        if (q.g != 0) atomicAdd(accum_floor[index + 1u], uint(q.g));
+        if (q.b != 0) atomicAdd(accum_floor[index + 2u], uint(q.b));
     }
-    atomicAdd(stats.floor_hits, 1u);
+    if (sign > 0) atomicAdd(stats.floor_hits, 1u);
 }
 
 void main() {
@@ -145,12 +149,14 @@ void main() {
     bool floor_on = floor_enabled();
     float floor_y = floor_height_voxels();
     if (span.x >= span.y) {
-        // Misses the grid: straight to the floor (light outside the grid's shadow is lit analytically).
+        // Misses the grid: lands where the analytic irradiance already counts it.
         return;
     }
     p += direction * (span.x + 1e-3);
     if (floor_on && p.y <= floor_y) return;  // entered the grid below the floor
     atomicAdd(stats.photons_entered, 1u);
+    if (floor_on && direction.y < 0.0)
+        deposit_floor(origin + direction * ((origin.y - params.floor_plane.x) / -direction.y), weight, -1);
 
     Ray ray = start_ray(p, direction);
     vec3 entry = to_world(p);
@@ -175,7 +181,7 @@ void main() {
         if (to_floor <= min(ds, to_exit)) {
             weight *= exp(-kappa * to_floor);
             ray.p += ray.d * to_floor;
-            deposit_floor(to_world(ray.p), weight);
+            deposit_floor(to_world(ray.p), weight, 1);
             outcome = 2.0;
             break;
         }
@@ -186,7 +192,7 @@ void main() {
             // Left the grid: continue straight (outside is empty) to the floor.
             if (floor_on && ray.d.y < 0.0) {
                 float t = (ray.p.y - floor_y) / -ray.d.y;
-                deposit_floor(to_world(ray.p + ray.d * t), weight);
+                deposit_floor(to_world(ray.p + ray.d * t), weight, 1);
             }
             break;
         }

@@ -5,9 +5,9 @@
 // fluence rate (W/m^2) = sum(flux x path length) / voxel volume, the mean light direction, and floor
 // irradiance (W/m^2) = sum(flux) / texel area. Independent of photon count and grid resolution.
 #include "transport.h"
+layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
 
-layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 layout(std430, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams params; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) readonly buffer AccumRG { uint64_t accum_rg[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_BX) readonly buffer AccumBX { uint64_t accum_bx[]; };
@@ -49,7 +49,8 @@ void main() {
     if (texel >= side * side) return;
     float texel_area = (params.floor_map.z / float(side)) * (params.floor_map.z / float(side));
     float to_irradiance = reference_flux / (params.stepping.w * texel_area);
-    vec3 irradiance = vec3(float(accum_floor[3u * texel]), float(accum_floor[3u * texel + 1u]),
-                           float(accum_floor[3u * texel + 2u])) * to_irradiance;
+    // Signed sums (two's complement in uint): the grid both removes and adds floor light.
+    vec3 irradiance = vec3(float(int(accum_floor[3u * texel])), float(int(accum_floor[3u * texel + 1u])),
+                           float(int(accum_floor[3u * texel + 2u]))) * to_irradiance;
     imageStore(floor_map, ivec3(texel % side, texel / side, 0), vec4(irradiance, 0.0));
 }

@@ -1,7 +1,8 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
 // One axis of the separable Gaussian that smooths coverage (Ihrke et al.: sigma of about one voxel keeps
-// the refracting shell 2-3 voxels wide without halos). Edges clamp: the grid's border is medium.
+// the refracting shell 2-3 voxels wide without halos). Edges clamp: an object that volume.bounds cuts
+// continues past the grid instead of gaining a false interface there.
 #include "volume_build.h"
 // The workgroup size comes before linear_id.glsl: gl_WorkGroupSize used ahead of the declaration folds
 // to 1, which breaks every dispatch folded past 65535 groups.

@@ -2,8 +2,8 @@
 #extension GL_GOOGLE_include_directive : require
 // The viewing pass: one thread per pixel. Eye rays travel straight outside the grid and follow the ray
 // equation inside it, gathering single scattering (transmittance x scattering x phase x fluence) from
-// the radiance grid, then finish on the floor (lit by the photons' caustic map inside the grid's shadow
-// and analytically outside it) or the sky. Output: linear radiance and a tone-mapped sRGB pixel.
+// the radiance grid, then finish on the floor (lit analytically, plus the photons' floor map of what
+// the grid changes: its shadow and caustics) or the sky. Output: linear radiance and a tone-mapped sRGB pixel.
 #include "transport_common.glsl"
 #include "phase.h"
 
@@ -13,25 +13,9 @@ layout(binding = TRANSPORT_BINDING_DIRECTION) uniform sampler3D light_direction;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
 layout(std430, binding = TRANSPORT_BINDING_HDR) writeonly buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LDR) writeonly buffer Ldr { uint ldr[]; };
+layout(std430, binding = TRANSPORT_BINDING_STATS) buffer Stats { PhotonStats stats; };
 
 const float kPi = 3.14159265358979;
-
-// Does the straight segment from the light to world point x cross the grid? (Then photons carry its light.)
-bool light_path_crosses_grid(vec3 x) {
-    vec3 p = to_voxel(x);
-    vec3 to_light;
-    float len;
-    if (params.models.z == LIGHT_DIRECTIONAL) {
-        to_light = -params.light_direction.xyz;
-        len = 1e30;
-    } else {
-        vec3 l = to_voxel(params.light_position.xyz) - p;
-        len = length(l);
-        to_light = l / len;
-    }
-    vec2 span = grid_interval(p, to_light);
-    return span.x < span.y && span.x < len;
-}
 
 // Irradiance straight from the light at a floor point (normal +y), without occlusion.
 vec3 direct_irradiance(vec3 x) {
@@ -46,11 +30,11 @@ vec3 direct_irradiance(vec3 x) {
 }
 
 vec3 floor_radiance(vec3 x) {
+    // Unobstructed light plus what the grid changed (shadow, caustics; see photon_trace.comp).
     vec2 m = (x.xz - params.floor_map.xy) / params.floor_map.z;
-    vec3 irradiance = vec3(0.0);
+    vec3 irradiance = direct_irradiance(x);
     if (all(greaterThanEqual(m, vec2(0.0))) && all(lessThanEqual(m, vec2(1.0))))
-        irradiance = textureLod(floor_map, vec3(m, 0.5), 0.0).rgb;
-    if (!light_path_crosses_grid(x)) irradiance += direct_irradiance(x);
+        irradiance = max(irradiance + textureLod(floor_map, vec3(m, 0.5), 0.0).rgb, vec3(0.0));
     vec3 albedo = params.floor_albedo.rgb;
     if (params.floor_plane.w > 0.5) {
         ivec2 cell = ivec2(floor(x.xz / params.floor_plane.y));
@@ -88,11 +72,12 @@ void main() {
     vec2 span = grid_interval(p, d);
     float floor_y = floor_height_voxels();
     float floor_t = (floor_on && d.y < 0.0) ? (p.y - floor_y) / -d.y : 1e30;
+    uint march_steps = 0u;
     if (span.x < span.y && span.x < floor_t) {
         p += d * (span.x + 1e-3);
         Ray ray = start_ray(p, d);
         float view_step = params.tone.y;
-        for (uint steps = 0u; steps < 8192u; ++steps) {
+        for (; march_steps < 8192u; ++march_steps) {
             float n = ray.field.x;
             vec3 sigma_s = scattering_at(coverage_for(params.flags.z, ray.p, n)) * h;
             vec3 kappa = extinction_at(coverage_for(params.flags.y, ray.p, n)) * h;
@@ -128,7 +113,10 @@ void main() {
                 ray.p += ray.d * to_exit;
                 break;
             }
-            ray_step(ray, ds);
+            // In fog the march takes short steps for the in-scattering sum; inside an octree leaf n is
+            // constant to epsilon, so those steps go straight without fetching the field again.
+            if (level > 0u && scatters) ray.p += ds * ray.d;
+            else ray_step(ray, ds);
             if (max(transmittance.r, max(transmittance.g, transmittance.b)) < 1e-3) {
                 transmittance = vec3(0.0);
                 break;
@@ -149,6 +137,7 @@ void main() {
         }
         radiance_sum += transmittance * background;
     }
+    atomicAdd(stats.view_steps, march_steps);
     uint index = pixel.y * width + pixel.x;
     hdr[index] = vec4(radiance_sum, 1.0);
     vec3 srgb = tone_map(radiance_sum * params.tone.x);

@@ -1,9 +1,217 @@
-#include "cli/commands.h"
-
+// refract bench: per-pass GPU milliseconds (timestamp queries) for fixed scenes and edit kinds.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
 #include <stdexcept>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "image/png.h"
+#include "mesh/mesh.h"
+#include "protocol/scene_document.h"
+#include "scene/scene_gpu.h"
+#include "vk/context.h"
 
 namespace refract::cli {
+namespace {
 
-int bench_command(const Arguments&) { throw std::runtime_error("bench: not built yet"); }
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+// One measured configuration: a scene and the edit whose passes it reruns.
+struct BenchCase {
+    std::string name;
+    json scene;                      // patch over the default document
+    scene::PassSet edit = scene::kAllPasses;
+    std::string edit_name = "full";  // "full" | "light" | "camera"
+};
+
+// Median and spread of a series of samples.
+struct Summary {
+    double median = 0.0, min = 0.0, max = 0.0;
+};
+
+Summary summarize(std::vector<double> v) {
+    if (v.empty()) return {};
+    std::sort(v.begin(), v.end());
+    return {v[v.size() / 2], v.front(), v.back()};
+}
+
+json scene_patch(const std::string& base) {
+    // The example scenes of the standard suite, small enough to be fixed here.
+    if (base == "ball_lens_fog") return json::object();  // the default document
+    if (base == "luneburg")
+        return {{"object", {{"index_field", "luneburg"}, {"scale", 1.0}}},
+                {"light", {{"type", "directional"}, {"direction", {0.3, -0.5, -1.0}}, {"intensity", 3.0}}}};
+    if (base == "torus_floor")
+        return {{"object", {{"mesh", "torus"}, {"rotation_deg", {60, 0, 0}}, {"ior", 1.5}}},
+                {"medium", {{"extinction", {0.02, 0.02, 0.02}}, {"scattering", {0.02, 0.02, 0.02}}}}};
+    if (base == "bunny") return {{"object", {{"mesh", "upload:bunny"}}}};
+    throw std::runtime_error("unknown bench scene " + base);
+}
+
+std::vector<BenchCase> standard_suite(bool gpu) {
+    std::vector<BenchCase> cases;
+    auto add = [&](const std::string& name, const std::string& base, json extra, scene::PassSet edit,
+                   const std::string& edit_name) {
+        json patch = scene_patch(base);
+        patch.merge_patch(extra);
+        cases.push_back({name, patch, edit, edit_name});
+    };
+    // The targets of docs/benchmarks.md: camera edit, light edit, full rebuild of the ball lens in fog.
+    const int image = gpu ? 1024 : 256;
+    add("target camera", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", gpu ? 1 << 20 : 1 << 16}}},
+                                          {"image", {{"width", image}, {"height", image}}}}, scene::kView, "camera");
+    add("target light", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", gpu ? 1 << 20 : 1 << 16}}},
+                                         {"image", {{"width", image}, {"height", image}}}}, scene::kPhotons | scene::kView, "light");
+    add("target rebuild", "ball_lens_fog", {{"volume", {{"resolution", gpu ? 256 : 128}}}, {"photons", {{"count", gpu ? 1 << 22 : 1 << 18}}},
+                                           {"image", {{"width", gpu ? 256 : 512}, {"height", gpu ? 256 : 512}}}},
+        scene::kAllPasses, "full");
+    // Scaling: one parameter at a time around a base case.
+    const std::vector<int> resolutions = gpu ? std::vector<int>{64, 128, 256} : std::vector<int>{64, 128};
+    const std::vector<int> photon_counts = gpu ? std::vector<int>{1 << 18, 1 << 20, 1 << 22}
+                                               : std::vector<int>{1 << 14, 1 << 16, 1 << 18};
+    const std::vector<int> images = gpu ? std::vector<int>{256, 512, 1024} : std::vector<int>{128, 256, 512};
+    const int base_photons = gpu ? 1 << 20 : 1 << 16, base_image = gpu ? 512 : 256;
+    for (int r : resolutions)
+        add("volume " + std::to_string(r), "ball_lens_fog",
+            {{"volume", {{"resolution", r}}}, {"photons", {{"count", base_photons}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
+            scene::kAllPasses, "full");
+    for (int p : photon_counts)
+        add("photons 2^" + std::to_string(std::countr_zero(static_cast<unsigned>(p))), "ball_lens_fog",
+            {{"photons", {{"count", p}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
+            scene::kPhotons | scene::kView, "light");
+    for (int i : images)
+        add("image " + std::to_string(i), "ball_lens_fog",
+            {{"photons", {{"count", base_photons}}}, {"image", {{"width", i}, {"height", i}}}}, scene::kView, "camera");
+    for (const std::string base : {"luneburg", "torus_floor", "bunny"})
+        add(base, base, {{"photons", {{"count", base_photons}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
+            scene::kAllPasses, "full");
+    return cases;
+}
+
+mesh::Mesh world_of(const protocol::SceneDocument& d, const std::map<std::string, mesh::Mesh>& uploads) {
+    const auto& o = d.object;
+    mesh::Mesh base;
+    if (o.index_field != protocol::IndexFieldKind::uniform || o.mesh == "sphere") base = mesh::make_sphere(5);
+    else if (o.mesh == "cube") base = mesh::make_cube();
+    else if (o.mesh == "torus") base = mesh::make_torus();
+    else {
+        const auto it = uploads.find(o.mesh.substr(7));
+        if (it == uploads.end()) throw std::runtime_error("bench: scene needs --mesh " + o.mesh.substr(7) + "=FILE.obj");
+        base = it->second;
+    }
+    auto f = [](const protocol::Vec3& v) { return glm::vec3(static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])); };
+    return mesh::transformed(base, static_cast<float>(o.scale), f(o.rotation_deg), f(o.position));
+}
+
+}  // namespace
+
+int bench_command(const Arguments& args) {
+    vk::ContextOptions options;
+    options.device_name = args.device;
+    vk::Context context(vk::options_from_environment(options));
+    scene::PassKit kit(context);
+    const bool gpu = !context.is_cpu_device();
+    const int runs = args.runs > 0 ? args.runs : (gpu ? 10 : 3);
+
+    std::map<std::string, mesh::Mesh> uploads;
+    for (const auto& [name, file] : args.meshes) uploads[name] = mesh::load_obj_file(file);
+    const std::string bunny = std::string(REFRACT_SOURCE_DIR) + "/examples/meshes/bunny.obj";
+    if (!uploads.count("bunny") && std::filesystem::exists(bunny)) uploads["bunny"] = mesh::load_obj_file(bunny);
+
+    std::vector<BenchCase> cases;
+    if (!args.scene_file.empty()) {
+        std::ifstream in(args.scene_file);
+        if (!in) throw std::runtime_error("cannot read " + args.scene_file);
+        const json scene = json::parse(in);
+        for (const auto& [edit, name] : {std::pair{scene::kAllPasses, "full"}, {scene::kPhotons | scene::kView, "light"},
+                                         {scene::kView, "camera"}})
+            cases.push_back({args.scene_file, scene, edit, name});
+    } else if (args.suite.empty() || args.suite == "standard") {
+        cases = standard_suite(gpu);
+    } else {
+        throw std::runtime_error("unknown suite '" + args.suite + "' (standard)");
+    }
+
+    json report = {{"device", context.info().name}, {"driver", context.info().driver_name + " " + context.info().driver_info},
+                   {"cpu_cores", std::thread::hardware_concurrency()}, {"runs", runs}, {"cases", json::array()}};
+    if (!args.json)
+        std::printf("device: %s (%s %s), %u CPU cores, median of %d runs (min-max)\n", context.info().name.c_str(),
+                    context.info().driver_name.c_str(), context.info().driver_info.c_str(),
+                    std::thread::hardware_concurrency(), runs);
+    for (const auto& c : cases) {
+        const auto document = protocol::parse_scene(c.scene);
+        const mesh::Mesh world = world_of(document, uploads);
+        const int64_t memory_before = context.allocated_bytes();
+        scene::SceneGpu scene_gpu(kit);
+        scene_gpu.run(scene::kAllPasses, document, world, nullptr);  // warm-up: builds everything once
+        const int64_t memory = context.allocated_bytes() - memory_before;
+        std::map<std::string, std::vector<double>> pass_ms;
+        std::vector<double> host_ms, encode_ms;
+        scene::RunStats last;
+        for (int r = 0; r < runs; ++r) {
+            const auto start = Clock::now();
+            last = scene_gpu.run(c.edit, document, world, nullptr);
+            const auto encode_start = Clock::now();
+            const auto png = image::encode_png(scene_gpu.read_ldr(), scene_gpu.width(), scene_gpu.height());
+            const auto end = Clock::now();
+            for (const auto& [name, ms] : last.gpu_ms) pass_ms[name].push_back(ms);
+            encode_ms.push_back(std::chrono::duration<double, std::milli>(end - encode_start).count());
+            host_ms.push_back(std::chrono::duration<double, std::milli>(end - start).count());
+        }
+        json entry = {{"case", c.name}, {"edit", c.edit_name}, {"device_memory_mib", static_cast<double>(memory) / (1 << 20)},
+                      {"voxels", scene_gpu.grid().dims.count()}, {"photons", document.photons.count},
+                      {"pixels", uint64_t{document.image.width} * document.image.height}, {"passes", json::object()}};
+        double gpu_total = 0.0;
+        for (const auto& [name, samples] : pass_ms) {
+            const Summary s = summarize(samples);
+            entry["passes"][name] = {{"median_ms", s.median}, {"min_ms", s.min}, {"max_ms", s.max}};
+            gpu_total += s.median;
+        }
+        const Summary host = summarize(host_ms), encode = summarize(encode_ms);
+        entry["host_ms"] = {{"median_ms", host.median}, {"min_ms", host.min}, {"max_ms", host.max}};
+        entry["encode_ms"] = encode.median;
+        entry["gpu_total_ms"] = gpu_total;
+        if (pass_ms.count("photons")) {
+            const double ms = summarize(pass_ms["photons"]).median;
+            entry["photons_per_s"] = static_cast<double>(last.photons_entered) / (ms * 1e-3);
+            entry["photon_steps_per_s"] = static_cast<double>(last.photon_steps) / (ms * 1e-3);
+            entry["mean_steps_per_photon"] = static_cast<double>(last.photon_steps) / std::max(1.0, static_cast<double>(last.photons_entered));
+        }
+        if (pass_ms.count("view")) {
+            const double ms = summarize(pass_ms["view"]).median;
+            entry["view_steps_per_s"] = static_cast<double>(last.view_steps) / (ms * 1e-3);
+            entry["ns_per_pixel"] = ms * 1e6 / static_cast<double>(entry["pixels"].get<uint64_t>());
+        }
+        if (pass_ms.count("voxelize")) entry["ns_per_voxel_voxelize"] = summarize(pass_ms["voxelize"]).median * 1e6 / static_cast<double>(scene_gpu.grid().dims.count());
+        report["cases"].push_back(entry);
+        if (!args.json) {
+            std::printf("%-16s %-6s", c.name.c_str(), c.edit_name.c_str());
+            for (const char* pass : {"voxelize", "index_field", "octree", "photons", "view"}) {
+                if (!pass_ms.count(pass)) continue;
+                const Summary s = summarize(pass_ms[pass]);
+                std::printf(" %s %.1f (%.1f-%.1f)", pass, s.median, s.min, s.max);
+            }
+            std::printf(" | encode %.1f host %.1f ms | %.0f MiB", encode.median, host.median, static_cast<double>(memory) / (1 << 20));
+            if (entry.contains("photons_per_s"))
+                std::printf(" | %.2f Mphotons/s %.1f steps/photon", entry["photons_per_s"].get<double>() * 1e-6,
+                            entry["mean_steps_per_photon"].get<double>());
+            if (entry.contains("view_steps_per_s"))
+                std::printf(" | view %.1f Msteps/s %.0f ns/pixel", entry["view_steps_per_s"].get<double>() * 1e-6,
+                            entry["ns_per_pixel"].get<double>());
+            std::printf("\n");
+            std::fflush(stdout);
+        }
+    }
+    if (args.json) std::cout << report.dump(2) << "\n";
+    return 0;
+}
 
 }  // namespace refract::cli

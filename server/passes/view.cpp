@@ -3,6 +3,8 @@
 #include "transport.h"
 #include "view_spv.h"
 
+#include <cstddef>
+
 namespace refract::passes {
 
 ViewPass::ViewPass(vk::Context& context)
@@ -15,12 +17,16 @@ ViewPass::ViewPass(vk::Context& context)
                  {TRANSPORT_BINDING_DIRECTION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
                  {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
                  {TRANSPORT_BINDING_HDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_LDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
+                 {TRANSPORT_BINDING_LDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
                 0, "view") {}
 
 void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, const vk::Image3D& radiance,
                       const vk::Image3D& direction, const vk::Image3D& floor_map, const ViewOutputs& out,
                       uint32_t width, uint32_t height) const {
+    // Only the view counter restarts: the photon pass's counters belong to the last photon run.
+    vkCmdFillBuffer(recorder.get(), out.stats.get(), offsetof(shaders::PhotonStats, view_steps), sizeof(uint32_t), 0);
+    recorder.transfer_to_compute_barrier();
     pipeline_.dispatch(recorder.get(),
                        {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, in.params),
                         vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
@@ -30,7 +36,8 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
                         vk::Binding::sampled_image(TRANSPORT_BINDING_DIRECTION, direction, in.sampler),
                         vk::Binding::sampled_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map, in.sampler),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, out.hdr),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_LDR, out.ldr)},
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_LDR, out.ldr),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats)},
                        nullptr, 0, vk::group_count(width, VIEW_GROUP_SIZE), vk::group_count(height, VIEW_GROUP_SIZE));
 }
 

@@ -9,6 +9,7 @@ namespace refract::passes {
 struct ViewOutputs {
     const vk::Buffer& hdr;  // vec4 per pixel
     const vk::Buffer& ldr;  // RGBA8 per pixel
+    const vk::Buffer& stats;  // PhotonStats; the view pass counts view_steps
 };
 
 class ViewPass {

@@ -24,8 +24,8 @@ glm::vec3 vec(const protocol::Vec3& v) {
     return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])};
 }
 
-// `interactive` frames trade resolution and photons for latency; the volume stays, so switching back
-// to `still` reruns photons and view only.
+// `interactive` frames trade resolution, photons and eye-ray step (2 voxels) for latency; the volume
+// stays, so switching back to `still` reruns photons and view only.
 protocol::SceneDocument for_quality(protocol::SceneDocument document, Quality quality) {
     if (quality == Quality::interactive) {
         document.image.width = std::max(32u, document.image.width / 2);
@@ -149,7 +149,9 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         const mesh::Mesh world = mesh ? mesh::transformed(*mesh, static_cast<float>(object.scale),
                                                           vec(object.rotation_deg), vec(object.position))
                                       : mesh::Mesh{};
-        const RunStats stats = resident.gpu->run(stale, document, world, grid.get());
+        RunOptions run_options;
+        run_options.view_step = quality == Quality::interactive ? 2.0f : 1.0f;
+        const RunStats stats = resident.gpu->run(stale, document, world, grid.get(), run_options);
         frame.rerun = stale;
         for (const auto& [name, ms] : stats.gpu_ms) frame.timings.push_back({name, ms, 0.0});
         if (stats.photons_entered || (stale & kPhotons)) {

@@ -114,6 +114,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
 
     passes::TransportOptions transport_options;
     transport_options.fixed_step = options.fixed_step;
+    transport_options.view_step = options.view_step;
     transport_options.max_level = passes::octree_layout(grid_.dims).max_level;
     params_ = passes::make_transport_params(document, grid_, transport_options);
     params_.flags.x = options.record_photon_exits ? 1u : 0u;
@@ -189,7 +190,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     }
     if (stale & kView) {
         timer_.begin(cmd, "view");
-        kit_.view.record(recorder_, inputs, radiance_, direction_, floor_map_, {hdr_, ldr_}, width_, height_);
+        kit_.view.record(recorder_, inputs, radiance_, direction_, floor_map_, {hdr_, ldr_, accum_->stats}, width_, height_);
         timer_.end(cmd);
     }
     recorder_.to_host_barrier();
@@ -199,12 +200,15 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
 
     RunStats stats;
     stats.gpu_ms = timer_.read();
-    if (stale & kPhotons) {
-        shaders::PhotonStats photon_stats{};
-        accum_->stats.read(&photon_stats, sizeof(photon_stats));
-        stats.photons_entered = photon_stats.photons_entered;
-        stats.photon_steps = photon_stats.steps;
-        stats.floor_hits = photon_stats.floor_hits;
+    if (stale & (kPhotons | kView)) {
+        shaders::PhotonStats counters{};
+        accum_->stats.read(&counters, sizeof(counters));
+        if (stale & kPhotons) {
+            stats.photons_entered = counters.photons_entered;
+            stats.photon_steps = counters.steps;
+            stats.floor_hits = counters.floor_hits;
+        }
+        if (stale & kView) stats.view_steps = counters.view_steps;
     }
     return stats;
 }
@@ -261,6 +265,32 @@ std::vector<uint32_t> SceneGpu::read_levels() const { return read_buffer<uint32_
 std::vector<glm::vec4> SceneGpu::read_radiance() const { return read_image<glm::vec4>(radiance_); }
 std::vector<glm::vec4> SceneGpu::read_direction() const { return widen(read_image<uint16_t>(direction_)); }
 std::vector<glm::vec4> SceneGpu::read_floor_map() const { return widen(read_image<uint16_t>(floor_map_)); }
+
+std::vector<glm::vec4> SceneGpu::read_floor_irradiance() const {
+    std::vector<glm::vec4> map = read_floor_map();
+    const auto& p = params_;
+    const float texel = p.floor_map.z / static_cast<float>(floor_texels_);
+    for (uint32_t j = 0; j < floor_texels_; ++j)
+        for (uint32_t i = 0; i < floor_texels_; ++i) {
+            const glm::vec3 x(p.floor_map.x + (static_cast<float>(i) + 0.5f) * texel, p.floor_plane.x,
+                              p.floor_map.y + (static_cast<float>(j) + 0.5f) * texel);
+            // Mirrors direct_irradiance() in shaders/view.comp.
+            glm::vec3 direct(0.0f);
+            if (p.models.z == LIGHT_DIRECTIONAL) {
+                direct = glm::vec3(p.light_power) * std::max(0.0f, -p.light_direction.y);
+            } else {
+                const glm::vec3 l = glm::vec3(p.light_position) - x;
+                const float r2 = glm::dot(l, l);
+                const glm::vec3 to_light = l / std::sqrt(r2);
+                const bool in_cone = p.models.z != LIGHT_SPOT ||
+                                     glm::dot(-to_light, glm::vec3(p.light_direction)) >= p.light_position.w;
+                if (in_cone) direct = glm::vec3(p.light_power) * std::max(0.0f, to_light.y) / r2;
+            }
+            glm::vec4& texel_value = map[size_t{j} * floor_texels_ + i];
+            texel_value = glm::vec4(glm::max(glm::vec3(texel_value) + direct, glm::vec3(0.0f)), 0.0f);
+        }
+    return map;
+}
 
 std::vector<glm::vec4> SceneGpu::read_hdr() const {
     std::vector<glm::vec4> out(size_t{width_} * height_);

@@ -44,12 +44,14 @@ struct RunStats {
     uint64_t photons_entered = 0;
     uint64_t photon_steps = 0;
     uint64_t floor_hits = 0;
+    uint64_t view_steps = 0;  // eye-ray march steps, when the viewing pass ran
 };
 
 struct RunOptions {
     bool fixed_step = false;      // photons step one voxel everywhere (reference for the octree's gain)
     bool record_photon_exits = false;
     PassSet limit = kAllPasses;   // passes outside this set are not run (the CLI's voxelize and trace)
+    float view_step = 1.0f;       // eye-ray step in scattering media (voxels); interactive frames use 2
 };
 
 // Device memory a scene of this size holds (bytes), for budgets before allocating.
@@ -76,7 +78,11 @@ public:
     std::vector<uint32_t> read_levels() const;
     std::vector<glm::vec4> read_radiance() const;   // fluence rate rgb (W/m^2)
     std::vector<glm::vec4> read_direction() const;  // mean light direction xyz, coherence w
-    std::vector<glm::vec4> read_floor_map() const;  // irradiance rgb (W/m^2), floor_map_side()^2 texels
+    // The change of floor irradiance the grid causes (W/m^2, signed), floor_map_side()^2 texels.
+    std::vector<glm::vec4> read_floor_map() const;
+    // Total floor irradiance at the floor map's texel centres, as the viewing pass shades it: the
+    // unobstructed light plus the map's change, clamped at zero.
+    std::vector<glm::vec4> read_floor_irradiance() const;
     std::vector<glm::vec4> read_hdr() const;
     std::vector<uint32_t> read_ldr() const;
     std::vector<shaders::PhotonExit> read_photon_exits() const;

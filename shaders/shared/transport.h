@@ -22,11 +22,11 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_ACCUM_RG 4
 #define TRANSPORT_BINDING_ACCUM_BX 5
 #define TRANSPORT_BINDING_ACCUM_YZ 6
-#define TRANSPORT_BINDING_ACCUM_FLOOR 10    // fixed-point floor flux, 3 uints per texel
+#define TRANSPORT_BINDING_ACCUM_FLOOR 10    // fixed-point signed floor flux change, 3 per texel
 #define TRANSPORT_BINDING_STATS 11          // photon statistics (see PhotonStats)
 #define TRANSPORT_BINDING_RADIANCE 12       // rgba32f: fluence rate (W/m^2) rgb
 #define TRANSPORT_BINDING_DIRECTION 13      // rgba16f: mean light direction xyz, w coherence
-#define TRANSPORT_BINDING_FLOOR_MAP 14      // rgba16f (z = 1): floor irradiance from photons (W/m^2)
+#define TRANSPORT_BINDING_FLOOR_MAP 14      // rgba16f (z = 1): change of floor irradiance by the grid (W/m^2)
 #define TRANSPORT_BINDING_HDR 15            // vec4 per pixel: linear radiance before exposure
 #define TRANSPORT_BINDING_LDR 16            // uint per pixel: tone-mapped sRGB RGBA8
 #define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when flags.x == 1
@@ -92,12 +92,12 @@ struct PhotonExit {
     vec4 direction;        // unit travel direction there; w: steps taken
 };
 
-// Written by the photon pass for statistics (atomic counters).
+// Counters the photon and viewing passes keep for statistics and benchmarks (atomic adds).
 struct PhotonStats {
     uint photons_entered;   // photons that reached the grid
-    uint steps;             // integration steps taken
+    uint steps;             // photon integration steps taken
     uint floor_hits;
-    uint pad;
+    uint view_steps;        // eye-ray march steps (the viewing pass)
 };
 
 REFRACT_SHADERS_END

@@ -1,0 +1,146 @@
+// refractd: the long-running Refract render daemon. Wires the scene store, the render thread (the only
+// Vulkan user), the HTTP API and the WebSocket endpoint together, and stops cleanly on SIGINT/SIGTERM.
+#include <pthread.h>
+
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "http/api_server.h"
+#include "http/daemon_config.h"
+#include "http/metrics.h"
+#include "http/service.h"
+#include "http/ws_server.h"
+#include "mesh/mesh.h"
+#include "scene/render_queue.h"
+#include "scene/renderer.h"
+#include "scene/scene_store.h"
+#include "vk/context.h"
+
+using namespace refract;
+
+namespace {
+
+int run(const http::DaemonConfig& config) {
+    // Signals are taken by sigwait below only: block them before any thread starts, so all inherit it.
+    sigset_t stop_signals;
+    sigemptyset(&stop_signals);
+    sigaddset(&stop_signals, SIGINT);
+    sigaddset(&stop_signals, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+    std::signal(SIGPIPE, SIG_IGN);  // a client gone mid-write is an error code, not a death
+
+    protocol::Limits limits{config.max_resolution, config.max_photons, config.max_image};
+    mesh::MeshLimits mesh_limits;
+    mesh_limits.max_bytes = config.max_body;
+    scene::SceneStore store(config.data_dir, limits, mesh_limits);
+    if (store.size() == 0) store.create("default", nlohmann::json::object());
+
+    // The device: a daemon without one still serves documents, health says why frames cannot render.
+    http::DeviceStatus device;
+    std::unique_ptr<vk::Context> context;
+    std::unique_ptr<scene::Renderer> renderer;
+    try {
+        vk::ContextOptions options;
+        options.device_name = config.device;
+        context = std::make_unique<vk::Context>(vk::options_from_environment(options));
+        const vk::DeviceInfo& info = context->info();
+        device = {info.name,
+                  info.type,
+                  info.driver_name,
+                  info.driver_info,
+                  info.api_version,
+                  {},
+                  context->validation_enabled()};
+        scene::RendererOptions renderer_options;
+        renderer_options.max_resident_scenes = config.max_scenes;
+        renderer = std::make_unique<scene::Renderer>(*context, renderer_options);
+    } catch (const std::exception& e) {
+        device.error = e.what();
+        renderer.reset();
+        context.reset();
+        std::fprintf(stderr, "refractd: no usable Vulkan device, frames will fail: %s\n", e.what());
+    }
+
+    http::Metrics metrics;
+    http::Service* service_ptr = nullptr;  // where the render thread publishes gauges (built after the queue)
+    scene::Assets assets = store.assets();
+    scene::RenderFunction render;
+    scene::RenderQueueOptions queue_options;
+    queue_options.max_waiters = config.max_queue;
+    if (renderer) {
+        render = [&](const scene::FrameRequest& request) {
+            return renderer->render(request.scene_id, request.document, assets, request.quality);
+        };
+        queue_options.evict = [&](const std::string& scene_id) { renderer->evict(scene_id); };
+        queue_options.on_rendered = [&](const scene::FrameRequest&, const scene::FrameResult& frame) {
+            metrics.record_frame(frame);
+        };
+        queue_options.after_frame = [&] {
+            if (!service_ptr) return;
+            service_ptr->scenes_resident.store(renderer->resident_scenes());
+            service_ptr->device_bytes.store(context->allocated_bytes());
+            service_ptr->validation_errors.store(context->validation_error_count());
+        };
+    }
+    scene::RenderQueue queue(render, queue_options, device.error);
+    http::Service service(config, store, queue, metrics, device);
+    service_ptr = &service;
+    // On every way out, the render thread stops before the service it publishes to is gone.
+    struct StopQueue {
+        scene::RenderQueue& queue;
+        ~StopQueue() { queue.stop(); }
+    } stop_queue{queue};
+    if (context) service.device_bytes.store(context->allocated_bytes());
+
+    http::ApiServer api(service);
+    http::WsServer ws(service);
+    api.bind();
+    ws.start();
+    std::thread http_thread([&] { api.serve(); });
+    std::fprintf(stderr, "refractd %s: http://%s:%u  ws://%s:%u  device: %s  data: %s  scenes: %zu\n",
+                 REFRACT_VERSION, config.bind.c_str(), unsigned{config.port}, config.bind.c_str(),
+                 unsigned{config.effective_ws_port()}, device.error.empty() ? device.name.c_str() : "none",
+                 config.data_dir.c_str(), store.size());
+
+    int signal_number = 0;
+    sigwait(&stop_signals, &signal_number);
+    std::fprintf(stderr, "refractd: %s received, stopping\n", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
+
+    // Listeners first (no new work); then the render thread finishes the frame it is on and answers every
+    // other waiter "shutting down"; then the HTTP workers, which no longer wait on anything, are joined.
+    api.stop();
+    ws.stop();
+    queue.stop();
+    http_thread.join();
+    renderer.reset();
+    context.reset();
+    std::fprintf(stderr, "refractd: stopped\n");
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    http::DaemonConfig defaults;
+    defaults.web_root = REFRACT_WEB_ROOT;
+    try {
+        http::CommandLine command_line =
+            http::parse_command_line(std::vector<std::string>(argv + 1, argv + argc), defaults);
+        if (command_line.help) {
+            std::cout << http::usage_text(defaults);
+            return 0;
+        }
+        return run(command_line.config);
+    } catch (const http::ConfigError& e) {
+        std::fprintf(stderr, "refractd: %s\n", e.what());
+        return 2;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "refractd: %s\n", e.what());
+        return 1;
+    }
+}

@@ -1,0 +1,30 @@
+// The HTTP API (cpp-httplib): scenes, edits, frames, meshes, index grids, health, metrics, static files.
+// Handlers validate through protocol, change state through the scene store and get frames from the render
+// queue; none of them touches Vulkan.
+#pragma once
+
+#include <memory>
+
+#include "http/service.h"
+
+namespace refract::http {
+
+class ApiServer {
+public:
+    explicit ApiServer(Service& service);
+    ~ApiServer();
+    ApiServer(const ApiServer&) = delete;
+    ApiServer& operator=(const ApiServer&) = delete;
+
+    // Binds the configured address and port. Throws std::runtime_error when that fails.
+    void bind();
+    // Serves until stop(); runs on a thread of its own.
+    void serve();
+    void stop();
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace refract::http

@@ -1,0 +1,134 @@
+#include "http/service.h"
+
+#include <charconv>
+#include <cstdio>
+#include <sstream>
+
+#include "scene/passes.h"
+
+namespace refract::http {
+
+namespace {
+
+// Compares without an early exit, so the time taken says nothing about where a guess went wrong.
+bool equal_constant_time(const std::string& given, const std::string& expected) {
+    if (expected.empty()) return false;
+    unsigned diff = given.size() == expected.size() ? 0u : 1u;
+    for (size_t i = 0; i < given.size(); ++i)
+        diff |= static_cast<unsigned>(static_cast<unsigned char>(given[i]) ^
+                                      static_cast<unsigned char>(expected[i % expected.size()]));
+    return diff == 0;
+}
+
+}  // namespace
+
+Service::Service(const DaemonConfig& config, scene::SceneStore& store, scene::RenderQueue& queue,
+                 Metrics& metrics, DeviceStatus device)
+    : config_(config), store_(store), queue_(queue), metrics_(metrics), device_(std::move(device)) {}
+
+bool Service::authorized(const std::string& authorization, const std::string& token_param) const {
+    if (config_.token.empty()) return true;
+    constexpr std::string_view bearer = "Bearer ";
+    if (authorization.size() > bearer.size() && authorization.compare(0, bearer.size(), bearer) == 0 &&
+        equal_constant_time(authorization.substr(bearer.size()), config_.token))
+        return true;
+    return !token_param.empty() && equal_constant_time(token_param, config_.token);
+}
+
+Gauges Service::gauges() const {
+    Gauges g;
+    g.scenes = store_.size();
+    g.scenes_resident = scenes_resident.load();
+    g.device_bytes = device_bytes.load();
+    g.render_waiting = queue_.waiting();
+    g.ws_sessions = ws_sessions.load();
+    g.uptime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+    return g;
+}
+
+nlohmann::json Service::health() const {
+    Gauges g = gauges();
+    nlohmann::json device = nullptr;
+    if (device_.error.empty()) {
+        device = {{"name", device_.name},
+                  {"type", device_.type},
+                  {"driver_name", device_.driver_name},
+                  {"driver_info", device_.driver_info},
+                  {"api_version", device_.api_version}};
+    }
+    nlohmann::json health = {
+        {"status", device_.error.empty() ? "ok" : "degraded"},
+        {"version", REFRACT_VERSION},
+        {"device", device},
+        {"uptime_s", g.uptime_s},
+        {"scenes", g.scenes},
+        {"scenes_resident", g.scenes_resident},
+        {"device_bytes", g.device_bytes},
+        {"render_waiting", g.render_waiting},
+        {"frames_rendered", queue_.frames_rendered()},
+        {"ws_port", config_.effective_ws_port()},
+        {"ws_sessions", g.ws_sessions},
+        {"limits",
+         {{"max_scenes", config_.max_scenes},
+          {"max_body", config_.max_body},
+          {"max_queue", config_.max_queue},
+          {"max_resolution", config_.max_resolution},
+          {"max_photons", config_.max_photons},
+          {"max_image", config_.max_image},
+          {"request_timeout_s", config_.request_timeout_s}}},
+        {"auth", !config_.token.empty()},
+    };
+    if (!device_.error.empty()) health["device_error"] = device_.error;
+    if (device_.validation) health["validation_errors"] = validation_errors.load();
+    return health;
+}
+
+nlohmann::json parse_json_document(const std::string& text) {
+    constexpr int kMaxDepth = 16;
+    return nlohmann::json::parse(text, [](int depth, nlohmann::json::parse_event_t, nlohmann::json&) {
+        if (depth > kMaxDepth)
+            throw std::invalid_argument("JSON nested deeper than " + std::to_string(kMaxDepth) + " levels");
+        return true;
+    });
+}
+
+std::vector<std::string> pass_list(scene::PassSet passes) {
+    std::vector<std::string> names;
+    for (scene::PassSet bit = 1; bit <= scene::kView; bit <<= 1) {
+        if ((passes & bit) != 0) names.push_back(scene::pass_names(bit));
+    }
+    return names;
+}
+
+nlohmann::json timings_json(const scene::FrameResult& frame) {
+    nlohmann::json timings = nlohmann::json::object();
+    for (const auto& timing : frame.timings) timings[timing.name] = pass_ms(timing);
+    return timings;
+}
+
+std::string server_timing(const scene::FrameResult& frame) {
+    std::string header;
+    for (const auto& timing : frame.timings) {
+        char dur[32];
+        std::snprintf(dur, sizeof dur, "%.3f", pass_ms(timing));
+        if (!header.empty()) header += ", ";
+        header += timing.name + ";dur=" + dur;
+    }
+    return header;
+}
+
+std::optional<uint64_t> parse_if_match(const std::string& value) {
+    std::string_view v = value;
+    while (!v.empty() && v.front() == ' ') v.remove_prefix(1);
+    while (!v.empty() && v.back() == ' ') v.remove_suffix(1);
+    if (v.empty() || v == "*") return std::nullopt;
+    if (v.substr(0, 2) == "W/") v.remove_prefix(2);
+    if (v.size() >= 2 && v.front() == '"' && v.back() == '"') v = v.substr(1, v.size() - 2);
+    uint64_t revision = 0;
+    auto [rest, error] = std::from_chars(v.data(), v.data() + v.size(), revision);
+    if (error != std::errc() || rest != v.data() + v.size() || v.empty())
+        throw std::invalid_argument("If-Match must be a revision number");
+    return revision;
+}
+
+}  // namespace refract::http

@@ -1,0 +1,451 @@
+// The only translation unit that includes Boost.Beast (it compiles slowly).
+#include "http/ws_server.h"
+
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/strand.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <cstdio>
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <thread>
+#include <vector>
+
+namespace refract::http {
+
+namespace {
+
+namespace beast = boost::beast;
+namespace bhttp = boost::beast::http;
+namespace websocket = boost::beast::websocket;
+namespace net = boost::asio;
+using tcp = net::ip::tcp;
+using json = nlohmann::json;
+
+constexpr size_t kMaxMessageBytes = size_t{4} << 20;  // one edit message; scenes are small documents
+constexpr size_t kMaxSessions = 256;                  // open connections, handshakes included
+constexpr size_t kMaxQueuedErrors = 64;               // unsent error messages per session
+
+int hex_value(char c) {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
+
+std::string percent_decode(std::string_view text) {
+    std::string out;
+    for (size_t i = 0; i < text.size(); ++i) {
+        if (text[i] == '%' && i + 2 < text.size() && hex_value(text[i + 1]) >= 0 &&
+            hex_value(text[i + 2]) >= 0) {
+            out += static_cast<char>(hex_value(text[i + 1]) * 16 + hex_value(text[i + 2]));
+            i += 2;
+        } else {
+            out += text[i] == '+' ? ' ' : text[i];
+        }
+    }
+    return out;
+}
+
+// The value of `name` in a query string ("a=1&token=x"), decoded; empty when absent.
+std::string query_value(std::string_view query, std::string_view name) {
+    while (!query.empty()) {
+        size_t amp = query.find('&');
+        std::string_view pair = query.substr(0, amp);
+        size_t eq = pair.find('=');
+        if (pair.substr(0, eq) == name && eq != std::string_view::npos)
+            return percent_decode(pair.substr(eq + 1));
+        if (amp == std::string_view::npos) break;
+        query.remove_prefix(amp + 1);
+    }
+    return {};
+}
+
+// The scene id of "/api/scenes/{id}/ws"; empty when the path is anything else.
+std::string scene_of_path(std::string_view path) {
+    constexpr std::string_view prefix = "/api/scenes/";
+    constexpr std::string_view suffix = "/ws";
+    if (path.size() <= prefix.size() + suffix.size() || path.substr(0, prefix.size()) != prefix ||
+        path.substr(path.size() - suffix.size()) != suffix)
+        return {};
+    std::string id(path.substr(prefix.size(), path.size() - prefix.size() - suffix.size()));
+    return scene::valid_scene_id(id) ? id : std::string();
+}
+
+}  // namespace
+
+// One client connection: the upgrade handshake, then a read loop and a write queue, all on one strand.
+class WsSession : public std::enable_shared_from_this<WsSession> {
+public:
+    WsSession(tcp::socket socket, Service& service, std::function<void(WsSession*)> on_close)
+        : ws_(std::move(socket)),
+          timer_(ws_.get_executor()),
+          service_(service),
+          on_close_(std::move(on_close)) {
+        service_.ws_sessions.fetch_add(1);
+    }
+    ~WsSession() {
+        service_.ws_sessions.fetch_sub(1);
+        if (on_close_) on_close_(this);
+    }
+
+    void start() {
+        net::dispatch(ws_.get_executor(), [self = shared_from_this()] { self->read_upgrade(); });
+    }
+
+    // Drops the connection (daemon shutdown); safe from any thread.
+    void close() {
+        net::post(ws_.get_executor(), [self = shared_from_this()] {
+            self->closing_ = true;
+            self->timer_.cancel();
+            beast::error_code ignored;
+            beast::get_lowest_layer(self->ws_).socket().shutdown(tcp::socket::shutdown_both, ignored);
+            beast::get_lowest_layer(self->ws_).close();
+        });
+    }
+
+private:
+    struct Outgoing {
+        bool binary = false;
+        std::shared_ptr<const std::string> text;          // text messages
+        std::shared_ptr<const scene::FrameResult> frame;  // binary: the PNG of a frame
+    };
+
+    void read_upgrade() {
+        beast::get_lowest_layer(ws_).expires_after(std::chrono::seconds(10));
+        parser_.emplace();
+        parser_->header_limit(16 * 1024);
+        parser_->body_limit(16 * 1024);
+        bhttp::async_read(
+            beast::get_lowest_layer(ws_), buffer_, *parser_,
+            [self = shared_from_this()](beast::error_code ec, size_t) { self->on_upgrade(ec); });
+    }
+
+    void refuse(bhttp::status status, const std::string& message) {
+        auto res = std::make_shared<bhttp::response<bhttp::string_body>>(status, 11);
+        res->set(bhttp::field::content_type, "application/json");
+        res->set(bhttp::field::connection, "close");
+        res->body() = json{{"error", message}}.dump();
+        res->prepare_payload();
+        log(static_cast<int>(status));
+        bhttp::async_write(
+            beast::get_lowest_layer(ws_), *res, [self = shared_from_this(), res](beast::error_code, size_t) {
+                beast::error_code ignored;
+                beast::get_lowest_layer(self->ws_).socket().shutdown(tcp::socket::shutdown_both, ignored);
+            });
+    }
+
+    void log(int status) {
+        service_.metrics().record_request("GET", "/api/scenes/{id}/ws", status);
+        std::fprintf(stderr, "refractd: GET %s %d (websocket)\n", path_.c_str(), status);
+    }
+
+    void on_upgrade(beast::error_code ec) {
+        if (ec) return;  // the client went away or sent garbage; nothing to answer
+        const auto& req = parser_->get();
+        std::string_view target(req.target().data(), req.target().size());
+        size_t question = target.find('?');
+        path_ = std::string(target.substr(0, question));
+        std::string_view query =
+            question == std::string_view::npos ? std::string_view() : target.substr(question + 1);
+
+        if (!websocket::is_upgrade(req))
+            return refuse(bhttp::status::bad_request, "expected a WebSocket upgrade");
+        if (service_.ws_sessions.load() > kMaxSessions)
+            return refuse(bhttp::status::service_unavailable, "too many WebSocket sessions");
+        std::string authorization(req[bhttp::field::authorization]);
+        if (!service_.authorized(authorization, query_value(query, "token")))
+            return refuse(bhttp::status::unauthorized, "missing or wrong bearer token");
+        scene_id_ = scene_of_path(path_);
+        if (scene_id_.empty() || !service_.store().get(scene_id_))
+            return refuse(bhttp::status::not_found, "no scene at " + path_);
+
+        beast::get_lowest_layer(ws_).expires_never();
+        ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+        ws_.read_message_max(kMaxMessageBytes);
+        ws_.async_accept(req, [self = shared_from_this()](beast::error_code accept_ec) {
+            if (accept_ec) return;
+            self->log(101);
+            self->read_message();
+        });
+    }
+
+    void read_message() {
+        ws_.async_read(incoming_, [self = shared_from_this()](beast::error_code ec, size_t) {
+            if (ec) {
+                self->closing_ = true;
+                self->timer_.cancel();
+                return;
+            }
+            std::string text = beast::buffers_to_string(self->incoming_.data());
+            self->incoming_.consume(self->incoming_.size());
+            self->on_message(text, self->ws_.got_text());
+            self->read_message();
+        });
+    }
+
+    void send_error(const json& seq, const std::string& message, std::optional<std::string> pointer = {}) {
+        json error = {{"type", "error"}, {"seq", seq}, {"error", message}};
+        if (pointer) error["pointer"] = *pointer;
+        // A client that sends and never reads must not grow the queue: past the bound, the oldest go.
+        if (outbox_.size() >= kMaxQueuedErrors) outbox_.pop_front();
+        outbox_.push_back({false, std::make_shared<const std::string>(error.dump()), nullptr});
+        write_next();
+    }
+
+    void on_message(const std::string& text, bool is_text) {
+        json seq = nullptr;
+        json message;
+        try {
+            if (!is_text) throw std::invalid_argument("messages must be text JSON");
+            message = parse_json_document(text);
+            if (!message.is_object()) throw std::invalid_argument("a message must be a JSON object");
+        } catch (const std::exception& e) {
+            service_.metrics().record_ws_message(true);
+            return send_error(seq, std::string("malformed message: ") + e.what());
+        }
+        if (message.contains("seq")) seq = message["seq"];
+        scene::Quality quality = scene::Quality::interactive;
+        if (message.contains("quality")) {
+            const json& q = message["quality"];
+            if (q == "still") {
+                quality = scene::Quality::still;
+            } else if (q != "interactive") {
+                service_.metrics().record_ws_message(true);
+                return send_error(seq, "quality must be \"interactive\" or \"still\"");
+            }
+        }
+        if (message.contains("patch")) {
+            try {
+                service_.store().patch(scene_id_, message["patch"]);
+            } catch (const protocol::ValidationError& e) {
+                service_.metrics().record_ws_message(true);
+                return send_error(seq, e.what(), e.pointer());  // a pointer into the scene document
+            } catch (const scene::StoreError& e) {
+                service_.metrics().record_ws_message(true);
+                return send_error(seq, e.what());
+            }
+        }
+        service_.metrics().record_ws_message(false);
+        // Latest wins: remember only the newest request; the frame after the one in flight renders it.
+        wanted_seq_ = seq;
+        wanted_quality_ = quality;
+        want_frame_ = true;
+        submit_frame();
+    }
+
+    void submit_frame() {
+        if (in_flight_ || !want_frame_ || closing_) return;
+        auto snapshot = service_.store().get(scene_id_);
+        if (!snapshot) {
+            want_frame_ = false;
+            return send_error(wanted_seq_, "the scene was deleted");
+        }
+        scene::FrameRequest request{snapshot->id, snapshot->revision, snapshot->document, wanted_quality_};
+        json seq = wanted_seq_;
+        scene::Quality quality = wanted_quality_;
+        auto self = shared_from_this();
+        bool accepted = service_.queue().submit(
+            std::move(request), [self, seq, quality](const scene::FrameOutcome& outcome) {
+                net::post(self->ws_.get_executor(),
+                          [self, seq, quality, outcome] { self->on_frame(seq, quality, outcome); });
+            });
+        if (!accepted) {
+            // Queue full: try again shortly rather than dropping the newest state.
+            timer_.expires_after(std::chrono::milliseconds(50));
+            timer_.async_wait([self](beast::error_code ec) {
+                if (!ec) self->submit_frame();
+            });
+            return;
+        }
+        in_flight_ = true;
+        want_frame_ = false;
+    }
+
+    void on_frame(const json& seq, scene::Quality quality, const scene::FrameOutcome& outcome) {
+        in_flight_ = false;
+        if (closing_) return;
+        if (outcome.status != scene::FrameOutcome::Status::ok) {
+            send_error(seq, outcome.error);
+        } else {
+            const scene::FrameResult& frame = *outcome.frame;
+            json header = {{"type", "frame"},
+                           {"seq", seq},
+                           {"revision", outcome.revision},
+                           {"passes", pass_list(outcome.cached ? 0 : frame.rerun)},
+                           {"timings", outcome.cached ? json::object() : timings_json(frame)},
+                           {"width", frame.width},
+                           {"height", frame.height},
+                           {"quality", scene::to_string(quality)},
+                           {"cached", outcome.cached}};
+            // A slow reader gets the newest frame only: an unsent older one is dropped, never queued.
+            pending_frame_ = {std::make_shared<const std::string>(header.dump()), outcome.frame};
+            write_next();
+        }
+        submit_frame();
+    }
+
+    void write_next() {
+        if (writing_ || closing_) return;
+        Outgoing next;
+        if (png_after_header_) {
+            next = {true, nullptr, std::move(png_after_header_)};
+            png_after_header_.reset();
+        } else if (!outbox_.empty()) {
+            next = std::move(outbox_.front());
+            outbox_.pop_front();
+        } else if (pending_frame_) {
+            next = {false, std::move(pending_frame_->first), nullptr};
+            png_after_header_ = std::move(pending_frame_->second);
+            pending_frame_.reset();
+        } else {
+            return;
+        }
+        writing_ = true;
+        current_ = std::move(next);
+        ws_.binary(current_.binary);
+        auto done = [self = shared_from_this()](beast::error_code ec, size_t) {
+            self->writing_ = false;
+            self->current_ = {};
+            if (ec) {
+                self->closing_ = true;
+                return;
+            }
+            self->write_next();
+        };
+        if (current_.binary)
+            ws_.async_write(net::buffer(current_.frame->png.data(), current_.frame->png.size()),
+                            std::move(done));
+        else
+            ws_.async_write(net::buffer(*current_.text), std::move(done));
+    }
+
+    websocket::stream<beast::tcp_stream> ws_;
+    net::steady_timer timer_;
+    Service& service_;
+    std::function<void(WsSession*)> on_close_;
+    beast::flat_buffer buffer_;
+    beast::flat_buffer incoming_;
+    std::optional<bhttp::request_parser<bhttp::string_body>> parser_;
+    std::string path_;
+    std::string scene_id_;
+
+    bool closing_ = false;
+    bool in_flight_ = false;
+    bool want_frame_ = false;
+    json wanted_seq_ = nullptr;
+    scene::Quality wanted_quality_ = scene::Quality::interactive;
+
+    bool writing_ = false;
+    Outgoing current_;
+    std::deque<Outgoing> outbox_;
+    std::optional<std::pair<std::shared_ptr<const std::string>, std::shared_ptr<const scene::FrameResult>>>
+        pending_frame_;
+    std::shared_ptr<const scene::FrameResult> png_after_header_;
+};
+
+// The live sessions, shared with each session so that the last one can leave after the server is gone.
+struct SessionRegistry {
+    std::mutex mutex;
+    std::set<WsSession*> live;
+    std::vector<std::weak_ptr<WsSession>> refs;
+};
+
+struct WsServer::Impl {
+    Service& service;
+    net::io_context ioc;
+    std::optional<net::executor_work_guard<net::io_context::executor_type>> work;
+    tcp::acceptor acceptor{ioc};
+    std::vector<std::thread> threads;
+    std::shared_ptr<SessionRegistry> registry = std::make_shared<SessionRegistry>();
+    bool started = false;
+    bool stopped = false;
+
+    explicit Impl(Service& s) : service(s) {}
+
+    void accept() {
+        acceptor.async_accept(net::make_strand(ioc), [this](beast::error_code ec, tcp::socket socket) {
+            if (ec) {
+                if (ec == net::error::operation_aborted || !acceptor.is_open()) return;
+                accept();
+                return;
+            }
+            auto session = std::make_shared<WsSession>(std::move(socket), service,
+                                                       [registry = registry](WsSession* gone) {
+                                                           std::lock_guard lock(registry->mutex);
+                                                           registry->live.erase(gone);
+                                                       });
+            {
+                std::lock_guard lock(registry->mutex);
+                registry->live.insert(session.get());
+                std::erase_if(registry->refs, [](const auto& ref) { return ref.expired(); });
+                registry->refs.push_back(session);
+            }
+            session->start();
+            accept();
+        });
+    }
+};
+
+WsServer::WsServer(Service& service) : impl_(std::make_unique<Impl>(service)) {}
+
+WsServer::~WsServer() {
+    stop();
+}
+
+void WsServer::start() {
+    const DaemonConfig& c = impl_->service.config();
+    beast::error_code ec;
+    auto address = net::ip::make_address(c.bind, ec);
+    if (ec) throw std::runtime_error("cannot parse --bind address '" + c.bind + "'");
+    tcp::endpoint endpoint(address, c.effective_ws_port());
+    auto& acceptor = impl_->acceptor;
+    acceptor.open(endpoint.protocol(), ec);
+    if (!ec) acceptor.set_option(net::socket_base::reuse_address(true), ec);
+    if (!ec) acceptor.bind(endpoint, ec);
+    if (!ec) acceptor.listen(net::socket_base::max_listen_connections, ec);
+    if (ec)
+        throw std::runtime_error("cannot listen for WebSocket on " + c.bind + ":" +
+                                 std::to_string(c.effective_ws_port()) + ": " + ec.message());
+    impl_->work.emplace(impl_->ioc.get_executor());
+    impl_->started = true;
+    impl_->accept();
+    for (int i = 0; i < 2; ++i) impl_->threads.emplace_back([this] { impl_->ioc.run(); });
+}
+
+void WsServer::stop() {
+    if (impl_->stopped || !impl_->started) return;
+    impl_->stopped = true;
+    net::post(impl_->ioc, [this] {
+        beast::error_code ignored;
+        impl_->acceptor.close(ignored);
+    });
+    std::vector<std::shared_ptr<WsSession>> open;
+    {
+        std::lock_guard lock(impl_->registry->mutex);
+        for (auto& ref : impl_->registry->refs)
+            if (auto session = ref.lock()) open.push_back(std::move(session));
+    }
+    for (auto& session : open) session->close();
+    open.clear();
+    impl_->work.reset();
+    // Give sessions a moment to close their sockets, then stop whatever is left.
+    auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(500);
+    while (std::chrono::steady_clock::now() < deadline) {
+        {
+            std::lock_guard lock(impl_->registry->mutex);
+            if (impl_->registry->live.empty()) break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    impl_->ioc.stop();
+    for (auto& thread : impl_->threads) thread.join();
+    impl_->threads.clear();
+}
+
+}  // namespace refract::http

@@ -1,0 +1,480 @@
+#include "scene/scene_store.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <random>
+#include <sstream>
+
+namespace refract::scene {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr char kGridMagic[8] = {'R', 'F', 'G', 'R', 'I', 'D', '1', '\0'};
+constexpr uint32_t kMinGridSide = 2;
+constexpr uint32_t kMaxGridSide = 512;
+
+std::string errno_text() {
+    return std::strerror(errno);
+}
+
+// Closes a POSIX file descriptor on every path out of a scope.
+struct Fd {
+    int fd = -1;
+    ~Fd() {
+        if (fd >= 0) ::close(fd);
+    }
+};
+
+void fsync_directory(const fs::path& dir) {
+    Fd d{::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)};
+    if (d.fd >= 0) ::fsync(d.fd);
+}
+
+std::string random_hex_id() {
+    static std::mutex mutex;
+    static std::mt19937_64 engine{std::random_device{}()};
+    std::lock_guard lock(mutex);
+    std::ostringstream out;
+    out << std::hex << (engine() & 0xffffffffull);
+    std::string id = out.str();
+    return std::string(8 - id.size(), '0') + id;
+}
+
+std::string read_text_file(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw StoreError(500, "cannot read " + path.string());
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str();
+}
+
+std::string strip_upload_prefix(const std::string& name) {
+    constexpr std::string_view prefix = "upload:";
+    if (name.compare(0, prefix.size(), prefix) == 0) return name.substr(prefix.size());
+    return name;
+}
+
+std::vector<char> encode_grid(const IndexGrid& grid) {
+    std::vector<char> bytes(sizeof(kGridMagic) + 3 * sizeof(uint32_t) + 6 * sizeof(double) +
+                            grid.n.size() * sizeof(float));
+    char* out = bytes.data();
+    auto put = [&out](const void* data, size_t size) {
+        std::memcpy(out, data, size);
+        out += size;
+    };
+    put(kGridMagic, sizeof(kGridMagic));
+    put(&grid.nx, sizeof(uint32_t));
+    put(&grid.ny, sizeof(uint32_t));
+    put(&grid.nz, sizeof(uint32_t));
+    put(grid.bounds.min.data(), 3 * sizeof(double));
+    put(grid.bounds.max.data(), 3 * sizeof(double));
+    put(grid.n.data(), grid.n.size() * sizeof(float));
+    return bytes;
+}
+
+IndexGrid decode_grid(const std::string& bytes) {
+    IndexGrid grid;
+    size_t header = sizeof(kGridMagic) + 3 * sizeof(uint32_t) + 6 * sizeof(double);
+    if (bytes.size() < header || std::memcmp(bytes.data(), kGridMagic, sizeof(kGridMagic)) != 0)
+        throw StoreError(500, "stored index grid is corrupt");
+    const char* in = bytes.data() + sizeof(kGridMagic);
+    auto get = [&in](void* data, size_t size) {
+        std::memcpy(data, in, size);
+        in += size;
+    };
+    get(&grid.nx, sizeof(uint32_t));
+    get(&grid.ny, sizeof(uint32_t));
+    get(&grid.nz, sizeof(uint32_t));
+    get(grid.bounds.min.data(), 3 * sizeof(double));
+    get(grid.bounds.max.data(), 3 * sizeof(double));
+    size_t count = size_t{grid.nx} * grid.ny * grid.nz;
+    if (bytes.size() != header + count * sizeof(float))
+        throw StoreError(500, "stored index grid is truncated");
+    grid.n.resize(count);
+    get(grid.n.data(), count * sizeof(float));
+    validate_index_grid(grid);
+    return grid;
+}
+
+}  // namespace
+
+void write_file_atomically(const fs::path& path, const void* bytes, size_t size) {
+    static std::atomic<uint64_t> counter{0};
+    fs::path temp = path;
+    temp += ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter.fetch_add(1));
+    {
+        Fd f{::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)};
+        if (f.fd < 0) throw StoreError(500, "cannot create " + temp.string() + ": " + errno_text());
+        const char* p = static_cast<const char*>(bytes);
+        size_t left = size;
+        while (left > 0) {
+            ssize_t written = ::write(f.fd, p, left);
+            if (written < 0 && errno == EINTR) continue;
+            if (written <= 0) {
+                std::string why = errno_text();
+                ::unlink(temp.c_str());
+                throw StoreError(500, "cannot write " + temp.string() + ": " + why);
+            }
+            p += written;
+            left -= static_cast<size_t>(written);
+        }
+        if (::fsync(f.fd) != 0) {
+            std::string why = errno_text();
+            ::unlink(temp.c_str());
+            throw StoreError(500, "cannot sync " + temp.string() + ": " + why);
+        }
+    }
+    if (::rename(temp.c_str(), path.c_str()) != 0) {
+        std::string why = errno_text();
+        ::unlink(temp.c_str());
+        throw StoreError(500, "cannot rename to " + path.string() + ": " + why);
+    }
+    fsync_directory(path.parent_path());
+}
+
+void validate_index_grid(const IndexGrid& grid) {
+    for (uint32_t side : {grid.nx, grid.ny, grid.nz}) {
+        if (side < kMinGridSide || side > kMaxGridSide)
+            throw StoreError(400, "index grid sides must be between " + std::to_string(kMinGridSide) +
+                                      " and " + std::to_string(kMaxGridSide));
+    }
+    for (size_t axis = 0; axis < 3; ++axis) {
+        if (!std::isfinite(grid.bounds.min[axis]) || !std::isfinite(grid.bounds.max[axis]) ||
+            !(grid.bounds.min[axis] < grid.bounds.max[axis]))
+            throw StoreError(400, "index grid bounds need finite min < max on every axis");
+    }
+    if (grid.n.size() != size_t{grid.nx} * grid.ny * grid.nz)
+        throw StoreError(400,
+                         "index grid holds " + std::to_string(grid.n.size()) + " values, expected nx*ny*nz");
+    for (size_t i = 0; i < grid.n.size(); ++i) {
+        float n = grid.n[i];
+        if (!std::isfinite(n) || n < 1.0f || n > 4.0f) {
+            std::ostringstream message;
+            message << "index grid value " << i << " is " << n
+                    << "; every value must be finite and in [1, 4]";
+            throw StoreError(400, message.str());
+        }
+    }
+}
+
+bool valid_scene_id(const std::string& id) {
+    if (id.empty() || id.size() > 32) return false;
+    for (char c : id) {
+        bool ok = (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-';
+        if (!ok) return false;
+    }
+    return true;
+}
+
+bool valid_mesh_name(const std::string& name) {
+    if (name.empty() || name.size() > 64 || name == "." || name == "..") return false;
+    for (char c : name) {
+        bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+                  c == '.' || c == '-';
+        if (!ok) return false;
+    }
+    return true;
+}
+
+nlohmann::json to_json(const mesh::MeshReport& report) {
+    return {
+        {"vertices", report.vertices},
+        {"triangles", report.triangles},
+        {"boundary_edges", report.boundary_edges},
+        {"non_manifold_edges", report.non_manifold_edges},
+        {"degenerate_triangles", report.degenerate_triangles},
+        {"watertight", report.watertight()},
+        {"bounds",
+         {{"min", {report.min.x, report.min.y, report.min.z}},
+          {"max", {report.max.x, report.max.y, report.max.z}}}},
+    };
+}
+
+namespace {
+
+mesh::MeshReport report_from_json(const nlohmann::json& j) {
+    mesh::MeshReport report;
+    report.vertices = j.at("vertices").get<size_t>();
+    report.triangles = j.at("triangles").get<size_t>();
+    report.boundary_edges = j.at("boundary_edges").get<size_t>();
+    report.non_manifold_edges = j.value("non_manifold_edges", size_t{0});
+    report.degenerate_triangles = j.value("degenerate_triangles", size_t{0});
+    const auto& bounds = j.at("bounds");
+    for (int axis = 0; axis < 3; ++axis) {
+        report.min[axis] = bounds.at("min").at(static_cast<size_t>(axis)).get<float>();
+        report.max[axis] = bounds.at("max").at(static_cast<size_t>(axis)).get<float>();
+    }
+    return report;
+}
+
+}  // namespace
+
+SceneStore::SceneStore(fs::path data_dir, protocol::Limits limits, mesh::MeshLimits mesh_limits)
+    : data_dir_(std::move(data_dir)), limits_(limits), mesh_limits_(mesh_limits) {
+    std::error_code ec;
+    for (const char* sub : {"scenes", "meshes", "grids"}) {
+        fs::create_directories(data_dir_ / sub, ec);
+        if (ec) throw StoreError(500, "cannot create " + (data_dir_ / sub).string() + ": " + ec.message());
+    }
+    load_scenes();
+}
+
+fs::path SceneStore::scene_path(const std::string& id) const {
+    return data_dir_ / "scenes" / (id + ".json");
+}
+fs::path SceneStore::mesh_path(const std::string& name) const {
+    return data_dir_ / "meshes" / (name + ".obj");
+}
+fs::path SceneStore::grid_path(const std::string& name) const {
+    return data_dir_ / "grids" / (name + ".grid");
+}
+
+void SceneStore::load_scenes() {
+    for (const char* sub : {"scenes", "meshes", "grids"}) {
+        for (const auto& item : fs::directory_iterator(data_dir_ / sub)) {
+            // A temp file is a write that never reached its rename: the previous version stands.
+            if (item.path().filename().string().find(".tmp.") != std::string::npos) {
+                std::error_code ec;
+                fs::remove(item.path(), ec);
+            }
+        }
+    }
+    for (const auto& item : fs::directory_iterator(data_dir_ / "scenes")) {
+        const fs::path& path = item.path();
+        if (path.extension() != ".json") continue;
+        std::string id = path.stem().string();
+        if (!valid_scene_id(id)) continue;
+        try {
+            nlohmann::json stored = nlohmann::json::parse(read_text_file(path));
+            auto entry = std::make_shared<Entry>();
+            entry->current.id = id;
+            entry->current.revision = stored.at("revision").get<uint64_t>();
+            try {
+                entry->current.document = protocol::parse_scene(stored.at("scene"), limits_);
+            } catch (const protocol::ValidationError&) {
+                // Stored under looser limits than this run's: keep it, it was valid when acknowledged.
+                entry->current.document = protocol::parse_scene(stored.at("scene"));
+            }
+            scenes_[id] = std::move(entry);
+        } catch (const std::exception& e) {
+            std::cerr << "refractd: skipping unreadable scene " << path << ": " << e.what() << "\n";
+        }
+    }
+}
+
+void SceneStore::persist_scene(const SceneSnapshot& snapshot) const {
+    nlohmann::json stored = {{"revision", snapshot.revision},
+                             {"scene", protocol::to_json(snapshot.document)}};
+    std::string text = stored.dump(2);
+    text += '\n';
+    write_file_atomically(scene_path(snapshot.id), text.data(), text.size());
+}
+
+std::shared_ptr<SceneStore::Entry> SceneStore::find(const std::string& id) const {
+    std::lock_guard lock(mutex_);
+    auto it = scenes_.find(id);
+    return it == scenes_.end() ? nullptr : it->second;
+}
+
+SceneSnapshot SceneStore::create(const std::string& id, const nlohmann::json& document) {
+    if (!id.empty() && !valid_scene_id(id)) throw StoreError(400, "scene id must match [a-z0-9-]{1,32}");
+    auto entry = std::make_shared<Entry>();
+    entry->current.document = protocol::parse_scene(document, limits_);
+    entry->current.revision = 1;
+
+    std::lock_guard lock(mutex_);
+    if (id.empty()) {
+        do {
+            entry->current.id = random_hex_id();
+        } while (scenes_.count(entry->current.id) != 0);
+    } else {
+        if (scenes_.count(id) != 0) throw StoreError(409, "scene '" + id + "' already exists");
+        entry->current.id = id;
+    }
+    persist_scene(entry->current);
+    scenes_[entry->current.id] = entry;
+    return entry->current;
+}
+
+std::optional<SceneSnapshot> SceneStore::get(const std::string& id) const {
+    std::lock_guard lock(mutex_);
+    auto it = scenes_.find(id);
+    if (it == scenes_.end()) return std::nullopt;
+    return it->second->current;
+}
+
+std::vector<SceneSnapshot> SceneStore::list() const {
+    std::lock_guard lock(mutex_);
+    std::vector<SceneSnapshot> all;
+    all.reserve(scenes_.size());
+    for (const auto& [id, entry] : scenes_) all.push_back(entry->current);
+    return all;
+}
+
+size_t SceneStore::size() const {
+    std::lock_guard lock(mutex_);
+    return scenes_.size();
+}
+
+bool SceneStore::remove(const std::string& id) {
+    std::shared_ptr<Entry> entry = find(id);
+    if (!entry) return false;
+    std::lock_guard edit(entry->edit_mutex);
+    if (entry->deleted) return false;
+    std::error_code ec;
+    fs::remove(scene_path(id), ec);
+    if (ec) throw StoreError(500, "cannot delete scene file: " + ec.message());
+    fsync_directory(data_dir_ / "scenes");
+    entry->deleted = true;
+    {
+        std::lock_guard lock(mutex_);
+        scenes_.erase(id);
+    }
+    std::lock_guard assets(asset_mutex_);
+    fs::remove(grid_path(id), ec);
+    grids_.erase(id);
+    return true;
+}
+
+EditResult SceneStore::apply(const std::shared_ptr<Entry>& entry, const nlohmann::json& merge_patch,
+                             std::optional<uint64_t> if_match) {
+    // Caller holds entry->edit_mutex: nobody else writes `current` meanwhile, so reading it unlocked is safe.
+    if (entry->deleted) throw StoreError(404, "scene '" + entry->current.id + "' does not exist");
+    const SceneSnapshot& current = entry->current;
+    if (if_match && *if_match != current.revision)
+        throw StoreError(412, "scene is at revision " + std::to_string(current.revision) + ", not " +
+                                  std::to_string(*if_match));
+    EditResult result;
+    result.before = current.document;
+    result.after = current;
+    result.after.document = protocol::apply_merge_patch(current.document, merge_patch, limits_);
+    result.changed = !(result.after.document == current.document);
+    if (!result.changed) return result;
+    result.after.revision = current.revision + 1;
+    persist_scene(result.after);
+    std::lock_guard lock(mutex_);
+    entry->current = result.after;
+    return result;
+}
+
+EditResult SceneStore::patch(const std::string& id, const nlohmann::json& merge_patch,
+                             std::optional<uint64_t> if_match) {
+    std::shared_ptr<Entry> entry = find(id);
+    if (!entry) throw StoreError(404, "scene '" + id + "' does not exist");
+    std::lock_guard edit(entry->edit_mutex);
+    return apply(entry, merge_patch, if_match);
+}
+
+MeshEntry SceneStore::put_mesh(const std::string& name, const std::string& obj_text) {
+    if (!valid_mesh_name(name)) throw StoreError(400, "mesh name must match [A-Za-z0-9_.-]{1,64}");
+    auto parsed = std::make_shared<const mesh::Mesh>(mesh::parse_obj(obj_text, mesh_limits_));
+    MeshEntry entry{name, mesh::inspect(*parsed)};
+    std::string report = to_json(entry.report).dump(2);
+
+    std::lock_guard lock(asset_mutex_);
+    write_file_atomically(mesh_path(name), obj_text.data(), obj_text.size());
+    fs::path report_path = data_dir_ / "meshes" / (name + ".json");
+    write_file_atomically(report_path, report.data(), report.size());
+    meshes_[name] = std::move(parsed);  // a new pointer: the renderer sees the re-upload and re-voxelizes
+    return entry;
+}
+
+std::vector<MeshEntry> SceneStore::list_meshes() const {
+    std::lock_guard lock(asset_mutex_);
+    std::vector<MeshEntry> all;
+    for (const auto& item : fs::directory_iterator(data_dir_ / "meshes")) {
+        const fs::path& path = item.path();
+        if (path.extension() != ".json" || path.filename().string().find(".tmp.") != std::string::npos)
+            continue;
+        std::string name = path.stem().string();
+        if (!valid_mesh_name(name) || !fs::exists(mesh_path(name))) continue;
+        try {
+            all.push_back({name, report_from_json(nlohmann::json::parse(read_text_file(path)))});
+        } catch (const std::exception& e) {
+            std::cerr << "refractd: skipping unreadable mesh report " << path << ": " << e.what() << "\n";
+        }
+    }
+    std::sort(all.begin(), all.end(), [](const MeshEntry& a, const MeshEntry& b) { return a.name < b.name; });
+    return all;
+}
+
+std::shared_ptr<const mesh::Mesh> SceneStore::mesh(const std::string& name_or_reference) const {
+    std::string name = strip_upload_prefix(name_or_reference);
+    if (!valid_mesh_name(name)) return nullptr;
+    std::lock_guard lock(asset_mutex_);
+    auto it = meshes_.find(name);
+    if (it != meshes_.end()) return it->second;
+    fs::path path = mesh_path(name);
+    if (!fs::exists(path)) return nullptr;
+    try {
+        auto loaded = std::make_shared<const mesh::Mesh>(mesh::load_obj_file(path.string(), mesh_limits_));
+        meshes_[name] = loaded;
+        return loaded;
+    } catch (const std::exception& e) {
+        std::cerr << "refractd: cannot load stored mesh " << path << ": " << e.what() << "\n";
+        return nullptr;
+    }
+}
+
+EditResult SceneStore::put_index_grid(const std::string& scene_id, IndexGrid grid) {
+    validate_index_grid(grid);
+    std::shared_ptr<Entry> entry = find(scene_id);
+    if (!entry) throw StoreError(404, "scene '" + scene_id + "' does not exist");
+    std::lock_guard edit(entry->edit_mutex);
+    if (entry->deleted) throw StoreError(404, "scene '" + scene_id + "' does not exist");
+    {
+        // The grid is written before the scene points at it: a crash in between leaves the old revision.
+        std::lock_guard lock(asset_mutex_);
+        std::vector<char> bytes = encode_grid(grid);
+        write_file_atomically(grid_path(scene_id), bytes.data(), bytes.size());
+        grids_[scene_id] = std::make_shared<const IndexGrid>(std::move(grid));
+    }
+    nlohmann::json patch = {{"object", {{"index_field", "grid"}, {"grid", scene_id}}}};
+    EditResult result = apply(entry, patch, std::nullopt);
+    if (!result.changed) {
+        // Same document, new grid contents: still a new revision, so clients see the change.
+        result.after.revision = entry->current.revision + 1;
+        persist_scene(result.after);
+        std::lock_guard lock(mutex_);
+        entry->current = result.after;
+        result.changed = true;
+    }
+    return result;
+}
+
+std::shared_ptr<const IndexGrid> SceneStore::grid(const std::string& name) const {
+    if (!valid_scene_id(name)) return nullptr;
+    std::lock_guard lock(asset_mutex_);
+    auto it = grids_.find(name);
+    if (it != grids_.end()) return it->second;
+    fs::path path = grid_path(name);
+    if (!fs::exists(path)) return nullptr;
+    try {
+        auto loaded = std::make_shared<const IndexGrid>(decode_grid(read_text_file(path)));
+        grids_[name] = loaded;
+        return loaded;
+    } catch (const std::exception& e) {
+        std::cerr << "refractd: cannot load stored index grid " << path << ": " << e.what() << "\n";
+        return nullptr;
+    }
+}
+
+Assets SceneStore::assets() const {
+    Assets assets;
+    assets.mesh = [this](const std::string& name) { return mesh(name); };
+    assets.grid = [this](const std::string& name) { return grid(name); };
+    return assets;
+}
+
+}  // namespace refract::scene

@@ -1,0 +1,66 @@
+// Test harness for refractd: a temporary directory, free loopback ports, and a real daemon process that
+// is always stopped (scope guard), with its log kept for failure messages.
+#pragma once
+
+#include <httplib.h>
+#include <sys/types.h>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace refract::test {
+
+// A fresh directory under the system temp dir, removed with everything in it on destruction.
+class TempDir {
+public:
+    TempDir();
+    ~TempDir();
+    TempDir(const TempDir&) = delete;
+    TempDir& operator=(const TempDir&) = delete;
+    const std::filesystem::path& path() const { return path_; }
+
+private:
+    std::filesystem::path path_;
+};
+
+// A loopback TCP port nobody listens on right now.
+uint16_t free_port();
+
+// One refractd process. The constructor starts it and waits until /api/health answers.
+class Daemon {
+public:
+    Daemon(std::filesystem::path data_dir, std::vector<std::string> extra_args = {});
+    ~Daemon();
+    Daemon(const Daemon&) = delete;
+    Daemon& operator=(const Daemon&) = delete;
+
+    // Sends `signal` (SIGTERM or SIGINT) and waits; the exit status (-1 if killed or died by a signal).
+    int stop(int signal = 15);
+    // SIGKILL and reap: the crash the store must survive.
+    void kill9();
+    bool running();
+
+    httplib::Client client() const;
+    uint16_t port() const { return port_; }
+    uint16_t ws_port() const { return ws_port_; }
+    std::string log() const;
+
+private:
+    void start();
+
+    std::filesystem::path data_dir_;
+    std::vector<std::string> extra_args_;
+    std::filesystem::path log_path_;
+    pid_t pid_ = -1;
+    uint16_t port_ = 0;
+    uint16_t ws_port_ = 0;
+};
+
+// Sends `request` verbatim over a fresh connection and returns everything the server answered.
+std::string raw_http(uint16_t port, const std::string& request);
+
+}  // namespace refract::test

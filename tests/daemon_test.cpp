@@ -1,0 +1,1153 @@
+// refractd: unit tests of its parts (store, render queue, config, static files) and integration tests
+// against a real daemon process on a free loopback port with a temporary data directory.
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/websocket.hpp>
+#include <condition_variable>
+#include <csignal>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <set>
+#include <thread>
+
+#include "daemon/harness.h"
+#include "http/daemon_config.h"
+#include "http/metrics.h"
+#include "http/service.h"
+#include "http/static_files.h"
+#include "scene/passes.h"
+#include "scene/render_queue.h"
+#include "scene/scene_store.h"
+
+namespace refract::test {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+// Frames small enough for lavapipe on two cores.
+const json kSmallScene = {{"image", {{"width", 64}, {"height", 64}}},
+                          {"volume", {{"resolution", 32}}},
+                          {"photons", {{"count", 256}}}};
+
+constexpr const char* kMergePatch = "application/merge-patch+json";
+
+const char kTetrahedronObj[] =
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n"
+    "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+
+bool is_png(const std::string& bytes) {
+    return bytes.size() > 8 && bytes.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0;
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Unit tests: no daemon process.
+
+TEST(DaemonConfig, ParsesFlagsAndRejectsNonsense) {
+    http::DaemonConfig defaults;
+    auto parsed = http::parse_command_line(
+        {"--port", "9000", "--max-body=1M", "--token", "t", "--max-queue", "3"}, defaults);
+    EXPECT_EQ(parsed.config.port, 9000);
+    EXPECT_EQ(parsed.config.effective_ws_port(), 9001);
+    EXPECT_EQ(parsed.config.max_body, size_t{1} << 20);
+    EXPECT_EQ(parsed.config.token, "t");
+    EXPECT_EQ(parsed.config.max_queue, 3u);
+    EXPECT_TRUE(http::parse_command_line({"--help"}, defaults).help);
+    EXPECT_THROW(http::parse_command_line({"--port", "banana"}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--port", "70000"}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--frobnicate"}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--port"}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--port", "9000", "--ws-port", "9000"}, defaults),
+                 http::ConfigError);
+}
+
+TEST(DaemonHttp, IfMatchAcceptsQuotedAndBareRevisions) {
+    EXPECT_EQ(http::parse_if_match("3"), 3u);
+    EXPECT_EQ(http::parse_if_match("\"17\""), 17u);
+    EXPECT_EQ(http::parse_if_match("W/\"5\""), 5u);
+    EXPECT_EQ(http::parse_if_match(""), std::nullopt);
+    EXPECT_EQ(http::parse_if_match("*"), std::nullopt);
+    EXPECT_THROW(http::parse_if_match("\"abc\""), std::invalid_argument);
+}
+
+TEST(DaemonHttp, RoutesKeepMetricLabelsFew) {
+    EXPECT_EQ(http::route_of("/api/scenes/abc/frame.png"), "/api/scenes/{id}/frame.png");
+    EXPECT_EQ(http::route_of("/api/scenes/abc"), "/api/scenes/{id}");
+    EXPECT_EQ(http::route_of("/api/meshes/bunny.obj"), "/api/meshes/{name}");
+    EXPECT_EQ(http::route_of("/index.html"), "static");
+    EXPECT_EQ(http::route_of("/api/what/ever/x/y"), "other");
+}
+
+TEST(DaemonHttp, JsonDepthIsBounded) {
+    EXPECT_NO_THROW(http::parse_json_document(R"({"volume":{"bounds":{"min":[0,0,0]}}})"));
+    std::string deep = std::string(100000, '[') + std::string(100000, ']');
+    EXPECT_THROW(http::parse_json_document(deep), std::invalid_argument);
+    EXPECT_ANY_THROW(http::parse_json_document("{\"a\": NaN}"));
+}
+
+TEST(DaemonStaticFiles, ServesInsideTheRootOnly) {
+    TempDir dir;
+    fs::create_directories(dir.path() / "root" / "js");
+    std::ofstream(dir.path() / "root" / "index.html") << "<html></html>";
+    std::ofstream(dir.path() / "root" / "js" / "app.js") << "1;";
+    std::ofstream(dir.path() / "root" / "js" / "index.html") << "<html></html>";
+    std::ofstream(dir.path() / "secret.txt") << "secret";
+    fs::create_symlink(dir.path() / "secret.txt", dir.path() / "root" / "leak.txt");
+    fs::path root = dir.path() / "root";
+
+    auto index = http::resolve_static(root, "/");
+    EXPECT_EQ(index.status, 200);
+    EXPECT_EQ(index.content_type, "text/html; charset=utf-8");
+    EXPECT_EQ(http::resolve_static(root, "/js/app.js").content_type, "text/javascript; charset=utf-8");
+    EXPECT_EQ(http::resolve_static(root, "/js").path.filename(),
+              "index.html");  // a directory means its index
+    EXPECT_EQ(http::resolve_static(root, "/../secret.txt").status, 400);
+    EXPECT_EQ(http::resolve_static(root, "/js/../../secret.txt").status, 400);
+    EXPECT_EQ(http::resolve_static(root, "/leak.txt").status, 404);  // symlink out of the root
+    EXPECT_EQ(http::resolve_static(root, "/missing.css").status, 404);
+    EXPECT_EQ(http::content_type_for("a.svg"), "image/svg+xml");
+    EXPECT_EQ(http::content_type_for("a.PNG"), "image/png");
+    EXPECT_EQ(http::content_type_for("a.json"), "application/json");
+    EXPECT_EQ(http::content_type_for("a.css"), "text/css; charset=utf-8");
+}
+
+TEST(DaemonSceneStore, EditsPersistAndRejectedEditsChangeNothing) {
+    TempDir dir;
+    protocol::Limits limits;
+    {
+        scene::SceneStore store(dir.path(), limits, {});
+        auto created = store.create("one", kSmallScene);
+        EXPECT_EQ(created.revision, 1u);
+        auto edit = store.patch("one", {{"light", {{"intensity", 5.0}}}});
+        EXPECT_TRUE(edit.changed);
+        EXPECT_EQ(edit.after.revision, 2u);
+        EXPECT_EQ(scene::passes_invalidated(edit.before, edit.after.document),
+                  scene::kPhotons | scene::kView);
+        EXPECT_THROW(store.patch("one", {{"light", {{"intensity", -1.0}}}}), protocol::ValidationError);
+        EXPECT_EQ(store.get("one")->revision, 2u);
+        auto noop = store.patch("one", {{"light", {{"intensity", 5.0}}}});
+        EXPECT_FALSE(noop.changed);
+        EXPECT_EQ(noop.after.revision, 2u);
+        try {
+            store.patch("one", {{"camera", {{"fov_deg", 30.0}}}}, 1);
+            FAIL() << "a stale If-Match must be refused";
+        } catch (const scene::StoreError& e) {
+            EXPECT_EQ(e.status(), 412);
+        }
+        EXPECT_THROW(store.create("one", json::object()), scene::StoreError);
+        EXPECT_THROW(store.create("Bad Id", json::object()), scene::StoreError);
+        EXPECT_THROW(store.patch("nope", json::object()), scene::StoreError);
+        auto random = store.create("", json::object());
+        EXPECT_TRUE(scene::valid_scene_id(random.id));
+        EXPECT_TRUE(store.remove(random.id));
+        EXPECT_FALSE(store.remove(random.id));
+    }
+    // A write that never reached its rename leaves a temp file: ignored and cleaned on load.
+    std::ofstream(dir.path() / "scenes" / "one.json.tmp.1.2") << "{garbage";
+    scene::SceneStore reopened(dir.path(), limits, {});
+    ASSERT_EQ(reopened.size(), 1u);
+    auto one = reopened.get("one");
+    ASSERT_TRUE(one);
+    EXPECT_EQ(one->revision, 2u);
+    EXPECT_EQ(one->document.light.intensity, 5.0);
+    EXPECT_FALSE(fs::exists(dir.path() / "scenes" / "one.json.tmp.1.2"));
+}
+
+TEST(DaemonSceneStore, MeshesAndGridsAreValidatedStoredAndReplaced) {
+    TempDir dir;
+    scene::SceneStore store(dir.path(), {}, {});
+    auto entry = store.put_mesh("tet", kTetrahedronObj);
+    EXPECT_EQ(entry.report.triangles, 4u);
+    EXPECT_TRUE(entry.report.watertight());
+    auto first = store.mesh("upload:tet");
+    ASSERT_TRUE(first);
+    store.put_mesh("tet", kTetrahedronObj);
+    EXPECT_NE(store.mesh("tet"), first);  // a re-upload is a new pointer: the renderer re-voxelizes
+    EXPECT_THROW(store.put_mesh("broken", "v 0 0 0\nf 1 2 3\n"), mesh::MeshError);
+    EXPECT_THROW(store.put_mesh("../evil", kTetrahedronObj), scene::StoreError);
+    EXPECT_EQ(store.list_meshes().size(), 1u);
+    EXPECT_EQ(store.mesh("unknown"), nullptr);
+
+    store.create("g", json::object());
+    scene::IndexGrid grid;
+    grid.nx = grid.ny = grid.nz = 4;
+    grid.n.assign(64, 1.33f);
+    auto edit = store.put_index_grid("g", grid);
+    EXPECT_EQ(edit.after.document.object.index_field, protocol::IndexFieldKind::grid);
+    EXPECT_EQ(edit.after.document.object.grid, "g");
+    EXPECT_EQ(edit.after.revision, 2u);
+    ASSERT_TRUE(store.grid("g"));
+    EXPECT_EQ(store.grid("g")->n[5], 1.33f);
+    grid.n[7] = 0.5f;
+    EXPECT_THROW(store.put_index_grid("g", grid), scene::StoreError);
+    grid.n[7] = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_THROW(store.put_index_grid("g", grid), scene::StoreError);
+    EXPECT_EQ(store.get("g")->revision, 2u);
+
+    scene::SceneStore reopened(dir.path(), {}, {});
+    ASSERT_TRUE(reopened.grid("g"));
+    EXPECT_EQ(reopened.grid("g")->nx, 4u);
+    ASSERT_TRUE(reopened.mesh("tet"));
+    EXPECT_EQ(reopened.mesh("tet")->triangles.size(), 4u);
+}
+
+// A render function the test drives: each call blocks until the test allows one more.
+struct SteppedRenderer {
+    std::mutex mutex;
+    std::condition_variable changed;
+    int allowed = 0;
+    std::vector<std::pair<std::string, uint64_t>> calls;  // (scene, revision) in render order
+
+    scene::FrameResult render(const scene::FrameRequest& request) {
+        std::unique_lock lock(mutex);
+        calls.emplace_back(request.scene_id, request.revision);
+        changed.notify_all();
+        changed.wait(lock, [&] { return allowed > 0; });
+        --allowed;
+        if (request.document.object.mesh == "upload:missing") throw scene::RenderError("unknown mesh");
+        scene::FrameResult frame;
+        frame.png = {1, 2, 3};
+        frame.rerun = scene::kView;
+        return frame;
+    }
+    void allow(int n) {
+        std::lock_guard lock(mutex);
+        allowed += n;
+        changed.notify_all();
+    }
+    void wait_calls(size_t n) {
+        std::unique_lock lock(mutex);
+        ASSERT_TRUE(changed.wait_for(lock, std::chrono::seconds(10), [&] { return calls.size() >= n; }));
+    }
+};
+
+scene::FrameRequest request_for(const std::string& id, uint64_t revision) {
+    scene::FrameRequest request;
+    request.scene_id = id;
+    request.revision = revision;
+    request.document.image.width = 8;
+    request.document.image.height = 8;
+    return request;
+}
+
+TEST(DaemonRenderQueue, LatestWinsAndEveryWaiterGetsTheNewestFrame) {
+    SteppedRenderer renderer;
+    scene::RenderQueue queue([&](const scene::FrameRequest& r) { return renderer.render(r); }, {});
+    std::mutex mutex;
+    std::vector<uint64_t> delivered;
+    auto record = [&](const scene::FrameOutcome& outcome) {
+        std::lock_guard lock(mutex);
+        delivered.push_back(outcome.revision);
+    };
+    ASSERT_TRUE(queue.submit(request_for("a", 1), record));
+    renderer.wait_calls(1);
+    for (uint64_t revision = 2; revision <= 5; ++revision)
+        ASSERT_TRUE(queue.submit(request_for("a", revision), record));
+    EXPECT_EQ(queue.waiting(), 5u);
+    renderer.allow(2);
+    renderer.wait_calls(2);
+    queue.stop();
+    EXPECT_EQ(renderer.calls, (std::vector<std::pair<std::string, uint64_t>>{{"a", 1}, {"a", 5}}));
+    EXPECT_EQ(delivered, (std::vector<uint64_t>{1, 5, 5, 5, 5}));
+}
+
+TEST(DaemonRenderQueue, RepeatsAreAnsweredFromTheLastFrame) {
+    SteppedRenderer renderer;
+    renderer.allow(10);
+    scene::RenderQueue queue([&](const scene::FrameRequest& r) { return renderer.render(r); }, {});
+    auto first = queue.render_and_wait(request_for("a", 3), std::chrono::seconds(10));
+    ASSERT_TRUE(first);
+    EXPECT_FALSE(first->cached);
+    auto again = queue.render_and_wait(request_for("a", 3), std::chrono::seconds(10));
+    ASSERT_TRUE(again);
+    EXPECT_TRUE(again->cached);
+    EXPECT_EQ(again->frame, first->frame);
+    auto older = queue.render_and_wait(request_for("a", 2), std::chrono::seconds(10));
+    EXPECT_TRUE(older->cached);
+    auto other_size = request_for("a", 3);
+    other_size.document.image.width = 16;
+    EXPECT_FALSE(queue.render_and_wait(other_size, std::chrono::seconds(10))->cached);
+    queue.forget_cached_frames();
+    EXPECT_FALSE(queue.render_and_wait(other_size, std::chrono::seconds(10))->cached);
+    EXPECT_EQ(renderer.calls.size(), 3u);
+}
+
+TEST(DaemonRenderQueue, BoundedFairAndForgetful) {
+    SteppedRenderer renderer;
+    std::vector<std::string> evicted;
+    scene::RenderQueueOptions options;
+    options.max_waiters = 3;
+    options.evict = [&](const std::string& id) { evicted.push_back(id); };
+    scene::RenderQueue queue([&](const scene::FrameRequest& r) { return renderer.render(r); }, options);
+    std::mutex mutex;
+    std::map<std::string, std::vector<scene::FrameOutcome::Status>> outcomes;
+    auto record = [&](const std::string& id) {
+        return [&, id](const scene::FrameOutcome& outcome) {
+            std::lock_guard lock(mutex);
+            outcomes[id].push_back(outcome.status);
+        };
+    };
+    ASSERT_TRUE(queue.submit(request_for("a", 1), record("a")));
+    renderer.wait_calls(1);
+    ASSERT_TRUE(queue.submit(request_for("a", 2), record("a")));
+    ASSERT_TRUE(queue.submit(request_for("b", 1), record("b")));
+    EXPECT_FALSE(queue.submit(request_for("c", 1), record("c")));  // full: the caller answers 503
+
+    renderer.allow(1);  // a1 done; a2 starts
+    renderer.wait_calls(2);
+    ASSERT_TRUE(queue.submit(request_for("a", 3), record("a")));  // queued behind b: round-robin
+    queue.forget_scene("b");
+    renderer.allow(2);
+    renderer.wait_calls(3);
+    queue.stop();
+    EXPECT_EQ(renderer.calls, (std::vector<std::pair<std::string, uint64_t>>{{"a", 1}, {"a", 2}, {"a", 3}}));
+    EXPECT_EQ(outcomes["b"], std::vector<scene::FrameOutcome::Status>{scene::FrameOutcome::Status::gone});
+    EXPECT_EQ(outcomes["a"].size(), 3u);
+    EXPECT_EQ(evicted, std::vector<std::string>{"b"});
+    EXPECT_EQ(outcomes.count("c"), 0u);
+}
+
+TEST(DaemonRenderQueue, RoundRobinBetweenScenes) {
+    SteppedRenderer renderer;
+    scene::RenderQueue queue([&](const scene::FrameRequest& r) { return renderer.render(r); }, {});
+    auto ignore = [](const scene::FrameOutcome&) {};
+    queue.submit(request_for("a", 1), ignore);
+    renderer.wait_calls(1);
+    queue.submit(request_for("a", 2), ignore);
+    queue.submit(request_for("b", 1), ignore);
+    renderer.allow(1);
+    renderer.wait_calls(2);                     // a2 renders
+    queue.submit(request_for("a", 3), ignore);  // a busy scene must not starve b
+    renderer.allow(3);
+    renderer.wait_calls(4);
+    queue.stop();
+    EXPECT_EQ(renderer.calls,
+              (std::vector<std::pair<std::string, uint64_t>>{{"a", 1}, {"a", 2}, {"b", 1}, {"a", 3}}));
+}
+
+TEST(DaemonRenderQueue, UnrenderableScenesAndMissingDevicesAreReported) {
+    SteppedRenderer renderer;
+    renderer.allow(1);
+    scene::RenderQueue queue([&](const scene::FrameRequest& r) { return renderer.render(r); }, {});
+    auto request = request_for("a", 1);
+    request.document.object.mesh = "upload:missing";
+    auto outcome = queue.render_and_wait(request, std::chrono::seconds(10));
+    EXPECT_EQ(outcome->status, scene::FrameOutcome::Status::unrenderable);
+
+    scene::RenderQueue no_device({}, {}, "no Vulkan here");
+    auto none = no_device.render_and_wait(request_for("a", 1), std::chrono::seconds(1));
+    EXPECT_EQ(none->status, scene::FrameOutcome::Status::no_device);
+    EXPECT_EQ(none->error, "no Vulkan here");
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Integration tests: a real refractd.
+
+json get_json(httplib::Client& client, const std::string& path, int expected_status = 200) {
+    auto res = client.Get(path);
+    EXPECT_TRUE(res) << "GET " << path << " failed";
+    if (!res) return {};
+    EXPECT_EQ(res->status, expected_status) << path << ": " << res->body;
+    return json::parse(res->body, nullptr, false);
+}
+
+std::string create_scene(httplib::Client& client, const std::string& id, const json& document = kSmallScene) {
+    auto res = client.Post("/api/scenes?id=" + id, document.dump(), "application/json");
+    EXPECT_TRUE(res);
+    if (!res) return {};
+    EXPECT_EQ(res->status, 201) << res->body;
+    return json::parse(res->body).at("id").get<std::string>();
+}
+
+// Frame bytes of a scene, with the response for its headers.
+httplib::Result get_frame(httplib::Client& client, const std::string& id, const std::string& query = "") {
+    auto res = client.Get("/api/scenes/" + id + "/frame.png" + query);
+    EXPECT_TRUE(res) << "frame of " << id;
+    if (res) {
+        EXPECT_EQ(res->status, 200) << res->body;
+        if (res->status == 200) {
+            EXPECT_TRUE(is_png(res->body));
+        }
+    }
+    return res;
+}
+
+httplib::Result patch(httplib::Client& client, const std::string& id, const json& merge_patch,
+                      const httplib::Headers& headers = {}) {
+    return client.Patch("/api/scenes/" + id, headers, merge_patch.dump(), kMergePatch);
+}
+
+// The value of a metric line ("refract_pass_runs_total{pass=\"view\"}"), 0 when absent.
+double metric(httplib::Client& client, const std::string& series) {
+    auto res = client.Get("/metrics");
+    if (!res) return -1;
+    std::istringstream lines(res->body);
+    std::string line;
+    while (std::getline(lines, line)) {
+        if (line.compare(0, series.size(), series) == 0 && line.size() > series.size() &&
+            line[series.size()] == ' ')
+            return std::stod(line.substr(series.size() + 1));
+    }
+    return 0;
+}
+
+void expect_alive(Daemon& daemon) {
+    ASSERT_TRUE(daemon.running()) << daemon.log();
+    auto client = daemon.client();
+    auto res = client.Get("/api/health");
+    ASSERT_TRUE(res) << daemon.log();
+    EXPECT_EQ(res->status, 200);
+}
+
+void expect_no_validation_errors(Daemon& daemon) {
+    auto client = daemon.client();
+    json health = get_json(client, "/api/health");
+    if (health.contains("validation_errors")) {
+        EXPECT_EQ(health["validation_errors"], 0) << daemon.log();
+    }
+}
+
+TEST(Daemon, HealthDescribesTheDeviceAndStartsWithADefaultScene) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    json health = get_json(client, "/api/health");
+    EXPECT_EQ(health["status"], "ok") << health.dump();
+    ASSERT_TRUE(health["device"].is_object()) << health.dump();
+    for (const char* key : {"name", "type", "driver_name", "driver_info", "api_version"})
+        EXPECT_TRUE(health["device"][key].is_string()) << key;
+    for (const char* key : {"uptime_s", "scenes", "scenes_resident", "device_bytes", "ws_port", "version"})
+        EXPECT_TRUE(health.contains(key)) << key;
+    EXPECT_EQ(health["ws_port"], daemon.ws_port());
+    EXPECT_EQ(health["scenes"], 1);
+    json list = get_json(client, "/api/scenes");
+    ASSERT_EQ(list["scenes"].size(), 1u);
+    EXPECT_EQ(list["scenes"][0]["id"], "default");
+    EXPECT_EQ(daemon.stop(), 0) << daemon.log();
+    EXPECT_NE(daemon.log().find("SIGTERM received"), std::string::npos);
+}
+
+TEST(Daemon, WithoutAUsableDeviceHealthSaysWhyAndDocumentsStillWork) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--device", "no-such-gpu"});
+    auto client = daemon.client();
+    json health = get_json(client, "/api/health");
+    EXPECT_EQ(health["status"], "degraded");
+    EXPECT_TRUE(health["device"].is_null());
+    EXPECT_NE(health["device_error"].get<std::string>().find("no-such-gpu"), std::string::npos)
+        << health.dump();
+    std::string id = create_scene(client, "headless");
+    ASSERT_EQ(patch(client, id, {{"light", {{"intensity", 3.0}}}})->status, 200);
+    auto frame = client.Get("/api/scenes/" + id + "/frame.png");
+    ASSERT_TRUE(frame);
+    EXPECT_EQ(frame->status, 503);
+    EXPECT_NE(json::parse(frame->body)["error"].get<std::string>().find("no-such-gpu"), std::string::npos);
+    EXPECT_EQ(daemon.stop(), 0);
+}
+
+TEST(Daemon, LightEditChangesTheFrame) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "lit");
+    auto before = get_frame(client, id);
+    ASSERT_TRUE(before && before->status == 200);
+    EXPECT_EQ(before->get_header_value("X-Refract-Revision"), "1");
+    EXPECT_EQ(before->get_header_value("X-Refract-Passes"), "voxelize,index_field,octree,photons,view");
+    EXPECT_NE(before->get_header_value("Server-Timing").find("view;dur="), std::string::npos);
+
+    auto edit = patch(client, id, {{"light", {{"intensity", 80.0}, {"position", {1.0, 3.0, 2.0}}}}});
+    ASSERT_TRUE(edit);
+    ASSERT_EQ(edit->status, 200) << edit->body;
+    json answer = json::parse(edit->body);
+    EXPECT_EQ(answer["revision"], 2);
+    EXPECT_EQ(answer["invalidated"], json({"photons", "view"}));
+    EXPECT_EQ(answer["scene"]["light"]["intensity"], 80.0);
+    EXPECT_EQ(edit->get_header_value("ETag"), "\"2\"");
+
+    auto after = get_frame(client, id);
+    ASSERT_TRUE(after && after->status == 200);
+    EXPECT_EQ(after->get_header_value("X-Refract-Revision"), "2");
+    EXPECT_EQ(after->get_header_value("X-Refract-Passes"), "photons,view");
+    EXPECT_NE(before->body, after->body);
+
+    // The image size can be overridden for one frame, within the limits.
+    auto wide = get_frame(client, id, "?width=48&height=32&quality=interactive");
+    ASSERT_TRUE(wide && wide->status == 200);
+    EXPECT_EQ(wide->get_header_value("X-Refract-Revision"), "2");
+    expect_no_validation_errors(daemon);
+    EXPECT_EQ(daemon.stop(), 0);
+}
+
+TEST(Daemon, CameraEditRerunsOnlyTheViewingPass) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "cam");
+    ASSERT_TRUE(get_frame(client, id));
+    double photons_before = metric(client, "refract_pass_runs_total{pass=\"photons\"}");
+    double voxelize_before = metric(client, "refract_pass_runs_total{pass=\"voxelize\"}");
+    double view_before = metric(client, "refract_pass_runs_total{pass=\"view\"}");
+    EXPECT_GE(photons_before, 1);
+
+    auto edit = patch(client, id, {{"camera", {{"position", {0.5, 0.6, 3.5}}}}});
+    ASSERT_TRUE(edit);
+    EXPECT_EQ(json::parse(edit->body)["invalidated"], json({"view"}));
+    auto frame = get_frame(client, id);
+    ASSERT_TRUE(frame && frame->status == 200);
+    EXPECT_EQ(frame->get_header_value("X-Refract-Passes"), "view");
+    EXPECT_EQ(frame->get_header_value("Server-Timing").find("photons"), std::string::npos);
+
+    EXPECT_EQ(metric(client, "refract_pass_runs_total{pass=\"photons\"}"), photons_before);
+    EXPECT_EQ(metric(client, "refract_pass_runs_total{pass=\"voxelize\"}"), voxelize_before);
+    EXPECT_EQ(metric(client, "refract_pass_runs_total{pass=\"view\"}"), view_before + 1);
+    EXPECT_GE(metric(client, "refract_pass_duration_ms_count{pass=\"view\"}"), 2);
+    EXPECT_GE(metric(client, "refract_frames_total"), 2);
+    EXPECT_EQ(metric(client, "refract_scenes"), 2);
+    expect_no_validation_errors(daemon);
+}
+
+TEST(Daemon, RejectedEditChangesNothing) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "strict");
+    auto before = get_frame(client, id);
+    ASSERT_TRUE(before && before->status == 200);
+    json document_before = get_json(client, "/api/scenes/" + id);
+
+    auto bad = patch(client, id, {{"light", {{"intensity", 30.0}}}, {"camera", {{"fov_deg", -5}}}});
+    ASSERT_TRUE(bad);
+    EXPECT_EQ(bad->status, 422);
+    json error = json::parse(bad->body);
+    EXPECT_EQ(error["pointer"], "/camera/fov_deg");
+    EXPECT_TRUE(error["error"].is_string());
+
+    json document_after = get_json(client, "/api/scenes/" + id);
+    EXPECT_EQ(document_after, document_before);  // the valid half of the edit was not applied either
+    EXPECT_EQ(document_after["revision"], 1);
+    auto after = get_frame(client, id);
+    ASSERT_TRUE(after && after->status == 200);
+    EXPECT_EQ(after->get_header_value("X-Refract-Revision"), "1");
+    EXPECT_EQ(after->body, before->body);
+    EXPECT_EQ(after->get_header_value("X-Refract-Passes"), "");  // nothing was invalidated, nothing reran
+}
+
+TEST(Daemon, PostFrameAppliesTheEditAndAnswersThePngInOneRoundTrip) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "oneshot");
+    auto res = client.Post("/api/scenes/" + id + "/frame.png", json{{"light", {{"intensity", 42.0}}}}.dump(),
+                           kMergePatch);
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200) << res->body;
+    EXPECT_TRUE(is_png(res->body));
+    EXPECT_EQ(res->get_header_value("X-Refract-Revision"), "2");
+    EXPECT_EQ(get_json(client, "/api/scenes/" + id)["scene"]["light"]["intensity"], 42.0);
+
+    auto invalid = client.Post("/api/scenes/" + id + "/frame.png", json{{"photons", {{"count", -1}}}}.dump(),
+                               kMergePatch);
+    ASSERT_TRUE(invalid);
+    EXPECT_EQ(invalid->status, 422);
+    EXPECT_EQ(json::parse(invalid->body)["pointer"], "/photons/count");
+    EXPECT_EQ(get_json(client, "/api/scenes/" + id)["revision"], 2);
+
+    // A bad query is refused before the edit is applied.
+    auto bad_query = client.Post("/api/scenes/" + id + "/frame.png?width=0",
+                                 json{{"light", {{"intensity", 7.0}}}}.dump(), kMergePatch);
+    ASSERT_TRUE(bad_query);
+    EXPECT_EQ(bad_query->status, 400);
+    EXPECT_EQ(get_json(client, "/api/scenes/" + id)["revision"], 2);
+}
+
+// A synchronous Beast WebSocket client with a receive timeout, for the tests only.
+class WsClient {
+public:
+    WsClient(uint16_t port, const std::string& target) {
+        namespace net = boost::asio;
+        net::ip::tcp::endpoint endpoint(net::ip::make_address("127.0.0.1"), port);
+        ws_.next_layer().connect(endpoint);
+        timeval timeout{60, 0};
+        ::setsockopt(ws_.next_layer().native_handle(), SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+        ws_.handshake("127.0.0.1:" + std::to_string(port), target);
+    }
+    void send(const json& message) {
+        ws_.text(true);
+        ws_.write(boost::asio::buffer(message.dump()));
+    }
+    // (is_text, payload)
+    std::pair<bool, std::string> read() {
+        boost::beast::flat_buffer buffer;
+        ws_.read(buffer);
+        return {ws_.got_text(), boost::beast::buffers_to_string(buffer.data())};
+    }
+    // The next frame: its header and PNG; error messages on the way are collected.
+    std::pair<json, std::string> read_frame(std::vector<json>* errors = nullptr) {
+        for (;;) {
+            auto [text, payload] = read();
+            if (!text) throw std::runtime_error("binary message without a header");
+            json header = json::parse(payload);
+            if (header["type"] == "error") {
+                if (errors) errors->push_back(header);
+                continue;
+            }
+            auto [png_is_text, png] = read();
+            if (png_is_text) throw std::runtime_error("frame header not followed by the PNG");
+            return {header, png};
+        }
+    }
+
+private:
+    boost::asio::io_context ioc_;
+    boost::beast::websocket::stream<boost::asio::ip::tcp::socket> ws_{ioc_};
+};
+
+TEST(Daemon, WebSocketCoalescesEditsLatestWins) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "live");
+    WsClient ws(daemon.ws_port(), "/api/scenes/" + id + "/ws");
+
+    ws.send({{"seq", 0}});
+    auto [first, first_png] = ws.read_frame();
+    EXPECT_EQ(first["seq"], 0);
+    EXPECT_EQ(first["revision"], 1);
+    EXPECT_EQ(first["quality"], "interactive");
+    EXPECT_GT(first["width"], 0);  // interactive frames may render below the document's size
+    EXPECT_LE(first["width"], 64);
+    EXPECT_TRUE(is_png(first_png));
+    EXPECT_TRUE(first["timings"].is_object());
+
+    constexpr int kEdits = 50;
+    for (int seq = 1; seq <= kEdits; ++seq)
+        ws.send(
+            {{"seq", seq}, {"patch", {{"light", {{"intensity", 10.0 + seq}}}}}, {"quality", "interactive"}});
+    int frames = 0;
+    json last;
+    std::set<int> seen;
+    while (true) {
+        auto [header, png] = ws.read_frame();
+        ++frames;
+        EXPECT_TRUE(is_png(png));
+        int seq = header["seq"].get<int>();
+        EXPECT_TRUE(seen.insert(seq).second) << "frame for seq " << seq << " sent twice";
+        if (!last.is_null()) {
+            EXPECT_GT(header["revision"].get<int>(), last["revision"].get<int>());
+        }
+        last = header;
+        if (seq == kEdits) break;
+    }
+    EXPECT_LT(frames, kEdits / 2) << "stale frames were rendered instead of dropped";
+    RecordProperty("frames_for_50_edits", frames);
+    EXPECT_EQ(last["revision"], 1 + kEdits);
+    EXPECT_EQ(get_json(client, "/api/scenes/" + id)["revision"], 1 + kEdits);
+
+    // An invalid edit: an error naming the field, nothing changes, the session goes on.
+    ws.send({{"seq", 99}, {"patch", {{"light", {{"intensity", -3}}}}}});
+    auto [is_text, payload] = ws.read();
+    ASSERT_TRUE(is_text);
+    json error = json::parse(payload);
+    EXPECT_EQ(error["type"], "error");
+    EXPECT_EQ(error["seq"], 99);
+    EXPECT_EQ(error["pointer"], "/light/intensity");
+    ws.send({{"seq", 100}, {"quality", "still"}});
+    auto [still, still_png] = ws.read_frame();
+    EXPECT_EQ(still["seq"], 100);
+    EXPECT_EQ(still["revision"], 1 + kEdits);
+    EXPECT_EQ(still["width"], 64);
+    EXPECT_EQ(get_json(client, "/api/scenes/" + id)["revision"], 1 + kEdits);
+
+    // Garbage is answered, not fatal.
+    ws.send(json("not an object"));
+    auto [garbage_text, garbage] = ws.read();
+    EXPECT_EQ(json::parse(garbage)["type"], "error");
+    expect_alive(daemon);
+}
+
+TEST(Daemon, WebSocketRefusesUnknownScenesAndBadTokens) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--token", "s3cret"});
+    auto client = daemon.client();
+    client.set_bearer_token_auth("s3cret");
+    create_scene(client, "guarded");
+    EXPECT_THROW(WsClient(daemon.ws_port(), "/api/scenes/nope/ws?token=s3cret"), boost::system::system_error);
+    EXPECT_THROW(WsClient(daemon.ws_port(), "/api/scenes/guarded/ws"), boost::system::system_error);
+    EXPECT_THROW(WsClient(daemon.ws_port(), "/api/scenes/guarded/ws?token=wrong"),
+                 boost::system::system_error);
+    WsClient ws(daemon.ws_port(), "/api/scenes/guarded/ws?token=s3cret");
+    ws.send({{"seq", 1}});
+    EXPECT_EQ(ws.read_frame().first["seq"], 1);
+}
+
+TEST(Daemon, RobustnessTable) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--max-body", "1M", "--max-image", "256"});
+    auto client = daemon.client();
+    std::string id = create_scene(client, "sturdy");
+    const std::string scene = "/api/scenes/" + id;
+    std::string huge(size_t{2} << 20, ' ');
+    std::string deep = std::string(5000, '[') + std::string(5000, ']');
+
+    struct Case {
+        std::string name;
+        std::function<httplib::Result()> request;
+        int status;
+    };
+    std::vector<Case> cases = {
+        {"malformed JSON", [&] { return client.Post("/api/scenes", "{\"image\": {", "application/json"); },
+         400},
+        {"NaN is not JSON",
+         [&] { return client.Patch(scene, R"({"light":{"intensity":NaN}})", kMergePatch); }, 400},
+        {"deep nesting", [&] { return client.Patch(scene, deep, kMergePatch); }, 400},
+        {"wrong content type", [&] { return client.Patch(scene, "{}", "application/json"); }, 415},
+        {"text as a scene", [&] { return client.Post("/api/scenes", "{}", "text/plain"); }, 415},
+        {"huge body", [&] { return client.Patch(scene, huge, kMergePatch); }, 413},
+        {"huge mesh", [&] { return client.Put("/api/meshes/big", huge, "text/plain"); }, 413},
+        {"unknown scene", [&] { return client.Get("/api/scenes/nope"); }, 404},
+        {"unknown scene edit", [&] { return client.Patch("/api/scenes/nope", "{}", kMergePatch); }, 404},
+        {"unknown scene frame", [&] { return client.Get("/api/scenes/nope/frame.png"); }, 404},
+        {"unknown scene delete", [&] { return client.Delete("/api/scenes/nope"); }, 404},
+        {"unknown endpoint", [&] { return client.Get("/api/teapot"); }, 404},
+        {"bad OBJ", [&] { return client.Put("/api/meshes/bad", "v 0 0 0\nf 1 2 3\n", "text/plain"); }, 400},
+        {"NaN in OBJ",
+         [&] {
+             return client.Put("/api/meshes/nan", "v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "text/plain");
+         },
+         400},
+        {"bad mesh name", [&] { return client.Put("/api/meshes/a%20b", kTetrahedronObj, "text/plain"); },
+         400},
+        {"absurd frame width", [&] { return client.Get(scene + "/frame.png?width=100000"); }, 400},
+        {"negative frame height", [&] { return client.Get(scene + "/frame.png?height=-4"); }, 400},
+        {"bad quality", [&] { return client.Get(scene + "/frame.png?quality=ultra"); }, 400},
+        {"absurd image", [&] { return client.Patch(scene, R"({"image":{"width":1000000}})", kMergePatch); },
+         422},
+        {"absurd volume",
+         [&] { return client.Patch(scene, R"({"volume":{"resolution":100000}})", kMergePatch); }, 422},
+        {"absurd photons", [&] { return client.Patch(scene, R"({"photons":{"count":1e15}})", kMergePatch); },
+         422},
+        {"absurd grid",
+         [&] {
+             return client.Put(scene + "/index-field?nx=100000&ny=2&nz=2&min=0,0,0&max=1,1,1", "",
+                               "application/octet-stream");
+         },
+         400},
+        {"grid body size",
+         [&] {
+             return client.Put(scene + "/index-field?nx=2&ny=2&nz=2&min=0,0,0&max=1,1,1", "abc",
+                               "application/octet-stream");
+         },
+         400},
+        {"grid bounds",
+         [&] {
+             return client.Put(scene + "/index-field?nx=2&ny=2&nz=2&min=1,1,1&max=0,0,0",
+                               std::string(32, '\0'), "application/octet-stream");
+         },
+         400},
+        {"If-Match mismatch",
+         [&] {
+             return client.Patch(scene, {{"If-Match", "\"7\""}}, R"({"light":{"intensity":3}})", kMergePatch);
+         },
+         412},
+        {"bad scene id", [&] { return client.Post("/api/scenes?id=Not_OK", "{}", "application/json"); }, 400},
+        {"duplicate scene id", [&] { return client.Post("/api/scenes?id=sturdy", "{}", "application/json"); },
+         409},
+        {"invalid scene",
+         [&] { return client.Post("/api/scenes", R"({"light":{"type":"laser"}})", "application/json"); },
+         422},
+        {"unknown mesh renders 422",
+         [&] {
+             return client.Post(scene + "/frame.png", R"({"object":{"mesh":"upload:ghost"}})", kMergePatch);
+         },
+         422},
+    };
+    for (const auto& c : cases) {
+        SCOPED_TRACE(c.name);
+        auto res = c.request();
+        ASSERT_TRUE(res) << c.name << ": no answer (" << httplib::to_string(res.error()) << ")\n"
+                         << daemon.log();
+        EXPECT_EQ(res->status, c.status) << c.name << ": " << res->body;
+        if (res->status >= 400) {
+            json body = json::parse(res->body, nullptr, false);
+            EXPECT_TRUE(body.is_object() && body["error"].is_string()) << c.name << ": " << res->body;
+        }
+        expect_alive(daemon);
+    }
+    // Nothing above changed the scene except the unknown-mesh edit, which was valid JSON for the document.
+    json now = get_json(client, scene);
+    EXPECT_EQ(now["revision"], 2);
+    EXPECT_EQ(now["scene"]["image"]["width"], 64);
+
+    // If-Match with the current revision goes through.
+    auto matched =
+        client.Patch(scene, {{"If-Match", "\"2\""}}, R"({"object":{"mesh":"sphere"}})", kMergePatch);
+    ASSERT_TRUE(matched);
+    EXPECT_EQ(matched->status, 200) << matched->body;
+}
+
+TEST(Daemon, MeshUploadsAreInspectedListedAndRendered) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    auto res = client.Put("/api/meshes/tet.v1", kTetrahedronObj, "text/plain");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 201) << res->body;
+    json report = json::parse(res->body);
+    EXPECT_EQ(report["triangles"], 4);
+    EXPECT_EQ(report["vertices"], 4);
+    EXPECT_EQ(report["boundary_edges"], 0);
+    EXPECT_EQ(report["watertight"], true);
+    EXPECT_EQ(report["bounds"]["max"], json({1.0, 1.0, 1.0}));
+    EXPECT_EQ(report["reference"], "upload:tet.v1");
+
+    auto open = client.Put("/api/meshes/open", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "text/plain");
+    ASSERT_TRUE(open);
+    EXPECT_EQ(open->status, 201);
+    EXPECT_EQ(json::parse(open->body)["boundary_edges"], 3);
+    EXPECT_EQ(json::parse(open->body)["watertight"], false);
+
+    json meshes = get_json(client, "/api/meshes");
+    ASSERT_EQ(meshes["meshes"].size(), 2u);
+    EXPECT_EQ(meshes["meshes"][1]["name"], "tet.v1");
+
+    json document = kSmallScene;
+    document["object"] = {{"mesh", "upload:tet.v1"}};
+    std::string id = create_scene(client, "tet", document);
+    auto frame = get_frame(client, id);
+    ASSERT_TRUE(frame && frame->status == 200);
+    // Re-upload under the same name: the next frame re-voxelizes although the revision did not move.
+    ASSERT_EQ(client.Put("/api/meshes/tet.v1", kTetrahedronObj, "text/plain")->status, 201);
+    auto again = get_frame(client, id);
+    ASSERT_TRUE(again && again->status == 200);
+    EXPECT_EQ(again->get_header_value("X-Refract-Revision"), "1");
+    EXPECT_NE(again->get_header_value("X-Refract-Passes").find("voxelize"), std::string::npos);
+    expect_no_validation_errors(daemon);
+}
+
+TEST(Daemon, IndexFieldUploadBecomesTheScenesGrid) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "sim");
+    constexpr uint32_t n = 8;
+    std::vector<float> values(n * n * n);
+    for (uint32_t z = 0; z < n; ++z)
+        for (uint32_t y = 0; y < n; ++y)
+            for (uint32_t x = 0; x < n; ++x)
+                values[(z * n + y) * n + x] = 1.0f + 0.05f * static_cast<float>(x);
+    std::string body(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));
+    auto res = client.Put("/api/scenes/" + id + "/index-field?nx=8&ny=8&nz=8&min=-1,-1,-1&max=1,1,1", body,
+                          "application/octet-stream");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200) << res->body;
+    json answer = json::parse(res->body);
+    EXPECT_EQ(answer["revision"], 2);
+    EXPECT_EQ(answer["scene"]["object"]["index_field"], "grid");
+    EXPECT_EQ(answer["scene"]["object"]["grid"], id);
+
+    values[3] = std::numeric_limits<float>::infinity();
+    std::string bad(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));
+    auto rejected = client.Put("/api/scenes/" + id + "/index-field?nx=8&ny=8&nz=8&min=-1,-1,-1&max=1,1,1",
+                               bad, "application/octet-stream");
+    ASSERT_TRUE(rejected);
+    EXPECT_EQ(rejected->status, 400);
+    EXPECT_EQ(get_json(client, "/api/scenes/" + id)["revision"], 2);
+
+    auto frame = get_frame(client, id);
+    ASSERT_TRUE(frame && frame->status == 200);
+    expect_no_validation_errors(daemon);
+}
+
+TEST(Daemon, MaxScenesEvictsGpuStateButKeepsDocuments) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--max-scenes", "1"});
+    auto client = daemon.client();
+    create_scene(client, "first");
+    create_scene(client, "second");
+    ASSERT_TRUE(get_frame(client, "first"));
+    ASSERT_TRUE(get_frame(client, "second"));
+    EXPECT_EQ(get_json(client, "/api/health")["scenes_resident"], 1);
+    // "first" was dropped from the GPU: a new size reruns everything, from the same document.
+    auto again = get_frame(client, "first", "?width=40");
+    ASSERT_TRUE(again && again->status == 200);
+    EXPECT_EQ(again->get_header_value("X-Refract-Passes"), "voxelize,index_field,octree,photons,view");
+    EXPECT_EQ(again->get_header_value("X-Refract-Revision"), "1");
+    EXPECT_EQ(get_json(client, "/api/scenes")["scenes"].size(), 3u);
+    expect_no_validation_errors(daemon);
+}
+
+TEST(Daemon, DeleteForgetsTheScene) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "brief");
+    ASSERT_TRUE(get_frame(client, id));
+    auto res = client.Delete("/api/scenes/" + id);
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 204);
+    get_json(client, "/api/scenes/" + id, 404);
+    auto frame = client.Get("/api/scenes/" + id + "/frame.png");
+    ASSERT_TRUE(frame);
+    EXPECT_EQ(frame->status, 404);
+    // The id is free again, and starts over at revision 1.
+    EXPECT_EQ(create_scene(client, "brief"), "brief");
+    EXPECT_EQ(get_json(client, "/api/scenes/brief")["revision"], 1);
+}
+
+TEST(Daemon, ManyConcurrentClientsAreAllAnswered) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    {
+        auto client = daemon.client();
+        create_scene(client, "c0");
+        create_scene(client, "c1");
+    }
+    constexpr int kThreads = 8;
+    constexpr int kRequests = 25;
+    std::mutex mutex;
+    std::map<int, int> statuses;
+    std::map<std::string, int> accepted_edits;
+    int failures = 0;
+    std::vector<std::thread> threads;
+    for (int t = 0; t < kThreads; ++t) {
+        threads.emplace_back([&, t] {
+            auto client = daemon.client();
+            std::string id = t % 2 == 0 ? "c0" : "c1";
+            for (int i = 0; i < kRequests; ++i) {
+                bool is_edit = i % 5 == 1;
+                httplib::Result res = [&] {
+                    switch (i % 5) {
+                        case 0:
+                            return client.Get("/api/scenes/" + id);
+                        case 1:
+                            return patch(client, id, {{"light", {{"intensity", 1.0 + t * 100 + i}}}});
+                        case 2:
+                            return client.Get("/api/scenes/" + id + "/frame.png");
+                        case 3:
+                            return client.Get("/api/health");
+                        default:
+                            return client.Get("/metrics");
+                    }
+                }();
+                std::lock_guard lock(mutex);
+                if (!res) {
+                    ++failures;
+                    continue;
+                }
+                ++statuses[res->status];
+                if (is_edit && res->status == 200) ++accepted_edits[id];
+            }
+        });
+    }
+    for (auto& thread : threads) thread.join();
+    EXPECT_EQ(failures, 0);
+    for (const auto& [status, count] : statuses) EXPECT_TRUE(status == 200 || status == 503) << status;
+    EXPECT_EQ(statuses[200] + statuses[503], kThreads * kRequests);
+    expect_alive(daemon);
+    // Every acknowledged edit is one revision: none lost, none doubled.
+    auto client = daemon.client();
+    for (const char* id : {"c0", "c1"})
+        EXPECT_EQ(get_json(client, std::string("/api/scenes/") + id)["revision"], 1 + accepted_edits[id])
+            << id;
+    expect_no_validation_errors(daemon);
+}
+
+TEST(Daemon, FullRenderQueueAnswers503WithRetryAfter) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--max-queue", "1"});
+    {
+        auto client = daemon.client();
+        create_scene(client, "busy");
+    }
+    // Six different frame sizes at once: one renders, the others find the queue full.
+    std::mutex mutex;
+    std::vector<std::pair<int, std::string>> answers;  // (status, Retry-After)
+    std::vector<std::thread> threads;
+    for (int i = 0; i < 6; ++i) {
+        threads.emplace_back([&, i] {
+            auto client = daemon.client();
+            auto res = client.Get("/api/scenes/busy/frame.png?width=" + std::to_string(40 + i));
+            std::lock_guard lock(mutex);
+            if (res) answers.emplace_back(res->status, res->get_header_value("Retry-After"));
+        });
+    }
+    for (auto& thread : threads) thread.join();
+    ASSERT_EQ(answers.size(), 6u);
+    int ok = 0, busy = 0;
+    for (const auto& [status, retry_after] : answers) {
+        if (status == 200) ++ok;
+        if (status == 503) {
+            ++busy;
+            EXPECT_FALSE(retry_after.empty());
+        }
+    }
+    EXPECT_GE(ok, 1);
+    EXPECT_GE(busy, 1);
+    EXPECT_EQ(ok + busy, 6);
+    auto client = daemon.client();
+    auto later = get_frame(client, "busy");
+    EXPECT_TRUE(later && later->status == 200);
+}
+
+TEST(Daemon, ClientThatDisconnectsMidFrameHarmsNobody) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "fickle");
+    for (int i = 0; i < 3; ++i) {
+        // Ask for a frame and hang up at once, hard (RST), while it renders.
+        int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+        sockaddr_in address{};
+        address.sin_family = AF_INET;
+        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        address.sin_port = htons(daemon.port());
+        ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+        std::string request = "GET /api/scenes/" + id + "/frame.png?width=" + std::to_string(100 + i) +
+                              " HTTP/1.1\r\nHost: x\r\n\r\n";
+        ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+        linger hard{1, 0};
+        ::setsockopt(fd, SOL_SOCKET, SO_LINGER, &hard, sizeof hard);
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        ::close(fd);
+    }
+    // A slow reader: asks, reads nothing for a while, then reads; it still gets its frame.
+    std::string answer =
+        raw_http(daemon.port(),
+                 "GET /api/scenes/" + id + "/frame.png HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+    EXPECT_EQ(answer.compare(0, 12, "HTTP/1.1 200"), 0) << answer.substr(0, 200);
+    expect_alive(daemon);
+    auto frame = get_frame(client, id);
+    ASSERT_TRUE(frame && frame->status == 200);
+}
+
+TEST(Daemon, TokenGuardsTheApiButNotHealthOrStaticFiles) {
+    TempDir dir;
+    fs::create_directories(dir.path() / "web");
+    std::ofstream(dir.path() / "web" / "index.html") << "<!doctype html><title>refract</title>";
+    std::ofstream(dir.path() / "web" / "app.js") << "console.log(1);";
+    std::ofstream(dir.path() / "secret.txt") << "TOP SECRET";
+    Daemon daemon(dir.path() / "data", {"--token", "hunter2", "--web-root", (dir.path() / "web").string()});
+    auto client = daemon.client();
+    EXPECT_EQ(client.Get("/api/scenes")->status, 401);
+    EXPECT_EQ(client.Get("/metrics")->status, 401);
+    EXPECT_EQ(client.Patch("/api/scenes/default", "{}", kMergePatch)->status, 401);
+    EXPECT_EQ(client.Get("/api/health")->status, 200);
+    EXPECT_EQ(client.Get("/api/scenes?token=hunter2")->status, 200);
+
+    auto index = client.Get("/");
+    ASSERT_TRUE(index);
+    EXPECT_EQ(index->status, 200);
+    EXPECT_EQ(index->get_header_value("Content-Type"), "text/html; charset=utf-8");
+    EXPECT_EQ(client.Get("/app.js")->get_header_value("Content-Type"), "text/javascript; charset=utf-8");
+    EXPECT_EQ(client.Get("/missing.css")->status, 404);
+    for (const char* path : {"/../secret.txt", "/%2e%2e/secret.txt", "/..%2fsecret.txt", "//../secret.txt"}) {
+        std::string answer = raw_http(
+            daemon.port(), std::string("GET ") + path + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+        EXPECT_EQ(answer.find("TOP SECRET"), std::string::npos) << path;
+        EXPECT_EQ(answer.find("HTTP/1.1 200"), std::string::npos) << path << ": " << answer.substr(0, 100);
+    }
+
+    client.set_bearer_token_auth("hunter2");
+    EXPECT_EQ(client.Get("/api/scenes")->status, 200);
+    EXPECT_EQ(client.Get("/metrics")->status, 200);
+}
+
+// Scenes as they should come back after a restart: id -> (revision, document).
+std::map<std::string, json> snapshot_scenes(httplib::Client& client) {
+    std::map<std::string, json> all;
+    json list = get_json(client, "/api/scenes");
+    for (const auto& item : list["scenes"]) {
+        std::string id = item["id"];
+        all[id] = get_json(client, "/api/scenes/" + id);
+    }
+    return all;
+}
+
+void make_history(httplib::Client& client) {
+    create_scene(client, "alpha");
+    json beta = kSmallScene;
+    beta["floor"] = {{"enabled", false}};
+    create_scene(client, "beta", beta);
+    create_scene(client, "gamma");
+    for (int i = 0; i < 5; ++i) patch(client, "alpha", {{"light", {{"intensity", 5.0 + i}}}});
+    patch(client, "gamma", {{"camera", {{"fov_deg", 33.0}}}});
+    ASSERT_EQ(client.Put("/api/meshes/tet", kTetrahedronObj, "text/plain")->status, 201);
+    ASSERT_EQ(patch(client, "beta", {{"object", {{"mesh", "upload:tet"}}}})->status, 200);
+    std::vector<float> grid(8, 1.25f);
+    std::string body(reinterpret_cast<const char*>(grid.data()), grid.size() * sizeof(float));
+    ASSERT_EQ(client
+                  .Put("/api/scenes/gamma/index-field?nx=2&ny=2&nz=2&min=-1,-1,-1&max=1,1,1", body,
+                       "application/octet-stream")
+                  ->status,
+              200);
+    ASSERT_EQ(client.Delete("/api/scenes/default")->status, 204);
+}
+
+TEST(Daemon, RestartRecoversEveryScene) {
+    TempDir dir;
+    std::map<std::string, json> before;
+    {
+        Daemon daemon(dir.path() / "data");
+        auto client = daemon.client();
+        make_history(client);
+        before = snapshot_scenes(client);
+        EXPECT_EQ(daemon.stop(), 0) << daemon.log();
+    }
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    EXPECT_EQ(snapshot_scenes(client), before);
+    EXPECT_EQ(before.size(), 3u);  // no "default" recreated: the store was not empty
+    EXPECT_EQ(get_json(client, "/api/meshes")["meshes"].size(), 1u);
+    auto frame = get_frame(client, "beta");  // the uploaded mesh is back too
+    EXPECT_TRUE(frame && frame->status == 200);
+}
+
+TEST(Daemon, KillNineLosesNoAcknowledgedRevision) {
+    TempDir dir;
+    std::map<std::string, json> before;
+    {
+        Daemon daemon(dir.path() / "data");
+        auto client = daemon.client();
+        make_history(client);
+        // The last acknowledged edit, then an immediate crash.
+        ASSERT_EQ(patch(client, "alpha", {{"light", {{"intensity", 99.0}}}})->status, 200);
+        before = snapshot_scenes(client);
+        daemon.kill9();
+    }
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    auto after = snapshot_scenes(client);
+    EXPECT_EQ(after, before);
+    EXPECT_EQ(after["alpha"]["revision"], 7);
+    EXPECT_EQ(after["alpha"]["scene"]["light"]["intensity"], 99.0);
+    EXPECT_EQ(get_json(client, "/api/scenes/gamma")["scene"]["object"]["index_field"], "grid");
+}
+
+TEST(Daemon, SigintStopsCleanlyWhileAWebSocketIsOpen) {
+    TempDir dir;
+    auto daemon = std::make_unique<Daemon>(dir.path() / "data");
+    auto client = daemon->client();
+    create_scene(client, "bye");
+    WsClient ws(daemon->ws_port(), "/api/scenes/bye/ws");
+    ws.send({{"seq", 1}});
+    ws.read_frame();
+    EXPECT_EQ(daemon->stop(SIGINT), 0) << daemon->log();
+    EXPECT_NE(daemon->log().find("SIGINT received"), std::string::npos);
+    EXPECT_NE(daemon->log().find("refractd: stopped"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace refract::test

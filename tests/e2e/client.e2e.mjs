@@ -1,0 +1,591 @@
+#!/usr/bin/env node
+// End-to-end test of the browser client against a real refractd.
+//
+//   node tests/e2e/client.e2e.mjs PATH/TO/refractd PATH/TO/web-client
+//
+// Starts refractd on free loopback ports with a temporary data directory, drives Debian's Chromium
+// (headless, through playwright-core; no browser download) and checks what a user would: the first
+// frame, moving the light, orbiting with the keyboard, an invalid value reported next to its control,
+// an OBJ upload, reload, presets, a narrow window and a daemon restart. Screenshots go to
+// $REFRACT_E2E_OUT (default build/e2e-screenshots); $REFRACT_CHROMIUM overrides /usr/bin/chromium.
+// Ends with "browser_e2e: N passed, M failed".
+
+import { spawn } from 'node:child_process';
+import fs from 'node:fs';
+import net from 'node:net';
+import os from 'node:os';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+let chromium;
+try {
+  ({ chromium } = await import('playwright-core'));
+} catch (e) {
+  console.error(`playwright-core is not installed (${e.message}); run: npm --prefix tests/e2e ci`);
+  console.log('browser_e2e: 0 passed, 1 failed');
+  process.exit(1);
+}
+
+const HERE = path.dirname(fileURLToPath(import.meta.url));
+const REPO = path.resolve(HERE, '../..');
+const [refractdArg, webRootArg] = process.argv.slice(2);
+if (!refractdArg) {
+  console.error('usage: node client.e2e.mjs PATH/TO/refractd [PATH/TO/web-client]');
+  process.exit(2);
+}
+const REFRACTD = path.resolve(refractdArg);
+const WEB_ROOT = path.resolve(webRootArg || path.join(REPO, 'web-client'));
+const OUT = path.resolve(process.env.REFRACT_E2E_OUT || path.join(REPO, 'build/e2e-screenshots'));
+const CHROMIUM = process.env.REFRACT_CHROMIUM || '/usr/bin/chromium';
+const WAIT_MS = 60_000;
+const MAX_PX = 320;  // the client's image cap for this test (?maxpx=): lavapipe on 2 cores
+const SMALL_SCENE = { image: { width: 256, height: 256 }, volume: { resolution: 48 }, photons: { count: 16384 } };
+
+const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'refract-e2e-'));
+const dataDir = path.join(tmp, 'data');
+fs.mkdirSync(OUT, { recursive: true });
+const daemonLogPath = path.join(OUT, 'refractd.log');
+const daemonLog = fs.createWriteStream(daemonLogPath);
+
+let daemon = null;
+let browser = null;
+let httpPort = 0;
+let wsPort = 0;
+let base = '';
+
+// ---- helpers -------------------------------------------------------------------------------------
+
+function log(...args) { console.log(`[e2e +${((Date.now() - t0) / 1000).toFixed(1)}s]`, ...args); }
+const t0 = Date.now();
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+function freePort() {
+  return new Promise((resolve, reject) => {
+    const srv = net.createServer();
+    srv.unref();
+    srv.on('error', reject);
+    srv.listen(0, '127.0.0.1', () => {
+      const { port } = srv.address();
+      srv.close(() => resolve(port));
+    });
+  });
+}
+
+function startDaemon() {
+  const args = ['--bind', '127.0.0.1', '--port', String(httpPort), '--ws-port', String(wsPort),
+    '--data-dir', dataDir, '--web-root', WEB_ROOT];
+  log('starting', REFRACTD, args.join(' '));
+  const child = spawn(REFRACTD, args, {
+    stdio: ['ignore', 'pipe', 'pipe'],
+    env: { LP_NUM_THREADS: '2', ...process.env },
+  });
+  child.stdout.pipe(daemonLog, { end: false });
+  child.stderr.pipe(daemonLog, { end: false });
+  child.exited = new Promise((resolve) => child.on('exit', (code, signal) => resolve({ code, signal })));
+  child.on('error', (e) => log('refractd failed to start:', e.message));
+  return child;
+}
+
+async function stopDaemon(child, signal = 'SIGTERM') {
+  if (!child || child.exitCode !== null || child.signalCode !== null) return;
+  child.kill(signal);
+  const done = await Promise.race([child.exited, sleep(10_000).then(() => null)]);
+  if (!done) {
+    child.kill('SIGKILL');
+    await child.exited;
+  }
+}
+
+async function api(method, urlPath, body, contentType = 'application/json') {
+  const init = { method, headers: {} };
+  if (body !== undefined) {
+    init.body = typeof body === 'string' ? body : JSON.stringify(body);
+    init.headers['Content-Type'] = contentType;
+  }
+  const res = await fetch(base + urlPath, init);
+  const text = await res.text();
+  let json = null;
+  try { json = text ? JSON.parse(text) : null; } catch { json = { raw: text }; }
+  return { status: res.status, json };
+}
+
+async function waitForHealth(child) {
+  const deadline = Date.now() + WAIT_MS;
+  while (Date.now() < deadline) {
+    if (child.exitCode !== null || child.signalCode !== null) {
+      throw new Error(`refractd exited (${child.exitCode ?? child.signalCode}) before answering /api/health`);
+    }
+    try {
+      const r = await api('GET', '/api/health');
+      if (r.status === 200) return r.json;
+    } catch { /* not listening yet */ }
+    await sleep(200);
+  }
+  throw new Error('refractd did not answer /api/health within 60 s');
+}
+
+function assert(condition, message) {
+  if (!condition) throw new Error(message);
+}
+
+const waitFor = (page, fn, arg, timeout = WAIT_MS) => page.waitForFunction(fn, arg, { timeout, polling: 100 });
+
+// Waits until the client has nothing in flight, nothing queued, and shows a still of a revision > `after`.
+function waitSettled(page, after = -1, timeout = WAIT_MS) {
+  return waitFor(page, (rev) => window.refract && window.refract.settled() && window.refract.lastRevision > rev,
+    after, timeout);
+}
+
+async function shot(page, name, opts = {}) {
+  const file = path.join(OUT, name);
+  await page.screenshot({ path: file, ...opts });
+  screenshots.push(file);
+  return file;
+}
+
+// Fraction of pixels of the canvas that differ (any channel by > 12) from the snapshot taken before.
+const snapshotCanvas = (page) => page.evaluate(() => {
+  const c = document.getElementById('view');
+  window.__e2eSnapshot = { w: c.width, h: c.height, data: c.getContext('2d').getImageData(0, 0, c.width, c.height).data };
+});
+const canvasChange = (page) => page.evaluate(() => {
+  const c = document.getElementById('view');
+  const before = window.__e2eSnapshot;
+  if (!before || before.w !== c.width || before.h !== c.height) return 1;
+  const now = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+  let changed = 0;
+  for (let i = 0; i < now.length; i += 4) {
+    if (Math.abs(now[i] - before.data[i]) > 12 || Math.abs(now[i + 1] - before.data[i + 1]) > 12 ||
+        Math.abs(now[i + 2] - before.data[i + 2]) > 12) changed++;
+  }
+  return changed / (now.length / 4);
+});
+
+async function sceneOnServer(id) {
+  const r = await api('GET', `/api/scenes/${encodeURIComponent(id)}`);
+  assert(r.status === 200, `GET /api/scenes/${id} -> ${r.status} ${JSON.stringify(r.json)}`);
+  return r.json;
+}
+
+// ---- the checks ----------------------------------------------------------------------------------
+
+const results = [];
+const screenshots = [];
+async function check(name, fn) {
+  const start = Date.now();
+  try {
+    await fn();
+    results.push({ name, ok: true });
+    log(`PASS ${name} (${((Date.now() - start) / 1000).toFixed(1)} s)`);
+  } catch (e) {
+    results.push({ name, ok: false, error: e });
+    log(`FAIL ${name}: ${e.stack || e.message}`);
+  }
+}
+
+async function main() {
+  httpPort = await freePort();
+  do wsPort = await freePort(); while (wsPort === httpPort);
+  base = `http://127.0.0.1:${httpPort}`;
+  daemon = startDaemon();
+  const health = await waitForHealth(daemon);
+  log('refractd is up:', JSON.stringify(health.device));
+
+  const created = await api('POST', '/api/scenes', SMALL_SCENE);
+  assert(created.status === 201, `POST /api/scenes -> ${created.status} ${JSON.stringify(created.json)}`);
+  const sceneId = created.json.id;
+  log('scene', sceneId);
+
+  browser = await chromium.launch({
+    executablePath: CHROMIUM,
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+      '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+  });
+  const context = await browser.newContext({ viewport: { width: 1200, height: 760 } });
+  const page = await context.newPage();
+  const pageErrors = [];
+  page.on('pageerror', (e) => { pageErrors.push(e.message); log('page error:', e.message); });
+  page.on('console', (m) => { if (m.type() === 'error') log('console error:', m.text()); });
+  const pageUrl = `${base}/?scene=${encodeURIComponent(sceneId)}&maxpx=${MAX_PX}`;
+
+  await check('first frame drawn, device and timings shown', async () => {
+    await page.goto(pageUrl);
+    await waitSettled(page);
+    const info = await page.evaluate(() => {
+      const c = document.getElementById('view');
+      const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+      let min = 255;
+      let max = 0;
+      for (let i = 0; i < d.length; i += 4) {
+        const l = d[i] + d[i + 1] + d[i + 2];
+        if (l < min) min = l;
+        if (l > max) max = l;
+      }
+      return {
+        w: c.width, h: c.height, min, max,
+        device: document.getElementById('device-name').textContent,
+        rows: document.querySelectorAll('#timings tbody tr').length,
+        sceneId: window.refract.sceneId,
+        conn: document.getElementById('conn').dataset.state,
+      };
+    });
+    assert(info.max - info.min > 30, `canvas looks blank (luminance ${info.min}..${info.max})`);
+    assert(Math.max(info.w, info.h) <= MAX_PX, `image ${info.w}x${info.h} exceeds the ${MAX_PX} cap`);
+    assert(info.device && info.device !== '—' && info.device === info.device.trim(), `device name not shown: "${info.device}"`);
+    assert(health.device === null || info.device.includes(health.device.name), `device "${info.device}" is not ${health.device?.name}`);
+    assert(info.rows > 0, 'no per-pass timings shown');
+    assert(info.sceneId === sceneId, `client uses scene ${info.sceneId}, expected ${sceneId}`);
+    assert(info.conn === 'live', `connection state ${info.conn}`);
+    await shot(page, '01-first-frame.png');
+  });
+
+  await check('shift-drag moves the light: new revision, different pixels', async () => {
+    await waitSettled(page);
+    const before = await sceneOnServer(sceneId);
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await snapshotCanvas(page);
+    const box = await page.locator('#view').boundingBox();
+    const cx = box.x + box.width / 2;
+    const cy = box.y + box.height / 2;
+    await page.mouse.move(cx, cy);
+    await page.keyboard.down('Shift');
+    await page.mouse.down();
+    for (let i = 1; i <= 12; ++i) {
+      await page.mouse.move(cx - i * 14, cy + i * 4);
+      await sleep(30);
+    }
+    await page.mouse.up();
+    await page.keyboard.up('Shift');
+    await waitSettled(page, rev0);
+    const after = await sceneOnServer(sceneId);
+    const changed = await canvasChange(page);
+    const stats = await page.evaluate(() => ({ rev: window.refract.lastRevision, maxInFlight: window.refract.maxInFlight }));
+    assert(stats.rev > rev0, `revision did not advance (${rev0} -> ${stats.rev})`);
+    assert(after.revision === stats.rev, `client shows revision ${stats.rev}, server has ${after.revision}`);
+    assert(JSON.stringify(after.scene.light.position) !== JSON.stringify(before.scene.light.position),
+      'light position unchanged on the server');
+    assert(JSON.stringify(after.scene.camera) === JSON.stringify(before.scene.camera), 'shift-drag moved the camera');
+    assert(changed > 0.005, `only ${(changed * 100).toFixed(2)}% of the pixels changed`);
+    assert(stats.maxInFlight <= 1, `${stats.maxInFlight} requests were in flight at once`);
+    log(`light ${JSON.stringify(before.scene.light.position)} -> ${JSON.stringify(after.scene.light.position)},`,
+      `${(changed * 100).toFixed(1)}% pixels changed`);
+    await shot(page, '02-light-moved.png');
+  });
+
+  await check('arrow keys on the focused canvas orbit the camera', async () => {
+    const before = await sceneOnServer(sceneId);
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await page.focus('#view');
+    for (let i = 0; i < 4; ++i) await page.keyboard.press('ArrowLeft');
+    await page.keyboard.press('ArrowUp');
+    await waitSettled(page, rev0);
+    const after = await sceneOnServer(sceneId);
+    const focus = await page.evaluate(() => ({
+      id: document.activeElement?.id,
+      ring: getComputedStyle(document.getElementById('stage')).boxShadow,
+    }));
+    assert(focus.id === 'view', `focus is on #${focus.id}, not the canvas`);
+    assert(focus.ring && focus.ring !== 'none', 'no visible focus ring around the focused canvas');
+    const [a, b] = [before.scene.camera, after.scene.camera];
+    assert(JSON.stringify(a.position) !== JSON.stringify(b.position), 'camera did not move');
+    const dist = (c) => Math.hypot(...c.position.map((x, i) => x - c.target[i]));
+    assert(Math.abs(dist(a) - dist(b)) < 1e-2, `orbit changed the distance (${dist(a)} -> ${dist(b)})`);
+    await shot(page, '03-keyboard-orbit.png');
+  });
+
+  await check('an invalid IOR is reported next to its control', async () => {
+    const before = await sceneOnServer(sceneId);
+    const errors0 = await page.evaluate(() => window.refract.errors);
+    await page.fill('#ctl-object-ior-num', '0.5');
+    await page.press('#ctl-object-ior-num', 'Enter');
+    await waitFor(page, (n) => window.refract.errors > n, errors0);
+    const err = await page.evaluate(() => window.refract.lastError);
+    assert(err.pointer === '/object/ior', `error pointer ${err.pointer}, expected /object/ior`);
+    const ui = await page.evaluate(() => {
+      const input = document.getElementById('ctl-object-ior-num');
+      const field = input.closest('.field');
+      const msg = field.querySelector('.field-error');
+      const described = (input.getAttribute('aria-describedby') || '').split(' ');
+      const r = msg.getBoundingClientRect();
+      return {
+        invalid: input.getAttribute('aria-invalid'), text: msg.textContent, visible: !msg.hidden && r.height > 0,
+        linked: described.includes(msg.id), otherErrors: document.querySelectorAll('.field-error:not([hidden])').length,
+      };
+    });
+    assert(ui.invalid === 'true', 'IOR input is not aria-invalid');
+    assert(ui.visible && ui.text.length > 0, 'no inline error message next to the IOR control');
+    assert(ui.linked, 'the error message is not linked with aria-describedby');
+    assert(ui.otherErrors === 1, `${ui.otherErrors} error messages are shown`);
+    const after = await sceneOnServer(sceneId);
+    assert(after.scene.object.ior === before.scene.object.ior, 'the invalid IOR reached the scene');
+    log('error shown:', ui.text);
+    await shot(page, '04-validation-error.png');
+
+    // Fixing the value clears the message and applies it.
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await page.fill('#ctl-object-ior-num', '1.6');
+    await page.press('#ctl-object-ior-num', 'Enter');
+    await waitSettled(page, rev0);
+    const fixed = await sceneOnServer(sceneId);
+    assert(fixed.scene.object.ior === 1.6, `IOR is ${fixed.scene.object.ior}, expected 1.6`);
+    const cleared = await page.evaluate(() => !document.getElementById('ctl-object-ior-num').hasAttribute('aria-invalid'));
+    assert(cleared, 'the error stayed after a valid value');
+  });
+
+  await check('an uploaded OBJ becomes the object mesh', async () => {
+    const objPath = path.join(tmp, 'e2e-cube.obj');
+    fs.writeFileSync(objPath, [
+      '# unit cube, outward-facing triangles',
+      'v -0.5 -0.5 -0.5', 'v 0.5 -0.5 -0.5', 'v 0.5 0.5 -0.5', 'v -0.5 0.5 -0.5',
+      'v -0.5 -0.5 0.5', 'v 0.5 -0.5 0.5', 'v 0.5 0.5 0.5', 'v -0.5 0.5 0.5',
+      'f 1 3 2', 'f 1 4 3', 'f 5 6 7', 'f 5 7 8', 'f 1 2 6', 'f 1 6 5',
+      'f 4 7 3', 'f 4 8 7', 'f 1 5 8', 'f 1 8 4', 'f 2 3 7', 'f 2 7 6', '',
+    ].join('\n'));
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await page.setInputFiles('#mesh-file', objPath);
+    await waitFor(page, () => window.refract.meshUploads > 0 || (window.refract.lastError?.pointer === '/object/mesh'));
+    const upload = await page.evaluate(() => ({ up: window.refract.lastUpload, err: window.refract.lastError }));
+    assert(upload.up, `upload failed: ${JSON.stringify(upload.err)}`);
+    await waitSettled(page, rev0);
+    const after = await sceneOnServer(sceneId);
+    assert(after.scene.object.mesh === 'upload:e2e-cube', `object.mesh is ${after.scene.object.mesh}`);
+    const ui = await page.evaluate(() => ({
+      select: document.getElementById('ctl-object-mesh').value,
+      status: document.getElementById('mesh-status').textContent,
+      rev: window.refract.lastRevision,
+    }));
+    assert(ui.select === 'upload:e2e-cube', `mesh picker shows ${ui.select}`);
+    assert(/12 triangles/.test(ui.status), `upload status "${ui.status}" lacks the triangle count`);
+    assert(ui.rev === after.revision, `shown revision ${ui.rev} != server ${after.revision}`);
+    const meshes = await api('GET', '/api/meshes');
+    assert(JSON.stringify(meshes.json).includes('e2e-cube'), 'GET /api/meshes does not list e2e-cube');
+    await shot(page, '05-obj-uploaded.png');
+  });
+
+  await check('dragging a slider streams interactive frames, then a still', async () => {
+    await waitSettled(page);
+    const before = await page.evaluate(() => ({ rev: window.refract.lastRevision, sent: { ...window.refract.sent } }));
+    const box = await page.locator('#ctl-light-intensity').boundingBox();
+    const y = box.y + box.height / 2;
+    await page.mouse.move(box.x + box.width * 0.1, y);
+    await page.mouse.down();
+    for (let i = 1; i <= 10; ++i) {
+      await page.mouse.move(box.x + box.width * (0.1 + i * 0.05), y);
+      await sleep(40);
+    }
+    await page.mouse.up();
+    await waitSettled(page, before.rev);
+    const after = await page.evaluate(() => ({
+      sent: { ...window.refract.sent }, quality: window.refract.lastQuality,
+      shown: Number(document.getElementById('ctl-light-intensity-num').value),
+    }));
+    const server = await sceneOnServer(sceneId);
+    assert(after.sent.interactive > before.sent.interactive, 'no interactive request while dragging');
+    assert(after.sent.still > before.sent.still, 'no still request after releasing');
+    assert(after.quality === 'still', `last frame is ${after.quality}`);
+    assert(Math.abs(server.scene.light.intensity - after.shown) < 1e-6,
+      `server intensity ${server.scene.light.intensity} != shown ${after.shown}`);
+    log(`sent ${after.sent.interactive - before.sent.interactive} interactive +`,
+      `${after.sent.still - before.sent.still} still; intensity now ${server.scene.light.intensity}`);
+  });
+
+  await check('linked-value and upload errors land next to their controls', async () => {
+    // scattering above extinction: the daemon names /object/scattering/0, shown at the scattering control.
+    const errors0 = await page.evaluate(() => window.refract.errors);
+    await page.fill('#ctl-object-scattering-r', '5');
+    await page.press('#ctl-object-scattering-r', 'Enter');
+    await waitFor(page, (n) => window.refract.errors > n, errors0);
+    const err = await page.evaluate(() => window.refract.lastError);
+    assert(/^\/object\/scattering/.test(err.pointer || ''), `pointer ${err.pointer}`);
+    const shown = await page.evaluate(() => {
+      const input = document.getElementById('ctl-object-scattering-r');
+      const msg = input.closest('.field').querySelector('.field-error');
+      return { invalid: input.getAttribute('aria-invalid'), text: msg.hidden ? '' : msg.textContent };
+    });
+    assert(shown.invalid === 'true' && shown.text, 'scattering error not shown at the scattering control');
+    await page.fill('#ctl-object-scattering-r', '0');
+    await page.press('#ctl-object-scattering-r', 'Enter');
+    await waitFor(page, () => !document.getElementById('ctl-object-scattering-r').hasAttribute('aria-invalid'));
+
+    // An OBJ that is not one: the daemon's 400 is shown under the mesh picker; the mesh stays.
+    const broken = path.join(tmp, 'broken.obj');
+    fs.writeFileSync(broken, 'this is not a mesh\nf 1 2 3\n');
+    const errors1 = await page.evaluate(() => window.refract.errors);
+    await page.setInputFiles('#mesh-file', broken);
+    await waitFor(page, (n) => window.refract.errors > n, errors1);
+    const ui = await page.evaluate(() => {
+      const select = document.getElementById('ctl-object-mesh');
+      const msg = select.closest('.field').querySelector('.field-error');
+      return { invalid: select.getAttribute('aria-invalid'), text: msg.hidden ? '' : msg.textContent, value: select.value };
+    });
+    assert(ui.invalid === 'true' && /broken\.obj/.test(ui.text), `upload error not shown: ${JSON.stringify(ui)}`);
+    assert(ui.value === 'upload:e2e-cube', `mesh picker changed to ${ui.value}`);
+    log('upload error shown:', ui.text);
+    await shot(page, '05b-upload-error.png');
+    const server = await sceneOnServer(sceneId);
+    assert(server.scene.object.mesh === 'upload:e2e-cube', 'a failed upload changed the mesh');
+    assert(JSON.stringify(server.scene.object.scattering) === '[0,0.02,0.02]',
+      `scattering is ${JSON.stringify(server.scene.object.scattering)}`);
+    // Picking the same mesh again clears the message.
+    await page.selectOption('#ctl-object-mesh', 'sphere');
+    await page.selectOption('#ctl-object-mesh', 'upload:e2e-cube');
+    await waitSettled(page);
+  });
+
+  await check('reload shows the same scene id and revision', async () => {
+    await waitSettled(page);
+    const before = await page.evaluate(() => ({ id: window.refract.sceneId, rev: window.refract.lastRevision }));
+    const server0 = await sceneOnServer(sceneId);
+    await page.reload();
+    await waitFor(page, () => window.refract && window.refract.framesReceived > 0);
+    await waitSettled(page);
+    const after = await page.evaluate(() => ({
+      id: window.refract.sceneId, rev: window.refract.lastRevision, url: location.href,
+      mesh: document.getElementById('ctl-object-mesh').value,
+      ior: document.getElementById('ctl-object-ior-num').value,
+    }));
+    const server1 = await sceneOnServer(sceneId);
+    assert(after.id === before.id, `scene id ${before.id} -> ${after.id}`);
+    assert(new URL(after.url).searchParams.get('scene') === before.id, `URL ${after.url} lost the scene id`);
+    assert(after.rev === before.rev, `revision ${before.rev} -> ${after.rev} after reload`);
+    assert(server1.revision === server0.revision, 'reload edited the scene');
+    assert(after.mesh === 'upload:e2e-cube', `controls show mesh ${after.mesh} after reload`);
+    assert(Number(after.ior) === 1.6, `controls show IOR ${after.ior} after reload`);
+    await shot(page, '06-after-reload.png');
+  });
+
+  await check('a preset applies its example scene', async () => {
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await page.selectOption('#ctl-preset', 'luneburg-lens');
+    await page.click('#preset-apply');
+    await waitSettled(page, rev0);
+    const after = await sceneOnServer(sceneId);
+    assert(after.scene.object.index_field === 'luneburg', `index_field is ${after.scene.object.index_field}`);
+    assert(after.scene.object.mesh === 'sphere', `mesh is ${after.scene.object.mesh}`);
+    const ui = await page.evaluate(() => ({
+      field: document.getElementById('ctl-object-index-field').value,
+      iorHidden: document.getElementById('ctl-object-ior').closest('.field').hidden,
+    }));
+    assert(ui.field === 'luneburg', `index field control shows ${ui.field}`);
+    assert(ui.iorHidden, 'the IOR control is still shown for a Luneburg lens');
+    await shot(page, '07-preset-luneburg.png');
+  });
+
+  await check('narrow window: stacked layout, no overflow, smaller image', async () => {
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await page.setViewportSize({ width: 390, height: 844 });
+    await waitSettled(page, rev0);
+    const layout = await page.evaluate(() => {
+      const stage = document.getElementById('stage').getBoundingClientRect();
+      const panel = document.getElementById('panel').getBoundingClientRect();
+      const offenders = [...document.querySelectorAll('input, select, button, label, canvas, table')]
+        .filter((el) => { const r = el.getBoundingClientRect(); return r.width > 0 && r.right > window.innerWidth + 1; })
+        .map((el) => el.id || el.tagName);
+      const c = document.getElementById('view');
+      return {
+        scrollWidth: document.documentElement.scrollWidth, inner: window.innerWidth,
+        stageBottom: stage.bottom, panelTop: panel.top, stageWidth: stage.width, offenders, w: c.width, h: c.height,
+      };
+    });
+    assert(layout.scrollWidth <= layout.inner, `page scrolls sideways (${layout.scrollWidth} > ${layout.inner})`);
+    assert(layout.offenders.length === 0, `controls overflow the window: ${layout.offenders.join(', ')}`);
+    assert(layout.panelTop >= layout.stageBottom - 1, 'controls are not below the viewport');
+    assert(layout.w <= 390 && layout.w >= 200, `image width ${layout.w} does not follow the canvas`);
+    const server = await sceneOnServer(sceneId);
+    assert(server.scene.image.width === layout.w, `scene image ${server.scene.image.width} != drawn ${layout.w}`);
+    await shot(page, '08-narrow.png');
+    await shot(page, '08-narrow-full.png', { fullPage: true });
+    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    await page.setViewportSize({ width: 1200, height: 760 });
+    await waitSettled(page, rev1);
+  });
+
+  await check('the client reconnects after a daemon restart and restores the view', async () => {
+    await waitSettled(page);
+    const before = await page.evaluate(() => ({
+      id: window.refract.sceneId, frames: window.refract.framesReceived, connects: window.refract.connects,
+    }));
+    await stopDaemon(daemon);
+    await waitFor(page, () => !window.refract.connected);
+    await shot(page, '09-daemon-down.png');
+    await sleep(1500);  // let the client back off at least once
+    daemon = startDaemon();
+    await waitForHealth(daemon);
+    await waitFor(page, (n) => window.refract.connects > n && window.refract.framesReceived > 0, before.connects);
+    await waitFor(page, (n) => window.refract.framesReceived > n, before.frames);
+    await waitSettled(page);
+    const after = await page.evaluate(() => ({
+      id: window.refract.sceneId, url: location.href, conn: document.getElementById('conn').dataset.state,
+      field: document.getElementById('ctl-object-index-field').value,
+    }));
+    assert(after.conn === 'live', `connection state ${after.conn}`);
+    assert(new URL(after.url).searchParams.get('scene') === after.id, 'URL and client disagree on the scene');
+    assert(after.id === before.id, `scene ${before.id} was not restored (now ${after.id})`);
+    assert(after.field === 'luneburg', `controls show index field ${after.field} after reconnecting`);
+    await shot(page, '09-reconnected.png');
+  });
+
+  await check('without ?scene= the client creates a scene and puts its id in the URL', async () => {
+    const page2 = await context.newPage();
+    try {
+      // Only the HTTP side matters here: the WebSocket is answered by a stub that never asks for a
+      // frame, so the daemon does not start a (slow, default 128^3) render of the new scene.
+      await page2.routeWebSocket(/\/api\/scenes\/.*\/ws/, () => {});
+      await page2.goto(`${base}/?maxpx=96`);
+      await waitFor(page2, () => new URL(location.href).searchParams.get('scene') !== null);
+      const id = await page2.evaluate(() => new URL(location.href).searchParams.get('scene'));
+      assert(id !== sceneId, 'a fresh page reused the test scene');
+      const server = await sceneOnServer(id);
+      assert(server.revision >= 0, 'no revision for the new scene');
+      const list = await api('GET', '/api/scenes');
+      assert(JSON.stringify(list.json).includes(id), 'new scene not listed by GET /api/scenes');
+    } finally {
+      await page2.close();
+    }
+  });
+
+  if (pageErrors.length) log('page errors seen:', pageErrors);
+  await check('no script errors in the page', async () => {
+    assert(pageErrors.length === 0, pageErrors.join('; '));
+  });
+}
+
+// ---- run -----------------------------------------------------------------------------------------
+
+async function cleanup() {
+  try { if (browser) await browser.close(); } catch { /* already gone */ }
+  browser = null;
+  await stopDaemon(daemon);
+  daemon = null;
+  await new Promise((resolve) => daemonLog.end(resolve));
+  fs.rmSync(tmp, { recursive: true, force: true });
+}
+
+for (const sig of ['SIGINT', 'SIGTERM', 'SIGHUP']) {
+  process.on(sig, async () => {
+    log(`got ${sig}, stopping`);
+    if (daemon && daemon.exitCode === null) daemon.kill('SIGKILL');
+    try { if (browser) await browser.close(); } catch { /* ignore */ }
+    process.exit(1);
+  });
+}
+process.on('exit', () => { if (daemon && daemon.exitCode === null && daemon.signalCode === null) daemon.kill('SIGKILL'); });
+
+let fatal = null;
+try {
+  await main();
+} catch (e) {
+  fatal = e;
+  log('FATAL', e.stack || e.message);
+} finally {
+  await cleanup();
+}
+const passed = results.filter((r) => r.ok).length;
+const failed = results.length - passed + (fatal ? 1 : 0);
+if (failed) {
+  const tail = fs.existsSync(daemonLogPath) ? fs.readFileSync(daemonLogPath, 'utf8').split('\n').slice(-25).join('\n') : '';
+  console.log(`--- last lines of ${daemonLogPath} ---\n${tail}`);
+}
+if (screenshots.length) console.log(`screenshots: ${OUT}`);
+console.log(`browser_e2e: ${passed} passed, ${failed} failed`);
+process.exit(failed ? 1 : 0);

@@ -1,0 +1,395 @@
+// The control panel: built from one declarative table. Every control knows the JSON pointers it
+// writes, so a validation error from the daemon (which names a pointer) lands next to its control.
+
+import { PRESETS } from './presets.js';
+import { getAt, hexToLinear, linearToHex, parsePointer, patchAt, round } from './scene.js';
+
+export const SECTIONS = [
+  {
+    id: 'scene', title: 'Scene', controls: [
+      { kind: 'preset' },
+      { kind: 'mesh' },
+    ],
+  },
+  {
+    id: 'light', title: 'Light', controls: [
+      { kind: 'select', ptr: '/light/type', label: 'Light type',
+        options: [['point', 'Point'], ['spot', 'Spot'], ['directional', 'Directional']] },
+      { kind: 'range', ptr: '/light/intensity', label: 'Intensity', min: 0, max: 200, step: 0.5 },
+      { kind: 'color', ptr: '/light/color', label: 'Colour' },
+      { kind: 'range', ptr: '/light/cone_deg', label: 'Spot cone (half-angle, °)', min: 1, max: 90, step: 1,
+        showIf: (doc) => doc.light?.type === undefined || doc.light.type === 'spot' },
+    ],
+  },
+  {
+    id: 'object', title: 'Object', controls: [
+      { kind: 'select', ptr: '/object/index_field', label: 'Index field',
+        options: [['uniform', 'Uniform'], ['luneburg', 'Luneburg lens'], ['maxwell', 'Maxwell fish-eye']] },
+      { kind: 'range', ptr: '/object/ior', label: 'Index of refraction', min: 1, max: 4, step: 0.01,
+        showIf: (doc) => (doc.object?.index_field ?? 'uniform') === 'uniform' },
+      { kind: 'range', ptr: '/object/maxwell_n0', label: 'Fish-eye central index n₀', min: 1, max: 4, step: 0.01,
+        showIf: (doc) => doc.object?.index_field === 'maxwell' },
+      { kind: 'range', ptr: '/object/scale', label: 'Scale', min: 0.1, max: 3, step: 0.01 },
+      { kind: 'rgb', ptr: '/object/extinction', label: 'Extinction (per m)', min: 0, max: 10, step: 0.01 },
+      { kind: 'rgb', ptr: '/object/scattering', label: 'Scattering (per m)', min: 0, max: 10, step: 0.01 },
+      { kind: 'select', ptr: '/object/phase/model', label: 'Phase function',
+        options: [['isotropic', 'Isotropic'], ['henyey-greenstein', 'Henyey-Greenstein'], ['schlick', 'Schlick']] },
+      { kind: 'range', ptr: '/object/phase/g', label: 'Phase anisotropy g', min: -0.95, max: 0.95, step: 0.01,
+        showIf: (doc) => doc.object?.phase?.model !== 'isotropic' },
+    ],
+  },
+  {
+    id: 'medium', title: 'Fog', controls: [
+      { kind: 'fog', label: 'Fog density (per m)', min: 0, max: 1.5, step: 0.01 },
+      { kind: 'range', ptr: '/medium/phase/g', label: 'Fog anisotropy g', min: -0.95, max: 0.95, step: 0.01 },
+      { kind: 'checkbox', ptr: '/floor/enabled', label: 'Floor' },
+      { kind: 'checkbox', ptr: '/floor/checker', label: 'Checkered floor' },
+    ],
+  },
+  {
+    id: 'quality', title: 'Quality', controls: [
+      { kind: 'range', ptr: '/photons/count', label: 'Photons', log2: true, min: 10, max: 22, step: 1 },
+      { kind: 'range', ptr: '/volume/resolution', label: 'Volume resolution (voxels)', min: 32, max: 512, step: 16 },
+      { kind: 'range', ptr: '/image/exposure', label: 'Exposure (stops)', min: -4, max: 4, step: 0.1 },
+    ],
+  },
+];
+
+const BUILTIN_MESHES = [['sphere', 'Sphere'], ['cube', 'Cube'], ['torus', 'Torus']];
+
+function h(tag, attrs = {}, ...children) {
+  const el = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (v === undefined || v === null || v === false) continue;
+    if (k === 'class') el.className = v;
+    else if (k === 'text') el.textContent = v;
+    else if (k === 'dataset') Object.assign(el.dataset, v);
+    else el.setAttribute(k, v === true ? '' : String(v));
+  }
+  for (const c of children.flat()) if (c !== null && c !== undefined) el.append(c);
+  return el;
+}
+
+const idFor = (ptr) => 'ctl' + ptr.replace(/[^a-z0-9]+/gi, '-');
+const num = (value) => (value === '' || value === null || value === undefined ? NaN : Number(value));
+const isEditing = (el) => el && document.activeElement === el;
+
+function fmt(value, step) {
+  if (typeof value !== 'number' || !Number.isFinite(value)) return '';
+  const digits = step >= 1 ? 0 : Math.min(4, Math.max(1, Math.ceil(-Math.log10(step))));
+  return String(round(value, digits));
+}
+
+// Base: a labelled field with an inline error slot.
+class Field {
+  constructor(spec, ptrs, labelText, labelFor) {
+    this.spec = spec;
+    this.ptrs = ptrs;
+    this.errorId = `${labelFor || idFor(ptrs[0] || spec.kind)}-error`;
+    this.error = h('p', { class: 'field-error', id: this.errorId, hidden: true });
+    this.label = h('label', { for: labelFor, id: `${labelFor}-label`, text: labelText });
+    this.el = h('div', { class: `field field-${spec.kind}`, dataset: { pointers: ptrs.join(' ') } });
+    this.inputs = [];  // elements that get aria-invalid / aria-describedby
+    this.invalid = false;
+  }
+  describe(...inputs) {
+    for (const input of inputs) {
+      this.inputs.push(input);
+      const ids = new Set((input.getAttribute('aria-describedby') || '').split(' ').filter(Boolean));
+      ids.add(this.errorId);
+      input.setAttribute('aria-describedby', [...ids].join(' '));
+    }
+  }
+  setError(message) {
+    this.invalid = true;
+    this.el.classList.add('invalid');
+    this.error.textContent = message;
+    this.error.hidden = false;
+    for (const input of this.inputs) input.setAttribute('aria-invalid', 'true');
+  }
+  clearError() {
+    if (!this.invalid) return;
+    this.invalid = false;
+    this.el.classList.remove('invalid');
+    this.error.textContent = '';
+    this.error.hidden = true;
+    for (const input of this.inputs) input.removeAttribute('aria-invalid');
+  }
+  focus() { this.inputs[0]?.focus(); }
+  update() {}
+}
+
+class RangeField extends Field {
+  constructor(spec, emit) {
+    const id = idFor(spec.ptr);
+    super(spec, [spec.ptr], spec.label, id);
+    this.range = h('input', { type: 'range', id, min: spec.min, max: spec.max, step: spec.step });
+    this.number = h('input', {
+      type: 'number', id: `${id}-num`, class: 'num', step: spec.log2 ? 1 : spec.step, inputmode: 'decimal',
+      'aria-label': `${spec.label}, exact value`,
+    });
+    const fromRange = () => (spec.log2 ? 2 ** num(this.range.value) : num(this.range.value));
+    this.range.addEventListener('input', () => {
+      this.number.value = fmt(fromRange(), spec.log2 ? 1 : spec.step);
+      emit(this, patchAt(spec.ptr, fromRange()), false);
+    });
+    this.range.addEventListener('change', () => emit(this, patchAt(spec.ptr, fromRange()), true));
+    this.number.addEventListener('change', () => {
+      const v = num(this.number.value);
+      if (!Number.isFinite(v)) { this.setError('Enter a number.'); return; }
+      this.setRange(v);
+      emit(this, patchAt(spec.ptr, v), true);
+    });
+    this.describe(this.number, this.range);
+    this.el.append(this.label, h('div', { class: 'row' }, this.range, this.number), this.error);
+  }
+  setRange(v) { this.range.value = String(this.spec.log2 ? Math.log2(Math.max(1, v)) : v); }
+  update(doc) {
+    const v = getAt(doc, this.spec.ptr);
+    if (typeof v !== 'number') return;
+    if (!isEditing(this.range)) this.setRange(v);
+    if (!isEditing(this.number)) this.number.value = fmt(v, this.spec.log2 ? 1 : this.spec.step);
+  }
+}
+
+class SelectField extends Field {
+  constructor(spec, emit) {
+    const id = idFor(spec.ptr);
+    super(spec, [spec.ptr], spec.label, id);
+    this.select = h('select', { id }, spec.options.map(([v, t]) => h('option', { value: v, text: t })));
+    this.select.addEventListener('change', () => emit(this, patchAt(spec.ptr, this.select.value), true));
+    this.describe(this.select);
+    this.el.append(this.label, this.select, this.error);
+  }
+  update(doc) {
+    const v = getAt(doc, this.spec.ptr);
+    if (typeof v === 'string' && !isEditing(this.select)) this.select.value = v;
+  }
+}
+
+class CheckboxField extends Field {
+  constructor(spec, emit) {
+    const id = idFor(spec.ptr);
+    super(spec, [spec.ptr], '', id);
+    this.box = h('input', { type: 'checkbox', id });
+    this.box.addEventListener('change', () => emit(this, patchAt(spec.ptr, this.box.checked), true));
+    this.describe(this.box);
+    this.label = h('label', { for: id, class: 'check' }, this.box, h('span', { text: spec.label }));
+    this.el.append(this.label, this.error);
+  }
+  update(doc) {
+    const v = getAt(doc, this.spec.ptr);
+    if (typeof v === 'boolean') this.box.checked = v;
+  }
+}
+
+class ColorField extends Field {
+  constructor(spec, emit) {
+    const id = idFor(spec.ptr);
+    super(spec, [spec.ptr], spec.label, id);
+    this.picker = h('input', { type: 'color', id, value: '#ffffff' });
+    this.picker.addEventListener('input', () => emit(this, patchAt(spec.ptr, hexToLinear(this.picker.value)), false));
+    this.picker.addEventListener('change', () => emit(this, patchAt(spec.ptr, hexToLinear(this.picker.value)), true));
+    this.describe(this.picker);
+    this.el.append(h('div', { class: 'row' }, this.label, this.picker), this.error);
+  }
+  update(doc) {
+    const v = getAt(doc, this.spec.ptr);
+    if (Array.isArray(v) && !isEditing(this.picker)) this.picker.value = linearToHex(v);
+  }
+}
+
+// An RGB coefficient: one slider that sets all channels, plus an exact number per channel.
+class RgbField extends Field {
+  constructor(spec, emit) {
+    const id = idFor(spec.ptr);
+    super(spec, [spec.ptr], spec.label, id);
+    this.all = h('input', { type: 'range', id, min: spec.min, max: spec.max, step: spec.step,
+      'aria-valuetext': '' });
+    this.channels = ['red', 'green', 'blue'].map((name, i) => h('input', {
+      type: 'number', id: `${id}-${'rgb'[i]}`, class: `num ch ch-${'rgb'[i]}`, step: spec.step, min: spec.min,
+      inputmode: 'decimal', 'aria-label': `${spec.label}, ${name} channel`, title: `${name} channel`,
+    }));
+    const readChannels = () => this.channels.map((c) => num(c.value));
+    this.all.addEventListener('input', () => {
+      const v = num(this.all.value);
+      for (const c of this.channels) c.value = fmt(v, spec.step);
+      emit(this, patchAt(spec.ptr, [v, v, v]), false);
+    });
+    this.all.addEventListener('change', () => emit(this, patchAt(spec.ptr, readChannels()), true));
+    for (const c of this.channels) {
+      c.addEventListener('change', () => {
+        const v = readChannels();
+        if (!v.every(Number.isFinite)) { this.setError('Enter a number for each channel.'); return; }
+        this.all.value = String(Math.max(...v));
+        emit(this, patchAt(spec.ptr, v), true);
+      });
+    }
+    this.describe(this.all, ...this.channels);
+    this.el.append(this.label, h('div', { class: 'row' }, this.all),
+      h('div', { class: 'row channels', role: 'group', 'aria-label': `${spec.label} per channel` }, this.channels),
+      this.error);
+  }
+  update(doc) {
+    const v = getAt(doc, this.spec.ptr);
+    if (!Array.isArray(v) || v.length !== 3) return;
+    this.channels.forEach((c, i) => { if (!isEditing(c)) c.value = fmt(v[i], this.spec.step); });
+    if (!isEditing(this.all)) this.all.value = String(Math.max(...v));
+    this.all.setAttribute('aria-valuetext', v.map((x) => fmt(x, this.spec.step)).join(', '));
+  }
+}
+
+// Fog density: writes equal extinction and scattering (a purely scattering fog).
+class FogField extends Field {
+  constructor(spec, emit) {
+    const id = 'ctl-medium-density';
+    super(spec, ['/medium/extinction', '/medium/scattering'], spec.label, id);
+    this.range = h('input', { type: 'range', id, min: spec.min, max: spec.max, step: spec.step });
+    this.number = h('input', { type: 'number', id: `${id}-num`, class: 'num', step: spec.step,
+      inputmode: 'decimal', 'aria-label': `${spec.label}, exact value` });
+    const patchFor = (v) => ({ medium: { extinction: [v, v, v], scattering: [v, v, v] } });
+    this.range.addEventListener('input', () => {
+      this.number.value = fmt(num(this.range.value), spec.step);
+      emit(this, patchFor(num(this.range.value)), false);
+    });
+    this.range.addEventListener('change', () => emit(this, patchFor(num(this.range.value)), true));
+    this.number.addEventListener('change', () => {
+      const v = num(this.number.value);
+      if (!Number.isFinite(v)) { this.setError('Enter a number.'); return; }
+      this.range.value = String(v);
+      emit(this, patchFor(v), true);
+    });
+    this.describe(this.number, this.range);
+    this.el.append(this.label, h('div', { class: 'row' }, this.range, this.number), this.error);
+  }
+  update(doc) {
+    const e = getAt(doc, '/medium/extinction');
+    if (!Array.isArray(e)) return;
+    const v = Math.max(...e);
+    if (!isEditing(this.range)) this.range.value = String(v);
+    if (!isEditing(this.number)) this.number.value = fmt(v, this.spec.step);
+  }
+}
+
+class PresetField extends Field {
+  constructor(spec, emit) {
+    const id = 'ctl-preset';
+    super(spec, [], 'Example scene', id);
+    this.select = h('select', { id },
+      h('option', { value: '', text: 'Choose an example…' }),
+      PRESETS.map((p) => h('option', { value: p.id, text: p.name, title: p.description })));
+    this.button = h('button', { type: 'button', id: 'preset-apply', text: 'Load' });
+    this.note = h('p', { class: 'note', id: `${id}-note`, 'aria-live': 'polite' });
+    const apply = () => {
+      const preset = PRESETS.find((p) => p.id === this.select.value);
+      if (!preset) return;
+      this.note.textContent = preset.description;
+      emit(this, preset.patch, true);
+    };
+    this.button.addEventListener('click', apply);
+    this.select.addEventListener('keydown', (e) => { if (e.key === 'Enter') { e.preventDefault(); apply(); } });
+    this.select.addEventListener('change', () => {
+      const preset = PRESETS.find((p) => p.id === this.select.value);
+      this.note.textContent = preset ? preset.description : '';
+    });
+    this.describe(this.select);
+    this.el.append(this.label, h('div', { class: 'row' }, this.select, this.button), this.note, this.error);
+  }
+}
+
+// Mesh picker: built-in shapes and uploaded OBJ meshes, plus an upload button.
+class MeshField extends Field {
+  constructor(spec, emit, hooks) {
+    const id = 'ctl-object-mesh';
+    super(spec, ['/object/mesh'], 'Mesh', id);
+    this.select = h('select', { id });
+    this.builtin = h('optgroup', { label: 'Built-in' }, BUILTIN_MESHES.map(([v, t]) => h('option', { value: v, text: t })));
+    this.uploaded = h('optgroup', { label: 'Uploaded', hidden: true });
+    this.select.append(this.builtin, this.uploaded);
+    this.select.addEventListener('change', () => emit(this, patchAt('/object/mesh', this.select.value), true));
+    this.file = h('input', { type: 'file', id: 'mesh-file', accept: '.obj,model/obj,text/plain', class: 'file-input' });
+    this.fileLabel = h('label', { for: 'mesh-file', class: 'button-like', text: 'Upload OBJ…' });
+    this.status = h('p', { class: 'note', id: 'mesh-status', 'aria-live': 'polite' });
+    this.file.addEventListener('change', () => {
+      const f = this.file.files && this.file.files[0];
+      if (f) hooks.upload(f, this);
+      this.file.value = '';
+    });
+    this.describe(this.select, this.file);
+    this.el.append(this.label, h('div', { class: 'row' }, this.select, this.file, this.fileLabel), this.status, this.error);
+  }
+  setMeshes(names) {
+    const current = this.select.value;
+    this.uploaded.replaceChildren(...names.map((n) => h('option', { value: `upload:${n}`, text: n })));
+    this.uploaded.hidden = names.length === 0;
+    if (current) this.select.value = current;
+  }
+  update(doc) {
+    const v = getAt(doc, '/object/mesh');
+    if (typeof v !== 'string' || isEditing(this.select)) return;
+    if (v.startsWith('upload:') && ![...this.uploaded.children].some((o) => o.value === v)) {
+      this.uploaded.append(h('option', { value: v, text: v.slice(7) }));
+      this.uploaded.hidden = false;
+    }
+    this.select.value = v;
+  }
+}
+
+const KINDS = {
+  range: RangeField, select: SelectField, checkbox: CheckboxField, color: ColorField, rgb: RgbField,
+  fog: FogField, preset: PresetField, mesh: MeshField,
+};
+
+// Builds the panel into `form`. `onEdit(patch, final, field)` is called for every user edit.
+export function buildControls(form, onEdit, hooks) {
+  const fields = [];
+  const emit = (field, patch, final) => {
+    field.clearError();
+    onEdit(patch, final, field);
+  };
+  for (const section of SECTIONS) {
+    const fieldset = h('fieldset', { class: 'section', id: `section-${section.id}` }, h('legend', { text: section.title }));
+    for (const spec of section.controls) {
+      const field = new KINDS[spec.kind](spec, emit, hooks);
+      fields.push(field);
+      fieldset.append(field.el);
+    }
+    form.append(fieldset);
+  }
+  form.addEventListener('submit', (e) => e.preventDefault());
+
+  return {
+    fields,
+    mesh: fields.find((f) => f instanceof MeshField),
+    // Shows `doc` in every control, except those holding a rejected value the user has not fixed yet.
+    update(doc, { force = false } = {}) {
+      for (const f of fields) {
+        if (force || !f.invalid) f.update(doc);
+        // Controls that the current settings ignore are hidden (never one that shows an error).
+        if (f.spec.showIf) f.el.hidden = !f.invalid && !f.spec.showIf(doc);
+      }
+    },
+    // The field whose pointer best matches an error pointer: exact, then the closest ancestor, then
+    // the first field inside the pointer's subtree.
+    fieldFor(pointer) {
+      if (!pointer) return null;
+      const tokens = parsePointer(pointer);
+      for (let n = tokens.length; n > 0; --n) {
+        const prefix = '/' + tokens.slice(0, n).join('/');
+        const hit = fields.find((f) => f.ptrs.includes(prefix));
+        if (hit) return hit;
+      }
+      return fields.find((f) => f.ptrs.some((p) => p.startsWith(pointer.endsWith('/') ? pointer : pointer + '/'))) || null;
+    },
+    clearErrors() { for (const f of fields) f.clearError(); },
+    // Lowers a range control's maximum to what the daemon allows (from /api/health limits).
+    setMax(ptr, max) {
+      const f = fields.find((x) => x instanceof RangeField && x.spec.ptr === ptr);
+      if (!f || !(max > 0)) return;
+      const top = f.spec.log2 ? Math.floor(Math.log2(max)) : max;
+      if (top < Number(f.range.max)) f.range.max = String(top);
+      f.number.max = String(max);
+    },
+  };
+}
+

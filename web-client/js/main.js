@@ -1,0 +1,757 @@
+// Refract browser client: shows frames streamed by refractd and edits the scene with merge patches.
+//
+// Flow control: at most one request is in flight on the WebSocket. Edits made meanwhile are
+// coalesced into one pending merge patch, sent when the answer (a frame, or an error) arrives.
+// Dragging sends "interactive" requests; releasing asks for a "still" (full quality) frame.
+
+import { buildControls } from './controls.js';
+import * as S from './scene.js';
+
+const params = new URLSearchParams(location.search);
+const MAX_SIDE = Math.max(64, Math.min(768, Number(params.get('maxpx')) || 768));
+const MIN_SIDE = 64;
+const TOKEN = params.get('token') || '';  // only for daemons started with an API token
+const REQUEST_TIMEOUT_MS = 180_000;  // a lost answer: give up on it and reconnect
+const QUALITY_RANK = { interactive: 0, still: 1 };
+const ORBIT_STEP = 5 * Math.PI / 180;  // arrow keys
+const ZOOM_STEP = 1.1;
+
+const $ = (id) => document.getElementById(id);
+const canvas = $('view');
+const ctx = canvas.getContext('2d', { willReadFrequently: true });
+const stage = $('stage');
+
+const state = {
+  sceneId: null,
+  confirmed: null,        // the scene document as the daemon last told us (plus our accepted patches)
+  confirmedRevision: null,
+  inflight: null,         // { seq, patch, quality, sentAt, retry }
+  pending: null,          // coalesced merge patch not yet sent
+  pendingQuality: null,   // 'interactive' | 'still' | null: a frame is wanted
+  forceFrame: false,      // request a frame even if nothing changed (connect, Refine)
+  retryNext: false,       // the next send re-sends what was left of a rejected patch
+  seq: 0,
+  ws: null,
+  wsPort: null,
+  connected: false,
+  attempt: 0,
+  reconnectTimer: null,
+  watchdog: null,
+  frameMeta: null,        // text header of the frame whose PNG comes next
+  lastFrame: null,        // { revision, quality }
+  drawToken: 0,
+  drawnToken: 0,
+  frameTimes: [],
+  lightMode: false,
+  drag: null,
+  pointers: new Map(),
+};
+
+// Named one-shot timers (debounces); `settled` below waits for all of them.
+const timers = new Map();
+function later(name, fn, ms) {
+  clearTimeout(timers.get(name));
+  timers.set(name, setTimeout(() => { timers.delete(name); fn(); }, ms));
+}
+
+// Test and debugging hooks: plain data, read by the end-to-end test via page.evaluate.
+const hooks = {
+  framesReceived: 0,
+  lastRevision: null,
+  lastSeq: null,
+  lastMeta: null,
+  lastError: null,
+  errors: 0,
+  sceneId: null,
+  connected: false,
+  reconnects: 0,
+  connects: 0,
+  meshUploads: 0,
+  lastUpload: null,
+  device: null,
+  requestsSent: 0,
+  sent: { interactive: 0, still: 0 },  // requests by quality
+  maxInFlight: 0,
+  doc: () => view(),
+  lastQuality: null,
+  busy: () => Boolean(state.inflight || state.pendingQuality),
+  // Connected, nothing in flight or queued or about to be, and the last frame is a decoded still.
+  settled: () => hooks.connected && !state.inflight && !state.pendingQuality && timers.size === 0 &&
+    state.drawnToken === state.drawToken && hooks.lastQuality === 'still',
+};
+window.refract = hooks;
+
+// ---- the document as the user sees it ------------------------------------------------------------
+
+function view() {
+  let doc = state.confirmed || {};
+  if (state.inflight?.patch) doc = S.applyMergePatch(doc, state.inflight.patch);
+  if (state.pending) doc = S.applyMergePatch(doc, state.pending);
+  return doc;
+}
+
+const controls = buildControls($('controls'), (patch, final) => edit(patch, final), { upload: uploadMesh });
+
+// Queues an edit (or, with a null patch, just a frame) and sends it when the link is free.
+function edit(patch, final) {
+  if (patch) state.pending = S.composePatches(state.pending, patch);
+  state.pendingQuality = final ? 'still' : 'interactive';
+  if (patch) scheduleViewUpdate();
+  pump();
+}
+
+// Controls and the light marker follow the edited document, at most once per animation frame.
+let viewUpdateQueued = false;
+function scheduleViewUpdate() {
+  if (viewUpdateQueued) return;
+  viewUpdateQueued = true;
+  requestAnimationFrame(() => {
+    viewUpdateQueued = false;
+    controls.update(view());
+    updateLightMarker();
+  });
+}
+
+function requestFrame(quality = 'still') {
+  state.forceFrame = true;
+  if (!state.pendingQuality || QUALITY_RANK[quality] > QUALITY_RANK[state.pendingQuality]) state.pendingQuality = quality;
+  pump();
+}
+
+function pump() {
+  const ws = state.ws;
+  if (!ws || ws.readyState !== WebSocket.OPEN || state.inflight || !state.pendingQuality || !state.confirmed) return;
+  const patch = state.pending ? S.prunePatch(state.confirmed, state.pending) : null;
+  const quality = state.pendingQuality;
+  const force = state.forceFrame;
+  state.pending = null;
+  state.pendingQuality = null;
+  state.forceFrame = false;
+  const retry = state.retryNext;
+  state.retryNext = false;
+  // Nothing changed and we already show a frame of this revision at this quality or better.
+  const last = state.lastFrame;
+  if (!patch && !force && last && last.revision === state.confirmedRevision &&
+      QUALITY_RANK[last.quality] >= QUALITY_RANK[quality]) return;
+
+  const seq = ++state.seq;
+  const message = { seq, quality };
+  if (patch) message.patch = patch;
+  ws.send(JSON.stringify(message));
+  state.inflight = { seq, patch, quality, sentAt: performance.now(), retry };
+  hooks.requestsSent++;
+  hooks.sent[quality]++;
+  hooks.maxInFlight = Math.max(hooks.maxInFlight, 1);
+  clearTimeout(state.watchdog);
+  state.watchdog = setTimeout(() => {
+    // No answer: assume the connection is wedged; reconnecting re-sends the edit.
+    if (state.inflight?.seq === seq && state.ws === ws) ws.close(4000, 'request timed out');
+  }, REQUEST_TIMEOUT_MS);
+  $('hud-quality').textContent = quality === 'interactive' ? 'rendering (interactive)…' : 'rendering…';
+}
+
+// ---- WebSocket messages --------------------------------------------------------------------------
+
+function onText(data) {
+  let msg;
+  try { msg = JSON.parse(data); } catch { return; }
+  if (msg.type === 'frame') state.frameMeta = msg;
+  else if (msg.type === 'error') onServerError(msg);
+}
+
+function onBinary(blob) {
+  const meta = state.frameMeta || {};
+  state.frameMeta = null;
+  const inf = state.inflight;
+  const answers = inf && (meta.seq === undefined || meta.seq === null || meta.seq >= inf.seq);
+  const quality = meta.quality || (answers ? inf.quality : 'still');
+  if (answers) {
+    if (inf.patch) state.confirmed = S.applyMergePatch(state.confirmed, inf.patch);
+    state.inflight = null;
+    clearTimeout(state.watchdog);
+    hooks.latencyMs = Math.round(performance.now() - inf.sentAt);
+    $('perf-latency').textContent = `${hooks.latencyMs} ms round trip`;
+  }
+  if (typeof meta.revision === 'number') {
+    const expected = state.confirmedRevision;
+    const ours = answers && inf.patch;
+    const consistent = meta.revision === expected || (ours && expected !== null && meta.revision === expected + 1);
+    state.confirmedRevision = meta.revision;
+    if (!consistent && expected !== null) resync();  // someone else edited the scene
+  }
+  state.lastFrame = { revision: state.confirmedRevision, quality };
+  const token = ++state.drawToken;
+  drawFrame(blob, meta, token, quality).catch((e) => console.warn('frame decode failed', e));
+  pump();
+}
+
+async function drawFrame(blob, meta, token, quality) {
+  const bitmap = await createImageBitmap(blob.type ? blob : new Blob([blob], { type: 'image/png' }));
+  if (token < state.drawnToken) { bitmap.close(); return; }
+  state.drawnToken = token;
+  if (canvas.width !== bitmap.width || canvas.height !== bitmap.height) {
+    canvas.width = bitmap.width;
+    canvas.height = bitmap.height;
+  }
+  ctx.drawImage(bitmap, 0, 0);
+  bitmap.close();
+  stage.classList.add('has-frame');
+  const now = performance.now();
+  // fps of a stream of frames: a pause of a second starts a new measurement.
+  if (state.frameTimes.length && now - state.frameTimes[state.frameTimes.length - 1] > 1000) state.frameTimes = [];
+  state.frameTimes.push(now);
+  while (state.frameTimes.length > 1 && now - state.frameTimes[0] > 3000) state.frameTimes.shift();
+  hooks.framesReceived++;
+  hooks.lastRevision = typeof meta.revision === 'number' ? meta.revision : hooks.lastRevision;
+  hooks.lastSeq = meta.seq ?? null;
+  hooks.lastMeta = meta;
+  hooks.lastQuality = quality;
+  showStats(meta, quality);
+  updateLightMarker();
+}
+
+function onServerError(msg) {
+  const inf = state.inflight;
+  const answers = inf && (msg.seq === undefined || msg.seq === null || msg.seq >= inf.seq);
+  if (answers) {
+    state.inflight = null;
+    clearTimeout(state.watchdog);
+    // Re-send the rest of a rejected patch once: edits coalesced with the bad value are not lost.
+    const pointer = msg.pointer;
+    if (inf.patch && !inf.retry && pointer && S.patchTouches(inf.patch, pointer)) {
+      const rest = S.removeFromPatch(inf.patch, pointer);
+      if (rest) {
+        state.pending = S.composePatches(rest, state.pending);
+        state.retryNext = true;
+        if (!state.pendingQuality) state.pendingQuality = inf.quality;
+      }
+    }
+  }
+  reportError(msg.error || 'The daemon rejected the edit.', msg.pointer, msg.seq);
+  // Without a pointer it was not a validation error (e.g. the frame could not be rendered): the edit
+  // may have been stored, so ask the daemon what the scene is now.
+  if (msg.pointer === undefined || msg.pointer === null) resync();
+  controls.update(view());
+  updateLightMarker();
+  $('hud-quality').textContent = '';
+  pump();
+}
+
+function reportError(message, pointer, seq = null) {
+  hooks.lastError = { error: message, pointer: pointer ?? null, seq };
+  hooks.errors++;
+  const field = controls.fieldFor(pointer);
+  if (field) {
+    field.setError(message);
+    if (field.el.getBoundingClientRect().height > 0) field.el.scrollIntoView({ block: 'nearest' });
+  } else {
+    showGlobalError(pointer ? `${message} (${pointer})` : message);
+  }
+  announce(`Error${pointer ? ` in ${pointer}` : ''}: ${message}`);
+}
+
+function showGlobalError(text) {
+  const box = $('global-error');
+  box.replaceChildren();
+  const span = document.createElement('span');
+  span.textContent = text;
+  const close = document.createElement('button');
+  close.type = 'button';
+  close.className = 'dismiss';
+  close.textContent = 'Dismiss';
+  close.addEventListener('click', () => { box.hidden = true; });
+  box.append(span, close);
+  box.hidden = false;
+}
+
+function announce(text) {
+  const el = $('announcer');
+  el.textContent = '';
+  requestAnimationFrame(() => { el.textContent = text; });
+}
+
+// ---- stats ---------------------------------------------------------------------------------------
+
+function fps() {
+  const t = state.frameTimes;
+  if (t.length < 2) return null;
+  const span = t[t.length - 1] - t[0];
+  return span > 0 ? ((t.length - 1) * 1000) / span : null;
+}
+
+function showStats(meta, quality) {
+  const f = fps();
+  const took = state.frameTimes.length < 2 && hooks.latencyMs ? `${hooks.latencyMs} ms/frame` : null;
+  const fpsText = f === null ? (took || '— fps') : `${f.toFixed(f < 10 ? 1 : 0)} fps`;
+  $('hud-fps').textContent = fpsText;
+  $('perf-fps').textContent = fpsText;
+  $('hud-quality').textContent = quality === 'interactive' ? 'interactive' : '';
+  $('perf-rev').textContent = meta.revision ?? '—';
+  $('perf-size').textContent = meta.width && meta.height ? `${meta.width}×${meta.height}` : `${canvas.width}×${canvas.height}`;
+
+  const timings = meta.timings && typeof meta.timings === 'object' ? meta.timings : {};
+  $('perf-cached').hidden = !meta.cached;
+  // A cached frame ran no pass: keep showing the timings of the frame that did.
+  if (meta.cached && Object.keys(timings).length === 0) return;
+  let names = [];
+  if (Array.isArray(meta.passes)) names = meta.passes.map((p) => (typeof p === 'string' ? p : p?.name)).filter(Boolean);
+  for (const k of Object.keys(timings)) if (!names.includes(k)) names.push(k);
+  const ms = (name) => {
+    const v = timings[name] ?? meta.passes?.find?.((p) => p?.name === name)?.ms;
+    return typeof v === 'number' ? v : null;
+  };
+  const total = names.reduce((sum, n) => sum + (ms(n) || 0), 0);
+  const rows = names.map((name) => {
+    const v = ms(name);
+    const tr = document.createElement('tr');
+    const th = document.createElement('th');
+    th.scope = 'row';
+    th.textContent = name;
+    const td = document.createElement('td');
+    td.textContent = v === null ? '—' : v.toFixed(v < 10 ? 2 : 1);
+    const bar = document.createElement('td');
+    bar.className = 'bar';
+    const fill = document.createElement('span');
+    fill.style.width = `${total > 0 && v ? Math.max(1, (100 * v) / total) : 0}%`;
+    bar.append(fill);
+    tr.append(th, td, bar);
+    return tr;
+  });
+  $('timings').tBodies[0].replaceChildren(...rows);
+  $('timings-total').textContent = names.length ? total.toFixed(1) : '—';
+}
+
+// ---- HTTP ----------------------------------------------------------------------------------------
+
+class HttpError extends Error {
+  constructor(status, body) {
+    super(body?.error || `HTTP ${status}`);
+    this.status = status;
+    this.pointer = body?.pointer ?? null;
+  }
+}
+
+async function api(method, path, body, contentType = 'application/json') {
+  const init = { method, headers: {}, cache: 'no-store' };
+  if (TOKEN) init.headers.Authorization = `Bearer ${TOKEN}`;
+  if (body !== undefined) {
+    init.body = typeof body === 'string' ? body : JSON.stringify(body);
+    init.headers['Content-Type'] = contentType;
+  }
+  const res = await fetch(path, init);
+  const text = await res.text();
+  let json = null;
+  try { json = text ? JSON.parse(text) : null; } catch { json = { error: text }; }
+  if (!res.ok) throw new HttpError(res.status, json);
+  return json;
+}
+
+function deviceText(health) {
+  const d = health?.device;
+  if (typeof d === 'string') return { name: d, detail: '' };
+  if (!d) return { name: health?.device_error ? `no device: ${health.device_error}` : 'no device', detail: '' };
+  const name = d.name || 'unknown device';
+  const driver = [d.driver_name ?? d.driver, d.driver_info].filter(Boolean).join(' ');
+  const detail = [d.type, driver].filter(Boolean).join(', ');
+  return { name, detail };
+}
+
+async function fetchHealth() {
+  const health = await api('GET', '/api/health');
+  const { name, detail } = deviceText(health);
+  const type = health?.device?.type;
+  $('device-name').textContent = type ? `${name} · ${type}` : name;
+  $('device-name').parentElement.title = detail ? `Render device: ${name} (${detail})` : `Render device: ${name}`;
+  hooks.device = name;
+  state.wsPort = Number(health?.ws_port) || Number(location.port || 80) + 1;
+  const limits = health?.limits || {};
+  controls.setMax('/volume/resolution', Number(limits.max_resolution));
+  controls.setMax('/photons/count', Number(limits.max_photons));
+  return health;
+}
+
+function setSceneId(id) {
+  state.sceneId = id;
+  hooks.sceneId = id;
+  $('scene-id').textContent = id;
+  const url = new URL(location.href);
+  if (url.searchParams.get('scene') !== id) {
+    url.searchParams.set('scene', id);
+    history.replaceState(null, '', url);
+  }
+}
+
+// Loads the scene named in the URL (or our current one); creates one if there is none, restoring
+// our last view of it when the daemon lost it.
+async function loadScene() {
+  const id = state.sceneId || params.get('scene');
+  if (id) {
+    try {
+      const got = await api('GET', `/api/scenes/${encodeURIComponent(id)}`);
+      adoptScene(got.id || id, got);
+      return;
+    } catch (e) {
+      if (!(e instanceof HttpError) || e.status !== 404) throw e;
+      showGlobalError(`Scene “${id}” does not exist on this daemon; started a new one.`);
+    }
+  }
+  let created;
+  try {
+    created = await api('POST', '/api/scenes', state.confirmed ? view() : {});
+  } catch (e) {
+    if (!(e instanceof HttpError) || !state.confirmed) throw e;
+    created = await api('POST', '/api/scenes', {});
+  }
+  state.pending = null;
+  adoptScene(created.id, created);
+}
+
+function adoptScene(id, got) {
+  setSceneId(id);
+  state.confirmed = got.scene;
+  state.confirmedRevision = typeof got.revision === 'number' ? got.revision : null;
+  controls.update(view(), { force: true });
+  updateLightMarker();
+}
+
+function resync() {
+  later('resync', async () => {
+    try {
+      const got = await api('GET', `/api/scenes/${encodeURIComponent(state.sceneId)}`);
+      if (state.inflight) return;  // our edit is under way; its answer will tell us the revision
+      state.confirmed = got.scene;
+      state.confirmedRevision = got.revision;
+      controls.update(view());
+      updateLightMarker();
+      if (state.lastFrame?.revision !== got.revision) requestFrame('still');
+    } catch { /* the next frame or reconnect tries again */ }
+  }, 150);
+}
+
+async function refreshMeshes() {
+  try {
+    const list = await api('GET', '/api/meshes');
+    const items = Array.isArray(list) ? list : (list?.meshes || []);
+    const names = items.map((m) => (typeof m === 'string' ? m : m?.name)).filter(Boolean).sort();
+    controls.mesh.setMeshes(names);
+    controls.mesh.update(view());
+  } catch { /* the built-in meshes still work */ }
+}
+
+function meshNameFor(fileName) {
+  const base = fileName.replace(/\.[^.]*$/, '').toLowerCase().replace(/[^a-z0-9_-]+/g, '-').replace(/^-+|-+$/g, '');
+  return (base || 'mesh').slice(0, 48);
+}
+
+async function uploadMesh(file, field) {
+  const name = meshNameFor(file.name);
+  field.clearError();
+  field.status.textContent = `Uploading ${file.name}…`;
+  try {
+    const text = await file.text();
+    const info = await api('PUT', `/api/meshes/${encodeURIComponent(name)}`, text, 'model/obj');
+    const facts = [];
+    if (typeof info?.triangles === 'number') facts.push(`${info.triangles} triangles`);
+    if (typeof info?.vertices === 'number') facts.push(`${info.vertices} vertices`);
+    if (info?.watertight === false) facts.push(`not watertight: ${info.boundary_edges ?? 'some'} open edges`);
+    else if (info?.watertight === true) facts.push('watertight');
+    field.status.textContent = `Uploaded “${name}”${facts.length ? ` (${facts.join(', ')})` : ''}.`;
+    hooks.meshUploads++;
+    hooks.lastUpload = { name, info };
+    await refreshMeshes();
+    edit({ object: { mesh: `upload:${name}` } }, true);
+    controls.mesh.update(view());
+  } catch (e) {
+    field.status.textContent = '';
+    const message = `${file.name}: ${e.message}`;
+    field.setError(message);
+    field.el.scrollIntoView({ block: 'nearest' });
+    hooks.lastError = { error: message, pointer: '/object/mesh', seq: null };
+    hooks.errors++;
+    announce(`Upload failed: ${message}`);
+  }
+}
+
+// ---- connection ----------------------------------------------------------------------------------
+
+function setConn(kind, text) {
+  const el = $('conn');
+  el.dataset.state = kind;
+  el.textContent = text;
+  hooks.connected = kind === 'live';
+  stage.classList.toggle('offline', kind !== 'live');
+}
+
+function stageMessage(text) {
+  const el = $('stage-msg');
+  el.textContent = text || '';
+  el.hidden = !text;
+}
+
+function scheduleReconnect() {
+  clearTimeout(state.reconnectTimer);
+  const delay = Math.min(10_000, 400 * 2 ** state.attempt) * (0.8 + 0.4 * Math.random());
+  state.attempt = Math.min(state.attempt + 1, 10);
+  const seconds = Math.max(1, Math.round(delay / 1000));
+  setConn('reconnecting', `Reconnecting in ${seconds} s…`);
+  stageMessage(hooks.connects === 0 ? 'Waiting for refractd…' : 'Connection to refractd lost; reconnecting…');
+  state.reconnectTimer = setTimeout(connect, delay);
+}
+
+async function connect() {
+  clearTimeout(state.reconnectTimer);
+  setConn('connecting', 'Connecting…');
+  try {
+    await fetchHealth();
+    await loadScene();
+  } catch (e) {
+    console.warn('refractd not reachable', e);
+    if (e instanceof HttpError && e.status !== 404 && e.status < 500 && hooks.connects === 0) {
+      stageMessage(`Could not load the scene: ${e.message}`);
+    }
+    scheduleReconnect();
+    return;
+  }
+  refreshMeshes();
+  const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
+  const url = `${proto}//${location.hostname}:${state.wsPort}/api/scenes/${encodeURIComponent(state.sceneId)}/ws` +
+    (TOKEN ? `?token=${encodeURIComponent(TOKEN)}` : '');
+  let ws;
+  try {
+    ws = new WebSocket(url);
+  } catch (e) {
+    scheduleReconnect();
+    return;
+  }
+  ws.binaryType = 'blob';
+  state.ws = ws;
+  ws.addEventListener('open', () => {
+    if (state.ws !== ws) return;
+    state.attempt = 0;
+    hooks.connects++;
+    if (hooks.connects > 1) hooks.reconnects++;
+    setConn('live', 'Live');
+    stageMessage('');
+    state.frameMeta = null;
+    checkImageSize(true);
+    requestFrame('still');
+  });
+  ws.addEventListener('message', (ev) => {
+    if (state.ws !== ws) return;
+    if (typeof ev.data === 'string') onText(ev.data);
+    else onBinary(ev.data);
+  });
+  ws.addEventListener('close', () => {
+    if (state.ws !== ws) return;
+    state.ws = null;
+    clearTimeout(state.watchdog);
+    // Whatever was in flight goes again after reconnecting (merge patches are idempotent).
+    if (state.inflight) {
+      state.pending = S.composePatches(state.inflight.patch, state.pending);
+      if (!state.pendingQuality) state.pendingQuality = state.inflight.quality;
+      state.inflight = null;
+    }
+    scheduleReconnect();
+  });
+}
+
+// ---- image size follows the canvas ---------------------------------------------------------------
+
+function desiredImageSize() {
+  const rect = stage.getBoundingClientRect();
+  const dpr = window.devicePixelRatio || 1;
+  let w = Math.max(1, rect.width * dpr);
+  let h = Math.max(1, rect.height * dpr);
+  const k = Math.min(1, MAX_SIDE / Math.max(w, h));
+  w = Math.max(MIN_SIDE, Math.round((w * k) / 2) * 2);
+  h = Math.max(MIN_SIDE, Math.round((h * k) / 2) * 2);
+  return { width: w, height: h };
+}
+
+function checkImageSize(silent = false) {
+  if (!state.confirmed) return;
+  const want = desiredImageSize();
+  const have = view().image || {};
+  if (Math.abs((have.width || 0) - want.width) <= 2 && Math.abs((have.height || 0) - want.height) <= 2) return;
+  if (silent) state.pending = S.composePatches(state.pending, { image: want });
+  else edit({ image: want }, true);
+}
+
+new ResizeObserver(() => {
+  updateLightMarker();
+  later('resize', () => checkImageSize(), 250);
+}).observe(stage);
+
+// ---- camera and light interaction ----------------------------------------------------------------
+
+function cameraOf(doc) {
+  const c = doc.camera || {};
+  return {
+    position: c.position || [0, 0.4, 4], target: c.target || [0, 0, 0], up: c.up || [0, 1, 0], fov_deg: c.fov_deg || 40,
+  };
+}
+
+function orbitCamera(dAz, dEl, final) {
+  const cam = cameraOf(view());
+  const position = S.roundVec(S.orbit(cam.position, cam.target, dAz, dEl, 4));
+  edit({ camera: { position } }, final);
+}
+
+function zoomCamera(factor, final) {
+  const cam = cameraOf(view());
+  edit({ camera: { position: S.roundVec(S.dolly(cam.position, cam.target, factor)) } }, final);
+}
+
+function moveLight(dAz, dEl, final) {
+  const doc = view();
+  const target = cameraOf(doc).target;
+  const light = doc.light || {};
+  const position = S.roundVec(S.orbit(light.position || [2, 3, 1], target, dAz, dEl, 3));
+  const direction = S.roundVec(S.normalize(S.sub(target, position)));
+  edit({ light: { position, direction } }, final);
+}
+
+function setLightMode(on) {
+  state.lightMode = on;
+  const btn = $('mode-light');
+  btn.setAttribute('aria-pressed', String(on));
+  stage.classList.toggle('light-mode', on);
+  canvas.setAttribute('aria-label', on
+    ? 'Rendered scene, light mode: drag or arrow keys move the light'
+    : 'Rendered scene: drag or arrow keys orbit the camera');
+  updateLightMarker();
+}
+
+// Where the image sits inside the canvas element (object-fit: contain).
+function imageRect() {
+  const r = canvas.getBoundingClientRect();
+  const aspect = canvas.width / canvas.height;
+  let w = r.width;
+  let h = r.height;
+  if (w / h > aspect) w = h * aspect; else h = w / aspect;
+  return { left: (r.width - w) / 2, top: (r.height - h) / 2, width: w, height: h };
+}
+
+function updateLightMarker() {
+  const marker = $('light-marker');
+  const doc = view();
+  if (!doc.camera || !doc.light?.position) { marker.hidden = true; return; }
+  const image = doc.image || {};
+  const aspect = (image.width || canvas.width) / (image.height || canvas.height);
+  const p = S.project(cameraOf(doc), aspect, doc.light.position);
+  const rect = imageRect();
+  if (!p) { marker.hidden = true; return; }
+  // Off the image: pin the marker to the image border, in the light's direction.
+  const out = Math.max(Math.abs(p.x), Math.abs(p.y));
+  const edge = out > 1;
+  if (edge) { p.x = (p.x / out) * 0.96; p.y = (p.y / out) * 0.96; }
+  marker.classList.toggle('edge', edge);
+  marker.hidden = false;
+  marker.style.left = `${rect.left + ((p.x + 1) / 2) * rect.width}px`;
+  marker.style.top = `${rect.top + ((1 - p.y) / 2) * rect.height}px`;
+}
+
+function dragAngles(dx, dy) {
+  const h = Math.max(100, canvas.getBoundingClientRect().height);
+  return [dx * Math.PI / h, dy * Math.PI / h];
+}
+
+canvas.addEventListener('pointerdown', (e) => {
+  if (e.pointerType === 'mouse' && e.button !== 0) return;
+  canvas.focus({ preventScroll: true });
+  canvas.setPointerCapture(e.pointerId);
+  state.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
+  if (state.pointers.size === 1) {
+    state.drag = { x: e.clientX, y: e.clientY, light: e.shiftKey || state.lightMode, moved: false };
+    stage.classList.toggle('dragging-light', state.drag.light);
+  } else if (state.pointers.size === 2) {
+    const [a, b] = [...state.pointers.values()];
+    state.drag = { pinch: Math.hypot(a.x - b.x, a.y - b.y), moved: false };
+  }
+  e.preventDefault();
+});
+
+canvas.addEventListener('pointermove', (e) => {
+  if (!state.pointers.has(e.pointerId) || !state.drag) return;
+  state.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
+  const drag = state.drag;
+  if (drag.pinch !== undefined) {
+    if (state.pointers.size < 2) return;
+    const [a, b] = [...state.pointers.values()];
+    const d = Math.hypot(a.x - b.x, a.y - b.y);
+    if (d > 0 && drag.pinch > 0) zoomCamera(drag.pinch / d, false);
+    drag.pinch = d;
+    drag.moved = true;
+    return;
+  }
+  const dx = e.clientX - drag.x;
+  const dy = e.clientY - drag.y;
+  if (dx === 0 && dy === 0) return;
+  drag.x = e.clientX;
+  drag.y = e.clientY;
+  drag.moved = true;
+  const [ax, ay] = dragAngles(dx, dy);
+  if (drag.light) moveLight(ax, -ay, false);
+  else orbitCamera(-ax, ay, false);
+});
+
+function endPointer(e) {
+  if (!state.pointers.delete(e.pointerId)) return;
+  if (state.pointers.size > 0) return;
+  const moved = state.drag?.moved;
+  state.drag = null;
+  stage.classList.remove('dragging-light');
+  if (moved) edit(null, true);  // released: ask for the full-quality still
+}
+canvas.addEventListener('pointerup', endPointer);
+canvas.addEventListener('pointercancel', endPointer);
+
+canvas.addEventListener('wheel', (e) => {
+  e.preventDefault();
+  const delta = e.deltaMode === 1 ? e.deltaY * 16 : e.deltaY;
+  zoomCamera(Math.exp(Math.max(-200, Math.min(200, delta)) * 0.0015), false);
+  later('wheel', () => edit(null, true), 300);
+}, { passive: false });
+
+canvas.addEventListener('keydown', (e) => {
+  const arrows = { ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, -1], ArrowDown: [0, 1] };
+  let handled = true;
+  if (arrows[e.key]) {
+    const [x, y] = arrows[e.key];
+    if (e.shiftKey || state.lightMode) moveLight(x * ORBIT_STEP, -y * ORBIT_STEP, false);
+    else orbitCamera(-x * ORBIT_STEP, y * ORBIT_STEP, false);
+  } else if (e.key === '+' || e.key === '=' || e.key === 'PageUp') {
+    zoomCamera(1 / ZOOM_STEP, false);
+  } else if (e.key === '-' || e.key === '_' || e.key === 'PageDown') {
+    zoomCamera(ZOOM_STEP, false);
+  } else if ((e.key === 'l' || e.key === 'L') && !e.ctrlKey && !e.metaKey && !e.altKey) {
+    setLightMode(!state.lightMode);
+    announce(state.lightMode ? 'Light mode on' : 'Light mode off');
+    return void e.preventDefault();
+  } else {
+    handled = false;
+  }
+  if (!handled) return;
+  e.preventDefault();
+  later('keys', () => edit(null, true), 350);  // settled: refine
+});
+
+$('mode-light').addEventListener('click', () => setLightMode(!state.lightMode));
+$('zoom-in').addEventListener('click', () => zoomCamera(1 / ZOOM_STEP, true));
+$('zoom-out').addEventListener('click', () => zoomCamera(ZOOM_STEP, true));
+$('still-btn').addEventListener('click', () => requestFrame('still'));
+
+window.addEventListener('keydown', (e) => {
+  if (e.key === 'Shift') stage.classList.add('shift');
+});
+window.addEventListener('keyup', (e) => {
+  if (e.key === 'Shift') stage.classList.remove('shift');
+});
+
+// ---- start ---------------------------------------------------------------------------------------
+
+setLightMode(false);
+ctx.fillStyle = '#07090d';
+ctx.fillRect(0, 0, canvas.width, canvas.height);
+stageMessage('Connecting to refractd…');
+connect();

@@ -1,0 +1,187 @@
+// Pure helpers for scene documents: JSON merge patches (RFC 7396), JSON pointers (RFC 6901),
+// orbit math and colour conversion. No DOM access here.
+
+export const isObject = (v) => v !== null && typeof v === 'object' && !Array.isArray(v);
+
+export const deepClone = (v) => (v === undefined ? undefined : JSON.parse(JSON.stringify(v)));
+
+export function deepEqual(a, b) {
+  if (a === b) return true;
+  if (typeof a !== typeof b || a === null || b === null || typeof a !== 'object') return false;
+  if (Array.isArray(a) !== Array.isArray(b)) return false;
+  const ka = Object.keys(a);
+  const kb = Object.keys(b);
+  if (ka.length !== kb.length) return false;
+  return ka.every((k) => Object.prototype.hasOwnProperty.call(b, k) && deepEqual(a[k], b[k]));
+}
+
+// Applies merge patch `patch` to `target`; neither argument is modified.
+export function applyMergePatch(target, patch) {
+  if (!isObject(patch)) return deepClone(patch);
+  const out = isObject(target) ? { ...target } : {};
+  for (const [key, value] of Object.entries(patch)) {
+    if (value === null) delete out[key];
+    else out[key] = applyMergePatch(out[key], value);
+  }
+  return out;
+}
+
+// One merge patch with the effect of applying `first` and then `second` (we never send nulls,
+// so the corner cases around deletion do not arise).
+export function composePatches(first, second) {
+  if (!first) return deepClone(second);
+  if (!second) return deepClone(first);
+  if (!isObject(first) || !isObject(second)) return deepClone(second);
+  const out = { ...first };
+  for (const [key, value] of Object.entries(second)) {
+    out[key] = isObject(value) && isObject(out[key]) ? composePatches(out[key], value) : deepClone(value);
+  }
+  return out;
+}
+
+// Drops every leaf of `patch` that already has that value in `base`; returns null when nothing is left.
+export function prunePatch(base, patch) {
+  if (!isObject(patch)) return deepEqual(base, patch) ? null : deepClone(patch);
+  const out = {};
+  for (const [key, value] of Object.entries(patch)) {
+    const baseValue = isObject(base) ? base[key] : undefined;
+    const kept = isObject(value) && isObject(baseValue) ? prunePatch(baseValue, value)
+      : deepEqual(baseValue, value) ? null : deepClone(value);
+    if (kept !== null) out[key] = kept;
+  }
+  return Object.keys(out).length ? out : null;
+}
+
+export function parsePointer(pointer) {
+  if (!pointer || pointer === '/') return [];
+  return pointer.replace(/^\//, '').split('/').map((t) => t.replace(/~1/g, '/').replace(/~0/g, '~'));
+}
+
+export function getAt(doc, pointer) {
+  let node = doc;
+  for (const token of parsePointer(pointer)) {
+    if (node === null || typeof node !== 'object') return undefined;
+    node = node[token];
+  }
+  return node;
+}
+
+// A merge patch that sets `pointer` to `value` (pointers into arrays are not allowed: arrays are
+// replaced whole by merge patches, so controls always write the entire array).
+export function patchAt(pointer, value) {
+  const tokens = parsePointer(pointer);
+  let patch = deepClone(value);
+  for (let i = tokens.length - 1; i >= 0; --i) patch = { [tokens[i]]: patch };
+  return patch;
+}
+
+// Whether `patch` writes the value at `pointer` or anything containing or inside it.
+export function patchTouches(patch, pointer) {
+  let node = patch;
+  for (const token of parsePointer(pointer)) {
+    if (!isObject(node)) return true;  // an array or scalar written whole covers everything below it
+    if (!(token in node)) return false;
+    node = node[token];
+  }
+  return true;
+}
+
+// `patch` without whatever it writes at or below `pointer` (a leaf array containing the pointer is
+// removed whole); empty parents are pruned. Returns null when nothing is left.
+export function removeFromPatch(patch, pointer) {
+  const tokens = parsePointer(pointer);
+  const walk = (node, i) => {
+    if (i >= tokens.length || !isObject(node)) return null;
+    if (!(tokens[i] in node)) return node;
+    const out = { ...node };
+    const child = walk(node[tokens[i]], i + 1);
+    if (child === null) delete out[tokens[i]];
+    else out[tokens[i]] = child;
+    return Object.keys(out).length ? out : null;
+  };
+  return walk(deepClone(patch), 0);
+}
+
+// Every leaf pointer of a patch (arrays count as leaves).
+export function patchPointers(patch, prefix = '') {
+  if (!isObject(patch)) return [prefix];
+  return Object.entries(patch).flatMap(([k, v]) =>
+    patchPointers(v, `${prefix}/${k.replace(/~/g, '~0').replace(/\//g, '~1')}`));
+}
+
+// ---- vectors and orbits --------------------------------------------------------------------------
+
+export const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+export const add = (a, b) => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+export const scale = (a, s) => [a[0] * s, a[1] * s, a[2] * s];
+export const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+export const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+export const length = (a) => Math.hypot(a[0], a[1], a[2]);
+export const normalize = (a) => { const l = length(a); return l > 0 ? scale(a, 1 / l) : [0, 0, 0]; };
+export const round = (x, digits = 4) => { const f = 10 ** digits; return Math.round(x * f) / f || 0; };
+export const roundVec = (a, digits = 4) => a.map((x) => round(x, digits));
+
+const DEG = Math.PI / 180;
+export const MAX_ELEVATION = 89 * DEG;
+
+// Spherical coordinates of `point` around `center` (y up): radius, azimuth about +y from +z, elevation.
+export function toSpherical(point, center) {
+  const d = sub(point, center);
+  const radius = length(d);
+  if (radius < 1e-9) return { radius: 0, azimuth: 0, elevation: 0 };
+  return { radius, azimuth: Math.atan2(d[0], d[2]), elevation: Math.asin(Math.max(-1, Math.min(1, d[1] / radius))) };
+}
+
+export function fromSpherical(center, { radius, azimuth, elevation }) {
+  const c = Math.cos(elevation);
+  return add(center, [radius * c * Math.sin(azimuth), radius * Math.sin(elevation), radius * c * Math.cos(azimuth)]);
+}
+
+// Rotates `point` around `center` by the given angle deltas (radians), keeping its distance.
+export function orbit(point, center, dAzimuth, dElevation, fallbackRadius = 3) {
+  const s = toSpherical(point, center);
+  if (s.radius === 0) s.radius = fallbackRadius;
+  s.azimuth += dAzimuth;
+  s.elevation = Math.max(-MAX_ELEVATION, Math.min(MAX_ELEVATION, s.elevation + dElevation));
+  return fromSpherical(center, s);
+}
+
+// Moves `point` towards/away from `center` by `factor`, clamped to [minR, maxR].
+export function dolly(point, center, factor, minR = 0.3, maxR = 60) {
+  const s = toSpherical(point, center);
+  s.radius = Math.max(minR, Math.min(maxR, (s.radius || 1) * factor));
+  return fromSpherical(center, s);
+}
+
+// Projects a world point into normalised device coordinates for a camera as in the scene document.
+// Returns null when the point is behind the camera.
+export function project(camera, aspect, point) {
+  const forward = normalize(sub(camera.target, camera.position));
+  const right = normalize(cross(forward, camera.up || [0, 1, 0]));
+  const up = cross(right, forward);
+  const rel = sub(point, camera.position);
+  const z = dot(rel, forward);
+  if (z <= 1e-6) return null;
+  const t = Math.tan(((camera.fov_deg || 40) * DEG) / 2);
+  return { x: dot(rel, right) / (z * t * aspect), y: dot(rel, up) / (z * t) };
+}
+
+// ---- colour --------------------------------------------------------------------------------------
+
+const srgbToLinear = (c) => (c <= 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055) ** 2.4);
+const linearToSrgb = (c) => (c <= 0.0031308 ? c * 12.92 : 1.055 * c ** (1 / 2.4) - 0.055);
+
+// "#rrggbb" (sRGB, as colour pickers speak) to linear RGB in [0, 1].
+export function hexToLinear(hex) {
+  const m = /^#?([0-9a-f]{2})([0-9a-f]{2})([0-9a-f]{2})$/i.exec(hex || '');
+  if (!m) return [1, 1, 1];
+  return [m[1], m[2], m[3]].map((h) => round(srgbToLinear(parseInt(h, 16) / 255), 4));
+}
+
+export function linearToHex(rgb) {
+  const v = Array.isArray(rgb) && rgb.length === 3 ? rgb : [1, 1, 1];
+  return '#' + v.map((c) => {
+    const s = Math.round(linearToSrgb(Math.max(0, Math.min(1, Number(c) || 0))) * 255);
+    return s.toString(16).padStart(2, '0');
+  }).join('');
+}
