@@ -26,10 +26,10 @@ struct Phase {
 };
 
 struct Camera {
-    Vec3 position{0.0, 0.4, 4.0};
-    Vec3 target{0.0, 0.0, 0.0};
+    Vec3 position{0.0, 0.5, 5.0};
+    Vec3 target{0.0, -0.35, 0.0};
     Vec3 up{0.0, 1.0, 0.0};
-    double fov_deg = 40.0;  // vertical
+    double fov_deg = 35.0;  // vertical
 
     bool operator==(const Camera&) const = default;
 };
@@ -37,7 +37,7 @@ struct Camera {
 struct Image {
     uint32_t width = 512;
     uint32_t height = 512;
-    double exposure = 0.0;  // stops: linear radiance is scaled by 2^exposure before tone mapping
+    double exposure = 0.5;  // stops: linear radiance is scaled by 2^exposure before tone mapping
 
     bool operator==(const Image&) const = default;
 };
@@ -72,8 +72,8 @@ struct Object {
 
 struct Medium {
     double ior = 1.0;
-    Vec3 extinction{0.08, 0.08, 0.08};
-    Vec3 scattering{0.08, 0.08, 0.08};
+    Vec3 extinction{0.2, 0.2, 0.2};
+    Vec3 scattering{0.2, 0.2, 0.2};
     Phase phase{PhaseModel::henyey_greenstein, 0.3};
 
     bool operator==(const Medium&) const = default;

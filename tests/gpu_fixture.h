@@ -5,9 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <memory>
+#include <stdexcept>
 
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
+#include "scene/object_mesh.h"
 #include "scene/scene_gpu.h"
 #include "vk/context.h"
 
@@ -30,17 +32,11 @@ protected:
     static vk::Context& context() { return *context_; }
     static scene::PassKit& kit() { return *kit_; }
 
-    // The object's world mesh as the renderer builds it (procedural lenses fill a sphere).
+    // The object's world mesh as the renderer builds it (built-ins and procedural lenses only).
     static mesh::Mesh world_mesh(const protocol::SceneDocument& d) {
-        mesh::Mesh base;
-        const auto& o = d.object;
-        if (o.mesh == "cube" && o.index_field == protocol::IndexFieldKind::uniform) base = mesh::make_cube();
-        else if (o.mesh == "torus" && o.index_field == protocol::IndexFieldKind::uniform) base = mesh::make_torus();
-        else base = mesh::make_sphere(5);
-        auto f = [](const protocol::Vec3& v) {
-            return glm::vec3(static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2]));
-        };
-        return mesh::transformed(base, static_cast<float>(o.scale), f(o.rotation_deg), f(o.position));
+        const auto base = scene::base_mesh(d, nullptr);
+        if (!base) throw std::runtime_error("test scene names an upload: " + d.object.mesh);
+        return scene::world_mesh(d, *base);
     }
 
 private:

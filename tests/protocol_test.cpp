@@ -332,13 +332,13 @@ TEST(MergePatch, CrossFieldErrorsBlameTheEditedValue) {
     // Lowering extinction below the (untouched) scattering blames extinction...
     EXPECT_EQ(rejected_pointer([] {
                   apply_merge_patch(SceneDocument{},
-                                    json::parse(R"({"medium": {"extinction": [0.08, 0.01, 0.08]}})"));
+                                    json::parse(R"({"medium": {"extinction": [0.2, 0.01, 0.2]}})"));
               }),
               "/medium/extinction/1");
     // ...raising scattering above extinction blames scattering, and so does a document written whole.
     EXPECT_EQ(rejected_pointer([] {
                   apply_merge_patch(SceneDocument{},
-                                    json::parse(R"({"medium": {"scattering": [0.08, 0.09, 0.08]}})"));
+                                    json::parse(R"({"medium": {"scattering": [0.2, 0.21, 0.2]}})"));
               }),
               "/medium/scattering/1");
     EXPECT_EQ(
@@ -414,11 +414,11 @@ std::vector<BadPatch> bad_patches() {
         {"up of two numbers", json::parse(R"({"camera": {"up": [0, 1]}})"), "/camera/up"},
         {"up not an array", json::parse(R"({"camera": {"up": "y"}})"), "/camera/up"},
         {"zero up", json::parse(R"({"camera": {"up": [0, 0, 0]}})"), "/camera/up"},
-        {"up parallel to view", json::parse(R"({"camera": {"up": [0, -0.4, -4]}})"), "/camera/up"},
+        {"up parallel to view", json::parse(R"({"camera": {"up": [0, -0.85, -5]}})"), "/camera/up"},
         {"view moved parallel to up", json::parse(R"({"camera": {"position": [0, 5, 0]}})"),
          "/camera/position"},
-        {"target onto position", json::parse(R"({"camera": {"target": [0, 0.4, 4]}})"), "/camera/target"},
-        {"position onto target", json::parse(R"({"camera": {"position": [0, 0, 0]}})"), "/camera/position"},
+        {"target onto position", json::parse(R"({"camera": {"target": [0, 0.5, 5]}})"), "/camera/target"},
+        {"position onto target", json::parse(R"({"camera": {"position": [0, -0.35, 0]}})"), "/camera/position"},
         {"position too far", json::parse(R"({"camera": {"position": [1e5, 0, 4]}})"), "/camera/position/0"},
         {"position element bool", json::parse(R"({"camera": {"target": [0, true, 0]}})"), "/camera/target/1"},
         // image
@@ -484,7 +484,7 @@ std::vector<BadPatch> bad_patches() {
         {"phase g of -1", json::parse(R"({"object": {"phase": {"g": -1}}})"), "/object/phase/g"},
         // medium
         {"medium ior below 1", json::parse(R"({"medium": {"ior": 0.5}})"), "/medium/ior"},
-        {"medium scattering above extinction", json::parse(R"({"medium": {"scattering": [0.1, 0.1, 0.1]}})"),
+        {"medium scattering above extinction", json::parse(R"({"medium": {"scattering": [0.3, 0.3, 0.3]}})"),
          "/medium/scattering/0"},
         {"medium phase g too close to 1", json::parse(R"({"medium": {"phase": {"g": 0.995}}})"),
          "/medium/phase/g"},

@@ -15,6 +15,7 @@
 #include "image/png.h"
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
+#include "scene/object_mesh.h"
 #include "scene/scene_gpu.h"
 #include "vk/context.h"
 
@@ -96,19 +97,14 @@ std::vector<BenchCase> standard_suite(bool gpu) {
     return cases;
 }
 
-mesh::Mesh world_of(const protocol::SceneDocument& d, const std::map<std::string, mesh::Mesh>& uploads) {
-    const auto& o = d.object;
-    mesh::Mesh base;
-    if (o.index_field != protocol::IndexFieldKind::uniform || o.mesh == "sphere") base = mesh::make_sphere(5);
-    else if (o.mesh == "cube") base = mesh::make_cube();
-    else if (o.mesh == "torus") base = mesh::make_torus();
-    else {
-        const auto it = uploads.find(o.mesh.substr(7));
-        if (it == uploads.end()) throw std::runtime_error("bench: scene needs --mesh " + o.mesh.substr(7) + "=FILE.obj");
-        base = it->second;
-    }
-    auto f = [](const protocol::Vec3& v) { return glm::vec3(static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])); };
-    return mesh::transformed(base, static_cast<float>(o.scale), f(o.rotation_deg), f(o.position));
+mesh::Mesh world_of(const protocol::SceneDocument& d, const std::map<std::string, std::shared_ptr<const mesh::Mesh>>& uploads) {
+    const auto base = scene::base_mesh(d, [&](const std::string& name) -> std::shared_ptr<const mesh::Mesh> {
+        const auto it = uploads.find(name);
+        if (it == uploads.end()) throw std::runtime_error("bench: scene needs --mesh " + name + "=FILE.obj");
+        return it->second;
+    });
+    if (!base) throw std::runtime_error("bench: unknown mesh " + d.object.mesh);
+    return scene::world_mesh(d, *base);
 }
 
 }  // namespace
@@ -121,10 +117,11 @@ int bench_command(const Arguments& args) {
     const bool gpu = !context.is_cpu_device();
     const int runs = args.runs > 0 ? args.runs : (gpu ? 10 : 3);
 
-    std::map<std::string, mesh::Mesh> uploads;
-    for (const auto& [name, file] : args.meshes) uploads[name] = mesh::load_obj_file(file);
+    std::map<std::string, std::shared_ptr<const mesh::Mesh>> uploads;
+    for (const auto& [name, file] : args.meshes) uploads[name] = std::make_shared<mesh::Mesh>(mesh::load_obj_file(file));
     const std::string bunny = std::string(REFRACT_SOURCE_DIR) + "/examples/meshes/bunny.obj";
-    if (!uploads.count("bunny") && std::filesystem::exists(bunny)) uploads["bunny"] = mesh::load_obj_file(bunny);
+    if (!uploads.count("bunny") && std::filesystem::exists(bunny))
+        uploads["bunny"] = std::make_shared<mesh::Mesh>(mesh::load_obj_file(bunny));
 
     std::vector<BenchCase> cases;
     if (!args.scene_file.empty()) {

@@ -15,6 +15,7 @@
 #include "image/png.h"
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
+#include "scene/object_mesh.h"
 #include "scene/renderer.h"
 #include "scene/scene_gpu.h"
 #include "vk/context.h"
@@ -48,24 +49,15 @@ Loaded load(const Arguments& args) {
     return loaded;
 }
 
-// The object's mesh in world space, resolved as the renderer does (procedural lenses fill a sphere).
+// The object's mesh in world space, resolved as the renderer resolves it.
 mesh::Mesh world_mesh(const Loaded& loaded) {
-    const auto& o = loaded.document.object;
-    mesh::Mesh base;
-    if (o.index_field == protocol::IndexFieldKind::luneburg || o.index_field == protocol::IndexFieldKind::maxwell ||
-        o.mesh == "sphere")
-        base = mesh::make_sphere(5);
-    else if (o.mesh == "cube") base = mesh::make_cube();
-    else if (o.mesh == "torus") base = mesh::make_torus();
-    else if (o.mesh.rfind("upload:", 0) == 0) {
-        auto it = loaded.meshes.find(o.mesh.substr(7));
-        if (it == loaded.meshes.end()) throw std::runtime_error("scene names " + o.mesh + ": pass --mesh " + o.mesh.substr(7) + "=FILE.obj");
-        base = *it->second;
-    } else {
-        throw std::runtime_error("unknown mesh " + o.mesh);
-    }
-    auto f = [](const protocol::Vec3& v) { return glm::vec3(static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])); };
-    return mesh::transformed(base, static_cast<float>(o.scale), f(o.rotation_deg), f(o.position));
+    const auto base = scene::base_mesh(loaded.document, [&](const std::string& name) -> std::shared_ptr<const mesh::Mesh> {
+        const auto it = loaded.meshes.find(name);
+        if (it == loaded.meshes.end()) throw std::runtime_error("the scene names upload:" + name + ": pass --mesh " + name + "=FILE.obj");
+        return it->second;
+    });
+    if (!base) throw std::runtime_error("unknown mesh " + loaded.document.object.mesh);
+    return scene::world_mesh(loaded.document, *base);
 }
 
 std::filesystem::path output_dir(const Arguments& args) {

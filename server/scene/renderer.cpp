@@ -8,6 +8,7 @@
 
 #include "image/png.h"
 #include "mesh/mesh.h"
+#include "scene/object_mesh.h"
 #include "scene/scene_gpu.h"
 #include "vk/context.h"
 
@@ -18,10 +19,6 @@ using Clock = std::chrono::steady_clock;
 
 double ms_since(Clock::time_point start) {
     return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
-glm::vec3 vec(const protocol::Vec3& v) {
-    return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])};
 }
 
 // `interactive` frames trade resolution, photons and eye-ray step (2 voxels) for latency; the volume
@@ -48,18 +45,6 @@ struct Renderer::Impl {
 
     Impl(vk::Context& ctx, RendererOptions opts) : context(ctx), options(opts), kit(ctx) {}
 
-    std::shared_ptr<const mesh::Mesh> builtin(const std::string& name) {
-        auto it = builtins.find(name);
-        if (it != builtins.end()) return it->second;
-        std::shared_ptr<const mesh::Mesh> m;
-        if (name == "sphere") m = std::make_shared<mesh::Mesh>(mesh::make_sphere(5));
-        else if (name == "cube") m = std::make_shared<mesh::Mesh>(mesh::make_cube());
-        else if (name == "torus") m = std::make_shared<mesh::Mesh>(mesh::make_torus());
-        else return nullptr;
-        builtins.emplace(name, m);
-        return m;
-    }
-
     void evict_least_recent(const std::string& keep) {
         while (scenes.size() > std::max<size_t>(options.max_resident_scenes, 1)) {
             auto oldest = scenes.end();
@@ -74,7 +59,6 @@ struct Renderer::Impl {
     vk::Context& context;
     RendererOptions options;
     PassKit kit;
-    std::map<std::string, std::shared_ptr<const mesh::Mesh>> builtins;
     std::map<std::string, Resident> scenes;
     uint64_t clock = 0;
     mutable std::mutex mutex;  // guards `scenes` for the read-only queries from other threads
@@ -93,8 +77,6 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     // Resolve assets first: an unknown name must not touch resident state.
     std::shared_ptr<const mesh::Mesh> mesh;
     std::shared_ptr<const IndexGrid> grid;
-    const bool procedural_sphere = object.index_field == protocol::IndexFieldKind::luneburg ||
-                                   object.index_field == protocol::IndexFieldKind::maxwell;
     if (object.index_field == protocol::IndexFieldKind::grid) {
         grid = assets.grid ? assets.grid(object.grid) : nullptr;
         if (!grid) throw RenderError("index field grid '" + object.grid + "' is not loaded");
@@ -104,14 +86,9 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
             const double ha = (grid->bounds.max[static_cast<size_t>(axis)] - grid->bounds.min[static_cast<size_t>(axis)]) / n;
             if (std::abs(ha - h) > 0.01 * h) throw RenderError("index field grid voxels must be cubic (within 1%)");
         }
-    } else if (procedural_sphere) {
-        mesh = impl_->builtin("sphere");
-    } else if (object.mesh.rfind("upload:", 0) == 0) {
-        mesh = assets.mesh ? assets.mesh(object.mesh.substr(7)) : nullptr;
-        if (!mesh) throw RenderError("mesh '" + object.mesh + "' has not been uploaded");
     } else {
-        mesh = impl_->builtin(object.mesh);
-        if (!mesh) throw RenderError("unknown built-in mesh '" + object.mesh + "'");
+        mesh = base_mesh(document, assets.mesh);
+        if (!mesh) throw RenderError("mesh '" + object.mesh + "' is not a built-in or an uploaded mesh");
     }
 
     std::unique_lock lock(impl_->mutex);
@@ -124,9 +101,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     const int64_t budget = impl_->options.device_memory_budget;
     if (budget > 0 && (stale & kVoxelize)) {
         // Estimate against the grid this document asks for before allocating anything.
-        const mesh::Mesh world = mesh ? mesh::transformed(*mesh, static_cast<float>(object.scale),
-                                                          vec(object.rotation_deg), vec(object.position))
-                                      : mesh::Mesh{};
+        const mesh::Mesh world = mesh ? world_mesh(document, *mesh) : mesh::Mesh{};
         const GridGeometry g = grid ? GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : grid_for(document, world);
         const int64_t need = estimate_scene_bytes(g, document.image.width, document.image.height);
         const int64_t held = it != impl_->scenes.end() ? impl_->context.allocated_bytes() : 0;
@@ -146,9 +121,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     FrameResult frame;
     try {
         // The grid is fitted to the object's world bounds, so the transformed mesh is needed every frame.
-        const mesh::Mesh world = mesh ? mesh::transformed(*mesh, static_cast<float>(object.scale),
-                                                          vec(object.rotation_deg), vec(object.position))
-                                      : mesh::Mesh{};
+        const mesh::Mesh world = mesh ? world_mesh(document, *mesh) : mesh::Mesh{};
         RunOptions run_options;
         run_options.view_step = quality == Quality::interactive ? 2.0f : 1.0f;
         const RunStats stats = resident.gpu->run(stale, document, world, grid.get(), run_options);

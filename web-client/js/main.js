@@ -587,7 +587,7 @@ new ResizeObserver(() => {
 function cameraOf(doc) {
   const c = doc.camera || {};
   return {
-    position: c.position || [0, 0.4, 4], target: c.target || [0, 0, 0], up: c.up || [0, 1, 0], fov_deg: c.fov_deg || 40,
+    position: c.position || [0, 0.5, 5], target: c.target || [0, -0.35, 0], up: c.up || [0, 1, 0], fov_deg: c.fov_deg || 35,
   };
 }
 

@@ -1,0 +1,43 @@
+#include "scene/object_mesh.h"
+
+#include <map>
+#include <mutex>
+
+namespace refract::scene {
+namespace {
+
+glm::vec3 vec(const protocol::Vec3& v) {
+    return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])};
+}
+
+std::shared_ptr<const mesh::Mesh> builtin(const std::string& name) {
+    static std::mutex mutex;
+    static std::map<std::string, std::shared_ptr<const mesh::Mesh>> cache;
+    std::lock_guard lock(mutex);
+    if (auto it = cache.find(name); it != cache.end()) return it->second;
+    std::shared_ptr<const mesh::Mesh> m;
+    if (name == "sphere") m = std::make_shared<mesh::Mesh>(mesh::make_sphere(5));
+    else if (name == "cube") m = std::make_shared<mesh::Mesh>(mesh::make_cube());
+    else if (name == "torus") m = std::make_shared<mesh::Mesh>(mesh::make_torus());
+    else return nullptr;
+    cache.emplace(name, m);
+    return m;
+}
+
+}  // namespace
+
+std::shared_ptr<const mesh::Mesh> base_mesh(const protocol::SceneDocument& document, const MeshLookup& uploads) {
+    const auto& object = document.object;
+    if (object.index_field == protocol::IndexFieldKind::luneburg ||
+        object.index_field == protocol::IndexFieldKind::maxwell)
+        return builtin("sphere");
+    if (object.mesh.rfind("upload:", 0) == 0) return uploads ? uploads(object.mesh.substr(7)) : nullptr;
+    return builtin(object.mesh);
+}
+
+mesh::Mesh world_mesh(const protocol::SceneDocument& document, const mesh::Mesh& base) {
+    const auto& object = document.object;
+    return mesh::transformed(base, static_cast<float>(object.scale), vec(object.rotation_deg), vec(object.position));
+}
+
+}  // namespace refract::scene
