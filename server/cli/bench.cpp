@@ -9,7 +9,9 @@
 #include <stdexcept>
 #include <thread>
 
+#include <httplib.h>
 #include <nlohmann/json.hpp>
+#include <unistd.h>
 
 #include "cli/commands.h"
 #include "image/png.h"
@@ -107,9 +109,67 @@ mesh::Mesh world_of(const protocol::SceneDocument& d, const std::map<std::string
     return scene::world_mesh(d, *base);
 }
 
+// Sum of the durations in a Server-Timing header ("voxelize;dur=1.2, view;dur=3.4").
+double server_timing_ms(const std::string& header) {
+    double sum = 0.0;
+    for (size_t at = header.find("dur="); at != std::string::npos; at = header.find("dur=", at + 4))
+        sum += std::strtod(header.c_str() + at + 4, nullptr);
+    return sum;
+}
+
+// The daemon end to end: HTTP round trips of an edit + frame (POST frame.png) against the pass times
+// the daemon reports for the same frames. The difference is the service's overhead.
+int bench_daemon(const std::string& address, int runs, bool as_json) {
+    const auto colon = address.rfind(':');
+    if (colon == std::string::npos) throw std::runtime_error("--daemon takes HOST:PORT");
+    httplib::Client client(address.substr(0, colon), std::stoi(address.substr(colon + 1)));
+    client.set_read_timeout(600, 0);
+    const std::string id = "bench-" + std::to_string(::getpid());
+    const json scene = {{"image", {{"width", 256}, {"height", 256}}}, {"photons", {{"count", 1 << 16}}},
+                        {"volume", {{"resolution", 128}}}};
+    auto created = client.Post(("/api/scenes?id=" + id).c_str(), scene.dump(), "application/json");
+    if (!created || created->status != 201)
+        throw std::runtime_error("bench: cannot create a scene on " + address +
+                                 (created ? ": " + created->body : ": no answer (is refractd running?)"));
+    auto frame = [&](const json& patch, double& round_trip, double& passes) {
+        const auto start = Clock::now();
+        auto res = client.Post(("/api/scenes/" + id + "/frame.png").c_str(), patch.dump(), "application/merge-patch+json");
+        round_trip = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+        if (!res || res->status != 200) throw std::runtime_error("bench: frame failed" + (res ? ": " + res->body : std::string()));
+        passes = server_timing_ms(res->get_header_value("Server-Timing"));
+    };
+    double warm_trip = 0.0, warm_passes = 0.0;
+    frame(json::object(), warm_trip, warm_passes);  // builds everything once
+    json report = {{"daemon", address}, {"runs", runs}, {"edits", json::object()}};
+    for (const std::string edit : {"camera", "light"}) {
+        std::vector<double> trips, passes, overheads;
+        for (int r = 0; r < runs; ++r) {
+            const double x = 0.3 * ((r % 2) ? 1.0 : -1.0);
+            const json patch = edit == "camera" ? json{{"camera", {{"position", {x, 0.5, 5.0}}}}}
+                                                : json{{"light", {{"position", {2.0 + x, 3.0, 1.0}}}}};
+            double trip = 0.0, pass = 0.0;
+            frame(patch, trip, pass);
+            trips.push_back(trip);
+            passes.push_back(pass);
+            overheads.push_back(trip - pass);
+        }
+        const Summary t = summarize(trips), p = summarize(passes), o = summarize(overheads);
+        report["edits"][edit] = {{"round_trip_ms", t.median}, {"passes_ms", p.median}, {"overhead_ms", o.median},
+                                 {"overhead_percent", 100.0 * o.median / t.median}};
+        if (!as_json)
+            std::printf("daemon %-6s edit + frame: round trip %.1f ms (%.1f-%.1f), passes + encode %.1f ms, "
+                        "service overhead %.1f ms (%.1f%%)\n",
+                        edit.c_str(), t.median, t.min, t.max, p.median, o.median, 100.0 * o.median / t.median);
+    }
+    client.Delete(("/api/scenes/" + id).c_str());
+    if (as_json) std::cout << report.dump(2) << "\n";
+    return 0;
+}
+
 }  // namespace
 
 int bench_command(const Arguments& args) {
+    if (!args.daemon.empty()) return bench_daemon(args.daemon, args.runs > 0 ? args.runs : 5, args.json);
     vk::ContextOptions options;
     options.device_name = args.device;
     vk::Context context(vk::options_from_environment(options));

@@ -9,7 +9,7 @@ namespace refract::cli {
 struct Arguments {
     std::vector<std::string> positional;
     std::vector<std::pair<std::string, std::string>> meshes;  // --mesh NAME=FILE.obj
-    std::string out, hdr, stats, device, scene_file, suite;
+    std::string out, hdr, stats, device, scene_file, suite, daemon;
     bool json = false;
     int runs = 0;
 };

@@ -19,6 +19,8 @@ Commands:
          [--hdr FRAME.pfm] [--stats STATS.json]
   bench [--scene FILE | --suite standard] [--runs N] [--json]
                                           per-pass GPU milliseconds (timestamp queries) for fixed scenes
+  bench --daemon HOST:PORT [--runs N]     a running refractd end to end: edit + frame round trips
+                                          against the pass times it reports (service overhead)
   help                                    this text
 
 Options for every command:
