@@ -16,6 +16,18 @@ layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) readonly buffer AccumFlo
 layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform writeonly image3D radiance;
 layout(binding = TRANSPORT_BINDING_DIRECTION, rgba16f) uniform writeonly image3D direction;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D floor_map;
+layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) writeonly buffer LitBlocks { uint lit_blocks[]; };
+
+// A lit voxel marks every block its trilinear footprint (the voxel and its neighbours) touches. All
+// writers store the same value, so plain stores need no atomics.
+void mark_lit(ivec3 v, uvec3 dims) {
+    uvec3 blocks = (dims + LIT_BLOCK - 1u) / LIT_BLOCK;
+    ivec3 lo = max(v - 1, ivec3(0)) / LIT_BLOCK;
+    ivec3 hi = min(v + 1, ivec3(dims) - 1) / LIT_BLOCK;
+    for (int z = lo.z; z <= hi.z; ++z)
+        for (int y = lo.y; y <= hi.y; ++y)
+            for (int x = lo.x; x <= hi.x; ++x) lit_blocks[(uint(z) * blocks.y + uint(y)) * blocks.x + uint(x)] = 1u;
+}
 
 void main() {
     uint i = linear_invocation();
@@ -41,6 +53,7 @@ void main() {
         float len = length(dir_sum);
         vec4 dir = len > 0.0 ? vec4(dir_sum / len, min(len / max(total, 1.0), 1.0)) : vec4(0.0);
         imageStore(radiance, v, vec4(fluence, 0.0));
+        if (max(fluence.r, max(fluence.g, fluence.b)) > 0.0) mark_lit(v, dims);
         imageStore(direction, v, dir);
         return;
     }

@@ -14,6 +14,13 @@ layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
 layout(std430, binding = TRANSPORT_BINDING_HDR) writeonly buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LDR) writeonly buffer Ldr { uint ldr[]; };
 layout(std430, binding = TRANSPORT_BINDING_STATS) buffer Stats { PhotonStats stats; };
+layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
+
+bool block_lit(vec3 p) {
+    uvec3 blocks = (params.grid_dims.xyz + LIT_BLOCK - 1u) / LIT_BLOCK;
+    uvec3 b = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / LIT_BLOCK;
+    return lit_blocks[(b.z * blocks.y + b.y) * blocks.x + b.x] != 0u;
+}
 
 const float kPi = 3.14159265358979;
 
@@ -83,7 +90,13 @@ void main() {
             vec3 kappa = extinction_at(coverage_for(params.flags.y, ray.p, n)) * h;
             bool scatters = max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0;
             uint level = octree_level(ray.p);
-            float ds = scatters ? view_step : safe_step(level, ray.p, ray.d, view_step);
+            // Unlit fog where n is constant: nothing to gather, cross the whole block at once.
+            if (scatters && level > 0u && !block_lit(ray.p)) scatters = false;
+            float ds = scatters ? view_step
+                                : min(safe_step(level, ray.p, ray.d, view_step),
+                                      level > 0u && max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0
+                                          ? max(cell_exit(ray.p, ray.d, float(LIT_BLOCK)) + params.stepping.y, view_step)
+                                          : 1e30);
             float to_exit = grid_interval(ray.p, ray.d).y;
             bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
             float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;

@@ -7,8 +7,9 @@
 
 namespace refract::passes {
 
-PhotonAccumulators make_photon_accumulators(vk::Context& context, uint64_t voxels, uint32_t floor_texels,
+PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, uint32_t floor_texels,
                                             uint32_t exit_count) {
+    const uint64_t voxels = dims.count();
     const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     PhotonAccumulators accum;
     const char* names[3] = {"radiance sums red+green", "radiance sums blue+direction x", "direction sums y+z"};
@@ -17,6 +18,9 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, uint64_t voxel
     accum.floor = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * 3 * sizeof(uint32_t), usage,
                              vk::MemoryUse::device, "floor flux sum");
     accum.stats = vk::Buffer(context, sizeof(shaders::PhotonStats), usage, vk::MemoryUse::readback, "photon stats");
+    const uint64_t blocks = uint64_t{(dims.x + LIT_BLOCK - 1) / LIT_BLOCK} * ((dims.y + LIT_BLOCK - 1) / LIT_BLOCK) *
+                            ((dims.z + LIT_BLOCK - 1) / LIT_BLOCK);
+    accum.lit_blocks = vk::Buffer(context, blocks * sizeof(uint32_t), usage, vk::MemoryUse::device, "lit blocks");
     accum.exits = vk::Buffer(context, uint64_t{std::max(exit_count, 1u)} * sizeof(shaders::PhotonExit), usage,
                              vk::MemoryUse::readback, "photon exits");
     return accum;

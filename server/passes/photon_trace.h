@@ -15,9 +15,10 @@ struct PhotonAccumulators {
     vk::Buffer floor;                 // 3 uints per floor texel
     vk::Buffer stats;                 // PhotonStats (host-readable)
     vk::Buffer exits;                 // PhotonExit per photon when recorded (tests), else one entry
+    vk::Buffer lit_blocks;            // uint per LIT_BLOCK^3 block, written by the resolve
 };
 
-PhotonAccumulators make_photon_accumulators(vk::Context& context, uint64_t voxels, uint32_t floor_texels,
+PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, uint32_t floor_texels,
                                             uint32_t exit_count);
 
 // Inputs shared by the photon and viewing passes.

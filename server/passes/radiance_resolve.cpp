@@ -14,7 +14,8 @@ RadianceResolvePass::RadianceResolvePass(vk::Context& context)
                  {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
                  {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
                  {TRANSPORT_BINDING_DIRECTION, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
-                 {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE}},
+                 {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+                 {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
                 0, "radiance resolve") {}
 
 void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer& params,
@@ -22,6 +23,8 @@ void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer
                                  const vk::Image3D& direction, const vk::Image3D& floor_map) const {
     const uint64_t items = radiance.extent().count() + uint64_t{floor_map.extent().x} * floor_map.extent().y;
     const auto groups = vk::linear_groups(items, TRANSPORT_GROUP_SIZE);
+    recorder.fill(accum.lit_blocks, 0);
+    recorder.transfer_to_compute_barrier();
     pipeline_.dispatch(recorder.get(),
                        {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.voxel[0]),
@@ -30,7 +33,8 @@ void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
                         vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
                         vk::Binding::storage_image(TRANSPORT_BINDING_DIRECTION, direction),
-                        vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map)},
+                        vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, accum.lit_blocks)},
                        nullptr, 0, groups.x, groups.y);
 }
 

@@ -18,7 +18,8 @@ ViewPass::ViewPass(vk::Context& context)
                  {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
                  {TRANSPORT_BINDING_HDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
                  {TRANSPORT_BINDING_LDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
+                 {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                 {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
                 0, "view") {}
 
 void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, const vk::Image3D& radiance,
@@ -37,7 +38,8 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
                         vk::Binding::sampled_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map, in.sampler),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, out.hdr),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_LDR, out.ldr),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats)},
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats),
+                        vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, out.lit_blocks)},
                        nullptr, 0, vk::group_count(width, VIEW_GROUP_SIZE), vk::group_count(height, VIEW_GROUP_SIZE));
 }
 

@@ -10,6 +10,7 @@ struct ViewOutputs {
     const vk::Buffer& hdr;  // vec4 per pixel
     const vk::Buffer& ldr;  // RGBA8 per pixel
     const vk::Buffer& stats;  // PhotonStats; the view pass counts view_steps
+    const vk::Buffer& lit_blocks;
 };
 
 class ViewPass {

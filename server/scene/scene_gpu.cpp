@@ -60,7 +60,7 @@ void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits) {
     const uint32_t exits = record_exits ? photon_count : 1u;
     if (accum_ && floor_texels == floor_texels_ && exits == exit_capacity_) return;
     accum_.reset();
-    accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims.count(), floor_texels, exits));
+    accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, floor_texels, exits));
     exit_capacity_ = exits;
     if (!radiance_.get()) {
         radiance_ = vk::Image3D(ctx, grid_.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "radiance grid");
@@ -190,7 +190,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     }
     if (stale & kView) {
         timer_.begin(cmd, "view");
-        kit_.view.record(recorder_, inputs, radiance_, direction_, floor_map_, {hdr_, ldr_, accum_->stats}, width_, height_);
+        kit_.view.record(recorder_, inputs, radiance_, direction_, floor_map_, {hdr_, ldr_, accum_->stats, accum_->lit_blocks}, width_, height_);
         timer_.end(cmd);
     }
     recorder_.to_host_barrier();

@@ -30,6 +30,11 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_HDR 15            // vec4 per pixel: linear radiance before exposure
 #define TRANSPORT_BINDING_LDR 16            // uint per pixel: tone-mapped sRGB RGBA8
 #define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when flags.x == 1
+#define TRANSPORT_BINDING_LIT_BLOCKS 18     // uint per LIT_BLOCK^3 voxels: 1 where any light arrives
+
+// Eye rays cross unlit fog in steps of whole blocks: a block is lit when photons reached any voxel
+// whose trilinear footprint overlaps it.
+#define LIT_BLOCK 4
 
 #define LIGHT_POINT 0u
 #define LIGHT_SPOT 1u
