@@ -58,6 +58,7 @@ int run(const http::DaemonConfig& config) {
                   context->validation_enabled()};
         scene::RendererOptions renderer_options;
         renderer_options.max_resident_scenes = config.max_scenes;
+        renderer_options.device_memory_budget = static_cast<int64_t>(config.max_device_memory);
         renderer = std::make_unique<scene::Renderer>(*context, renderer_options);
     } catch (const std::exception& e) {
         device.error = e.what();

@@ -104,10 +104,22 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         const mesh::Mesh world = mesh ? world_mesh(document, *mesh) : mesh::Mesh{};
         const GridGeometry g = grid ? GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : grid_for(document, world);
         const int64_t need = estimate_scene_bytes(g, document.image.width, document.image.height);
-        const int64_t held = it != impl_->scenes.end() ? impl_->context.allocated_bytes() : 0;
-        if (impl_->context.allocated_bytes() - held / 2 + need > budget)
-            throw RenderError("scene needs about " + std::to_string(need >> 20) + " MiB of device memory; budget is " +
-                              std::to_string(budget >> 20) + " MiB");
+        // This scene's old volume is released before the new one is made.
+        auto held_by = [](const Impl::Resident& r) {
+            return r.gpu->built() ? estimate_scene_bytes(r.gpu->grid(), r.gpu->width(), r.gpu->height()) : int64_t{0};
+        };
+        const int64_t replaced = it != impl_->scenes.end() ? held_by(it->second) : 0;
+        // Make room by dropping least recently used scenes (their documents live on in the store).
+        while (impl_->context.allocated_bytes() - replaced + need > budget) {
+            auto oldest = impl_->scenes.end();
+            for (auto s = impl_->scenes.begin(); s != impl_->scenes.end(); ++s)
+                if (s->first != scene_id && (oldest == impl_->scenes.end() || s->second.last_used < oldest->second.last_used))
+                    oldest = s;
+            if (oldest == impl_->scenes.end())
+                throw RenderError("scene needs about " + std::to_string(need >> 20) +
+                                  " MiB of device memory; the budget is " + std::to_string(budget >> 20) + " MiB");
+            impl_->scenes.erase(oldest);
+        }
     }
     if (it == impl_->scenes.end()) {
         Impl::Resident resident;

@@ -1,0 +1,110 @@
+// The renderer's bookkeeping: which passes an edit invalidates, reuse of resident state, eviction
+// under the memory budget, and unrenderable scenes leaving others untouched.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "scene/passes.h"
+#include "scene/renderer.h"
+#include "vk/context.h"
+
+namespace refract {
+namespace {
+
+using nlohmann::json;
+using protocol::SceneDocument;
+using namespace scene;
+
+// Small scenes: the point here is bookkeeping, not pictures.
+SceneDocument small(const json& patch = json::object()) {
+    json base = {{"image", {{"width", 32}, {"height", 32}}},
+                 {"volume", {{"resolution", 32}}},
+                 {"photons", {{"count", 1024}}}};
+    base.merge_patch(patch);
+    return protocol::parse_scene(base);
+}
+
+TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
+    const SceneDocument before = small();
+    const struct {
+        const char* what;
+        json patch;
+        PassSet expected;
+    } cases[] = {
+        {"camera", {{"camera", {{"position", {1, 1, 4}}}}}, kView},
+        {"image size", {{"image", {{"width", 64}}}}, kView},
+        {"exposure", {{"image", {{"exposure", 1.0}}}}, kView},
+        {"object scattering", {{"object", {{"scattering", {0.01, 0.01, 0.01}}}}}, kView},
+        {"phase", {{"medium", {{"phase", {{"model", "isotropic"}, {"g", 0.0}}}}}}, kView},
+        {"floor look", {{"floor", {{"albedo", {0.5, 0.5, 0.5}}}}}, kView},
+        {"light", {{"light", {{"position", {-2, 3, 1}}}}}, kPhotons | kView},
+        {"photon count", {{"photons", {{"count", 2048}}}}, kPhotons | kView},
+        {"extinction", {{"object", {{"extinction", {0.5, 0.5, 0.5}}}}}, kPhotons | kView},
+        {"floor height", {{"floor", {{"height", -1.2}}}}, kPhotons | kView},
+        {"octree epsilon", {{"volume", {{"octree_epsilon", 0.01}}}}, kOctree | kPhotons | kView},
+        {"ior", {{"object", {{"ior", 1.33}}}}, kIndexField | kOctree | kPhotons | kView},
+        {"index field kind", {{"object", {{"index_field", "luneburg"}}}}, kIndexField | kOctree | kPhotons | kView},
+        {"mesh", {{"object", {{"mesh", "torus"}}}}, kAllPasses},
+        {"object position", {{"object", {{"position", {0.1, 0, 0}}}}}, kAllPasses},
+        {"resolution", {{"volume", {{"resolution", 48}}}}, kAllPasses},
+        {"smoothing", {{"volume", {{"smoothing", 1.0}}}}, kAllPasses},
+        {"nothing", json::object(), 0},
+    };
+    for (const auto& c : cases) {
+        const SceneDocument after = protocol::apply_merge_patch(before, c.patch);
+        EXPECT_EQ(pass_names(passes_invalidated(before, after)), pass_names(c.expected)) << c.what;
+    }
+}
+
+class RendererTest : public ::testing::Test {
+protected:
+    void SetUp() override { context = std::make_unique<vk::Context>(vk::options_from_environment({})); }
+    void TearDown() override { EXPECT_EQ(context->validation_error_count(), 0u) << context->last_validation_message(); }
+    std::unique_ptr<vk::Context> context;
+    Assets no_assets;
+};
+
+TEST_F(RendererTest, ResidentStateIsReusedAndOnlyStalePassesRun) {
+    Renderer renderer(*context);
+    const SceneDocument doc = small();
+    EXPECT_EQ(renderer.render("a", doc, no_assets).rerun, kAllPasses);
+    const auto camera = protocol::apply_merge_patch(doc, {{"camera", {{"position", {1, 1, 4}}}}});
+    const FrameResult moved = renderer.render("a", camera, no_assets);
+    EXPECT_EQ(moved.rerun, kView);
+    ASSERT_EQ(moved.timings.size(), 2u);  // view and encode
+    EXPECT_EQ(moved.timings[0].name, "view");
+    const auto light = protocol::apply_merge_patch(camera, {{"light", {{"intensity", 5.0}}}});
+    EXPECT_EQ(renderer.render("a", light, no_assets).rerun, kPhotons | kView);
+    EXPECT_FALSE(renderer.render("a", light, no_assets).png.empty());
+}
+
+TEST_F(RendererTest, MemoryBudgetDropsTheLeastRecentlyUsedScene) {
+    const SceneDocument doc = small();
+    RendererOptions options;
+    // Room for one 32^3 scene (a few MiB) but not two.
+    options.device_memory_budget = context->allocated_bytes() + 6 * (1 << 20);
+    Renderer renderer(*context, options);
+    renderer.render("first", doc, no_assets);
+    EXPECT_EQ(renderer.resident_scenes(), 1u);
+    renderer.render("second", doc, no_assets);
+    EXPECT_EQ(renderer.resident_scenes(), 1u);
+    // "first" was dropped: rendering it again rebuilds everything.
+    EXPECT_EQ(renderer.render("first", doc, no_assets).rerun, kAllPasses);
+    // A scene that cannot fit even alone is refused with a reason.
+    const auto huge = protocol::apply_merge_patch(doc, {{"volume", {{"resolution", 256}}}});
+    EXPECT_THROW(renderer.render("huge", huge, no_assets), RenderError);
+}
+
+TEST_F(RendererTest, UnrenderableSceneLeavesOtherScenesResident) {
+    Renderer renderer(*context);
+    const SceneDocument doc = small();
+    renderer.render("good", doc, no_assets);
+    const auto missing = protocol::apply_merge_patch(doc, {{"object", {{"mesh", "upload:nowhere"}}}});
+    EXPECT_THROW(renderer.render("good", missing, no_assets), RenderError);
+    EXPECT_EQ(renderer.resident_scenes(), 1u);
+    // The resident state is still the good scene's: an unchanged document reruns nothing.
+    EXPECT_EQ(renderer.render("good", doc, no_assets).rerun, 0u);
+}
+
+}  // namespace
+}  // namespace refract
