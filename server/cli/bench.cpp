@@ -14,12 +14,18 @@
 #include <unistd.h>
 
 #include "cli/commands.h"
+#include "deposit_bench.h"
+#include "deposit_bench_float_spv.h"
+#include "deposit_bench_packed_spv.h"
 #include "image/png.h"
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
 #include "scene/object_mesh.h"
 #include "scene/scene_gpu.h"
+#include "vk/commands.h"
 #include "vk/context.h"
+#include "vk/gpu_timer.h"
+#include "vk/pipeline.h"
 
 namespace refract::cli {
 namespace {
@@ -107,6 +113,44 @@ mesh::Mesh world_of(const protocol::SceneDocument& d, const std::map<std::string
     });
     if (!base) throw std::runtime_error("bench: unknown mesh " + d.object.mesh);
     return scene::world_mesh(d, *base);
+}
+
+// Radiance-grid deposits per second as three packed 64-bit integer atomics (the photon pass's way)
+// and as six float atomics, on the same addresses: the measurement behind the choice of integers.
+json deposit_benchmark(vk::Context& context, int runs) {
+    using shaders::DepositBenchPush;
+    const uint32_t voxels = 128 * 128 * 128, threads = 1u << 16, per_thread = 128;
+    const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    vk::Buffer packed(context, uint64_t{voxels} * 3 * sizeof(uint64_t), usage, vk::MemoryUse::device, "bench packed");
+    vk::Buffer floats(context, uint64_t{voxels} * 6 * sizeof(float), usage, vk::MemoryUse::device, "bench floats");
+    json result = {{"deposits", uint64_t{threads} * per_thread}};
+    auto measure = [&](std::span<const uint32_t> spirv, uint32_t binding, const vk::Buffer& buffer, const char* name) {
+        vk::ComputePipeline pipeline(context, spirv, {{binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
+                                     sizeof(DepositBenchPush), name);
+        vk::GpuTimer timer(context, 2);
+        std::vector<double> ms;
+        for (int r = 0; r < runs + 1; ++r) {
+            vk::run_once(context, [&](vk::CommandRecorder& rec) {
+                timer.reset(rec.get());
+                rec.fill(buffer, 0);
+                rec.transfer_to_compute_barrier();
+                timer.begin(rec.get(), name);
+                pipeline.dispatch(rec.get(), {vk::Binding::storage_buffer(binding, buffer)},
+                                  DepositBenchPush{voxels, per_thread, threads, 0},
+                                  vk::group_count(threads, DEPOSIT_BENCH_GROUP_SIZE));
+                timer.end(rec.get());
+            });
+            if (r > 0) ms.push_back(timer.read()[0].second);  // the first run warms up
+        }
+        const double median = summarize(ms).median;
+        result[name] = {{"median_ms", median}, {"deposits_per_s", static_cast<double>(threads) * per_thread / (median * 1e-3)}};
+    };
+    measure(deposit_bench_packed_spv, DEPOSIT_BENCH_BINDING_PACKED, packed, "packed_int64");
+    if (context.float_atomics())
+        measure(deposit_bench_float_spv, DEPOSIT_BENCH_BINDING_FLOATS, floats, "float32");
+    else
+        result["float32"] = "VK_EXT_shader_atomic_float buffer add not supported";
+    return result;
 }
 
 // Sum of the durations in a Server-Timing header ("voxelize;dur=1.2, view;dur=3.4").
@@ -203,6 +247,20 @@ int bench_command(const Arguments& args) {
         std::printf("device: %s (%s %s), %u CPU cores, median of %d runs (min-max)\n", context.info().name.c_str(),
                     context.info().driver_name.c_str(), context.info().driver_info.c_str(),
                     std::thread::hardware_concurrency(), runs);
+    if (args.scene_file.empty()) {
+        const json deposits = deposit_benchmark(context, runs);
+        report["deposit_microbenchmark"] = deposits;
+        if (!args.json) {
+            std::printf("deposits (2^23 scattered voxel deposits of six sums): packed int64 atomics %.1f ms (%.1f M/s)",
+                        deposits["packed_int64"]["median_ms"].get<double>(),
+                        deposits["packed_int64"]["deposits_per_s"].get<double>() * 1e-6);
+            if (deposits["float32"].is_object())
+                std::printf(", float atomics %.1f ms (%.1f M/s)\n", deposits["float32"]["median_ms"].get<double>(),
+                            deposits["float32"]["deposits_per_s"].get<double>() * 1e-6);
+            else
+                std::printf(", float atomics: %s\n", deposits["float32"].get<std::string>().c_str());
+        }
+    }
     for (const auto& c : cases) {
         const auto document = protocol::parse_scene(c.scene);
         const mesh::Mesh world = world_of(document, uploads);

@@ -238,8 +238,31 @@ Context::Context(const ContextOptions& options) {
         queue_info.queueFamilyIndex = queue_family_;
         queue_info.queueCount = 1;
         queue_info.pQueuePriorities = &priority;
-        const char* extensions[] = {VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME};
+        std::vector<const char*> extensions = {VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME};
+        // Float atomics are optional: only `refract bench` uses them, to compare with integer deposits.
+        VkPhysicalDeviceShaderAtomicFloatFeaturesEXT float_atomics{
+            VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_FLOAT_FEATURES_EXT};
+        {
+            uint32_t extension_count = 0;
+            REFRACT_VK_CHECK(vkEnumerateDeviceExtensionProperties(physical_device_, nullptr, &extension_count, nullptr));
+            std::vector<VkExtensionProperties> available(extension_count);
+            REFRACT_VK_CHECK(
+                vkEnumerateDeviceExtensionProperties(physical_device_, nullptr, &extension_count, available.data()));
+            const bool has = std::any_of(available.begin(), available.end(), [](const auto& e) {
+                return std::strcmp(e.extensionName, VK_EXT_SHADER_ATOMIC_FLOAT_EXTENSION_NAME) == 0;
+            });
+            if (has) {
+                VkPhysicalDeviceFeatures2 query{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+                query.pNext = &float_atomics;
+                vkGetPhysicalDeviceFeatures2(physical_device_, &query);
+                float_atomics_ = float_atomics.shaderBufferFloat32AtomicAdd == VK_TRUE;
+            }
+            float_atomics = {VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_FLOAT_FEATURES_EXT};
+            float_atomics.shaderBufferFloat32AtomicAdd = float_atomics_ ? VK_TRUE : VK_FALSE;
+            if (float_atomics_) extensions.push_back(VK_EXT_SHADER_ATOMIC_FLOAT_EXTENSION_NAME);
+        }
         VkPhysicalDeviceVulkan12Features features12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+        features12.pNext = float_atomics_ ? &float_atomics : nullptr;
         features12.shaderBufferInt64Atomics = VK_TRUE;
         VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
         features.pNext = &features12;
@@ -248,8 +271,8 @@ Context::Context(const ContextOptions& options) {
         device_info.pNext = &features;
         device_info.queueCreateInfoCount = 1;
         device_info.pQueueCreateInfos = &queue_info;
-        device_info.enabledExtensionCount = 1;
-        device_info.ppEnabledExtensionNames = extensions;
+        device_info.enabledExtensionCount = static_cast<uint32_t>(extensions.size());
+        device_info.ppEnabledExtensionNames = extensions.data();
         REFRACT_VK_CHECK(vkCreateDevice(physical_device_, &device_info, nullptr, &device_));
         vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
         push_descriptor_set = reinterpret_cast<PFN_vkCmdPushDescriptorSetKHR>(

@@ -56,6 +56,8 @@ public:
     const VkPhysicalDeviceLimits& limits() const { return properties_.limits; }
     double timestamp_period_ns() const { return properties_.limits.timestampPeriod; }
     bool is_cpu_device() const { return properties_.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU; }
+    // VK_EXT_shader_atomic_float's buffer float add is enabled (optional; only the deposit benchmark uses it).
+    bool float_atomics() const { return float_atomics_; }
 
     // Allocates memory of a type allowed by `type_bits` with all of `required` flags; throws when none fits.
     UniqueMemory allocate(const VkMemoryRequirements& requirements, VkMemoryPropertyFlags required,
@@ -97,6 +99,7 @@ private:
     VkPhysicalDeviceProperties properties_{};
     VkPhysicalDeviceMemoryProperties memory_properties_{};
     PFN_vkSetDebugUtilsObjectNameEXT set_object_name_ = nullptr;
+    bool float_atomics_ = false;
     std::atomic<int64_t> allocated_bytes_{0};
     std::atomic<size_t> validation_errors_{0};
     mutable std::mutex message_mutex_;
