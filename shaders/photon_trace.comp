@@ -143,6 +143,8 @@ void main() {
     if (!emit(i, origin, direction)) return;
     rng_state = hash(i ^ hash(params.photon_info.y));
     vec3 weight = params.photon_flux.rgb / params.photon_flux.w;  // relative to the reference flux
+    // The dispersion hook: a photon for one wavelength band carries only its channel.
+    if (params.models.w != CHANNEL_ALL) weight *= vec3(equal(uvec3(0u, 1u, 2u), uvec3(params.models.w)));
 
     vec3 p = to_voxel(origin);
     vec2 span = grid_interval(p, direction);
