@@ -92,7 +92,9 @@ void main() {
             uint level = octree_level(ray.p);
             // Unlit fog where n is constant: nothing to gather, cross the whole block at once.
             if (scatters && level > 0u && !block_lit(ray.p)) scatters = false;
-            float ds = scatters ? view_step
+            // Refracting shells (octree level 0) take the photons' shell step, for the same refraction;
+            // homogeneous fog takes the view step, which only samples the in-scattering.
+            float ds = scatters ? (level == 0u ? params.stepping.x : view_step)
                                 : min(safe_step(level, ray.p, ray.d, view_step),
                                       level > 0u && max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0
                                           ? max(cell_exit(ray.p, ray.d, float(LIT_BLOCK)) + params.stepping.y, view_step)
