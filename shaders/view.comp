@@ -103,6 +103,7 @@ void main() {
             bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
             float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
             float len = min(ds, min(to_exit, to_floor));
+            vec3 attenuation = exp(-kappa * len);
             if (scatters) {
                 vec3 q = (ray.p + 0.5 * len * ray.d) / grid_dims();
                 vec3 fluence = textureLod(radiance, q, 0.0).rgb;
@@ -115,10 +116,11 @@ void main() {
                 float coherence = clamp(light_dir.w, 0.0, 1.0);
                 float cos_theta = dot(light_dir.xyz / max(length(light_dir.xyz), 1e-6), -ray.d);
                 float phase = mix(phase_isotropic(), phase_value(model, cos_theta, g), coherence);
-                vec3 path = mix(vec3(len), (1.0 - exp(-kappa * len)) / kappa, greaterThan(kappa, vec3(1e-7)));
+                // The step's transmittance-weighted length: integral of exp(-kappa t) over the step.
+                vec3 path = mix(vec3(len), (1.0 - attenuation) / kappa, greaterThan(kappa, vec3(1e-7)));
                 radiance_sum += transmittance * sigma_s * phase * fluence * path;
             }
-            transmittance *= exp(-kappa * len);
+            transmittance *= attenuation;
             if (to_floor <= min(ds, to_exit)) {
                 ray.p += ray.d * to_floor;
                 on_floor = true;
