@@ -172,6 +172,21 @@ TEST_F(VkContextTest, AbsurdRequestsAreErrorsNotCrashes) {
     recorder.submit_and_wait();
 }
 
+TEST(LinearGroups, FoldPastTheDispatchLimitIntoBalancedRows) {
+    // Within the limit: one row, exactly enough groups.
+    EXPECT_EQ(vk::linear_groups(1000, 64).x, 16u);
+    EXPECT_EQ(vk::linear_groups(1000, 64).y, 1u);
+    EXPECT_EQ(vk::linear_groups(0, 64).x, 1u);
+    // Past it: rows of equal length covering every group, none longer than 65535.
+    for (uint64_t groups : {65536ull, 131071ull, 262144ull, 2097152ull}) {
+        const auto g = vk::linear_groups(groups * 64, 64);
+        EXPECT_LE(g.x, 65535u);
+        EXPECT_GE(uint64_t{g.x} * g.y, groups);
+        EXPECT_LT(uint64_t{g.x} * (g.y - 1), groups) << "a whole row would be idle";
+    }
+    EXPECT_EQ(vk::linear_groups(65536ull * 64, 64).x, 32768u);
+}
+
 TEST(VkValidation, ValidationLayerReportsMisuseAsCountedError) {
     // Misuse the API directly (a buffer with no usage flags): the validation layer must report it
     // through our messenger, which counts it instead of crashing.

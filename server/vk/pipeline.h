@@ -2,6 +2,7 @@
 // record time, so there are no descriptor pools or sets to own.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <initializer_list>
 #include <span>
@@ -68,15 +69,17 @@ private:
 constexpr uint32_t group_count(uint32_t items, uint32_t group_size) { return (items + group_size - 1) / group_size; }
 
 // Groups (x, y) covering `items` in 1D work with groups of `group_size`, folded into a second
-// dimension past the 65535-group limit (shaders recover the index with linear_invocation()).
+// dimension past the 65535-group limit (shaders recover the index with linear_invocation()). Rows
+// are balanced: lavapipe ran a fold of 65535 + 1 groups on one thread (2^22 photons: 53 s against
+// 26 s balanced).
 struct LinearGroups {
     uint32_t x = 1, y = 1;
 };
 constexpr LinearGroups linear_groups(uint64_t items, uint32_t group_size) {
-    const uint64_t groups = (items + group_size - 1) / group_size;
+    const uint64_t groups = std::max<uint64_t>((items + group_size - 1) / group_size, 1);
     constexpr uint64_t max_x = 65535;
-    if (groups <= max_x) return {static_cast<uint32_t>(groups == 0 ? 1 : groups), 1};
-    return {static_cast<uint32_t>(max_x), static_cast<uint32_t>((groups + max_x - 1) / max_x)};
+    const uint64_t rows = (groups + max_x - 1) / max_x;
+    return {static_cast<uint32_t>((groups + rows - 1) / rows), static_cast<uint32_t>(rows)};
 }
 
 }  // namespace refract::vk
