@@ -148,6 +148,19 @@ TEST_F(VkContextTest, TimestampQueriesMeasureNonZeroDurations) {
     EXPECT_LT(scopes[0].second, 60'000.0);
 }
 
+TEST_F(VkContextTest, EveryResourceReturnsItsMemory) {
+    const int64_t before = context->allocated_bytes();
+    {
+        vk::Buffer buffer(*context, 1 << 20, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::device, "counted");
+        vk::Image3D image(*context, {16, 16, 16}, VK_FORMAT_R32G32B32A32_SFLOAT, "counted");
+        EXPECT_GE(context->allocated_bytes(), before + (1 << 20) + 16 * 16 * 16 * 16);
+        vk::Buffer moved = std::move(buffer);  // a move transfers ownership, it does not double-count
+        vk::Image3D moved_image = std::move(image);
+        EXPECT_GE(context->allocated_bytes(), before + (1 << 20) + 16 * 16 * 16 * 16);
+    }
+    EXPECT_EQ(context->allocated_bytes(), before);
+}
+
 TEST_F(VkContextTest, AbsurdRequestsAreErrorsNotCrashes) {
     const uint32_t too_big = context->limits().maxImageDimension3D + 1;
     EXPECT_THROW(vk::Image3D(*context, {too_big, 1, 1}, VK_FORMAT_R32_SFLOAT, "too big"), vk::Error);

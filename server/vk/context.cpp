@@ -1,6 +1,7 @@
 #include "vk/context.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <sstream>
@@ -298,6 +299,11 @@ Context::Context(const ContextOptions& options) {
 
 Context::~Context() {
     fence_.reset();
+    // Every resource returns its memory to this count when destroyed: anything left is a resource
+    // that outlived its context (a destructor cannot throw, so say it loudly instead).
+    if (const int64_t leaked = allocated_bytes_.load(); leaked != 0)
+        std::fprintf(stderr, "refract: %lld bytes of device memory still allocated when the Vulkan context was destroyed\n",
+                     static_cast<long long>(leaked));
     if (device_) {
         vkDeviceWaitIdle(device_);
         vkDestroyDevice(device_, nullptr);
