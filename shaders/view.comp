@@ -86,7 +86,8 @@ void main() {
         float view_step = params.tone.y;
         for (; march_steps < 8192u; ++march_steps) {
             float n = ray.field.x;
-            vec3 sigma_s = scattering_at(coverage_for(params.flags.z, ray.p, n)) * h;
+            float scatter_coverage = coverage_for(params.flags.z, ray.p, n);
+            vec3 sigma_s = scattering_at(scatter_coverage) * h;
             vec3 kappa = extinction_at(coverage_for(params.flags.y, ray.p, n)) * h;
             bool scatters = max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0;
             uint level = octree_level(ray.p);
@@ -108,7 +109,7 @@ void main() {
                 vec3 q = (ray.p + 0.5 * len * ray.d) / grid_dims();
                 vec3 fluence = textureLod(radiance, q, 0.0).rgb;
                 vec4 light_dir = textureLod(light_direction, q, 0.0);
-                bool in_object = coverage_for(params.flags.z, ray.p, n) > 0.5;
+                bool in_object = scatter_coverage > 0.5;
                 uint model = in_object ? params.models.y : params.models.x;
                 float g = in_object ? params.object_scattering.w : params.medium_scattering.w;
                 // Where photons arrive from many directions the mean direction is short: blend towards

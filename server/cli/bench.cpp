@@ -298,7 +298,7 @@ int bench_command(const Arguments& args) {
             const double ms = summarize(pass_ms["photons"]).median;
             entry["photons_per_s"] = static_cast<double>(last.photons_entered) / (ms * 1e-3);
             entry["photon_steps_per_s"] = static_cast<double>(last.photon_steps) / (ms * 1e-3);
-            entry["mean_steps_per_photon"] = static_cast<double>(last.photon_steps) / std::max(1.0, static_cast<double>(last.photons_entered));
+            entry["mean_steps_per_photon"] = last.mean_steps_per_photon();
         }
         if (pass_ms.count("view")) {
             const double ms = summarize(pass_ms["view"]).median;

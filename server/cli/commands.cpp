@@ -207,8 +207,7 @@ int trace_command(const Arguments& args) {
                     {"grid", grid_json(gpu.grid())},
                     {"photons_emitted", loaded.document.photons.count},
                     {"photons_traced", stats.photons_entered},
-                    {"mean_steps_per_photon", stats.photons_entered ? static_cast<double>(stats.photon_steps) /
-                                                                          static_cast<double>(stats.photons_entered) : 0.0},
+                    {"mean_steps_per_photon", stats.mean_steps_per_photon()},
                     {"floor_hits", stats.floor_hits},
                     {"peak_fluence_w_m2", sorted.back()},
                     {"gpu_ms", timings_json(stats.gpu_ms)}};
@@ -237,8 +236,7 @@ int render_command(const Arguments& args) {
                     {"width", gpu.width()},
                     {"height", gpu.height()},
                     {"photons_traced", stats.photons_entered},
-                    {"mean_steps_per_photon", stats.photons_entered ? static_cast<double>(stats.photon_steps) /
-                                                                          static_cast<double>(stats.photons_entered) : 0.0},
+                    {"mean_steps_per_photon", stats.mean_steps_per_photon()},
                     {"gpu_ms", timings_json(stats.gpu_ms)},
                     {"encode_ms", std::chrono::duration<double, std::milli>(end - encode_start).count()},
                     {"host_ms", std::chrono::duration<double, std::milli>(end - host_start).count()}};

@@ -98,10 +98,12 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         stale = passes_invalidated(it->second.document, document);
         if (it->second.mesh != mesh || it->second.grid != grid) stale |= kAllPasses;
     }
+    // The object in world space fits the grid; needed only when the volume is rebuilt.
+    const bool rebuild = (stale & kVoxelize) != 0;
+    const mesh::Mesh world = mesh && rebuild ? world_mesh(document, *mesh) : mesh::Mesh{};
     const int64_t budget = impl_->options.device_memory_budget;
-    if (budget > 0 && (stale & kVoxelize)) {
+    if (budget > 0 && rebuild) {
         // Estimate against the grid this document asks for before allocating anything.
-        const mesh::Mesh world = mesh ? world_mesh(document, *mesh) : mesh::Mesh{};
         const GridGeometry g = grid ? GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : grid_for(document, world);
         const int64_t need = estimate_scene_bytes(g, document.image.width, document.image.height);
         // This scene's old volume is released before the new one is made.
@@ -132,18 +134,13 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
 
     FrameResult frame;
     try {
-        // The grid is fitted to the object's world bounds, so the transformed mesh is needed every frame.
-        const mesh::Mesh world = mesh ? world_mesh(document, *mesh) : mesh::Mesh{};
         RunOptions run_options;
         run_options.view_step = quality == Quality::interactive ? 2.0f : 1.0f;
         const RunStats stats = resident.gpu->run(stale, document, world, grid.get(), run_options);
         frame.rerun = stale;
         for (const auto& [name, ms] : stats.gpu_ms) frame.timings.push_back({name, ms, 0.0});
-        if (stats.photons_entered || (stale & kPhotons)) {
-            frame.photons_traced = stats.photons_entered;
-            frame.mean_steps_per_photon =
-                stats.photons_entered ? static_cast<double>(stats.photon_steps) / static_cast<double>(stats.photons_entered) : 0.0;
-        }
+        frame.photons_traced = stats.photons_entered;
+        frame.mean_steps_per_photon = stats.mean_steps_per_photon();
         const auto encode_start = Clock::now();
         const auto pixels = resident.gpu->read_ldr();
         frame.png = image::encode_png(pixels, resident.gpu->width(), resident.gpu->height());

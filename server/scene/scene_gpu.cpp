@@ -89,14 +89,16 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                        const IndexGrid* grid_asset, const RunOptions& options) {
     using protocol::IndexFieldKind;
     const bool imported = document.object.index_field == IndexFieldKind::grid;
-    GridGeometry grid;
-    if (imported) {
+    // Only a rebuilt volume can move the grid: otherwise keep the resident one.
+    const bool rebuild = (stale & kVoxelize) || !(built_ & kVoxelize);
+    GridGeometry grid = grid_;
+    if (rebuild && imported) {
         if (!grid_asset) throw RenderError("the scene's index field grid is not loaded");
         const auto& b = grid_asset->bounds;
         grid.origin = glm::vec3(static_cast<float>(b.min[0]), static_cast<float>(b.min[1]), static_cast<float>(b.min[2]));
         grid.voxel_size = static_cast<float>((b.max[0] - b.min[0]) / grid_asset->nx);
         grid.dims = {grid_asset->nx, grid_asset->ny, grid_asset->nz};
-    } else {
+    } else if (rebuild) {
         grid = grid_for(document, object_world);
     }
     // Anything never built, or built for another grid, runs whatever it needs.
@@ -134,7 +136,9 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     // One submission for every stale pass; each pass is bracketed by timestamps.
     const VkCommandBuffer cmd = recorder_.begin();
     timer_.reset(cmd);
+    // Uploads the recorded commands read; they live until the submission completes.
     std::optional<passes::VoxelizeUploads> uploads;
+    vk::Buffer coverage_upload;
     const bool first_use = built_ == 0;
     if (first_use) {
         for (const vk::Image3D* image : {&index_field_, &coverage_image_}) recorder_.init_image(*image);
@@ -152,12 +156,10 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             const float span = std::max(n_max - static_cast<float>(document.medium.ior), 1e-6f);
             for (size_t i = 0; i < coverage.size(); ++i)
                 coverage[i] = std::clamp((grid_asset->n[i] - static_cast<float>(document.medium.ior)) / span, 0.0f, 1.0f);
-            vk::Buffer staging(kit_.context, coverage.size() * sizeof(float), VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                               vk::MemoryUse::upload, "coverage upload");
-            staging.write(coverage.data(), coverage.size() * sizeof(float));
-            recorder_.copy(staging, coverage_, coverage.size() * sizeof(float));
-            uploads.emplace();
-            uploads->triangles = std::move(staging);
+            coverage_upload = vk::Buffer(kit_.context, coverage.size() * sizeof(float), VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                                         vk::MemoryUse::upload, "coverage upload");
+            coverage_upload.write(coverage.data(), coverage.size() * sizeof(float));
+            recorder_.copy(coverage_upload, coverage_, coverage.size() * sizeof(float));
         } else {
             uploads = kit_.voxelize.record(recorder_, object_world, grid_, static_cast<float>(document.volume.smoothing),
                                            scratch_, coverage_);

@@ -45,6 +45,9 @@ struct RunStats {
     uint64_t photon_steps = 0;
     uint64_t floor_hits = 0;
     uint64_t view_steps = 0;  // eye-ray march steps, when the viewing pass ran
+    double mean_steps_per_photon() const {
+        return photons_entered ? static_cast<double>(photon_steps) / static_cast<double>(photons_entered) : 0.0;
+    }
 };
 
 struct RunOptions {
@@ -62,8 +65,10 @@ public:
     explicit SceneGpu(PassKit& kit);
 
     // Runs `stale` passes (plus whatever they depend on that was never built) for `document`.
-    // `object_world` is the object's mesh in world space (ignored for imported grids); `grid_asset` the
-    // imported index grid for index_field == grid. Throws vk::Error on device failures.
+    // `object_world` is the object's mesh in world space, read only when the voxelize pass runs (the
+    // grid is fitted to it; an edit that moves the grid makes voxelize stale); ignored for imported
+    // grids. `grid_asset` is the imported index grid for index_field == grid. Throws vk::Error on
+    // device failures.
     RunStats run(PassSet stale, const protocol::SceneDocument& document, const mesh::Mesh& object_world,
                  const IndexGrid* grid_asset, const RunOptions& options = {});
 
