@@ -8,7 +8,7 @@
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
 
-layout(std430, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams params; };
+layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) readonly buffer AccumRG { uint64_t accum_rg[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_BX) readonly buffer AccumBX { uint64_t accum_bx[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_YZ) readonly buffer AccumYZ { uint64_t accum_yz[]; };

@@ -237,6 +237,8 @@ int bench_command(const Arguments& args) {
             cases.push_back({args.scene_file, scene, edit, name});
     } else if (args.suite.empty() || args.suite == "standard") {
         cases = standard_suite(gpu);
+        std::erase_if(cases, [&](const BenchCase& c) { return !c.name.starts_with(args.only); });
+        if (cases.empty()) throw std::runtime_error("bench: no case of the suite starts with '" + args.only + "'");
     } else {
         throw std::runtime_error("unknown suite '" + args.suite + "' (standard)");
     }
@@ -247,7 +249,7 @@ int bench_command(const Arguments& args) {
         std::printf("device: %s (%s %s), %u CPU cores, median of %d runs (min-max)\n", context.info().name.c_str(),
                     context.info().driver_name.c_str(), context.info().driver_info.c_str(),
                     std::thread::hardware_concurrency(), runs);
-    if (args.scene_file.empty()) {
+    if (args.scene_file.empty() && args.only.empty()) {
         const json deposits = deposit_benchmark(context, runs);
         report["deposit_microbenchmark"] = deposits;
         if (!args.json) {

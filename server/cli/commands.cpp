@@ -119,6 +119,7 @@ Arguments parse_arguments(const std::vector<std::string>& args) {
         else if (a == "--device") out.device = value();
         else if (a == "--scene") out.scene_file = value();
         else if (a == "--suite") out.suite = value();
+        else if (a == "--case") out.only = value();
         else if (a == "--daemon") out.daemon = value();
         else if (a == "--runs") out.runs = std::stoi(value());
         else if (a == "--json") out.json = true;

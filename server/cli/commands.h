@@ -9,7 +9,7 @@ namespace refract::cli {
 struct Arguments {
     std::vector<std::string> positional;
     std::vector<std::pair<std::string, std::string>> meshes;  // --mesh NAME=FILE.obj
-    std::string out, hdr, stats, device, scene_file, suite, daemon;
+    std::string out, hdr, stats, device, scene_file, suite, daemon, only;  // only: --case prefix
     bool json = false;
     int runs = 0;
 };

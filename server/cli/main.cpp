@@ -17,7 +17,7 @@ Commands:
   trace SCENE.json --out DIR              ... + photons; writes radiance slices, floor caustic map, summary.json
   render SCENE.json -o FRAME.png          the whole pipeline once
          [--hdr FRAME.pfm] [--stats STATS.json]
-  bench [--scene FILE | --suite standard] [--runs N] [--json]
+  bench [--scene FILE | --suite standard] [--case PREFIX] [--runs N] [--json]
                                           per-pass GPU milliseconds (timestamp queries) for fixed scenes
   bench --daemon HOST:PORT [--runs N]     a running refractd end to end: edit + frame round trips
                                           against the pass times it reports (service overhead)

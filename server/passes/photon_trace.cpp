@@ -28,7 +28,7 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
 
 PhotonTracePass::PhotonTracePass(vk::Context& context)
     : pipeline_(context, photon_trace_spv,
-                {{TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                {{TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
                  {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
                  {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
                  {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -49,7 +49,7 @@ void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInput
     recorder.transfer_to_compute_barrier();
     const auto groups = vk::linear_groups(photon_count, TRANSPORT_GROUP_SIZE);
     pipeline_.dispatch(recorder.get(),
-                       {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, in.params),
+                       {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
                         vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
                         vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),

@@ -7,7 +7,7 @@ namespace refract::passes {
 
 RadianceResolvePass::RadianceResolvePass(vk::Context& context)
     : pipeline_(context, radiance_resolve_spv,
-                {{TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                {{TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
                  {TRANSPORT_BINDING_ACCUM_RG, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
                  {TRANSPORT_BINDING_ACCUM_BX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
                  {TRANSPORT_BINDING_ACCUM_YZ, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -26,7 +26,7 @@ void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer
     recorder.fill(accum.lit_blocks, 0);
     recorder.transfer_to_compute_barrier();
     pipeline_.dispatch(recorder.get(),
-                       {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
+                       {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, params),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.voxel[0]),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_BX, accum.voxel[1]),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_YZ, accum.voxel[2]),

@@ -9,7 +9,7 @@ namespace refract::passes {
 
 ViewPass::ViewPass(vk::Context& context)
     : pipeline_(context, view_spv,
-                {{TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                {{TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
                  {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
                  {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
                  {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -29,7 +29,7 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
     vkCmdFillBuffer(recorder.get(), out.stats.get(), offsetof(shaders::PhotonStats, view_steps), sizeof(uint32_t), 0);
     recorder.transfer_to_compute_barrier();
     pipeline_.dispatch(recorder.get(),
-                       {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, in.params),
+                       {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
                         vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
                         vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
                         vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),

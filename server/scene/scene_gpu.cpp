@@ -121,7 +121,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     params_ = passes::make_transport_params(document, grid_, transport_options);
     params_.flags.x = options.record_photon_exits ? 1u : 0u;
     if (!params_buffer_.get())
-        params_buffer_ = vk::Buffer(kit_.context, sizeof(params_), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+        params_buffer_ = vk::Buffer(kit_.context, sizeof(params_), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
                                     vk::MemoryUse::upload, "transport params");
     params_buffer_.write(&params_, sizeof(params_));
 

@@ -7,6 +7,9 @@ namespace refract::vk {
 Binding Binding::storage_buffer(uint32_t binding, const Buffer& buffer) {
     return {binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, buffer.get(), VK_NULL_HANDLE, VK_NULL_HANDLE};
 }
+Binding Binding::uniform_buffer(uint32_t binding, const Buffer& buffer) {
+    return {binding, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, buffer.get(), VK_NULL_HANDLE, VK_NULL_HANDLE};
+}
 Binding Binding::storage_image(uint32_t binding, const Image3D& image) {
     return {binding, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, VK_NULL_HANDLE, image.view(), VK_NULL_HANDLE};
 }
@@ -82,7 +85,7 @@ void ComputePipeline::dispatch(VkCommandBuffer cmd, std::span<const Binding> bin
         write.dstBinding = b.binding;
         write.descriptorCount = 1;
         write.descriptorType = b.type;
-        if (b.type == VK_DESCRIPTOR_TYPE_STORAGE_BUFFER) {
+        if (b.type == VK_DESCRIPTOR_TYPE_STORAGE_BUFFER || b.type == VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER) {
             buffer_infos[i] = {b.buffer, 0, VK_WHOLE_SIZE};
             write.pBufferInfo = &buffer_infos[i];
         } else {

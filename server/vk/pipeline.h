@@ -23,6 +23,7 @@ struct Binding {
     VkSampler sampler = VK_NULL_HANDLE;
 
     static Binding storage_buffer(uint32_t binding, const Buffer& buffer);
+    static Binding uniform_buffer(uint32_t binding, const Buffer& buffer);
     static Binding storage_image(uint32_t binding, const Image3D& image);
     static Binding sampled_image(uint32_t binding, const Image3D& image, VkSampler sampler);
 };

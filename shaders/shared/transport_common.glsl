@@ -2,7 +2,7 @@
 // stepping and the ray equation. Positions are in voxel units (voxel i spans [i, i+1)).
 #include "transport.h"
 
-layout(std430, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams params; };
+layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
 layout(binding = TRANSPORT_BINDING_INDEX_FIELD) uniform sampler3D index_field;
 layout(binding = TRANSPORT_BINDING_COVERAGE) uniform sampler3D coverage_field;
 layout(std430, binding = TRANSPORT_BINDING_LEVELS) readonly buffer Levels { uint levels[]; };
