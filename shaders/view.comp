@@ -50,6 +50,23 @@ vec3 floor_radiance(vec3 x) {
     return albedo * (1.0 / kPi) * irradiance;
 }
 
+// Fluence x phase at voxel point x for an eye ray travelling along d: what one unit of scattering
+// coefficient sends back along -d. Where photons arrive from many directions their mean direction is
+// short, so the phase blends towards isotropic by its length (coherence).
+vec3 in_scattered(vec3 x, vec3 d, uint model, float g) {
+    vec3 q = x / grid_dims();
+    vec3 fluence = textureLod(radiance, q, 0.0).rgb;
+    vec4 light_dir = textureLod(light_direction, q, 0.0);
+    float coherence = clamp(light_dir.w, 0.0, 1.0);
+    float cos_theta = dot(light_dir.xyz / max(length(light_dir.xyz), 1e-6), -d);
+    return fluence * mix(phase_isotropic(), phase_value(model, cos_theta, g), coherence);
+}
+
+// The transmittance-weighted length of a step: the integral of exp(-kappa t) over it.
+vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
+    return mix(vec3(len), (1.0 - attenuation) / kappa, greaterThan(kappa, vec3(1e-7)));
+}
+
 vec3 sky(vec3 d) { return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0)); }
 
 // Narkowicz's fit of the ACES filmic curve, then the sRGB transfer function.
@@ -84,57 +101,62 @@ void main() {
         p += d * (span.x + 1e-3);
         Ray ray = start_ray(p, d);
         float view_step = params.tone.y;
-        for (; march_steps < 8192u; ++march_steps) {
-            float n = ray.field.x;
-            float scatter_coverage = coverage_for(params.flags.z, ray.p, n);
+        // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch
+        // appears once: the loop below takes one octree leaf (or shell step) per pass, and the inner
+        // loop, which holds the only in-scattering fetches, takes that leaf's view steps.
+        while (march_steps < 8192u) {
+            float coverage = coverage_for(max(params.flags.y, params.flags.z), ray.p, ray.field.x);
+            float scatter_coverage = coverage_as(params.flags.z, coverage);
             vec3 sigma_s = scattering_at(scatter_coverage) * h;
-            vec3 kappa = extinction_at(coverage_for(params.flags.y, ray.p, n)) * h;
+            vec3 kappa = extinction_at(coverage_as(params.flags.y, coverage)) * h;
             bool scatters = max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0;
             uint level = octree_level(ray.p);
-            // Unlit fog where n is constant: nothing to gather, cross the whole block at once.
-            if (scatters && level > 0u && !block_lit(ray.p)) scatters = false;
-            // Refracting shells (octree level 0) take the photons' shell step, for the same refraction;
-            // homogeneous fog takes the view step, which only samples the in-scattering.
-            float ds = scatters ? (level == 0u ? params.stepping.x : view_step)
-                                : min(safe_step(level, ray.p, ray.d, view_step),
-                                      level > 0u && max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0
-                                          ? max(cell_exit(ray.p, ray.d, float(LIT_BLOCK)) + params.stepping.y, view_step)
-                                          : 1e30);
             float to_exit = grid_interval(ray.p, ray.d).y;
-            bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
-            float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
-            float len = min(ds, min(to_exit, to_floor));
-            vec3 attenuation = exp(-kappa * len);
-            if (scatters) {
-                vec3 q = (ray.p + 0.5 * len * ray.d) / grid_dims();
-                vec3 fluence = textureLod(radiance, q, 0.0).rgb;
-                vec4 light_dir = textureLod(light_direction, q, 0.0);
+            float to_floor = (floor_on && ray.d.y < 0.0) ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
+            float to_end = min(to_exit, to_floor);
+            // Refracting shells (level 0) gather once over the photons' shell step, for the same
+            // refraction; lit fog in a leaf (n constant, the ray straight) gathers every view step to the
+            // leaf's end; unlit fog is crossed to the end of its leaf or unlit block, clear space to the
+            // end of its leaf.
+            bool gathers = scatters && (level == 0u || block_lit(ray.p));
+            float run = level == 0u ? (scatters ? params.stepping.x : view_step)
+                                    : min(safe_step(level, ray.p, ray.d, view_step),
+                                          scatters && !gathers
+                                              ? max(cell_exit(ray.p, ray.d, float(LIT_BLOCK)) + params.stepping.y, view_step)
+                                              : 1e30);
+            run = min(run, to_end);
+            if (gathers) {
                 bool in_object = scatter_coverage > 0.5;
                 uint model = in_object ? params.models.y : params.models.x;
                 float g = in_object ? params.object_scattering.w : params.medium_scattering.w;
-                // Where photons arrive from many directions the mean direction is short: blend towards
-                // isotropic by its length (coherence).
-                float coherence = clamp(light_dir.w, 0.0, 1.0);
-                float cos_theta = dot(light_dir.xyz / max(length(light_dir.xyz), 1e-6), -ray.d);
-                float phase = mix(phase_isotropic(), phase_value(model, cos_theta, g), coherence);
-                // The step's transmittance-weighted length: integral of exp(-kappa t) over the step.
-                vec3 path = mix(vec3(len), (1.0 - attenuation) / kappa, greaterThan(kappa, vec3(1e-7)));
-                radiance_sum += transmittance * sigma_s * phase * fluence * path;
+                float gather_step = level == 0u ? run : view_step;
+                vec3 step_attenuation = exp(-kappa * gather_step);
+                vec3 step_path = transmitted_path(kappa, gather_step, step_attenuation);
+                float t = 0.0;
+                while (t < run) {
+                    // An unlit block ends the run; the next pass of the outer loop crosses it.
+                    if (t > 0.0 && !block_lit(ray.p + t * ray.d)) break;
+                    float len = min(gather_step, run - t);
+                    bool whole = len == gather_step;
+                    vec3 attenuation = whole ? step_attenuation : exp(-kappa * len);
+                    vec3 path = whole ? step_path : transmitted_path(kappa, len, attenuation);
+                    radiance_sum += transmittance * sigma_s * path *
+                                    in_scattered(ray.p + (t + 0.5 * len) * ray.d, ray.d, model, g);
+                    transmittance *= attenuation;
+                    t += len;
+                    ++march_steps;
+                }
+                run = t;
+            } else {
+                transmittance *= exp(-kappa * run);
+                ++march_steps;
             }
-            transmittance *= attenuation;
-            if (to_floor <= min(ds, to_exit)) {
-                ray.p += ray.d * to_floor;
-                on_floor = true;
+            if (run >= to_end) {
+                ray.p += ray.d * run;
+                on_floor = to_floor <= to_exit;
                 break;
             }
-            if (to_exit <= ds) {
-                ray.p += ray.d * to_exit;
-                break;
-            }
-            // In fog the march takes short steps for the in-scattering sum; inside an octree leaf n is
-            // constant to epsilon, so those steps go straight without fetching the field again.
-            if (level > 0u && scatters) ray.p += ds * ray.d;
-            else ray_step(ray, ds);
+            ray_step(ray, run);
             if (max(transmittance.r, max(transmittance.g, transmittance.b)) < 1e-3) {
                 transmittance = vec3(0.0);
                 break;

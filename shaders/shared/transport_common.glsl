@@ -19,7 +19,9 @@ float coverage_at(vec3 p) { return textureLod(coverage_field, p / grid_dims(), 0
 vec3 extinction_at(float c) { return mix(params.medium_extinction.rgb, params.object_extinction.rgb, c); }
 vec3 scattering_at(float c) { return mix(params.medium_scattering.rgb, params.object_scattering.rgb, c); }
 
-// Coverage at p where the index there is n, found the cheapest way `mode` allows (COVERAGE_*).
+// Coverage at p where the index there is n, found the cheapest way `mode` allows (COVERAGE_*). lavapipe
+// runs both sides of a branch, so a pass that needs coverage for several modes should call this once
+// with the most demanding mode and derive the others with coverage_as.
 float coverage_for(uint mode, vec3 p, float n) {
     if (mode == COVERAGE_CONSTANT) return 0.0;
     if (mode == COVERAGE_FROM_INDEX) {
@@ -28,6 +30,9 @@ float coverage_for(uint mode, vec3 p, float n) {
     }
     return coverage_at(p);
 }
+
+// The coverage that `mode` sees, given what the most demanding mode found.
+float coverage_as(uint mode, float coverage) { return mode == COVERAGE_CONSTANT ? 0.0 : coverage; }
 
 bool inside_grid(vec3 p) { return all(greaterThanEqual(p, vec3(0.0))) && all(lessThan(p, grid_dims())); }
 
