@@ -114,13 +114,14 @@ void main() {
             float to_exit = grid_interval(ray.p, ray.d).y;
             float to_floor = (floor_on && ray.d.y < 0.0) ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
             float to_end = min(to_exit, to_floor);
-            // Refracting shells (level 0) gather once over the photons' shell step, for the same
-            // refraction; lit fog in a leaf (n constant, the ray straight) gathers every view step to the
-            // leaf's end; unlit fog is crossed to the end of its leaf or unlit block, clear space to the
-            // end of its leaf.
+            // Refracting shells (level 0) take the photons' shell step, for the same refraction, and
+            // gather once over it; lit fog in a leaf (n constant, the ray straight) gathers every view
+            // step to the leaf's end; unlit fog is crossed to the end of its leaf or unlit block, clear
+            // space to the end of its leaf. No leaf step is shorter than the shell step, and none longer
+            // than the leaf, so coarse view steps never step over a shell.
             bool gathers = scatters && (level == 0u || block_lit(ray.p));
-            float run = level == 0u ? (scatters ? params.stepping.x : view_step)
-                                    : min(safe_step(level, ray.p, ray.d, view_step),
+            float run = level == 0u ? params.stepping.x
+                                    : min(safe_step(level, ray.p, ray.d, params.stepping.x),
                                           scatters && !gathers
                                               ? max(cell_exit(ray.p, ray.d, float(LIT_BLOCK)) + params.stepping.y, view_step)
                                               : 1e30);
