@@ -1,5 +1,7 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_ballot : require
 // The viewing pass: one thread per pixel. Eye rays travel straight outside the grid and follow the ray
 // equation inside it, gathering single scattering (transmittance x scattering x phase x fluence) from
 // the radiance grid, then finish on the floor (lit analytically, plus the photons' floor map of what
@@ -75,10 +77,9 @@ vec3 tone_map(vec3 x) {
     return mix(12.92 * x, 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055, greaterThan(x, vec3(0.0031308)));
 }
 
-void main() {
-    uvec2 pixel = gl_GlobalInvocationID.xy;
+// Traces the eye ray of one pixel and writes its HDR and sRGB values.
+void shade(uvec2 pixel) {
     uint width = params.image.x, height = params.image.y;
-    if (pixel.x >= width || pixel.y >= height) return;
     float tan_half = params.camera_position.w;
     float aspect = float(width) / float(height);
     vec2 ndc = vec2((2.0 * (float(pixel.x) + 0.5) / float(width) - 1.0) * aspect,
@@ -184,4 +185,21 @@ void main() {
     vec3 srgb = tone_map(radiance_sum * params.tone.x);
     uvec3 bytes = uvec3(clamp(srgb, 0.0, 1.0) * 255.0 + 0.5);
     ldr[index] = bytes.r | (bytes.g << 8u) | (bytes.b << 16u) | (255u << 24u);
+}
+
+// Subgroups take their pixels from a queue, in the order they run, rather than by their IDs. lavapipe
+// hands each CPU thread one fixed, contiguous share of a dispatch's workgroups, and pixels differ in
+// cost (sky, fog, glass): taking the next pixels of the queue interleaves the threads' pixels over the
+// whole image, so their shares cost alike and they finish together. The queue runs through the image
+// in 8x8 tiles, so a subgroup's pixels are neighbours. One atomic per subgroup. (A loop taking pixels
+// until the queue is empty would balance better, but lavapipe 22.3 shades some pixels of such a loop
+// wrongly.)
+void main() {
+    uint first = 0u;
+    if (subgroupElect()) first = atomicAdd(stats.view_pixels_taken, gl_SubgroupSize);
+    uint job = subgroupBroadcastFirst(first) + gl_SubgroupInvocationID;
+    uint tile = job / (VIEW_GROUP_SIZE * VIEW_GROUP_SIZE), within = job % (VIEW_GROUP_SIZE * VIEW_GROUP_SIZE);
+    uvec2 pixel = uvec2(tile % params.image.z, tile / params.image.z) * VIEW_GROUP_SIZE +
+                  uvec2(within % VIEW_GROUP_SIZE, within / VIEW_GROUP_SIZE);
+    if (tile < params.image.w && pixel.x < params.image.x && pixel.y < params.image.y) shade(pixel);
 }

@@ -25,8 +25,10 @@ ViewPass::ViewPass(vk::Context& context)
 void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, const vk::Image3D& radiance,
                       const vk::Image3D& direction, const vk::Image3D& floor_map, const ViewOutputs& out,
                       uint32_t width, uint32_t height) const {
-    // Only the view counter restarts: the photon pass's counters belong to the last photon run.
-    vkCmdFillBuffer(recorder.get(), out.stats.get(), offsetof(shaders::PhotonStats, view_steps), sizeof(uint32_t), 0);
+    // Only the view's counters restart (steps and the pixel queue, adjacent): the photon pass's counters
+    // belong to the last photon run.
+    static_assert(offsetof(shaders::PhotonStats, view_pixels_taken) == offsetof(shaders::PhotonStats, view_steps) + 4);
+    vkCmdFillBuffer(recorder.get(), out.stats.get(), offsetof(shaders::PhotonStats, view_steps), 2 * sizeof(uint32_t), 0);
     recorder.transfer_to_compute_barrier();
     pipeline_.dispatch(recorder.get(),
                        {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),

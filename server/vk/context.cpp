@@ -139,6 +139,14 @@ uint32_t inspect_device(VkPhysicalDevice device, uint32_t index, DeviceInfo& inf
         vkGetPhysicalDeviceFeatures2(device, &features);
         if (!features.features.shaderInt64) info.missing.push_back("shaderInt64");
         if (!features12.shaderBufferInt64Atomics) info.missing.push_back("shaderBufferInt64Atomics");
+        // The viewing pass hands out pixels a subgroup at a time (elect + broadcast).
+        VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
+        VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+        properties2.pNext = &subgroup;
+        vkGetPhysicalDeviceProperties2(device, &properties2);
+        const VkSubgroupFeatureFlags ops = VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_BALLOT_BIT;
+        if (!(subgroup.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT) || (subgroup.supportedOperations & ops) != ops)
+            info.missing.push_back("subgroup basic + ballot operations in compute shaders");
     }
     info.suitable = info.missing.empty();
     return family;

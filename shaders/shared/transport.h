@@ -80,7 +80,7 @@ struct TransportParams {
     vec4 camera_forward;
     vec4 camera_right;
     vec4 camera_up;
-    uvec4 image;              // x: width, y: height, z: view step mode, w: unused
+    uvec4 image;              // x: width, y: height, z: 8x8 tiles per row, w: tiles in all
     vec4 tone;                // x: exposure multiplier (2^exposure), y: view step (voxels), zw: unused
     vec4 sky_zenith;          // rgb background above the horizon
     vec4 sky_horizon;         // rgb background at the horizon
@@ -103,13 +103,14 @@ struct PhotonStats {
     uint steps;             // photon integration steps taken
     uint floor_hits;
     uint view_steps;        // eye-ray march steps (the viewing pass)
+    uint view_pixels_taken; // the viewing pass's pixel queue (see view.comp)
 };
 
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
 static_assert(sizeof(refract::shaders::TransportParams) == 29 * 16);
-static_assert(sizeof(refract::shaders::PhotonStats) == 16);
+static_assert(sizeof(refract::shaders::PhotonStats) == 20);
 static_assert(sizeof(refract::shaders::PhotonExit) == 64);
 #endif
 
