@@ -2,6 +2,8 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_ballot : require
 // Photon generation and tracing (passes 3-5 of Sun et al. 2008), one thread per photon run to
 // completion. Photons start where the light's rays enter the grid, follow the ray equation with the
 // octree's largest safe step, lose flux to extinction (Beer-Lambert per channel), and add flux x path
@@ -9,7 +11,6 @@
 // direction. Accumulation is fixed-point integer atomics: deterministic on every device.
 #include "transport_common.glsl"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
-#include "linear_id.glsl"
 
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) buffer AccumRG { uint64_t accum_rg[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_BX) buffer AccumBX { uint64_t accum_bx[]; };
@@ -150,7 +151,10 @@ void deposit_floor(vec3 x, vec3 weight, int sign) {
 }
 
 void main() {
-    uint i = linear_invocation();
+    // Subgroups take their photons from a queue in the order they run (see view.comp's main).
+    uint first = 0u;
+    if (subgroupElect()) first = atomicAdd(stats.photons_taken, gl_SubgroupSize);
+    uint i = subgroupBroadcastFirst(first) + gl_SubgroupInvocationID;
     if (i >= params.photon_info.x) return;
     i = coherent_order(i, params.photon_info.x);
     vec3 origin, direction;

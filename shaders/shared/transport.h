@@ -104,13 +104,14 @@ struct PhotonStats {
     uint floor_hits;
     uint view_steps;        // eye-ray march steps (the viewing pass)
     uint view_pixels_taken; // the viewing pass's pixel queue (see view.comp)
+    uint photons_taken;     // the photon pass's queue (see photon_trace.comp)
 };
 
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
 static_assert(sizeof(refract::shaders::TransportParams) == 29 * 16);
-static_assert(sizeof(refract::shaders::PhotonStats) == 20);
+static_assert(sizeof(refract::shaders::PhotonStats) == 24);
 static_assert(sizeof(refract::shaders::PhotonExit) == 64);
 #endif
 
