@@ -39,6 +39,7 @@ struct BenchCase {
     json scene;                      // patch over the default document
     scene::PassSet edit = scene::kAllPasses;
     std::string edit_name = "full";  // "full" | "light" | "camera"
+    float view_step = 1.0f;          // voxels: 1 for still frames, 2 for interactive ones (as refractd)
 };
 
 // Median and spread of a series of samples.
@@ -68,10 +69,10 @@ json scene_patch(const std::string& base) {
 std::vector<BenchCase> standard_suite(bool gpu) {
     std::vector<BenchCase> cases;
     auto add = [&](const std::string& name, const std::string& base, json extra, scene::PassSet edit,
-                   const std::string& edit_name) {
+                   const std::string& edit_name, float view_step = 1.0f) {
         json patch = scene_patch(base);
         patch.merge_patch(extra);
-        cases.push_back({name, patch, edit, edit_name});
+        cases.push_back({name, patch, edit, edit_name, view_step});
     };
     // The targets of docs/benchmarks.md: camera edit, light edit, full rebuild of the ball lens in fog.
     const int image = gpu ? 1024 : 256;
@@ -79,6 +80,13 @@ std::vector<BenchCase> standard_suite(bool gpu) {
                                           {"image", {{"width", image}, {"height", image}}}}, scene::kView, "camera");
     add("target light", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", gpu ? 1 << 20 : 1 << 16}}},
                                          {"image", {{"width", image}, {"height", image}}}}, scene::kPhotons | scene::kView, "light");
+    // The same edits as refractd renders them while a client drags (quality=interactive): half the
+    // document's image side and a quarter of its photons, so a 2048^2 / 2^22 document (GPU) or a
+    // 512^2 / 2^18 one (lavapipe) gives these sizes, and two-voxel view steps in fog.
+    add("target camera interactive", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", gpu ? 1 << 20 : 1 << 16}}},
+                                                       {"image", {{"width", image}, {"height", image}}}}, scene::kView, "camera", 2.0f);
+    add("target light interactive", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", gpu ? 1 << 20 : 1 << 16}}},
+                                                      {"image", {{"width", image}, {"height", image}}}}, scene::kPhotons | scene::kView, "light", 2.0f);
     add("target rebuild", "ball_lens_fog", {{"volume", {{"resolution", gpu ? 256 : 128}}}, {"photons", {{"count", gpu ? 1 << 22 : 1 << 18}}},
                                            {"image", {{"width", gpu ? 256 : 512}, {"height", gpu ? 256 : 512}}}},
         scene::kAllPasses, "full");
@@ -268,14 +276,16 @@ int bench_command(const Arguments& args) {
         const mesh::Mesh world = world_of(document, uploads);
         const int64_t memory_before = context.allocated_bytes();
         scene::SceneGpu scene_gpu(kit);
-        scene_gpu.run(scene::kAllPasses, document, world, nullptr);  // warm-up: builds everything once
+        scene::RunOptions run_options;
+        run_options.view_step = c.view_step;
+        scene_gpu.run(scene::kAllPasses, document, world, nullptr, run_options);  // warm-up: builds everything once
         const int64_t memory = context.allocated_bytes() - memory_before;
         std::map<std::string, std::vector<double>> pass_ms;
         std::vector<double> host_ms, encode_ms;
         scene::RunStats last;
         for (int r = 0; r < runs; ++r) {
             const auto start = Clock::now();
-            last = scene_gpu.run(c.edit, document, world, nullptr);
+            last = scene_gpu.run(c.edit, document, world, nullptr, run_options);
             const auto encode_start = Clock::now();
             const auto png = image::encode_png(scene_gpu.read_ldr(), scene_gpu.width(), scene_gpu.height());
             const auto end = Clock::now();
@@ -283,7 +293,7 @@ int bench_command(const Arguments& args) {
             encode_ms.push_back(std::chrono::duration<double, std::milli>(end - encode_start).count());
             host_ms.push_back(std::chrono::duration<double, std::milli>(end - start).count());
         }
-        json entry = {{"case", c.name}, {"edit", c.edit_name}, {"device_memory_mib", static_cast<double>(memory) / (1 << 20)},
+        json entry = {{"case", c.name}, {"edit", c.edit_name}, {"view_step_voxels", c.view_step}, {"device_memory_mib", static_cast<double>(memory) / (1 << 20)},
                       {"voxels", scene_gpu.grid().dims.count()}, {"photons", document.photons.count},
                       {"pixels", uint64_t{document.image.width} * document.image.height}, {"passes", json::object()}};
         double gpu_total = 0.0;
@@ -310,7 +320,7 @@ int bench_command(const Arguments& args) {
         if (pass_ms.count("voxelize")) entry["ns_per_voxel_voxelize"] = summarize(pass_ms["voxelize"]).median * 1e6 / static_cast<double>(scene_gpu.grid().dims.count());
         report["cases"].push_back(entry);
         if (!args.json) {
-            std::printf("%-16s %-6s", c.name.c_str(), c.edit_name.c_str());
+            std::printf("%-25s %-6s", c.name.c_str(), c.edit_name.c_str());
             for (const char* pass : {"voxelize", "index_field", "octree", "photons", "view"}) {
                 if (!pass_ms.count(pass)) continue;
                 const Summary s = summarize(pass_ms[pass]);
