@@ -1,7 +1,8 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
 // Voxelization: fractional coverage of a triangle mesh on the grid.
-// COLUMNS: one thread per voxel column along `axis`; S x S rays per column find every surface crossing,
+// COLUMNS: one thread per voxel column along `axis`, into that axis's coverage (bound as x: lavapipe
+// runs every side of a branch, so one binding beats choosing among three); S x S rays per column find every surface crossing,
 // turn them into inside intervals by the nonzero winding rule (robust to inconsistent parity and to
 // meshes wound inside out, as some OBJ exporters write them), and add the exact inside length per
 // voxel. A column whose crossings do not balance (a hole in the mesh) or overflow is marked unreliable
@@ -23,18 +24,6 @@ layout(std430, binding = VOXELIZE_BINDING_COVERAGE) writeonly buffer Coverage { 
 layout(push_constant) uniform Push { VoxelizePush push; };
 
 uint voxel_index(uvec3 v) { return (v.z * push.dims.y + v.y) * push.dims.x + v.x; }
-
-float load_axis(uint axis, uint i) {
-    if (axis == 0u) return coverage_x[i];
-    if (axis == 1u) return coverage_y[i];
-    return coverage_z[i];
-}
-
-void store_axis(uint axis, uint i, float value) {
-    if (axis == 0u) coverage_x[i] = value;
-    else if (axis == 1u) coverage_y[i] = value;
-    else coverage_z[i] = value;
-}
 
 void columns() {
     uint axis = push.axis;
@@ -114,7 +103,7 @@ void columns() {
                 voxel[ua] = iu;
                 voxel[va] = iv;
                 uint index = voxel_index(voxel);
-                store_axis(axis, index, load_axis(axis, index) + overlap * weight);
+                coverage_x[index] += overlap * weight;
             }
         }
     }
@@ -124,7 +113,7 @@ void columns() {
             voxel[axis] = k;
             voxel[ua] = iu;
             voxel[va] = iv;
-            store_axis(axis, voxel_index(voxel), -1.0);
+            coverage_x[voxel_index(voxel)] = -1.0;
         }
     }
 }

@@ -94,12 +94,13 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
     // With no smoothing the combined coverage is the result; otherwise it goes to scratch first.
     const bool smoothing = sigma >= 0.05f;
     const vk::Buffer& combined = smoothing ? scratch : coverage;
+    // Column casts write their axis's coverage through the x binding; the combine reads all three.
     auto bindings = [&](uint32_t axis) {
         return std::array<vk::Binding, 7>{
             vk::Binding::storage_buffer(VOXELIZE_BINDING_TRIANGLES, uploads.triangles),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_TILE_RANGES, uploads.tile_ranges[axis]),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_TILE_ITEMS, uploads.tile_items[axis]),
-            vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE_X, uploads.axis_coverage[0]),
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE_X, uploads.axis_coverage[axis]),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE_Y, uploads.axis_coverage[1]),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE_Z, uploads.axis_coverage[2]),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE, combined)};

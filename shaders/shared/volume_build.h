@@ -14,7 +14,8 @@ REFRACT_SHADERS_BEGIN
 #define VOXELIZE_BINDING_TRIANGLES 0   // 3 x vec4 per triangle, positions in voxel coordinates
 #define VOXELIZE_BINDING_TILE_RANGES 1 // uvec2 (first, count) per tile of the column plane
 #define VOXELIZE_BINDING_TILE_ITEMS 2  // triangle indices, grouped by tile
-#define VOXELIZE_BINDING_COVERAGE_X 3  // per-axis coverage, -1 where that axis's columns were unreliable
+#define VOXELIZE_BINDING_COVERAGE_X 3  // per-axis coverage, -1 where that axis's columns were unreliable;
+                                       // COLUMNS binds the cast axis's here
 #define VOXELIZE_BINDING_COVERAGE_Y 4
 #define VOXELIZE_BINDING_COVERAGE_Z 5
 #define VOXELIZE_BINDING_COVERAGE 6    // combined (median) coverage
