@@ -86,13 +86,14 @@ bool emit(uint i, out vec3 origin, out vec3 direction) {
     return true;
 }
 
-uint voxel_index(ivec3 v) { return (uint(v.z) * params.grid_dims.y + uint(v.y)) * params.grid_dims.x + uint(v.x); }
+uint voxel_index(ivec3 v) { return (uint(v.z) * params.radiance_grid.y + uint(v.y)) * params.radiance_grid.x + uint(v.x); }
 
 // Two fixed-point values as one 64-bit addend: `low` sign-extended plus `high` << 32 (see transport.h).
 uint64_t pack(int low, int high) { return uint64_t(int64_t(low)) + (uint64_t(int64_t(high)) << 32); }
 
-// Adds weight x length to each voxel the straight segment p + t d, t in [0, len), crosses (3D DDA),
-// attenuated by exp(-kappa t): per voxel where the segment absorbs noticeably, else once at its middle.
+// Adds weight x length to each radiance-grid voxel the straight segment p + t d, t in [0, len), crosses
+// (3D DDA; p, len and kappa in radiance-grid voxels), attenuated by exp(-kappa t): per voxel where the
+// segment absorbs noticeably, else once at its middle.
 void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa) {
     float scale = params.stepping.z;
     ivec3 cell = ivec3(floor(p));
@@ -101,7 +102,7 @@ void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa) {
     vec3 t_max = mix((vec3(cell) - p) * inv, (vec3(cell + 1) - p) * inv, greaterThan(d, vec3(0.0)));
     t_max = mix(t_max, vec3(1e30), equal(d, vec3(0.0)));
     vec3 t_delta = mix(abs(inv), vec3(1e30), equal(d, vec3(0.0)));
-    ivec3 dims = ivec3(params.grid_dims.xyz);
+    ivec3 dims = ivec3(params.radiance_grid.xyz);
     bool absorbs = max(kappa.r, max(kappa.g, kappa.b)) * len > 0.02;
     vec3 segment_weight = weight * exp(-kappa * (0.5 * len)) * scale;
     float t = 0.0;
@@ -185,6 +186,7 @@ void main() {
     bool deposits = params.flags.w == 1u;
     uint steps = 0u;
     float h = voxel_size();
+    float radiance_factor = float(params.radiance_grid.w);
     float outcome = 0.0;
     float path = 0.0;  // voxels travelled inside the grid
     for (; steps < params.photon_info.z; ++steps) {
@@ -196,7 +198,7 @@ void main() {
         bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
         float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
         float len = min(ds, min(to_exit, to_floor));
-        if (deposits) deposit(ray.p, ray.d, len, weight, kappa);
+        if (deposits) deposit(ray.p / radiance_factor, ray.d, len / radiance_factor, weight, kappa * radiance_factor);
         path += len;
         if (to_floor <= min(ds, to_exit)) {
             weight *= exp(-kappa * to_floor);

@@ -18,12 +18,15 @@ layout(binding = TRANSPORT_BINDING_DIRECTION, rgba16f) uniform writeonly image3D
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D floor_map;
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) writeonly buffer LitBlocks { uint lit_blocks[]; };
 
-// A lit voxel marks every block its trilinear footprint (the voxel and its neighbours) touches. All
-// writers store the same value, so plain stores need no atomics.
-void mark_lit(ivec3 v, uvec3 dims) {
+// A lit radiance voxel marks every block (of index-field voxels) its trilinear footprint touches: the
+// index-field voxels within one radiance voxel of it. All writers store the same value, so plain stores
+// need no atomics.
+void mark_lit(ivec3 v) {
+    uvec3 dims = params.grid_dims.xyz;
+    int f = int(params.radiance_grid.w);
     uvec3 blocks = (dims + LIT_BLOCK - 1u) / LIT_BLOCK;
-    ivec3 lo = max(v - 1, ivec3(0)) / LIT_BLOCK;
-    ivec3 hi = min(v + 1, ivec3(dims) - 1) / LIT_BLOCK;
+    ivec3 lo = max(f * (v - 1), ivec3(0)) / LIT_BLOCK;
+    ivec3 hi = min(f * (v + 2) - 1, ivec3(dims) - 1) / LIT_BLOCK;
     for (int z = lo.z; z <= hi.z; ++z)
         for (int y = lo.y; y <= hi.y; ++y)
             for (int x = lo.x; x <= hi.x; ++x) lit_blocks[(uint(z) * blocks.y + uint(y)) * blocks.x + uint(x)] = 1u;
@@ -31,12 +34,12 @@ void mark_lit(ivec3 v, uvec3 dims) {
 
 void main() {
     uint i = linear_invocation();
-    uvec3 dims = params.grid_dims.xyz;
+    uvec3 dims = params.radiance_grid.xyz;
     uint voxels = dims.x * dims.y * dims.z;
     float reference_flux = params.photon_flux.w;
     if (i < voxels) {
         ivec3 v = ivec3(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
-        float h = params.grid_origin.w;
+        float h = params.grid_origin.w * float(params.radiance_grid.w);  // a radiance voxel's side
         // sum is in photon-voxel-lengths x scale; flux x length / volume = sum / scale x flux x h / h^3.
         float to_fluence = reference_flux / (params.stepping.z * h * h);
         // Unpack (transport.h): the low half of each word is its own sum (signed where it can be
@@ -53,7 +56,7 @@ void main() {
         float len = length(dir_sum);
         vec4 dir = len > 0.0 ? vec4(dir_sum / len, min(len / max(total, 1.0), 1.0)) : vec4(0.0);
         imageStore(radiance, v, vec4(fluence, 0.0));
-        if (max(fluence.r, max(fluence.g, fluence.b)) > 0.0) mark_lit(v, dims);
+        if (max(fluence.r, max(fluence.g, fluence.b)) > 0.0) mark_lit(v);
         imageStore(direction, v, dir);
         return;
     }

@@ -251,9 +251,11 @@ namespace {
 class EnergyTest : public testing::GpuTest {
 protected:
     // Runs photons (no view) and returns the scene's GPU state for read-back.
-    std::unique_ptr<scene::SceneGpu> photons(const protocol::SceneDocument& doc, scene::RunStats* stats = nullptr) {
+    std::unique_ptr<scene::SceneGpu> photons(const protocol::SceneDocument& doc, scene::RunStats* stats = nullptr,
+                                             uint32_t radiance_factor = 1) {
         auto gpu = std::make_unique<scene::SceneGpu>(kit());
         scene::RunOptions options;
+        options.radiance_factor = radiance_factor;
         options.limit = scene::kAllPasses & ~scene::kView;
         const auto s = gpu->run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
         if (stats) *stats = s;
@@ -272,7 +274,8 @@ protected:
 };
 
 // With no extinction a uniform beam of irradiance E has fluence rate E everywhere: the grid's
-// normalization (flux x path / voxel volume) must give exactly that, whatever the photon count.
+// normalization (flux x path / voxel volume) must give exactly that, whatever the photon count and
+// whether the radiance grid has the index field's resolution or half of it (interactive frames).
 TEST_F(EnergyTest, UniformBeamGivesFluenceEqualToIrradiance) {
     const double E = 2.0;
     const json patch = {{"light", {{"type", "directional"}, {"direction", {0, 0, 1}}, {"intensity", E}}},
@@ -283,15 +286,19 @@ TEST_F(EnergyTest, UniformBeamGivesFluenceEqualToIrradiance) {
                         {"image", {{"width", 8}, {"height", 8}}},
                         {"photons", {{"count", 1 << 16}}},
                         {"volume", {{"resolution", 48}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 1, 1}}}}}}};
-    const auto gpu = photons(protocol::parse_scene(patch));
-    const auto radiance = gpu->read_radiance();
-    double sum = 0.0;
-    for (const auto& v : radiance) sum += static_cast<double>(v.r);
-    const double mean = sum / static_cast<double>(radiance.size());
-    std::printf("uniform beam: mean fluence %.5f, expected %.5f\n", mean, E);
-    // Every photon crosses the whole grid, so only fixed-point rounding (stochastic, unbiased) and
-    // float sums enter: 1% is the bound and far above both.
-    EXPECT_NEAR(mean, E, 0.01 * E);
+    for (const uint32_t factor : {1u, 2u}) {
+        const auto gpu = photons(protocol::parse_scene(patch), nullptr, factor);
+        const auto radiance = gpu->read_radiance();
+        ASSERT_EQ(radiance.size(), size_t{48 / factor} * (48 / factor) * (48 / factor));
+        double sum = 0.0;
+        for (const auto& v : radiance) sum += static_cast<double>(v.r);
+        const double mean = sum / static_cast<double>(radiance.size());
+        std::printf("uniform beam, radiance voxel %u index voxels wide: mean fluence %.5f, expected %.5f\n", factor,
+                    mean, E);
+        // Every photon crosses the whole grid, so only fixed-point rounding (stochastic, unbiased) and
+        // float sums enter: 1% is the bound and far above both.
+        EXPECT_NEAR(mean, E, 0.01 * E);
+    }
 }
 
 // Flux is conserved through a refracting object: every photon keeps its flux along its curved path, so

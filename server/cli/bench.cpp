@@ -21,6 +21,7 @@
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
 #include "scene/object_mesh.h"
+#include "scene/renderer.h"
 #include "scene/scene_gpu.h"
 #include "vk/commands.h"
 #include "vk/context.h"
@@ -39,7 +40,7 @@ struct BenchCase {
     json scene;                      // patch over the default document
     scene::PassSet edit = scene::kAllPasses;
     std::string edit_name = "full";  // "full" | "light" | "camera"
-    float view_step = 1.0f;          // voxels: 1 for still frames, 2 for interactive ones (as refractd)
+    scene::Quality quality = scene::Quality::still;  // how the passes run (as refractd runs them)
 };
 
 // Median and spread of a series of samples.
@@ -69,10 +70,10 @@ json scene_patch(const std::string& base) {
 std::vector<BenchCase> standard_suite(bool gpu) {
     std::vector<BenchCase> cases;
     auto add = [&](const std::string& name, const std::string& base, json extra, scene::PassSet edit,
-                   const std::string& edit_name, float view_step = 1.0f) {
+                   const std::string& edit_name, scene::Quality quality = scene::Quality::still) {
         json patch = scene_patch(base);
         patch.merge_patch(extra);
-        cases.push_back({name, patch, edit, edit_name, view_step});
+        cases.push_back({name, patch, edit, edit_name, quality});
     };
     // The targets of docs/benchmarks.md: camera edit, light edit, full rebuild of the ball lens in fog.
     const int image = gpu ? 1024 : 256;
@@ -82,11 +83,12 @@ std::vector<BenchCase> standard_suite(bool gpu) {
                                          {"image", {{"width", image}, {"height", image}}}}, scene::kPhotons | scene::kView, "light");
     // The same edits as refractd renders them while a client drags (quality=interactive): half the
     // document's image side and a quarter of its photons, so a 2048^2 / 2^22 document (GPU) or a
-    // 512^2 / 2^18 one (lavapipe) gives these sizes, and two-voxel view steps in fog.
+    // 512^2 / 2^18 one (lavapipe) gives these sizes, two-voxel view steps in fog and a radiance grid
+    // of half the resolution per axis.
     add("target camera interactive", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", gpu ? 1 << 20 : 1 << 16}}},
-                                                       {"image", {{"width", image}, {"height", image}}}}, scene::kView, "camera", 2.0f);
+                                                       {"image", {{"width", image}, {"height", image}}}}, scene::kView, "camera", scene::Quality::interactive);
     add("target light interactive", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", gpu ? 1 << 20 : 1 << 16}}},
-                                                      {"image", {{"width", image}, {"height", image}}}}, scene::kPhotons | scene::kView, "light", 2.0f);
+                                                      {"image", {{"width", image}, {"height", image}}}}, scene::kPhotons | scene::kView, "light", scene::Quality::interactive);
     add("target rebuild", "ball_lens_fog", {{"volume", {{"resolution", gpu ? 256 : 128}}}, {"photons", {{"count", gpu ? 1 << 22 : 1 << 18}}},
                                            {"image", {{"width", gpu ? 256 : 512}, {"height", gpu ? 256 : 512}}}},
         scene::kAllPasses, "full");
@@ -276,8 +278,7 @@ int bench_command(const Arguments& args) {
         const mesh::Mesh world = world_of(document, uploads);
         const int64_t memory_before = context.allocated_bytes();
         scene::SceneGpu scene_gpu(kit);
-        scene::RunOptions run_options;
-        run_options.view_step = c.view_step;
+        const scene::RunOptions run_options = scene::run_options_for(c.quality);
         scene_gpu.run(scene::kAllPasses, document, world, nullptr, run_options);  // warm-up: builds everything once
         const int64_t memory = context.allocated_bytes() - memory_before;
         std::map<std::string, std::vector<double>> pass_ms;
@@ -293,7 +294,7 @@ int bench_command(const Arguments& args) {
             encode_ms.push_back(std::chrono::duration<double, std::milli>(end - encode_start).count());
             host_ms.push_back(std::chrono::duration<double, std::milli>(end - start).count());
         }
-        json entry = {{"case", c.name}, {"edit", c.edit_name}, {"view_step_voxels", c.view_step}, {"device_memory_mib", static_cast<double>(memory) / (1 << 20)},
+        json entry = {{"case", c.name}, {"edit", c.edit_name}, {"quality", c.quality == scene::Quality::interactive ? "interactive" : "still"}, {"device_memory_mib", static_cast<double>(memory) / (1 << 20)},
                       {"voxels", scene_gpu.grid().dims.count()}, {"photons", document.photons.count},
                       {"pixels", uint64_t{document.image.width} * document.image.height}, {"passes", json::object()}};
         double gpu_total = 0.0;

@@ -7,9 +7,9 @@
 
 namespace refract::passes {
 
-PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, uint32_t floor_texels,
-                                            uint32_t exit_count) {
-    const uint64_t voxels = dims.count();
+PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, vk::Extent3 radiance_dims,
+                                            uint32_t floor_texels, uint32_t exit_count) {
+    const uint64_t voxels = radiance_dims.count();
     const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     PhotonAccumulators accum;
     const char* names[3] = {"radiance sums red+green", "radiance sums blue+direction x", "direction sums y+z"};

@@ -18,8 +18,9 @@ struct PhotonAccumulators {
     vk::Buffer lit_blocks;            // uint per LIT_BLOCK^3 block, written by the resolve
 };
 
-PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, uint32_t floor_texels,
-                                            uint32_t exit_count);
+// `dims`: the index field's voxels (lit blocks cover those); `radiance_dims`: the radiance grid's.
+PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, vk::Extent3 radiance_dims,
+                                            uint32_t floor_texels, uint32_t exit_count);
 
 // Inputs shared by the photon and viewing passes.
 struct TransportInputs {

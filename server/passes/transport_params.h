@@ -15,6 +15,7 @@ struct TransportOptions {
     float shell_step = 1.0f;   // voxels, where n varies (octree level 0)
     float view_step = 1.0f;    // voxels, eye-ray step where the medium scatters
     uint32_t max_level = 0;    // octree levels present
+    uint32_t radiance_factor = 1;  // index-field voxels per radiance voxel along each axis (1 or 2)
 };
 
 shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,

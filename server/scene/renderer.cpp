@@ -21,8 +21,8 @@ double ms_since(Clock::time_point start) {
     return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-// `interactive` frames trade resolution, photons and eye-ray step (2 voxels) for latency; the volume
-// stays, so switching back to `still` reruns photons and view only.
+// `interactive` frames trade resolution, photons, radiance-grid resolution and eye-ray step (2 voxels)
+// for latency; the volume stays, so switching back to `still` reruns photons and view only.
 protocol::SceneDocument for_quality(protocol::SceneDocument document, Quality quality) {
     if (quality == Quality::interactive) {
         document.image.width = std::max(32u, document.image.width / 2);
@@ -33,6 +33,15 @@ protocol::SceneDocument for_quality(protocol::SceneDocument document, Quality qu
 }
 
 }  // namespace
+
+RunOptions run_options_for(Quality quality) {
+    RunOptions options;
+    if (quality == Quality::interactive) {
+        options.view_step = 2.0f;
+        options.radiance_factor = 2;
+    }
+    return options;
+}
 
 struct Renderer::Impl {
     struct Resident {
@@ -134,8 +143,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
 
     FrameResult frame;
     try {
-        RunOptions run_options;
-        run_options.view_step = quality == Quality::interactive ? 2.0f : 1.0f;
+        const RunOptions run_options = run_options_for(quality);
         const RunStats stats = resident.gpu->run(stale, document, world, grid.get(), run_options);
         frame.rerun = stale;
         for (const auto& [name, ms] : stats.gpu_ms) frame.timings.push_back({name, ms, 0.0});

@@ -13,6 +13,7 @@
 
 #include "protocol/scene_document.h"
 #include "scene/passes.h"
+#include "scene/scene_gpu.h"
 
 namespace refract::mesh {
 struct Mesh;
@@ -38,6 +39,11 @@ struct Assets {
 };
 
 enum class Quality { interactive, still };
+
+// How the passes run for a quality: `interactive` takes two-voxel eye-ray steps in fog and a radiance
+// grid of half the resolution per axis (the document's image and photon count are halved and quartered
+// separately, by the renderer).
+RunOptions run_options_for(Quality quality);
 
 struct PassTiming {
     std::string name;  // "voxelize", "octree", "photons", "view", "encode"

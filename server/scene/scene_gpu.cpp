@@ -54,17 +54,22 @@ void SceneGpu::allocate_volume(const GridGeometry& grid) {
     built_ = 0;
 }
 
-void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits) {
+void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits, uint32_t radiance_factor) {
     vk::Context& ctx = kit_.context;
     const uint32_t floor_texels = passes::floor_map_texels(grid_);
     const uint32_t exits = record_exits ? photon_count : 1u;
-    if (accum_ && floor_texels == floor_texels_ && exits == exit_capacity_) return;
+    const uint32_t f = radiance_factor;
+    const vk::Extent3 radiance_dims{(grid_.dims.x + f - 1) / f, (grid_.dims.y + f - 1) / f, (grid_.dims.z + f - 1) / f};
+    if (accum_ && floor_texels == floor_texels_ && exits == exit_capacity_ && f == radiance_factor_) return;
     accum_.reset();
-    accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, floor_texels, exits));
+    accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels, exits));
     exit_capacity_ = exits;
-    if (!radiance_.get()) {
-        radiance_ = vk::Image3D(ctx, grid_.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "radiance grid");
-        direction_ = vk::Image3D(ctx, grid_.dims, VK_FORMAT_R16G16B16A16_SFLOAT, "light direction grid");
+    if (!radiance_.get() || f != radiance_factor_) {
+        radiance_ = {};
+        direction_ = {};
+        radiance_ = vk::Image3D(ctx, radiance_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "radiance grid");
+        direction_ = vk::Image3D(ctx, radiance_dims, VK_FORMAT_R16G16B16A16_SFLOAT, "light direction grid");
+        radiance_factor_ = f;
     }
     if (floor_texels != floor_texels_ || !floor_map_.get()) {
         floor_map_ = vk::Image3D(ctx, {floor_texels, floor_texels, 1}, VK_FORMAT_R16G16B16A16_SFLOAT,
@@ -106,18 +111,21 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         allocate_volume(grid);
         stale = kAllPasses;
     }
+    // Another radiance-grid resolution (interactive <-> still) means new photons into a new grid.
+    if (options.radiance_factor != radiance_factor_) built_ &= ~(kPhotons | kView);
     stale |= kAllPasses & ~built_;
     // Each pass depends on all before it.
     for (PassSet p : {kVoxelize, kIndexField, kOctree, kPhotons})
         if (stale & p) stale |= (kAllPasses & ~(p - 1));
     stale &= options.limit;
-    if (stale & kPhotons) allocate_transport(document.photons.count, options.record_photon_exits);
+    if (stale & kPhotons) allocate_transport(document.photons.count, options.record_photon_exits, options.radiance_factor);
     allocate_frame(document.image.width, document.image.height);
 
     passes::TransportOptions transport_options;
     transport_options.fixed_step = options.fixed_step;
     transport_options.view_step = options.view_step;
     transport_options.max_level = passes::octree_layout(grid_.dims).max_level;
+    transport_options.radiance_factor = options.radiance_factor;
     params_ = passes::make_transport_params(document, grid_, transport_options);
     params_.flags.x = options.record_photon_exits ? 1u : 0u;
     if (!params_buffer_.get())

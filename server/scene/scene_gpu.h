@@ -55,6 +55,7 @@ struct RunOptions {
     bool record_photon_exits = false;
     PassSet limit = kAllPasses;   // passes outside this set are not run (the CLI's voxelize and trace)
     float view_step = 1.0f;       // eye-ray step in scattering media (voxels); interactive frames use 2
+    uint32_t radiance_factor = 1; // index-field voxels per radiance-grid voxel per axis; interactive: 2
 };
 
 // Device memory a scene of this size holds (bytes), for budgets before allocating.
@@ -96,7 +97,7 @@ public:
 
 private:
     void allocate_volume(const GridGeometry& grid);
-    void allocate_transport(uint32_t photon_count, bool record_exits);
+    void allocate_transport(uint32_t photon_count, bool record_exits, uint32_t radiance_factor);
     void allocate_frame(uint32_t width, uint32_t height);
     template <typename T>
     std::vector<T> read_image(const vk::Image3D& image) const;
@@ -106,7 +107,7 @@ private:
     PassKit& kit_;
     GridGeometry grid_{};
     PassSet built_ = 0;
-    uint32_t width_ = 0, height_ = 0, floor_texels_ = 0, exit_capacity_ = 0;
+    uint32_t width_ = 0, height_ = 0, floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
     shaders::TransportParams params_{};
     // Volume (voxelize, index field, octree)
     vk::Buffer coverage_, scratch_, grid_values_, pyramid_, levels_;

@@ -87,6 +87,9 @@ struct TransportParams {
     uvec4 flags;              // x: 1 = record each photon's exit state (tests)
                               // y: how extinction finds coverage, z: how scattering does (COVERAGE_*)
                               // w: 1 = something scatters (photons deposit into the radiance grid)
+    uvec4 radiance_grid;      // xyz: radiance grid voxels; w: index-field voxels per radiance voxel along
+                              // each axis (1; 2 for interactive frames: 1/8 the voxels to clear, resolve
+                              // and cross)
 };
 
 // Where a photon left the grid (or stopped), for the optics tests.
@@ -110,7 +113,7 @@ struct PhotonStats {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == 29 * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == 30 * 16);
 static_assert(sizeof(refract::shaders::PhotonStats) == 24);
 static_assert(sizeof(refract::shaders::PhotonExit) == 64);
 #endif
