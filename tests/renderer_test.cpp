@@ -78,6 +78,23 @@ TEST_F(RendererTest, ResidentStateIsReusedAndOnlyStalePassesRun) {
     EXPECT_FALSE(renderer.render("a", light, no_assets).png.empty());
 }
 
+// Interactive frames deposit photons into a coarser radiance grid. With 4096 photons and a 32-pixel
+// image the interactive document is the still one (nothing to halve or quarter), so only the grid's
+// resolution differs: switching quality must still rerun photons and view, and the still frame after
+// an interactive one must be the first still frame to the byte.
+TEST_F(RendererTest, SwitchingQualityRerunsPhotonsIntoTheRightGrid) {
+    Renderer renderer(*context);
+    const SceneDocument doc = small({{"photons", {{"count", 4096}}}});
+    const FrameResult still = renderer.render("a", doc, no_assets, Quality::still);
+    const FrameResult interactive = renderer.render("a", doc, no_assets, Quality::interactive);
+    EXPECT_EQ(interactive.rerun, kPhotons | kView);
+    EXPECT_NE(interactive.png, still.png);
+    const FrameResult again = renderer.render("a", doc, no_assets, Quality::still);
+    EXPECT_EQ(again.rerun, kPhotons | kView);
+    EXPECT_EQ(again.png, still.png);
+    EXPECT_EQ(renderer.render("a", doc, no_assets, Quality::still).rerun, 0u);
+}
+
 TEST_F(RendererTest, MemoryBudgetDropsTheLeastRecentlyUsedScene) {
     const SceneDocument doc = small();
     RendererOptions options;

@@ -145,7 +145,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     try {
         const RunOptions run_options = run_options_for(quality);
         const RunStats stats = resident.gpu->run(stale, document, world, grid.get(), run_options);
-        frame.rerun = stale;
+        frame.rerun = stats.ran;
         for (const auto& [name, ms] : stats.gpu_ms) frame.timings.push_back({name, ms, 0.0});
         frame.photons_traced = stats.photons_entered;
         frame.mean_steps_per_photon = stats.mean_steps_per_photon();

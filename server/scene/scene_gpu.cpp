@@ -209,6 +209,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     built_ |= stale;
 
     RunStats stats;
+    stats.ran = stale;
     stats.gpu_ms = timer_.read();
     if (stale & (kPhotons | kView)) {
         shaders::PhotonStats counters{};

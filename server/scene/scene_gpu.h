@@ -40,6 +40,7 @@ struct PassKit {
 
 // What one run of the stale passes measured.
 struct RunStats {
+    PassSet ran = 0;  // the passes that ran: those asked for, plus what they found stale
     std::vector<std::pair<std::string, double>> gpu_ms;  // per pass that ran
     uint64_t photons_entered = 0;
     uint64_t photon_steps = 0;
