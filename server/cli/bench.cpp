@@ -220,6 +220,35 @@ int bench_daemon(const std::string& address, int runs, bool as_json) {
     return 0;
 }
 
+// How each pass's time grows with its work, from the first to the last case of each one-parameter family
+// of the suite (volume: voxels, photons: photons, image: pixels).
+json scaling(const json& cases, bool quiet) {
+    struct Family {
+        const char* prefix;  // case names of the family start so
+        const char* pass;
+        const char* work;    // the entry's measure of the pass's work
+    };
+    json out = json::array();
+    for (const Family f : {Family{"volume ", "voxelize", "voxels"}, Family{"volume ", "octree", "voxels"},
+                           Family{"photons ", "photons", "photons"}, Family{"image ", "view", "pixels"}}) {
+        std::vector<const json*> family;
+        for (const auto& c : cases)
+            if (c["case"].get<std::string>().starts_with(f.prefix) && c["passes"].contains(f.pass)) family.push_back(&c);
+        if (family.size() < 2) continue;
+        const json& first = *family.front();
+        const json& last = *family.back();
+        const double work = last[f.work].get<double>() / first[f.work].get<double>();
+        const double from = first["passes"][f.pass]["median_ms"].get<double>();
+        const double to = last["passes"][f.pass]["median_ms"].get<double>();
+        out.push_back({{"pass", f.pass}, {"work", f.work}, {"from_case", first["case"]}, {"to_case", last["case"]},
+                       {"work_ratio", work}, {"time_ratio", to / from}});
+        if (!quiet)
+            std::printf("scaling: %-9s %.0f -> %.0f ms (x%.1f) for x%.0f the %s (%s -> %s)\n", f.pass, from, to, to / from,
+                        work, f.work, first["case"].get<std::string>().c_str(), last["case"].get<std::string>().c_str());
+    }
+    return out;
+}
+
 }  // namespace
 
 int bench_command(const Arguments& args) {
@@ -338,6 +367,7 @@ int bench_command(const Arguments& args) {
             std::fflush(stdout);
         }
     }
+    report["scaling"] = scaling(report["cases"], args.json);
     if (args.json) std::cout << report.dump(2) << "\n";
     return 0;
 }
