@@ -2,8 +2,6 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
-#extension GL_KHR_shader_subgroup_basic : require
-#extension GL_KHR_shader_subgroup_ballot : require
 // Photon generation and tracing (passes 3-5 of Sun et al. 2008), one thread per photon run to
 // completion. Photons start where the light's rays enter the grid, follow the ray equation with the
 // octree's largest safe step, lose flux to extinction (Beer-Lambert per channel), and add flux x path
@@ -16,7 +14,6 @@ layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) buffer AccumRG { uint64_t a
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_BX) buffer AccumBX { uint64_t accum_bx[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_YZ) buffer AccumYZ { uint64_t accum_yz[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) buffer AccumFloor { uint accum_floor[]; };
-layout(std430, binding = TRANSPORT_BINDING_STATS) buffer Stats { PhotonStats stats; };
 layout(std430, binding = TRANSPORT_BINDING_PHOTON_EXITS) writeonly buffer Exits { PhotonExit exits[]; };
 
 const float kPi = 3.14159265358979;
@@ -152,10 +149,7 @@ void deposit_floor(vec3 x, vec3 weight, int sign) {
 }
 
 void main() {
-    // Subgroups take their photons from a queue in the order they run (see view.comp's main).
-    uint first = 0u;
-    if (subgroupElect()) first = atomicAdd(stats.photons_taken, gl_SubgroupSize);
-    uint i = subgroupBroadcastFirst(first) + gl_SubgroupInvocationID;
+    uint i = take_from_queue(QUEUE_PHOTONS);
     if (i >= params.photon_info.x) return;
     i = coherent_order(i, params.photon_info.x);
     vec3 origin, direction;

@@ -1,7 +1,5 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-#extension GL_KHR_shader_subgroup_basic : require
-#extension GL_KHR_shader_subgroup_ballot : require
 // The viewing pass: one thread per pixel. Eye rays travel straight outside the grid and follow the ray
 // equation inside it, gathering single scattering (transmittance x scattering x phase x fluence) from
 // the radiance grid, then finish on the floor (lit analytically, plus the photons' floor map of what
@@ -15,7 +13,6 @@ layout(binding = TRANSPORT_BINDING_DIRECTION) uniform sampler3D light_direction;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
 layout(std430, binding = TRANSPORT_BINDING_HDR) writeonly buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LDR) writeonly buffer Ldr { uint ldr[]; };
-layout(std430, binding = TRANSPORT_BINDING_STATS) buffer Stats { PhotonStats stats; };
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
 
 bool block_lit(vec3 p) {
@@ -187,17 +184,9 @@ void shade(uvec2 pixel) {
     ldr[index] = bytes.r | (bytes.g << 8u) | (bytes.b << 16u) | (255u << 24u);
 }
 
-// Subgroups take their pixels from a queue, in the order they run, rather than by their IDs. lavapipe
-// hands each CPU thread one fixed, contiguous share of a dispatch's workgroups, and pixels differ in
-// cost (sky, fog, glass): taking the next pixels of the queue interleaves the threads' pixels over the
-// whole image, so their shares cost alike and they finish together. The queue runs through the image
-// in 8x8 tiles, so a subgroup's pixels are neighbours. One atomic per subgroup. (A loop taking pixels
-// until the queue is empty would balance better, but lavapipe 22.3 shades some pixels of such a loop
-// wrongly.)
+// The queue runs through the image in 8x8 tiles, so a subgroup's pixels are neighbours.
 void main() {
-    uint first = 0u;
-    if (subgroupElect()) first = atomicAdd(stats.view_pixels_taken, gl_SubgroupSize);
-    uint job = subgroupBroadcastFirst(first) + gl_SubgroupInvocationID;
+    uint job = take_from_queue(QUEUE_VIEW_PIXELS);
     uint tile = job / (VIEW_GROUP_SIZE * VIEW_GROUP_SIZE), within = job % (VIEW_GROUP_SIZE * VIEW_GROUP_SIZE);
     uvec2 pixel = uvec2(tile % params.image.z, tile / params.image.z) * VIEW_GROUP_SIZE +
                   uvec2(within % VIEW_GROUP_SIZE, within / VIEW_GROUP_SIZE);

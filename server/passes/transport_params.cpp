@@ -192,8 +192,8 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     p.flags = glm::uvec4(0u, coverage_mode(medium.extinction == object.extinction),
                          coverage_mode(medium.scattering == object.scattering && medium.phase == object.phase),
                          any_scattering ? 1u : 0u);
-    const uint32_t f = options.radiance_factor;
-    p.radiance_grid = glm::uvec4((grid.dims.x + f - 1) / f, (grid.dims.y + f - 1) / f, (grid.dims.z + f - 1) / f, f);
+    const vk::Extent3 radiance_dims = grid.coarsened(options.radiance_factor);
+    p.radiance_grid = glm::uvec4(radiance_dims.x, radiance_dims.y, radiance_dims.z, options.radiance_factor);
     p.sky_zenith = glm::vec4(0.010f, 0.014f, 0.024f, 0.0f);
     p.sky_horizon = glm::vec4(0.045f, 0.050f, 0.060f, 0.0f);
     return p;

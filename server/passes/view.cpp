@@ -27,7 +27,8 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
                       uint32_t width, uint32_t height) const {
     // Only the view's counters restart (steps and the pixel queue, adjacent): the photon pass's counters
     // belong to the last photon run.
-    static_assert(offsetof(shaders::PhotonStats, view_pixels_taken) == offsetof(shaders::PhotonStats, view_steps) + 4);
+    static_assert(offsetof(shaders::PhotonStats, queue_taken) + 4 * QUEUE_VIEW_PIXELS ==
+                  offsetof(shaders::PhotonStats, view_steps) + 4);
     vkCmdFillBuffer(recorder.get(), out.stats.get(), offsetof(shaders::PhotonStats, view_steps), 2 * sizeof(uint32_t), 0);
     recorder.transfer_to_compute_barrier();
     pipeline_.dispatch(recorder.get(),

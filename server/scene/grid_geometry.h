@@ -21,6 +21,10 @@ struct GridGeometry {
                                                static_cast<float>(dims.z));
     }
     glm::vec3 to_voxel(glm::vec3 world) const { return (world - origin) / voxel_size; }
+    // Voxels of a grid over the same box whose voxels are `factor` of these wide (rounded up).
+    vk::Extent3 coarsened(uint32_t factor) const {
+        return {(dims.x + factor - 1) / factor, (dims.y + factor - 1) / factor, (dims.z + factor - 1) / factor};
+    }
     bool operator==(const GridGeometry&) const = default;
 };
 

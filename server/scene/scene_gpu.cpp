@@ -59,7 +59,7 @@ void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits, uint
     const uint32_t floor_texels = passes::floor_map_texels(grid_);
     const uint32_t exits = record_exits ? photon_count : 1u;
     const uint32_t f = radiance_factor;
-    const vk::Extent3 radiance_dims{(grid_.dims.x + f - 1) / f, (grid_.dims.y + f - 1) / f, (grid_.dims.z + f - 1) / f};
+    const vk::Extent3 radiance_dims = grid_.coarsened(f);
     if (accum_ && floor_texels == floor_texels_ && exits == exit_capacity_ && f == radiance_factor_) return;
     accum_.reset();
     accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels, exits));

@@ -44,6 +44,7 @@ REFRACT_SHADERS_BEGIN
 
 // How a pass finds the coverage that mixes medium and object coefficients: not at all when both are
 // equal, from n when the field is the uniform object's (n is linear in coverage), else by a fetch.
+// Ordered by cost: the larger of two modes serves both (see coverage_for).
 #define COVERAGE_CONSTANT 0u
 #define COVERAGE_FROM_INDEX 1u
 #define COVERAGE_FETCH 2u
@@ -106,9 +107,10 @@ struct PhotonStats {
     uint steps;             // photon integration steps taken
     uint floor_hits;
     uint view_steps;        // eye-ray march steps (the viewing pass)
-    uint view_pixels_taken; // the viewing pass's pixel queue (see view.comp)
-    uint photons_taken;     // the photon pass's queue (see photon_trace.comp)
+    uint queue_taken[2];    // work items handed out so far by each pass's queue (take_from_queue)
 };
+#define QUEUE_VIEW_PIXELS 0u
+#define QUEUE_PHOTONS 1u
 
 REFRACT_SHADERS_END
 

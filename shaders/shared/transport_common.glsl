@@ -1,11 +1,27 @@
 // GLSL shared by the photon and viewing passes: the frame parameters, index-field lookups, octree
 // stepping and the ray equation. Positions are in voxel units (voxel i spans [i, i+1)).
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_ballot : require
 #include "transport.h"
 
 layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
 layout(binding = TRANSPORT_BINDING_INDEX_FIELD) uniform sampler3D index_field;
 layout(binding = TRANSPORT_BINDING_COVERAGE) uniform sampler3D coverage_field;
 layout(std430, binding = TRANSPORT_BINDING_LEVELS) readonly buffer Levels { uint levels[]; };
+layout(std430, binding = TRANSPORT_BINDING_STATS) buffer Stats { PhotonStats stats; };
+
+// The index of the work item (pixel, photon) this invocation takes from `queue` (QUEUE_*), a subgroup's
+// worth at a time in the order subgroups run, rather than by invocation ID. lavapipe hands each CPU
+// thread one fixed, contiguous share of a dispatch's workgroups and items differ in cost (sky, fog,
+// glass): taking the next items interleaves the threads' shares over all the work, so they finish
+// together. One atomic per subgroup. Call it first, with every invocation of the dispatch active. (A
+// loop taking items until the queue is empty would balance better, but lavapipe 22.3 shades some pixels
+// of such a loop wrongly.)
+uint take_from_queue(uint queue) {
+    uint first = 0u;
+    if (subgroupElect()) first = atomicAdd(stats.queue_taken[queue], gl_SubgroupSize);
+    return subgroupBroadcastFirst(first) + gl_SubgroupInvocationID;
+}
 
 vec3 grid_dims() { return vec3(params.grid_dims.xyz); }
 float voxel_size() { return params.grid_origin.w; }
