@@ -110,10 +110,11 @@ void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa) {
             vec3 w = (absorbs ? weight * exp(-kappa * (t + 0.5 * piece)) * scale : segment_weight) * piece;
             uint index = voxel_index(cell);
             float jitter = next_unit();
+            float mean = (w.r + w.g + w.b) * (1.0 / 3.0);
             ivec3 q = ivec3(w + jitter);
-            ivec3 dq = ivec3(floor(d * ((w.r + w.g + w.b) * (1.0 / 3.0)) + jitter));
-            atomicAdd(accum_rg[index], pack(q.r, q.g));
-            atomicAdd(accum_bx[index], pack(q.b, dq.x));
+            ivec3 dq = ivec3(floor(d * mean + jitter));
+            if (!kGreyTransport) atomicAdd(accum_rg[index], pack(q.r, q.g));
+            atomicAdd(accum_bx[index], pack(kGreyTransport ? int(mean + jitter) : q.b, dq.x));
             atomicAdd(accum_yz[index], pack(dq.y, dq.z));
         }
         t = t_next;

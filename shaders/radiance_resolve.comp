@@ -2,8 +2,9 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Turns the photon pass's fixed-point sums into physical units for the viewing pass:
-// fluence rate (W/m^2) = sum(flux x path length) / voxel volume, the mean light direction, and floor
-// irradiance (W/m^2) = sum(flux) / texel area. Independent of photon count and grid resolution.
+// fluence rate (W/m^2) = sum(flux x path length) / voxel volume, the net flux vector the same way from
+// the direction-weighted sums (its length over the fluence is how much the light has one direction),
+// and floor irradiance (W/m^2) = sum(flux) / texel area. Independent of photon count and grid resolution.
 #include "transport.h"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
@@ -14,7 +15,7 @@ layout(std430, binding = TRANSPORT_BINDING_ACCUM_BX) readonly buffer AccumBX { u
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_YZ) readonly buffer AccumYZ { uint64_t accum_yz[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) readonly buffer AccumFloor { uint accum_floor[]; };
 layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform writeonly image3D radiance;
-layout(binding = TRANSPORT_BINDING_DIRECTION, rgba16f) uniform writeonly image3D direction;
+layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform writeonly image3D flux;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D floor_map;
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) writeonly buffer LitBlocks { uint lit_blocks[]; };
 
@@ -44,20 +45,20 @@ void main() {
         float to_fluence = reference_flux / (params.stepping.z * h * h);
         // Unpack (transport.h): the low half of each word is its own sum (signed where it can be
         // negative); the high half is what remains once the low half is taken out.
-        uint64_t rg = accum_rg[i], bx = accum_bx[i], yz = accum_yz[i];
-        float red = float(uint(rg & 0xffffffffUL)), green = float(uint(rg >> 32));
+        uint64_t bx = accum_bx[i], yz = accum_yz[i];
         float blue = float(uint(bx & 0xffffffffUL));
         float dir_x = float(int(int64_t(bx) >> 32));
         int dir_y = int(uint(yz & 0xffffffffUL));
         float dir_z = float(int((int64_t(yz) - int64_t(dir_y)) >> 32));
-        vec3 fluence = vec3(red, green, blue) * to_fluence;
-        vec3 dir_sum = vec3(dir_x, float(dir_y), dir_z);
-        float total = (red + green + blue) * (1.0 / 3.0);
-        float len = length(dir_sum);
-        vec4 dir = len > 0.0 ? vec4(dir_sum / len, min(len / max(total, 1.0), 1.0)) : vec4(0.0);
-        imageStore(radiance, v, vec4(fluence, 0.0));
-        if (max(fluence.r, max(fluence.g, fluence.b)) > 0.0) mark_lit(v);
-        imageStore(direction, v, dir);
+        float mean = blue;  // grey transport: the blue slot holds the channels' mean
+        if (!kGreyTransport) {
+            uint64_t rg = accum_rg[i];
+            vec3 colour = vec3(float(uint(rg & 0xffffffffUL)), float(uint(rg >> 32)), blue);
+            mean = (colour.r + colour.g + colour.b) * (1.0 / 3.0);
+            imageStore(radiance, v, vec4(colour * to_fluence, 0.0));
+        }
+        imageStore(flux, v, vec4(vec3(dir_x, float(dir_y), dir_z) * to_fluence, mean * to_fluence));
+        if (mean > 0.0) mark_lit(v);
         return;
     }
     uint texel = i - voxels;

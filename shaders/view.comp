@@ -9,7 +9,7 @@
 
 layout(local_size_x = VIEW_GROUP_SIZE, local_size_y = VIEW_GROUP_SIZE) in;
 layout(binding = TRANSPORT_BINDING_RADIANCE) uniform sampler3D radiance;
-layout(binding = TRANSPORT_BINDING_DIRECTION) uniform sampler3D light_direction;
+layout(binding = TRANSPORT_BINDING_FLUX) uniform sampler3D flux;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
 layout(std430, binding = TRANSPORT_BINDING_HDR) writeonly buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LDR) writeonly buffer Ldr { uint ldr[]; };
@@ -50,14 +50,18 @@ vec3 floor_radiance(vec3 x) {
 }
 
 // Fluence x phase at voxel point x for an eye ray travelling along d: what one unit of scattering
-// coefficient sends back along -d. Where photons arrive from many directions their mean direction is
-// short, so the phase blends towards isotropic by its length (coherence).
+// coefficient sends back along -d. The phase function is centred on the net flux's direction and
+// blends towards isotropic as the net flux shortens against the fluence (light from many directions).
+// Both are interpolated as sums, so the blend is flux-weighted between voxels.
 vec3 in_scattered(vec3 x, vec3 d, uint model, float g) {
     vec3 q = x / grid_dims();
-    vec3 fluence = textureLod(radiance, q, 0.0).rgb;
-    vec4 light_dir = textureLod(light_direction, q, 0.0);
-    float coherence = clamp(light_dir.w, 0.0, 1.0);
-    float cos_theta = dot(light_dir.xyz / max(length(light_dir.xyz), 1e-6), -d);
+    vec4 net = textureLod(flux, q, 0.0);  // xyz: net flux vector, w: fluence (channel mean)
+    // Grey transport: every channel is the light's colour times the mean.
+    vec3 fluence = kGreyTransport ? net.w * (params.photon_flux.rgb * (3.0 / max(dot(params.photon_flux.rgb, vec3(1.0)), 1e-30)))
+                                  : textureLod(radiance, q, 0.0).rgb;
+    float along = length(net.xyz);
+    float coherence = min(along / max(net.w, 1e-30), 1.0);
+    float cos_theta = dot(net.xyz, -d) / max(along, 1e-30);
     return fluence * mix(phase_isotropic(), phase_value(model, cos_theta, g), coherence);
 }
 

@@ -262,13 +262,13 @@ protected:
         return gpu;
     }
     std::unique_ptr<scene::SceneGpu> photons_for(const protocol::SceneDocument& doc) { return photons(doc); }
-    // Flux (W) of the floor map: the change of floor light the grid causes, summed over the map.
-    static double floor_flux(const scene::SceneGpu& gpu) {
+    // Flux (W) of the floor map in `channel`: the change of floor light the grid causes, summed over the map.
+    static double floor_flux(const scene::SceneGpu& gpu, int channel = 0) {
         const auto map = gpu.read_floor_map();
         const double side = static_cast<double>(gpu.params().floor_map.z);
         const double texel_area = (side / gpu.floor_map_side()) * (side / gpu.floor_map_side());
         double sum = 0.0;
-        for (const auto& e : map) sum += static_cast<double>(e.r);
+        for (const auto& e : map) sum += static_cast<double>(e[channel]);
         return sum * texel_area;
     }
 };
@@ -298,6 +298,13 @@ TEST_F(EnergyTest, UniformBeamGivesFluenceEqualToIrradiance) {
         // Every photon crosses the whole grid, so only fixed-point rounding (stochastic, unbiased) and
         // float sums enter: 1% is the bound and far above both.
         EXPECT_NEAR(mean, E, 0.01 * E);
+        // A collimated beam's net flux vector is its irradiance along its direction: E (0, 0, 1).
+        glm::dvec3 net(0.0);
+        for (const auto& v : gpu->read_flux()) net += glm::dvec3(v.x, v.y, v.z);
+        net /= static_cast<double>(radiance.size());
+        std::printf("uniform beam: mean net flux (%.5f, %.5f, %.5f)\n", net.x, net.y, net.z);
+        EXPECT_NEAR(net.z, E, 0.01 * E);
+        EXPECT_NEAR(std::hypot(net.x, net.y), 0.0, 0.01 * E);
     }
 }
 
@@ -362,38 +369,44 @@ TEST_F(EnergyTest, RefractionConservesFlux) {
 }
 
 // Beer-Lambert along straight paths: transmitted flux E A exp(-kappa H), and the fluence rate in each
-// layer of voxels E exp(-kappa s) averaged over the layer's depth.
+// layer of voxels E exp(-kappa s) averaged over the layer's depth, per channel: for grey extinction (the
+// radiance grid keeps one fluence and the light's colour) and for extinction that differs by channel.
 TEST_F(EnergyTest, ExtinctionFollowsBeerLambert) {
-    const double E = 2.0, kappa = 0.5, H = 2.4;
-    const json patch = {{"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", E}}},
-                        {"medium", {{"ior", 1.0}, {"extinction", {kappa, kappa, kappa}}, {"scattering", {kappa, kappa, kappa}}}},
-                        {"object", {{"ior", 1.0}, {"extinction", {kappa, kappa, kappa}}, {"scattering", {kappa, kappa, kappa}}}},
-                        {"floor", {{"enabled", true}, {"height", -1.5}}},
-                        {"image", {{"width", 8}, {"height", 8}}},
-                        {"photons", {{"count", 1 << 16}}},
-                        {"volume", {{"resolution", 48}, {"bounds", {{"min", {-1.2, -1.2, -1.2}}, {"max", {1.2, 1.2, 1.2}}}}}}};
-    const auto gpu = photons(protocol::parse_scene(patch));
-    // Landed flux: the map's change plus the unobstructed flux it was taken from (the whole beam).
-    const double expected = E * 2.4 * 2.4 * std::exp(-kappa * H);
-    const double measured = floor_flux(*gpu) + E * 2.4 * 2.4;
-    std::printf("beer-lambert: floor %.5f W, expected %.5f W\n", measured, expected);
-    EXPECT_NEAR(measured, expected, 0.01 * expected);
-
-    const auto radiance = gpu->read_radiance();
-    const auto dims = gpu->grid().dims;
-    const double h = gpu->grid().voxel_size;
-    double worst = 0.0;
-    for (uint32_t y = 0; y < dims.y; ++y) {
-        double sum = 0.0;
-        for (uint32_t z = 0; z < dims.z; ++z)
-            for (uint32_t x = 0; x < dims.x; ++x) sum += static_cast<double>(radiance[(size_t{z} * dims.y + y) * dims.x + x].r);
-        const double mean = sum / (dims.x * dims.z);
-        const double depth_top = (dims.y - 1 - y) * h;  // light enters at the top face
-        const double layer = E * std::exp(-kappa * depth_top) * (1.0 - std::exp(-kappa * h)) / (kappa * h);
-        worst = std::max(worst, std::abs(mean / layer - 1.0));
+    const double E = 2.0, H = 2.4;
+    for (const glm::dvec3 kappa : {glm::dvec3(0.5), glm::dvec3(0.2, 0.5, 1.0)}) {
+        const json k = {kappa.r, kappa.g, kappa.b};
+        const json patch = {{"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", E}}},
+                            {"medium", {{"ior", 1.0}, {"extinction", k}, {"scattering", k}}},
+                            {"object", {{"ior", 1.0}, {"extinction", k}, {"scattering", k}}},
+                            {"floor", {{"enabled", true}, {"height", -1.5}}},
+                            {"image", {{"width", 8}, {"height", 8}}},
+                            {"photons", {{"count", 1 << 16}}},
+                            {"volume", {{"resolution", 48}, {"bounds", {{"min", {-1.2, -1.2, -1.2}}, {"max", {1.2, 1.2, 1.2}}}}}}};
+        const auto gpu = photons(protocol::parse_scene(patch));
+        EXPECT_EQ(gpu->grey(), kappa.r == kappa.b);
+        const auto radiance = gpu->read_radiance();
+        const auto dims = gpu->grid().dims;
+        const double h = gpu->grid().voxel_size;
+        for (int c = 0; c < 3; ++c) {
+            // Landed flux: the map's change plus the unobstructed flux it was taken from (the whole beam).
+            const double expected = E * 2.4 * 2.4 * std::exp(-kappa[c] * H);
+            const double measured = floor_flux(*gpu, c) + E * 2.4 * 2.4;
+            double worst = 0.0;
+            for (uint32_t y = 0; y < dims.y; ++y) {
+                double sum = 0.0;
+                for (uint32_t z = 0; z < dims.z; ++z)
+                    for (uint32_t x = 0; x < dims.x; ++x) sum += static_cast<double>(radiance[(size_t{z} * dims.y + y) * dims.x + x][c]);
+                const double mean = sum / (dims.x * dims.z);
+                const double depth_top = (dims.y - 1 - y) * h;  // light enters at the top face
+                const double layer = E * std::exp(-kappa[c] * depth_top) * (1.0 - std::exp(-kappa[c] * h)) / (kappa[c] * h);
+                worst = std::max(worst, std::abs(mean / layer - 1.0));
+            }
+            std::printf("beer-lambert, kappa %.2f (%s transport): floor %.5f W, expected %.5f W; worst layer error %.4f\n",
+                        kappa[c], gpu->grey() ? "grey" : "coloured", measured, expected, worst);
+            EXPECT_NEAR(measured, expected, 0.01 * expected);
+            EXPECT_LT(worst, 0.01);
+        }
     }
-    std::printf("beer-lambert: worst layer error %.4f\n", worst);
-    EXPECT_LT(worst, 0.01);
 }
 
 // Doubling the photons leaves a region's mean fluence unchanged and lowers its noise by about sqrt(2).

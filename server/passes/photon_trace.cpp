@@ -12,7 +12,7 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
     const uint64_t voxels = radiance_dims.count();
     const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     PhotonAccumulators accum;
-    const char* names[3] = {"radiance sums red+green", "radiance sums blue+direction x", "direction sums y+z"};
+    const char* names[3] = {"radiance sums red+green", "radiance sums blue (grey: mean)+direction x", "direction sums y+z"};
     for (size_t i = 0; i < 3; ++i)
         accum.voxel[i] = vk::Buffer(context, voxels * sizeof(uint64_t), usage, vk::MemoryUse::device, names[i]);
     accum.floor = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * 3 * sizeof(uint32_t), usage,
@@ -26,40 +26,44 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
     return accum;
 }
 
+namespace {
+constexpr vk::BindingLayout kLayout[] = {
+    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
+    {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_ACCUM_RG, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_ACCUM_BX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_ACCUM_YZ, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_PHOTON_EXITS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+};
+}  // namespace
+
 PhotonTracePass::PhotonTracePass(vk::Context& context)
-    : pipeline_(context, photon_trace_spv,
-                {{TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
-                 {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
-                 {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
-                 {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_ACCUM_RG, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_ACCUM_BX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_ACCUM_YZ, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {TRANSPORT_BINDING_PHOTON_EXITS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
-                0, "photon trace") {}
+    : pipeline_(context, photon_trace_spv, kLayout, "photon trace") {}
 
 void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
                              const PhotonAccumulators& accum, uint32_t photon_count) const {
-    for (const auto& b : accum.voxel) recorder.fill(b, 0);
+    for (size_t i = in.grey ? 1 : 0; i < accum.voxel.size(); ++i) recorder.fill(accum.voxel[i], 0);
     recorder.fill(accum.floor, 0);
     recorder.fill(accum.stats, 0);
     recorder.fill(accum.exits, 0);
     recorder.transfer_to_compute_barrier();
     const auto groups = vk::linear_groups(photon_count, TRANSPORT_GROUP_SIZE);
-    pipeline_.dispatch(recorder.get(),
-                       {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
-                        vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
-                        vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.voxel[0]),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_BX, accum.voxel[1]),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_YZ, accum.voxel[2]),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
-                        vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits)},
-                       nullptr, 0, groups.x, groups.y);
+    pipeline_(in.grey).dispatch(recorder.get(),
+                                {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
+                                 vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
+                                 vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
+                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
+                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.voxel[0]),
+                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_BX, accum.voxel[1]),
+                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_YZ, accum.voxel[2]),
+                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
+                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
+                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits)},
+                                nullptr, 0, groups.x, groups.y);
 }
 
 }  // namespace refract::passes

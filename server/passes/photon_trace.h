@@ -5,13 +5,14 @@
 #include <array>
 
 #include "vk/commands.h"
+#include "passes/transport_pipeline.h"
 #include "vk/pipeline.h"
 
 namespace refract::passes {
 
 // Everything the photon pass writes and the resolve pass reads.
 struct PhotonAccumulators {
-    std::array<vk::Buffer, 3> voxel;  // packed 64-bit sums RG, BX, YZ (see shaders/shared/transport.h)
+    std::array<vk::Buffer, 3> voxel;  // packed 64-bit sums RG, BX, YZ (see shaders/shared/transport.h); grey: no RG
     vk::Buffer floor;                 // 3 uints per floor texel
     vk::Buffer stats;                 // PhotonStats (host-readable)
     vk::Buffer exits;                 // PhotonExit per photon when recorded (tests), else one entry
@@ -29,6 +30,7 @@ struct TransportInputs {
     const vk::Image3D& coverage;
     const vk::Buffer& levels;
     VkSampler sampler;
+    bool grey;  // grey transport (transport.h, TRANSPORT_CONSTANT_GREY)
 };
 
 class PhotonTracePass {
@@ -39,7 +41,7 @@ public:
                 uint32_t photon_count) const;
 
 private:
-    vk::ComputePipeline pipeline_;
+    TransportPipeline pipeline_;
 };
 
 }  // namespace refract::passes

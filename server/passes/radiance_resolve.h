@@ -1,5 +1,5 @@
 // Pass 5b (radiance resolve): fixed-point photon sums -> the radiance grid in physical units (fluence
-// rate W/m^2 and mean light direction per voxel) and the floor irradiance map.
+// rate and net flux vector per voxel, W/m^2) and the floor irradiance map.
 #pragma once
 
 #include "passes/photon_trace.h"
@@ -10,10 +10,11 @@ class RadianceResolvePass {
 public:
     explicit RadianceResolvePass(vk::Context& context);
     void record(vk::CommandRecorder& recorder, const vk::Buffer& params, const PhotonAccumulators& accum,
-                const vk::Image3D& radiance, const vk::Image3D& direction, const vk::Image3D& floor_map) const;
+                bool grey, const vk::Image3D& radiance, const vk::Image3D& flux, const vk::Image3D& floor_map) const;
+    // `radiance` (rgb fluence) is written by coloured transport only; grey transport binds any image.
 
 private:
-    vk::ComputePipeline pipeline_;
+    TransportPipeline pipeline_;
 };
 
 }  // namespace refract::passes

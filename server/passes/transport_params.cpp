@@ -43,6 +43,11 @@ uint32_t floor_map_texels(const scene::GridGeometry& grid) {
     return std::clamp(static_cast<uint32_t>(extent * 4.0f / 2.0f), 64u, 1024u);
 }
 
+bool grey_transport(const protocol::SceneDocument& document) {
+    auto grey = [](const auto& rgb) { return rgb[0] == rgb[1] && rgb[1] == rgb[2]; };
+    return grey(document.medium.extinction) && grey(document.object.extinction);
+}
+
 shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
                                                const scene::GridGeometry& grid, const TransportOptions& options) {
     shaders::TransportParams p{};

@@ -21,6 +21,10 @@ struct TransportOptions {
 shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
                                                const scene::GridGeometry& grid, const TransportOptions& options);
 
+// Whether photons keep their colour from emission to deposit: extinction is the same in every channel,
+// in the medium and in the object (TRANSPORT_CONSTANT_GREY).
+bool grey_transport(const protocol::SceneDocument& document);
+
 // Texels per side of the floor caustic map for this grid.
 uint32_t floor_map_texels(const scene::GridGeometry& grid);
 

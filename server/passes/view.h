@@ -17,11 +17,11 @@ class ViewPass {
 public:
     explicit ViewPass(vk::Context& context);
     void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const vk::Image3D& radiance,
-                const vk::Image3D& direction, const vk::Image3D& floor_map, const ViewOutputs& outputs,
+                const vk::Image3D& flux, const vk::Image3D& floor_map, const ViewOutputs& outputs,
                 uint32_t width, uint32_t height) const;
 
 private:
-    vk::ComputePipeline pipeline_;
+    TransportPipeline pipeline_;
 };
 
 }  // namespace refract::passes

@@ -19,8 +19,9 @@ PassKit::PassKit(vk::Context& ctx)
 int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t height) {
     const int64_t voxels = static_cast<int64_t>(grid.dims.count());
     // coverage + scratch (4+4), index field (16), coverage image (4), pyramid (8 x 8/7), levels (4),
-    // packed accumulators (24), radiance (16), direction (8); voxelize's per-axis scratch (12) while it runs.
-    const int64_t per_voxel = 4 + 4 + 16 + 4 + 10 + 4 + 24 + 16 + 8 + 12;
+    // packed accumulators (24), net flux (16), coloured radiance (16); voxelize's per-axis scratch (12)
+    // while it runs.
+    const int64_t per_voxel = 4 + 4 + 16 + 4 + 10 + 4 + 24 + 16 + 16 + 12;
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
     return voxels * per_voxel + floor + int64_t{width} * height * 20;
 }
@@ -41,7 +42,7 @@ void SceneGpu::allocate_volume(const GridGeometry& grid) {
     coverage_image_ = {};
     accum_.reset();
     radiance_ = {};
-    direction_ = {};
+    flux_ = {};
     floor_map_ = {};
     coverage_ = vk::Buffer(ctx, voxel_bytes, storage, vk::MemoryUse::device, "coverage");
     scratch_ = vk::Buffer(ctx, voxel_bytes, storage, vk::MemoryUse::device, "coverage scratch");
@@ -54,23 +55,29 @@ void SceneGpu::allocate_volume(const GridGeometry& grid) {
     built_ = 0;
 }
 
-void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits, uint32_t radiance_factor) {
+void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits, uint32_t radiance_factor, bool grey) {
     vk::Context& ctx = kit_.context;
     const uint32_t floor_texels = passes::floor_map_texels(grid_);
     const uint32_t exits = record_exits ? photon_count : 1u;
     const uint32_t f = radiance_factor;
     const vk::Extent3 radiance_dims = grid_.coarsened(f);
-    if (accum_ && floor_texels == floor_texels_ && exits == exit_capacity_ && f == radiance_factor_) return;
-    accum_.reset();
-    accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels, exits));
-    exit_capacity_ = exits;
-    if (!radiance_.get() || f != radiance_factor_) {
-        radiance_ = {};
-        direction_ = {};
-        radiance_ = vk::Image3D(ctx, radiance_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "radiance grid");
-        direction_ = vk::Image3D(ctx, radiance_dims, VK_FORMAT_R16G16B16A16_SFLOAT, "light direction grid");
+    if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_) {
+        accum_.reset();
+        accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels, exits));
+        exit_capacity_ = exits;
+    }
+    if (!flux_.get() || f != radiance_factor_) {
+        flux_ = {};
+        flux_ = vk::Image3D(ctx, radiance_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "net flux and fluence grid");
         radiance_factor_ = f;
     }
+    // Per-channel fluence only for coloured transport; grey transport binds a single texel it never reads.
+    const vk::Extent3 colour_dims = grey ? vk::Extent3{1, 1, 1} : radiance_dims;
+    if (!radiance_.get() || !(radiance_.extent() == colour_dims)) {
+        radiance_ = {};
+        radiance_ = vk::Image3D(ctx, colour_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "radiance grid (per channel)");
+    }
+    grey_ = grey;
     if (floor_texels != floor_texels_ || !floor_map_.get()) {
         floor_map_ = vk::Image3D(ctx, {floor_texels, floor_texels, 1}, VK_FORMAT_R16G16B16A16_SFLOAT,
                                  "floor caustic map");
@@ -111,14 +118,17 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         allocate_volume(grid);
         stale = kAllPasses;
     }
-    // Another radiance-grid resolution (interactive <-> still) means new photons into a new grid.
-    if (options.radiance_factor != radiance_factor_) built_ &= ~(kPhotons | kView);
+    // Another radiance-grid resolution (interactive <-> still) or kind of transport means new photons
+    // into a new grid.
+    const bool grey = passes::grey_transport(document);
+    if (options.radiance_factor != radiance_factor_ || grey != grey_) built_ &= ~(kPhotons | kView);
     stale |= kAllPasses & ~built_;
     // Each pass depends on all before it.
     for (PassSet p : {kVoxelize, kIndexField, kOctree, kPhotons})
         if (stale & p) stale |= (kAllPasses & ~(p - 1));
     stale &= options.limit;
-    if (stale & kPhotons) allocate_transport(document.photons.count, options.record_photon_exits, options.radiance_factor);
+    if (stale & kPhotons)
+        allocate_transport(document.photons.count, options.record_photon_exits, options.radiance_factor, grey);
     allocate_frame(document.image.width, document.image.height);
 
     passes::TransportOptions transport_options;
@@ -152,7 +162,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         for (const vk::Image3D* image : {&index_field_, &coverage_image_}) recorder_.init_image(*image);
     }
     if (stale & kPhotons && !(built_ & kPhotons)) {
-        for (const vk::Image3D* image : {&radiance_, &direction_, &floor_map_}) recorder_.init_image(*image);
+        for (const vk::Image3D* image : {&radiance_, &flux_, &floor_map_}) recorder_.init_image(*image);
     }
     if (stale & kVoxelize) {
         timer_.begin(cmd, "voxelize");
@@ -189,18 +199,18 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         timer_.end(cmd);
     }
     const passes::TransportInputs inputs{params_buffer_, index_field_, coverage_image_, levels_,
-                                         kit_.linear_sampler.get()};
+                                         kit_.linear_sampler.get(), grey_};
     if (stale & kPhotons) {
         timer_.begin(cmd, "photons");
         kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count);
         recorder_.compute_barrier();
-        kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, radiance_, direction_, floor_map_);
+        kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, grey_, radiance_, flux_, floor_map_);
         recorder_.compute_barrier();
         timer_.end(cmd);
     }
     if (stale & kView) {
         timer_.begin(cmd, "view");
-        kit_.view.record(recorder_, inputs, radiance_, direction_, floor_map_, {hdr_, ldr_, accum_->stats, accum_->lit_blocks}, width_, height_);
+        kit_.view.record(recorder_, inputs, radiance_, flux_, floor_map_, {hdr_, ldr_, accum_->stats, accum_->lit_blocks}, width_, height_);
         timer_.end(cmd);
     }
     recorder_.to_host_barrier();
@@ -251,7 +261,7 @@ std::vector<T> SceneGpu::read_image(const vk::Image3D& image) const {
 }
 
 namespace {
-// Half floats (the direction grid and floor map) widened to float on the host.
+// Half floats (the floor map) widened to float on the host.
 std::vector<glm::vec4> widen(const std::vector<uint16_t>& half) {
     std::vector<glm::vec4> out(half.size() / 4);
     for (size_t i = 0; i < out.size(); ++i)
@@ -273,8 +283,17 @@ std::vector<glm::vec4> widen(const std::vector<uint16_t>& half) {
 std::vector<float> SceneGpu::read_coverage() const { return read_image<float>(coverage_image_); }
 std::vector<glm::vec4> SceneGpu::read_index_field() const { return read_image<glm::vec4>(index_field_); }
 std::vector<uint32_t> SceneGpu::read_levels() const { return read_buffer<uint32_t>(levels_); }
-std::vector<glm::vec4> SceneGpu::read_radiance() const { return read_image<glm::vec4>(radiance_); }
-std::vector<glm::vec4> SceneGpu::read_direction() const { return widen(read_image<uint16_t>(direction_)); }
+std::vector<glm::vec4> SceneGpu::read_flux() const { return read_image<glm::vec4>(flux_); }
+
+std::vector<glm::vec4> SceneGpu::read_radiance() const {
+    if (!grey_) return read_image<glm::vec4>(radiance_);
+    // Grey transport: the light's colour times the channels' mean, as the viewing pass shades it.
+    const glm::vec3 flux(params_.photon_flux);
+    const glm::vec3 colour = flux * (3.0f / std::max(flux.r + flux.g + flux.b, 1e-30f));
+    std::vector<glm::vec4> out = read_flux();
+    for (glm::vec4& v : out) v = glm::vec4(colour * v.w, 0.0f);
+    return out;
+}
 std::vector<glm::vec4> SceneGpu::read_floor_map() const { return widen(read_image<uint16_t>(floor_map_)); }
 
 std::vector<glm::vec4> SceneGpu::read_floor_irradiance() const {

@@ -83,8 +83,9 @@ public:
     std::vector<float> read_coverage() const;
     std::vector<glm::vec4> read_index_field() const;
     std::vector<uint32_t> read_levels() const;
-    std::vector<glm::vec4> read_radiance() const;   // fluence rate rgb (W/m^2)
-    std::vector<glm::vec4> read_direction() const;  // mean light direction xyz, coherence w
+    std::vector<glm::vec4> read_radiance() const;  // fluence rate rgb (W/m^2)
+    std::vector<glm::vec4> read_flux() const;      // net flux vector xyz, fluence rate w (channel mean; W/m^2)
+    bool grey() const { return grey_; }            // the kind of transport the photons last ran
     // The change of floor irradiance the grid causes (W/m^2, signed), floor_map_side()^2 texels.
     std::vector<glm::vec4> read_floor_map() const;
     // Total floor irradiance at the floor map's texel centres, as the viewing pass shades it: the
@@ -98,7 +99,7 @@ public:
 
 private:
     void allocate_volume(const GridGeometry& grid);
-    void allocate_transport(uint32_t photon_count, bool record_exits, uint32_t radiance_factor);
+    void allocate_transport(uint32_t photon_count, bool record_exits, uint32_t radiance_factor, bool grey);
     void allocate_frame(uint32_t width, uint32_t height);
     template <typename T>
     std::vector<T> read_image(const vk::Image3D& image) const;
@@ -109,6 +110,7 @@ private:
     GridGeometry grid_{};
     PassSet built_ = 0;
     uint32_t width_ = 0, height_ = 0, floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
+    bool grey_ = false;
     shaders::TransportParams params_{};
     // Volume (voxelize, index field, octree)
     vk::Buffer coverage_, scratch_, grid_values_, pyramid_, levels_;
@@ -116,7 +118,7 @@ private:
     // Transport (photons, resolve)
     std::optional<passes::PhotonAccumulators> accum_;
     vk::Buffer params_buffer_, exits_;
-    vk::Image3D radiance_, direction_, floor_map_;
+    vk::Image3D radiance_, flux_, floor_map_;  // radiance_: per-channel fluence, coloured transport only
     // Frame
     vk::Buffer hdr_, ldr_;
     vk::CommandRecorder recorder_;

@@ -18,8 +18,8 @@ Binding Binding::sampled_image(uint32_t binding, const Image3D& image, VkSampler
 }
 
 ComputePipeline::ComputePipeline(Context& context, std::span<const uint32_t> spirv,
-                                 std::initializer_list<std::pair<uint32_t, VkDescriptorType>> layout,
-                                 uint32_t push_constant_bytes, const char* name)
+                                 std::span<const BindingLayout> layout, uint32_t push_constant_bytes,
+                                 const char* name, std::span<const uint32_t> constants)
     : context_(context), push_constant_bytes_(push_constant_bytes), name_(name) {
     const VkDevice device = context.device();
     if (push_constant_bytes > context.limits().maxPushConstantsSize)
@@ -59,6 +59,12 @@ ComputePipeline::ComputePipeline(Context& context, std::span<const uint32_t> spi
     info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
     info.stage.module = module;
     info.stage.pName = "main";
+    std::vector<VkSpecializationMapEntry> entries;
+    for (uint32_t id = 0; id < constants.size(); ++id)
+        entries.push_back({id, id * static_cast<uint32_t>(sizeof(uint32_t)), sizeof(uint32_t)});
+    const VkSpecializationInfo specialization{static_cast<uint32_t>(entries.size()), entries.data(),
+                                              constants.size_bytes(), constants.data()};
+    if (!constants.empty()) info.stage.pSpecializationInfo = &specialization;
     info.layout = pipeline_layout;
     VkPipeline pipeline = VK_NULL_HANDLE;
     REFRACT_VK_CHECK(vkCreateComputePipelines(device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline));

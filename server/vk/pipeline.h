@@ -7,6 +7,7 @@
 #include <initializer_list>
 #include <span>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "vk/context.h"
@@ -28,11 +29,18 @@ struct Binding {
     static Binding sampled_image(uint32_t binding, const Image3D& image, VkSampler sampler);
 };
 
+using BindingLayout = std::pair<uint32_t, VkDescriptorType>;
+
 class ComputePipeline {
 public:
-    ComputePipeline(Context& context, std::span<const uint32_t> spirv,
-                    std::initializer_list<std::pair<uint32_t, VkDescriptorType>> layout,
-                    uint32_t push_constant_bytes, const char* name);
+    // `constants` specialize the shader: constant_id i takes constants[i] (32-bit values, bools as 0/1),
+    // so the driver compiles each variant with its dead branches removed.
+    ComputePipeline(Context& context, std::span<const uint32_t> spirv, std::span<const BindingLayout> layout,
+                    uint32_t push_constant_bytes, const char* name, std::span<const uint32_t> constants = {});
+    ComputePipeline(Context& context, std::span<const uint32_t> spirv, std::initializer_list<BindingLayout> layout,
+                    uint32_t push_constant_bytes, const char* name)
+        : ComputePipeline(context, spirv, std::span<const BindingLayout>(layout.begin(), layout.size()),
+                          push_constant_bytes, name) {}
 
     // Binds the pipeline, pushes the descriptors and push constants and dispatches `groups`.
     void dispatch(VkCommandBuffer cmd, std::span<const Binding> bindings, const void* push_constants,

@@ -15,17 +15,18 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_INDEX_FIELD 1     // sampler3D rgba32f (n, grad n per voxel)
 #define TRANSPORT_BINDING_COVERAGE 2        // sampler3D r32f
 #define TRANSPORT_BINDING_LEVELS 3          // uint per voxel (octree leaf level)
-// Per voxel, six fixed-point sums packed in pairs into 64-bit words, so one 64-bit atomic adds two:
+// Per voxel, fixed-point sums packed in pairs into 64-bit words, so one 64-bit atomic adds two:
 // RG = red | green << 32, BX = blue | dir_x << 32, YZ = dir_y | dir_z << 32 (dir_* are signed and
-// flux-weighted; colour sums are flux x path length). Every half-sum stays within 31 bits by the choice
-// of fixed-point scale, so halves never carry into each other beyond what decoding undoes exactly.
+// weighted by the channels' mean; colour sums are flux x path length). Grey transport keeps no RG word
+// and puts the channels' mean in the blue slot. Every half-sum stays within 31 bits by the choice of
+// fixed-point scale, so halves never carry into each other beyond what decoding undoes exactly.
 #define TRANSPORT_BINDING_ACCUM_RG 4
 #define TRANSPORT_BINDING_ACCUM_BX 5
 #define TRANSPORT_BINDING_ACCUM_YZ 6
 #define TRANSPORT_BINDING_ACCUM_FLOOR 10    // fixed-point signed floor flux change, 3 per texel
 #define TRANSPORT_BINDING_STATS 11          // photon statistics (see PhotonStats)
-#define TRANSPORT_BINDING_RADIANCE 12       // rgba32f: fluence rate (W/m^2) rgb
-#define TRANSPORT_BINDING_DIRECTION 13      // rgba16f: mean light direction xyz, w coherence
+#define TRANSPORT_BINDING_RADIANCE 12       // rgba32f: fluence rate (W/m^2) rgb; coloured transport only
+#define TRANSPORT_BINDING_FLUX 13           // rgba32f: net flux vector (W/m^2) xyz, w fluence rate (channel mean)
 #define TRANSPORT_BINDING_FLOOR_MAP 14      // rgba16f (z = 1): change of floor irradiance by the grid (W/m^2)
 #define TRANSPORT_BINDING_HDR 15            // vec4 per pixel: linear radiance before exposure
 #define TRANSPORT_BINDING_LDR 16            // uint per pixel: tone-mapped sRGB RGBA8
@@ -41,6 +42,15 @@ REFRACT_SHADERS_BEGIN
 #define LIGHT_DIRECTIONAL 2u
 
 #define CHANNEL_ALL 3u  // a photon carries all three channels (no dispersion)
+
+// Specialization constant of the photon, resolve and viewing passes. Grey transport: extinction is the
+// same in every channel (and no dispersion), so a photon's colour never changes from emission to
+// deposit. The radiance grid then keeps one fluence (the channels' mean) and the light's colour is
+// applied when shading: one atomic word per deposit and one texture fetch per eye-ray step fewer.
+#define TRANSPORT_CONSTANT_GREY 0
+#ifndef __cplusplus
+layout(constant_id = TRANSPORT_CONSTANT_GREY) const bool kGreyTransport = false;
+#endif
 
 // How a pass finds the coverage that mixes medium and object coefficients: not at all when both are
 // equal, from n when the field is the uniform object's (n is linear in coverage), else by a fetch.
