@@ -20,17 +20,21 @@ layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) writeonly buffer LitBlocks { uint lit_blocks[]; };
 
 // A lit radiance voxel marks every block (of index-field voxels) its trilinear footprint touches: the
-// index-field voxels within one radiance voxel of it. All writers store the same value, so plain stores
-// need no atomics.
+// index-field voxels within one radiance voxel of it, and the cells above those blocks at every level
+// of the lit pyramid. All writers store the same value, so plain stores need no atomics.
 void mark_lit(ivec3 v) {
     uvec3 dims = params.grid_dims.xyz;
     int f = int(params.radiance_grid.w);
-    uvec3 blocks = (dims + LIT_BLOCK - 1u) / LIT_BLOCK;
     ivec3 lo = max(f * (v - 1), ivec3(0)) / LIT_BLOCK;
     ivec3 hi = min(f * (v + 2) - 1, ivec3(dims) - 1) / LIT_BLOCK;
-    for (int z = lo.z; z <= hi.z; ++z)
-        for (int y = lo.y; y <= hi.y; ++y)
-            for (int x = lo.x; x <= hi.x; ++x) lit_blocks[(uint(z) * blocks.y + uint(y)) * blocks.x + uint(x)] = 1u;
+    for (uint level = 0u; level < LIT_LEVELS; ++level) {
+        uvec3 cells = lit_cells(dims, level);
+        uint offset = params.lit_offsets[level];
+        for (int z = lo.z >> level; z <= hi.z >> level; ++z)
+            for (int y = lo.y >> level; y <= hi.y >> level; ++y)
+                for (int x = lo.x >> level; x <= hi.x >> level; ++x)
+                    lit_blocks[offset + (uint(z) * cells.y + uint(y)) * cells.x + uint(x)] = 1u;
+    }
 }
 
 void main() {

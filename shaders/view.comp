@@ -16,9 +16,23 @@ layout(std430, binding = TRANSPORT_BINDING_LDR) writeonly buffer Ldr { uint ldr[
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
 
 bool block_lit(vec3 p) {
-    uvec3 blocks = (params.grid_dims.xyz + LIT_BLOCK - 1u) / LIT_BLOCK;
+    uvec3 blocks = lit_cells(params.grid_dims.xyz, 0u);
     uvec3 b = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / LIT_BLOCK;
     return lit_blocks[(b.z * blocks.y + b.y) * blocks.x + b.x] != 0u;
+}
+
+// The side (voxels) of the largest cell of the lit pyramid that holds p and no light; 0 where p's block
+// is lit. A lit cell's parents are lit, so the unlit levels at p are the finest ones: counting them
+// finds the largest without a branch per level.
+float unlit_cell(vec3 p) {
+    uvec3 b = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / LIT_BLOCK;
+    uint unlit = 0u;
+    for (uint level = 0u; level < LIT_LEVELS; ++level) {
+        uvec3 cells = lit_cells(params.grid_dims.xyz, level);
+        uvec3 c = b >> level;
+        unlit += lit_blocks[params.lit_offsets[level] + (c.z * cells.y + c.y) * cells.x + c.x] == 0u ? 1u : 0u;
+    }
+    return unlit == 0u ? 0.0 : float(uint(LIT_BLOCK) << (unlit - 1u));
 }
 
 const float kPi = 3.14159265358979;
@@ -118,14 +132,15 @@ void shade(uvec2 pixel) {
             float to_end = min(to_exit, to_floor);
             // Refracting shells (level 0) take the photons' shell step, for the same refraction, and
             // gather once over it; lit fog in a leaf (n constant, the ray straight) gathers every view
-            // step to the leaf's end; unlit fog is crossed to the end of its leaf or unlit block, clear
+            // step to the leaf's end; unlit fog is crossed to the end of its leaf or unlit cell, clear
             // space to the end of its leaf. No leaf step is shorter than the shell step, and none longer
             // than the leaf, so coarse view steps never step over a shell.
-            bool gathers = scatters && (level == 0u || block_lit(ray.p));
+            float unlit = unlit_cell(ray.p);
+            bool gathers = scatters && (level == 0u || unlit == 0.0);
             float run = level == 0u ? params.stepping.x
                                     : min(safe_step(level, ray.p, ray.d, params.stepping.x),
                                           scatters && !gathers
-                                              ? max(cell_exit(ray.p, ray.d, float(LIT_BLOCK)) + params.stepping.y, view_step)
+                                              ? max(cell_exit(ray.p, ray.d, unlit) + params.stepping.y, view_step)
                                               : 1e30);
             run = min(run, to_end);
             if (gathers) {

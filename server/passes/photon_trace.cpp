@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "passes/transport_params.h"
 #include "photon_trace_spv.h"
 #include "transport.h"
 
@@ -18,9 +19,8 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
     accum.floor = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * 3 * sizeof(uint32_t), usage,
                              vk::MemoryUse::device, "floor flux sum");
     accum.stats = vk::Buffer(context, sizeof(shaders::PhotonStats), usage, vk::MemoryUse::readback, "photon stats");
-    const uint64_t blocks = uint64_t{(dims.x + LIT_BLOCK - 1) / LIT_BLOCK} * ((dims.y + LIT_BLOCK - 1) / LIT_BLOCK) *
-                            ((dims.z + LIT_BLOCK - 1) / LIT_BLOCK);
-    accum.lit_blocks = vk::Buffer(context, blocks * sizeof(uint32_t), usage, vk::MemoryUse::device, "lit blocks");
+    const uint64_t lit_cells = passes::lit_pyramid_offsets(dims)[LIT_LEVELS];
+    accum.lit_blocks = vk::Buffer(context, lit_cells * sizeof(uint32_t), usage, vk::MemoryUse::device, "lit pyramid");
     accum.exits = vk::Buffer(context, uint64_t{std::max(exit_count, 1u)} * sizeof(shaders::PhotonExit), usage,
                              vk::MemoryUse::readback, "photon exits");
     return accum;

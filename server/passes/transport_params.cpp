@@ -43,6 +43,15 @@ uint32_t floor_map_texels(const scene::GridGeometry& grid) {
     return std::clamp(static_cast<uint32_t>(extent * 4.0f / 2.0f), 64u, 1024u);
 }
 
+std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims) {
+    std::array<uint32_t, LIT_LEVELS + 1> offsets{};
+    for (uint32_t level = 0; level < LIT_LEVELS; ++level) {
+        const glm::uvec3 cells = shaders::lit_cells(glm::uvec3(dims.x, dims.y, dims.z), level);
+        offsets[level + 1] = offsets[level] + cells.x * cells.y * cells.z;
+    }
+    return offsets;
+}
+
 bool grey_transport(const protocol::SceneDocument& document) {
     auto grey = [](const auto& rgb) { return rgb[0] == rgb[1] && rgb[1] == rgb[2]; };
     return grey(document.medium.extinction) && grey(document.object.extinction);
@@ -199,6 +208,9 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
                          any_scattering ? 1u : 0u);
     const vk::Extent3 radiance_dims = grid.coarsened(options.radiance_factor);
     p.radiance_grid = glm::uvec4(radiance_dims.x, radiance_dims.y, radiance_dims.z, options.radiance_factor);
+    const auto lit = lit_pyramid_offsets(grid.dims);
+    static_assert(LIT_LEVELS == 4);
+    p.lit_offsets = glm::uvec4(lit[0], lit[1], lit[2], lit[3]);
     p.sky_zenith = glm::vec4(0.010f, 0.014f, 0.024f, 0.0f);
     p.sky_horizon = glm::vec4(0.045f, 0.050f, 0.060f, 0.0f);
     return p;

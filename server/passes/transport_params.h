@@ -3,6 +3,8 @@
 // fixed-point scales, the floor's caustic map footprint and the camera.
 #pragma once
 
+#include <array>
+
 #include "protocol/scene_document.h"
 #include "scene/grid_geometry.h"
 #include "transport.h"
@@ -24,6 +26,9 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
 // Whether photons keep their colour from emission to deposit: extinction is the same in every channel,
 // in the medium and in the object (TRANSPORT_CONSTANT_GREY).
 bool grey_transport(const protocol::SceneDocument& document);
+
+// Where each level of the lit pyramid starts in the lit-blocks buffer; the last entry is its length.
+std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims);
 
 // Texels per side of the floor caustic map for this grid.
 uint32_t floor_map_texels(const scene::GridGeometry& grid);

@@ -31,11 +31,14 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_HDR 15            // vec4 per pixel: linear radiance before exposure
 #define TRANSPORT_BINDING_LDR 16            // uint per pixel: tone-mapped sRGB RGBA8
 #define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when flags.x == 1
-#define TRANSPORT_BINDING_LIT_BLOCKS 18     // uint per LIT_BLOCK^3 voxels: 1 where any light arrives
+#define TRANSPORT_BINDING_LIT_BLOCKS 18     // the lit pyramid: uint per cell per level, 1 where any light arrives
 
-// Eye rays cross unlit fog in steps of whole blocks: a block is lit when photons reached any voxel
-// whose trilinear footprint overlaps it.
+// Eye rays cross unlit fog in whole cells of the lit pyramid: level 0 has a flag per LIT_BLOCK^3 voxels,
+// set when photons reached any voxel whose trilinear footprint overlaps the block; each level above
+// merges 2^3 cells of the one below, so a ray far from the light crosses fog in cells of up to
+// LIT_BLOCK << (LIT_LEVELS - 1) voxels.
 #define LIT_BLOCK 4
+#define LIT_LEVELS 4
 
 #define LIGHT_POINT 0u
 #define LIGHT_SPOT 1u
@@ -101,7 +104,14 @@ struct TransportParams {
     uvec4 radiance_grid;      // xyz: radiance grid voxels; w: index-field voxels per radiance voxel along
                               // each axis (1; 2 for interactive frames: 1/8 the voxels to clear, resolve
                               // and cross)
+    uvec4 lit_offsets;        // where each level of the lit pyramid starts in the lit-blocks buffer
 };
+
+// Cells per axis of level `level` of the lit pyramid over a grid of `dims` voxels.
+REFRACT_INLINE uvec3 lit_cells(uvec3 dims, uint level) {
+    uint side = uint(LIT_BLOCK) << level;
+    return (dims + (side - 1u)) / side;
+}
 
 // Where a photon left the grid (or stopped), for the optics tests.
 struct PhotonExit {
@@ -125,7 +135,7 @@ struct PhotonStats {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == 30 * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == 31 * 16);
 static_assert(sizeof(refract::shaders::PhotonStats) == 24);
 static_assert(sizeof(refract::shaders::PhotonExit) == 64);
 #endif
