@@ -31,7 +31,11 @@ public:
                            const vk::Buffer& coverage) const;
 
     static constexpr uint32_t kSubsamples = 4;  // 4 x 4 rays per voxel column and axis
-    static constexpr uint32_t kTileSize = 4;
+    // Triangles are binned per tile of kTileSize^2 columns; each ray tests its tile's list. One column
+    // per tile: every ray tests only triangles over its own column (sphere at 128^3: voxelize 700-750
+    // -> 515 ms against 4 x 4 tiles; 28,496-triangle bunny 620-740 -> 320-330 ms), and binning stays
+    // cheap on the host (the bunny's whole rebuild got faster).
+    static constexpr uint32_t kTileSize = 1;
 
 private:
     vk::Context& context_;
