@@ -95,6 +95,24 @@ TEST_F(RendererTest, SwitchingQualityRerunsPhotonsIntoTheRightGrid) {
     EXPECT_EQ(renderer.render("a", doc, no_assets, Quality::still).rerun, 0u);
 }
 
+// Extinction that differs by channel switches the resident scene from grey to coloured transport (a
+// per-channel radiance grid appears) and back: each frame must equal a fresh scene's frame of the
+// same document, so nothing of the other kind of transport is left behind.
+TEST_F(RendererTest, SwitchingBetweenGreyAndColouredTransportMatchesFreshScenes) {
+    const SceneDocument grey = small({{"photons", {{"count", 4096}}}});
+    const SceneDocument coloured =
+        protocol::apply_merge_patch(grey, {{"medium", {{"extinction", {0.2, 0.3, 0.5}}}}});
+    Renderer resident(*context);
+    const FrameResult first = resident.render("a", grey, no_assets);
+    const FrameResult switched = resident.render("a", coloured, no_assets);
+    EXPECT_EQ(switched.rerun, kPhotons | kView);
+    const FrameResult back = resident.render("a", grey, no_assets);
+    EXPECT_EQ(back.png, first.png);
+    Renderer fresh(*context);
+    EXPECT_EQ(fresh.render("b", coloured, no_assets).png, switched.png);
+    EXPECT_NE(switched.png, first.png);
+}
+
 TEST_F(RendererTest, MemoryBudgetDropsTheLeastRecentlyUsedScene) {
     const SceneDocument doc = small();
     RendererOptions options;
