@@ -46,13 +46,13 @@ PhotonTracePass::PhotonTracePass(vk::Context& context)
 
 void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
                              const PhotonAccumulators& accum, uint32_t photon_count) const {
-    for (size_t i = in.grey ? 1 : 0; i < accum.voxel.size(); ++i) recorder.fill(accum.voxel[i], 0);
+    for (size_t i = in.variant.grey ? 1 : 0; i < accum.voxel.size(); ++i) recorder.fill(accum.voxel[i], 0);
     recorder.fill(accum.floor, 0);
     recorder.fill(accum.stats, 0);
     recorder.fill(accum.exits, 0);
     recorder.transfer_to_compute_barrier();
     const auto groups = vk::linear_groups(photon_count, TRANSPORT_GROUP_SIZE);
-    pipeline_(in.grey).dispatch(recorder.get(),
+    pipeline_(in.variant).dispatch(recorder.get(),
                                 {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
                                  vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
                                  vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),

@@ -30,7 +30,7 @@ struct TransportInputs {
     const vk::Image3D& coverage;
     const vk::Buffer& levels;
     VkSampler sampler;
-    bool grey;  // grey transport (transport.h, TRANSPORT_CONSTANT_GREY)
+    TransportVariant variant;
 };
 
 class PhotonTracePass {

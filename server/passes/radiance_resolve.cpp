@@ -29,7 +29,7 @@ void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer
     const auto groups = vk::linear_groups(items, TRANSPORT_GROUP_SIZE);
     recorder.fill(accum.lit_blocks, 0);
     recorder.transfer_to_compute_barrier();
-    pipeline_(grey).dispatch(recorder.get(),
+    pipeline_({grey, false}).dispatch(recorder.get(),
                              {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, params),
                               vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.voxel[0]),
                               vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_BX, accum.voxel[1]),

@@ -5,13 +5,15 @@
 #include "transport.h"
 
 namespace refract::passes {
-namespace {
-static_assert(TRANSPORT_CONSTANT_GREY == 0);
-constexpr std::array<uint32_t, 1> kColoured{0u}, kGrey{1u};
-}  // namespace
 
 TransportPipeline::TransportPipeline(vk::Context& context, std::span<const uint32_t> spirv,
-                                     std::span<const vk::BindingLayout> layout, const char* name)
-    : coloured_(context, spirv, layout, 0, name, kColoured), grey_(context, spirv, layout, 0, name, kGrey) {}
+                                     std::span<const vk::BindingLayout> layout, const char* name) {
+    static_assert(TRANSPORT_CONSTANT_GREY == 0 && TRANSPORT_CONSTANT_COVERAGE_FETCH == 1);
+    pipelines_.reserve(4);
+    for (uint32_t i = 0; i < 4; ++i) {
+        const std::array<uint32_t, 2> constants{i & 1u, (i >> 1) & 1u};
+        pipelines_.emplace_back(context, spirv, layout, 0, name, constants);
+    }
+}
 
 }  // namespace refract::passes

@@ -1,23 +1,30 @@
-// A light-transport pass (photons, resolve, view) compiled for both kinds of transport: grey (every
-// channel attenuates alike, the radiance grid keeps one fluence) and coloured. The choice is a
-// specialization constant (TRANSPORT_CONSTANT_GREY), so each variant is compiled without the other's
+// A light-transport pass (photons, resolve, view) compiled once per TransportVariant. The variant is
+// given by specialization constants (transport.h), so each pipeline is compiled without the others'
 // work: a uniform branch would not do, as lavapipe runs both sides of every branch.
 #pragma once
 
 #include <span>
+#include <vector>
 
 #include "vk/pipeline.h"
 
 namespace refract::passes {
 
+struct TransportVariant {
+    bool grey = false;            // grey transport (TRANSPORT_CONSTANT_GREY)
+    bool coverage_fetch = false;  // some coefficient reads the coverage texture (TRANSPORT_CONSTANT_COVERAGE_FETCH)
+};
+
 class TransportPipeline {
 public:
     TransportPipeline(vk::Context& context, std::span<const uint32_t> spirv,
                       std::span<const vk::BindingLayout> layout, const char* name);
-    const vk::ComputePipeline& operator()(bool grey) const { return grey ? grey_ : coloured_; }
+    const vk::ComputePipeline& operator()(TransportVariant variant) const {
+        return pipelines_[(variant.grey ? 1u : 0u) + (variant.coverage_fetch ? 2u : 0u)];
+    }
 
 private:
-    vk::ComputePipeline coloured_, grey_;
+    std::vector<vk::ComputePipeline> pipelines_;  // indexed as operator() does
 };
 
 }  // namespace refract::passes

@@ -34,7 +34,7 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
                   offsetof(shaders::PhotonStats, view_steps) + 4);
     vkCmdFillBuffer(recorder.get(), out.stats.get(), offsetof(shaders::PhotonStats, view_steps), 2 * sizeof(uint32_t), 0);
     recorder.transfer_to_compute_barrier();
-    pipeline_(in.grey).dispatch(recorder.get(),
+    pipeline_(in.variant).dispatch(recorder.get(),
                                 {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
                                  vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
                                  vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),

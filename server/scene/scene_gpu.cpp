@@ -199,7 +199,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         timer_.end(cmd);
     }
     const passes::TransportInputs inputs{params_buffer_, index_field_, coverage_image_, levels_,
-                                         kit_.linear_sampler.get(), grey_};
+                                         kit_.linear_sampler.get(),
+                                         {grey_, params_.flags.y == COVERAGE_FETCH || params_.flags.z == COVERAGE_FETCH}};
     if (stale & kPhotons) {
         timer_.begin(cmd, "photons");
         kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count);

@@ -51,8 +51,13 @@ REFRACT_SHADERS_BEGIN
 // deposit. The radiance grid then keeps one fluence (the channels' mean) and the light's colour is
 // applied when shading: one atomic word per deposit and one texture fetch per eye-ray step fewer.
 #define TRANSPORT_CONSTANT_GREY 0
+// Specialization constant of the same passes: some coefficient finds its coverage by a fetch
+// (COVERAGE_FETCH). Without it the coverage texture is never read: lavapipe would fetch it on every
+// step whatever the mode.
+#define TRANSPORT_CONSTANT_COVERAGE_FETCH 1
 #ifndef __cplusplus
 layout(constant_id = TRANSPORT_CONSTANT_GREY) const bool kGreyTransport = false;
+layout(constant_id = TRANSPORT_CONSTANT_COVERAGE_FETCH) const bool kCoverageFetch = true;
 #endif
 
 // How a pass finds the coverage that mixes medium and object coefficients: not at all when both are

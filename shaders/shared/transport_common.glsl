@@ -37,14 +37,13 @@ vec3 scattering_at(float c) { return mix(params.medium_scattering.rgb, params.ob
 
 // Coverage at p where the index there is n, found the cheapest way `mode` allows (COVERAGE_*). lavapipe
 // runs both sides of a branch, so a pass that needs coverage for several modes should call this once
-// with the most demanding mode and derive the others with coverage_as.
+// with the most demanding mode and derive the others with coverage_as; and the fetch is compiled out
+// of pipelines whose frames never need it (kCoverageFetch).
 float coverage_for(uint mode, vec3 p, float n) {
     if (mode == COVERAGE_CONSTANT) return 0.0;
-    if (mode == COVERAGE_FROM_INDEX) {
-        float n_medium = params.medium_extinction.w, n_object = params.object_extinction.w;
-        return clamp((n - n_medium) / (n_object - n_medium), 0.0, 1.0);
-    }
-    return coverage_at(p);
+    if (mode == COVERAGE_FETCH && kCoverageFetch) return coverage_at(p);
+    float n_medium = params.medium_extinction.w, n_object = params.object_extinction.w;
+    return clamp((n - n_medium) / (n_object - n_medium), 0.0, 1.0);
 }
 
 // The coverage that `mode` sees, given what the most demanding mode found.
