@@ -70,9 +70,7 @@ vec3 floor_radiance(vec3 x) {
 vec3 in_scattered(vec3 x, vec3 d, uint model, float g) {
     vec3 q = x / grid_dims();
     vec4 net = textureLod(flux, q, 0.0);  // xyz: net flux vector, w: fluence (channel mean)
-    // Grey transport: every channel is the light's colour times the mean.
-    vec3 fluence = kGreyTransport ? net.w * (params.photon_flux.rgb * (3.0 / max(dot(params.photon_flux.rgb, vec3(1.0)), 1e-30)))
-                                  : textureLod(radiance, q, 0.0).rgb;
+    vec3 fluence = kGreyTransport ? net.w * grey_colour(params.photon_flux) : textureLod(radiance, q, 0.0).rgb;
     float along = length(net.xyz);
     float coherence = min(along / max(net.w, 1e-30), 1.0);
     float cos_theta = dot(net.xyz, -d) / max(along, 1e-30);

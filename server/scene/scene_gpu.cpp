@@ -289,8 +289,7 @@ std::vector<glm::vec4> SceneGpu::read_flux() const { return read_image<glm::vec4
 std::vector<glm::vec4> SceneGpu::read_radiance() const {
     if (!grey_) return read_image<glm::vec4>(radiance_);
     // Grey transport: the light's colour times the channels' mean, as the viewing pass shades it.
-    const glm::vec3 flux(params_.photon_flux);
-    const glm::vec3 colour = flux * (3.0f / std::max(flux.r + flux.g + flux.b, 1e-30f));
+    const glm::vec3 colour = shaders::grey_colour(params_.photon_flux);
     std::vector<glm::vec4> out = read_flux();
     for (glm::vec4& v : out) v = glm::vec4(colour * v.w, 0.0f);
     return out;

@@ -112,6 +112,12 @@ struct TransportParams {
     uvec4 lit_offsets;        // where each level of the lit pyramid starts in the lit-blocks buffer
 };
 
+// Grey transport: each channel's fluence is the channels' mean times this, the light's colour scaled to
+// a mean of 1 (photon_flux is TransportParams::photon_flux).
+REFRACT_INLINE vec3 grey_colour(vec4 photon_flux) {
+    return vec3(photon_flux) * (3.0f / max(photon_flux.x + photon_flux.y + photon_flux.z, 1e-30f));
+}
+
 // Cells per axis of level `level` of the lit pyramid over a grid of `dims` voxels.
 REFRACT_INLINE uvec3 lit_cells(uvec3 dims, uint level) {
     uint side = uint(LIT_BLOCK) << level;
