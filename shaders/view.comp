@@ -15,23 +15,25 @@ layout(std430, binding = TRANSPORT_BINDING_HDR) writeonly buffer Hdr { vec4 hdr[
 layout(std430, binding = TRANSPORT_BINDING_LDR) writeonly buffer Ldr { uint ldr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
 
-bool block_lit(vec3 p) {
-    uvec3 blocks = lit_cells(params.grid_dims.xyz, 0u);
-    uvec3 b = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / LIT_BLOCK;
-    return lit_blocks[(b.z * blocks.y + b.y) * blocks.x + b.x] != 0u;
+// The level-0 block (LIT_BLOCK^3 voxels) that holds p.
+uvec3 lit_block_of(vec3 p) { return uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / LIT_BLOCK; }
+
+// Whether the lit-pyramid cell of `level` above level-0 block b is lit.
+bool lit(uint level, uvec3 b) {
+    uvec3 cells = lit_cells(params.grid_dims.xyz, level);
+    uvec3 c = b >> level;
+    return lit_blocks[params.lit_offsets[level] + (c.z * cells.y + c.y) * cells.x + c.x] != 0u;
 }
+
+bool block_lit(vec3 p) { return lit(0u, lit_block_of(p)); }
 
 // The side (voxels) of the largest cell of the lit pyramid that holds p and no light; 0 where p's block
 // is lit. A lit cell's parents are lit, so the unlit levels at p are the finest ones: counting them
 // finds the largest without a branch per level.
 float unlit_cell(vec3 p) {
-    uvec3 b = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / LIT_BLOCK;
+    uvec3 b = lit_block_of(p);
     uint unlit = 0u;
-    for (uint level = 0u; level < LIT_LEVELS; ++level) {
-        uvec3 cells = lit_cells(params.grid_dims.xyz, level);
-        uvec3 c = b >> level;
-        unlit += lit_blocks[params.lit_offsets[level] + (c.z * cells.y + c.y) * cells.x + c.x] == 0u ? 1u : 0u;
-    }
+    for (uint level = 0u; level < LIT_LEVELS; ++level) unlit += lit(level, b) ? 0u : 1u;
     return unlit == 0u ? 0.0 : float(uint(LIT_BLOCK) << (unlit - 1u));
 }
 
