@@ -17,25 +17,6 @@ layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) readonly buffer AccumFlo
 layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform writeonly image3D radiance;
 layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform writeonly image3D flux;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D floor_map;
-layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) writeonly buffer LitBlocks { uint lit_blocks[]; };
-
-// A lit radiance voxel marks every block (of index-field voxels) its trilinear footprint touches: the
-// index-field voxels within one radiance voxel of it, and the cells above those blocks at every level
-// of the lit pyramid. All writers store the same value, so plain stores need no atomics.
-void mark_lit(ivec3 v) {
-    uvec3 dims = params.grid_dims.xyz;
-    int f = int(params.radiance_grid.w);
-    ivec3 lo = max(f * (v - 1), ivec3(0)) / LIT_BLOCK;
-    ivec3 hi = min(f * (v + 2) - 1, ivec3(dims) - 1) / LIT_BLOCK;
-    for (uint level = 0u; level < LIT_LEVELS; ++level) {
-        uvec3 cells = lit_cells(dims, level);
-        uint offset = params.lit_offsets[level];
-        for (int z = lo.z >> level; z <= hi.z >> level; ++z)
-            for (int y = lo.y >> level; y <= hi.y >> level; ++y)
-                for (int x = lo.x >> level; x <= hi.x >> level; ++x)
-                    lit_blocks[offset + (uint(z) * cells.y + uint(y)) * cells.x + uint(x)] = 1u;
-    }
-}
 
 void main() {
     uint i = linear_invocation();
@@ -62,7 +43,6 @@ void main() {
             imageStore(radiance, v, vec4(colour * to_fluence, 0.0));
         }
         imageStore(flux, v, vec4(vec3(dir_x, float(dir_y), dir_z) * to_fluence, mean * to_fluence));
-        if (mean > 0.0) mark_lit(v);
         return;
     }
     uint texel = i - voxels;

@@ -203,11 +203,18 @@ void shade(uvec2 pixel) {
     ldr[index] = bytes.r | (bytes.g << 8u) | (bytes.b << 16u) | (255u << 24u);
 }
 
-// The queue runs through the image in 8x8 tiles, so a subgroup's pixels are neighbours.
+// The queue runs through the image in 8x8 tiles, and within a tile in Morton order, so the pixels of a
+// subgroup (8 on lavapipe) form a 4x2 block rather than a row: their rays stay closer together, cross
+// octree leaves at more similar distances, and the lanes idle less in the gather loop.
+#if VIEW_GROUP_SIZE != 8
+#error "the Morton order below is written for 8x8 tiles"
+#endif
+uint even_bits(uint v) { return (v & 1u) | ((v >> 1u) & 2u) | ((v >> 2u) & 4u); }
+
 void main() {
     uint job = take_from_queue(QUEUE_VIEW_PIXELS);
     uint tile = job / (VIEW_GROUP_SIZE * VIEW_GROUP_SIZE), within = job % (VIEW_GROUP_SIZE * VIEW_GROUP_SIZE);
     uvec2 pixel = uvec2(tile % params.image.z, tile / params.image.z) * VIEW_GROUP_SIZE +
-                  uvec2(within % VIEW_GROUP_SIZE, within / VIEW_GROUP_SIZE);
+                  uvec2(even_bits(within), even_bits(within >> 1u));
     if (tile < params.image.w && pixel.x < params.image.x && pixel.y < params.image.y) shade(pixel);
 }

@@ -338,6 +338,55 @@ TEST_F(ViewTest, SingleScatteringOfASpotBeamMatchesTheAirlightIntegralInItsCone)
     EXPECT_LT(worst_outside, 1e-3);
 }
 
+// The lit pyramid, which decides where eye rays gather, against its definition applied on the host to
+// the radiance grid the photons left: a cell of level k (LIT_BLOCK << k voxels a side) is lit exactly
+// when some radiance voxel with fluence lies within one radiance voxel of it. Checked with the radiance
+// grid at full and at half resolution (interactive frames), for a narrow beam that lights some cells only.
+TEST_F(ViewTest, LitPyramidMarksExactlyTheCellsWithinReachOfLitRadianceVoxels) {
+    const json isotropic = {{"model", "isotropic"}, {"g", 0}};
+    json scene = airlight_scene(isotropic, kSigma, 6.0);
+    scene["photons"]["count"] = 1 << 14;
+    const SceneDocument doc = document(scene);
+    for (uint32_t factor : {1u, 2u}) {
+        scene::SceneGpu gpu(kit());
+        scene::RunOptions options;
+        options.radiance_factor = factor;
+        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
+        const auto params = gpu.params();
+        const glm::ivec3 dims(params.grid_dims), radiance(params.radiance_grid);
+        const int f = static_cast<int>(params.radiance_grid.w);
+        const auto flux = gpu.read_flux();
+        std::vector<uint32_t> expected(gpu.read_lit_pyramid().size(), 0u);
+        for (int z = 0; z < radiance.z; ++z)
+            for (int y = 0; y < radiance.y; ++y)
+                for (int x = 0; x < radiance.x; ++x) {
+                    if (!(flux[static_cast<size_t>((z * radiance.y + y) * radiance.x + x)].w > 0.0f)) continue;
+                    const glm::ivec3 v(x, y, z);
+                    const glm::ivec3 lo = glm::max(f * (v - 1), glm::ivec3(0)) / LIT_BLOCK;
+                    const glm::ivec3 hi = glm::min(f * (v + 2) - 1, dims - 1) / LIT_BLOCK;
+                    for (uint32_t level = 0; level < LIT_LEVELS; ++level) {
+                        const glm::ivec3 cells(shaders::lit_cells(glm::uvec3(dims), level));
+                        const int offset = static_cast<int>(params.lit_offsets[static_cast<int>(level)]);
+                        for (int cz = lo.z >> level; cz <= hi.z >> level; ++cz)
+                            for (int cy = lo.y >> level; cy <= hi.y >> level; ++cy)
+                                for (int cx = lo.x >> level; cx <= hi.x >> level; ++cx)
+                                    expected[static_cast<size_t>(offset + (cz * cells.y + cy) * cells.x + cx)] = 1u;
+                    }
+                }
+        const auto lit = gpu.read_lit_pyramid();
+        size_t lit_cells = 0, mismatches = 0;
+        for (size_t i = 0; i < lit.size(); ++i) {
+            lit_cells += lit[i];
+            mismatches += lit[i] != expected[i];
+        }
+        std::printf("radiance voxels per axis %d: %zu of %zu cells lit, %zu differ from the definition\n",
+                    radiance.x, lit_cells, lit.size(), mismatches);
+        EXPECT_GT(lit_cells, 0u);
+        EXPECT_LT(lit_cells, lit.size() / 2);
+        EXPECT_EQ(mismatches, 0u) << "radiance factor " << factor;
+    }
+}
+
 // ---------------------------------------------------------------------------------------------------
 // Refraction: a glass sphere in front of the checker floor
 

@@ -20,7 +20,10 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
                              vk::MemoryUse::device, "floor flux sum");
     accum.stats = vk::Buffer(context, sizeof(shaders::PhotonStats), usage, vk::MemoryUse::readback, "photon stats");
     const uint64_t lit_cells = passes::lit_pyramid_offsets(dims)[LIT_LEVELS];
-    accum.lit_blocks = vk::Buffer(context, lit_cells * sizeof(uint32_t), usage, vk::MemoryUse::device, "lit pyramid");
+    // Every cell is written by the lit-pyramid pass (no clear); read back by the tests.
+    accum.lit_blocks = vk::Buffer(context, lit_cells * sizeof(uint32_t),
+                                  VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                                  vk::MemoryUse::device, "lit pyramid");
     accum.exits = vk::Buffer(context, uint64_t{std::max(exit_count, 1u)} * sizeof(shaders::PhotonExit), usage,
                              vk::MemoryUse::readback, "photon exits");
     return accum;

@@ -15,7 +15,6 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
-    {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 }  // namespace
 
@@ -27,8 +26,6 @@ void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer
                                  const vk::Image3D& flux, const vk::Image3D& floor_map) const {
     const uint64_t items = flux.extent().count() + uint64_t{floor_map.extent().x} * floor_map.extent().y;
     const auto groups = vk::linear_groups(items, TRANSPORT_GROUP_SIZE);
-    recorder.fill(accum.lit_blocks, 0);
-    recorder.transfer_to_compute_barrier();
     pipeline_({grey, false}).dispatch(recorder.get(),
                              {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, params),
                               vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.voxel[0]),
@@ -37,8 +34,7 @@ void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer
                               vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
                               vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
                               vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
-                              vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map),
-                              vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, accum.lit_blocks)},
+                              vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map)},
                              nullptr, 0, groups.x, groups.y);
 }
 

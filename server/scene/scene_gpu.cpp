@@ -13,6 +13,7 @@ PassKit::PassKit(vk::Context& ctx)
       octree(ctx),
       photon_trace(ctx),
       radiance_resolve(ctx),
+      lit_pyramid(ctx),
       view(ctx),
       linear_sampler(vk::make_linear_sampler(ctx)) {}
 
@@ -207,6 +208,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         recorder_.compute_barrier();
         kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, grey_, radiance_, flux_, floor_map_);
         recorder_.compute_barrier();
+        kit_.lit_pyramid.record(recorder_, params_buffer_, flux_, accum_->lit_blocks, index_field_.extent());
+        recorder_.compute_barrier();
         timer_.end(cmd);
     }
     if (stale & kView) {
@@ -285,6 +288,7 @@ std::vector<float> SceneGpu::read_coverage() const { return read_image<float>(co
 std::vector<glm::vec4> SceneGpu::read_index_field() const { return read_image<glm::vec4>(index_field_); }
 std::vector<uint32_t> SceneGpu::read_levels() const { return read_buffer<uint32_t>(levels_); }
 std::vector<glm::vec4> SceneGpu::read_flux() const { return read_image<glm::vec4>(flux_); }
+std::vector<uint32_t> SceneGpu::read_lit_pyramid() const { return read_buffer<uint32_t>(accum_->lit_blocks); }
 
 std::vector<glm::vec4> SceneGpu::read_radiance() const {
     if (!grey_) return read_image<glm::vec4>(radiance_);

@@ -10,6 +10,7 @@
 
 #include "mesh/mesh.h"
 #include "passes/index_field.h"
+#include "passes/lit_pyramid.h"
 #include "passes/octree.h"
 #include "passes/photon_trace.h"
 #include "passes/radiance_resolve.h"
@@ -34,6 +35,7 @@ struct PassKit {
     passes::OctreePass octree;
     passes::PhotonTracePass photon_trace;
     passes::RadianceResolvePass radiance_resolve;
+    passes::LitPyramidPass lit_pyramid;
     passes::ViewPass view;
     vk::UniqueSampler linear_sampler;
 };
@@ -86,6 +88,8 @@ public:
     std::vector<glm::vec4> read_radiance() const;  // fluence rate rgb (W/m^2)
     std::vector<glm::vec4> read_flux() const;      // net flux vector xyz, fluence rate w (channel mean; W/m^2)
     bool grey() const { return grey_; }            // the kind of transport the photons last ran
+    // The lit pyramid: 1 per lit cell, levels one after another (passes::lit_pyramid_offsets).
+    std::vector<uint32_t> read_lit_pyramid() const;
     // The change of floor irradiance the grid causes (W/m^2, signed), floor_map_side()^2 texels.
     std::vector<glm::vec4> read_floor_map() const;
     // Total floor irradiance at the floor map's texel centres, as the viewing pass shades it: the

@@ -118,6 +118,13 @@ REFRACT_INLINE vec3 grey_colour(vec4 photon_flux) {
     return vec3(photon_flux) * (3.0f / max(photon_flux.x + photon_flux.y + photon_flux.z, 1e-30f));
 }
 
+// The lit-pyramid pass: specialization constant, true for the dispatch that finds level 0 from the
+// radiance grid, false for those that merge a level's cells into the level above (push.level).
+#define LIT_CONSTANT_BASE 2  // after the transport constants, which every transport shader declares
+struct LitPyramidPush {
+    uint level;  // the level this dispatch writes (>= 1 when merging)
+};
+
 // Cells per axis of level `level` of the lit pyramid over a grid of `dims` voxels.
 REFRACT_INLINE uvec3 lit_cells(uvec3 dims, uint level) {
     uint side = uint(LIT_BLOCK) << level;

@@ -1,0 +1,39 @@
+#include "passes/lit_pyramid.h"
+
+#include "lit_pyramid_spv.h"
+#include "passes/transport_params.h"
+#include "transport.h"
+
+namespace refract::passes {
+
+namespace {
+constexpr vk::BindingLayout kLayout[] = {
+    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
+    {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+};
+// constant_id i takes entry i: the transport constants (unused here) come first.
+static_assert(LIT_CONSTANT_BASE == 2);
+constexpr uint32_t kBase[] = {0u, 0u, 1u};
+constexpr uint32_t kMerge[] = {0u, 0u, 0u};
+}  // namespace
+
+LitPyramidPass::LitPyramidPass(vk::Context& context)
+    : base_(context, lit_pyramid_spv, kLayout, sizeof(shaders::LitPyramidPush), "lit pyramid (level 0)", kBase),
+      merge_(context, lit_pyramid_spv, kLayout, sizeof(shaders::LitPyramidPush), "lit pyramid (merge)", kMerge) {}
+
+void LitPyramidPass::record(vk::CommandRecorder& recorder, const vk::Buffer& params, const vk::Image3D& flux,
+                            const vk::Buffer& lit_blocks, vk::Extent3 grid_dims) const {
+    const vk::Binding bindings[] = {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, params),
+                                    vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
+                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, lit_blocks)};
+    const auto offsets = lit_pyramid_offsets(grid_dims);
+    for (uint32_t level = 0; level < LIT_LEVELS; ++level) {
+        if (level > 0) recorder.compute_barrier();
+        const auto groups = vk::linear_groups(offsets[level + 1] - offsets[level], TRANSPORT_GROUP_SIZE);
+        const shaders::LitPyramidPush push{level};
+        (level == 0 ? base_ : merge_).dispatch(recorder.get(), bindings, push, groups.x, groups.y);
+    }
+}
+
+}  // namespace refract::passes

@@ -1,0 +1,23 @@
+// Pass 5c (lit pyramid): which cells of the grid any photon light reaches, at LIT_LEVELS cell sizes
+// (shaders/shared/transport.h), so the viewing pass crosses unlit fog without gathering.
+#pragma once
+
+#include "vk/commands.h"
+#include "vk/pipeline.h"
+
+namespace refract::passes {
+
+class LitPyramidPass {
+public:
+    explicit LitPyramidPass(vk::Context& context);
+    // Reads the fluence (w) of `flux` as the radiance resolve left it; writes every cell of `lit_blocks`
+    // (lit_pyramid_offsets(grid_dims) of them) for an index field of `grid_dims` voxels.
+    void record(vk::CommandRecorder& recorder, const vk::Buffer& params, const vk::Image3D& flux,
+                const vk::Buffer& lit_blocks, vk::Extent3 grid_dims) const;
+
+private:
+    vk::ComputePipeline base_;   // level 0, from the radiance grid
+    vk::ComputePipeline merge_;  // each level above, from the one below
+};
+
+}  // namespace refract::passes
