@@ -43,7 +43,7 @@ void main() {
     float h = push.origin.w;
     float c = coverage_at(v);
     vec4 texel;
-    uint kind = push.dims.w;
+    uint kind = kMode;  // INDEX_KIND_*
     if (kind == INDEX_KIND_UNIFORM) {
         texel = vec4(push.n_medium + (push.n_object - push.n_medium) * c,
                      (push.n_object - push.n_medium) * gradient_of_coverage(v));

@@ -68,9 +68,9 @@ void level_map(uint i) {
 void main() {
     uint i = linear_invocation();
     uint voxels = push.dims.x * push.dims.y * push.dims.z;
-    if (push.dims.w == OCTREE_MODE_LEAF_RANGE) {
+    if (kMode == OCTREE_MODE_LEAF_RANGE) {
         if (i < voxels) leaf_range(i);
-    } else if (push.dims.w == OCTREE_MODE_REDUCE) {
+    } else if (kMode == OCTREE_MODE_REDUCE) {
         reduce(i);
     } else if (i < voxels) {
         level_map(i);

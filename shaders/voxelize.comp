@@ -139,6 +139,6 @@ void combine() {
 }
 
 void main() {
-    if (push.dims.w == VOXELIZE_MODE_COLUMNS) columns();
+    if (kMode == VOXELIZE_MODE_COLUMNS) columns();
     else combine();
 }

@@ -7,13 +7,21 @@ namespace refract::passes {
 
 using shaders::IndexFieldPush;
 
+namespace {
+constexpr vk::BindingLayout kLayout[] = {
+    {INDEX_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {INDEX_BINDING_GRID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {INDEX_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {INDEX_BINDING_COVERAGE_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+};
+}  // namespace
+
 IndexFieldPass::IndexFieldPass(vk::Context& context)
-    : pipeline_(context, index_field_spv,
-                {{INDEX_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {INDEX_BINDING_GRID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {INDEX_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
-                 {INDEX_BINDING_COVERAGE_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE}},
-                sizeof(IndexFieldPush), "index field") {}
+    : pipelines_(context, index_field_spv, kLayout, sizeof(IndexFieldPush),
+                 {"index field (uniform)", "index field (Luneburg)", "index field (Maxwell)", "index field (grid)"}) {
+    static_assert(INDEX_KIND_UNIFORM == 0 && INDEX_KIND_LUNEBURG == 1 && INDEX_KIND_MAXWELL == 2 &&
+                  INDEX_KIND_GRID == 3);
+}
 
 void IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol::SceneDocument& document,
                             const scene::GridGeometry& grid, const vk::Buffer& coverage,
@@ -33,13 +41,13 @@ void IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol::Scene
         case IndexFieldKind::grid: kind = INDEX_KIND_GRID; break;
     }
     IndexFieldPush push{};
-    push.dims = glm::uvec4(grid.dims.x, grid.dims.y, grid.dims.z, kind);
+    push.dims = glm::uvec4(grid.dims.x, grid.dims.y, grid.dims.z, 0);
     push.origin = glm::vec4(grid.origin, grid.voxel_size);
     push.sphere = glm::vec4(static_cast<float>(object.position[0]), static_cast<float>(object.position[1]),
                             static_cast<float>(object.position[2]), static_cast<float>(object.scale));
     push.n_medium = static_cast<float>(document.medium.ior);
     push.n_object = n_object;
-    pipeline_.dispatch(recorder.get(),
+    pipelines_[kind].dispatch(recorder.get(),
                        {vk::Binding::storage_buffer(INDEX_BINDING_COVERAGE, coverage),
                         vk::Binding::storage_buffer(INDEX_BINDING_GRID, grid_values),
                         vk::Binding::storage_image(INDEX_BINDING_INDEX_FIELD, index_field),

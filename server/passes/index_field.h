@@ -5,6 +5,7 @@
 #include "protocol/scene_document.h"
 #include "scene/grid_geometry.h"
 #include "vk/commands.h"
+#include "passes/mode_pipelines.h"
 #include "vk/pipeline.h"
 
 namespace refract::passes {
@@ -20,7 +21,7 @@ public:
                 const vk::Image3D& index_field, const vk::Image3D& coverage_image) const;
 
 private:
-    vk::ComputePipeline pipeline_;
+    ModePipelines pipelines_;  // by INDEX_KIND_*
 };
 
 }  // namespace refract::passes

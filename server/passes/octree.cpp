@@ -25,19 +25,26 @@ OctreeLayout octree_layout(vk::Extent3 dims) {
     return layout;
 }
 
+namespace {
+constexpr vk::BindingLayout kLayout[] = {
+    {OCTREE_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {OCTREE_BINDING_PYRAMID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {OCTREE_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+};
+}  // namespace
+
 OctreePass::OctreePass(vk::Context& context)
-    : pipeline_(context, octree_spv,
-                {{OCTREE_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
-                 {OCTREE_BINDING_PYRAMID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {OCTREE_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
-                sizeof(OctreePush), "octree") {}
+    : pipelines_(context, octree_spv, kLayout, sizeof(OctreePush),
+                 {"octree leaf ranges", "octree reduce", "octree level map"}) {
+    static_assert(OCTREE_MODE_LEAF_RANGE == 0 && OCTREE_MODE_REDUCE == 1 && OCTREE_MODE_LEVEL_MAP == 2);
+}
 
 void OctreePass::record(vk::CommandRecorder& recorder, const vk::Image3D& index_field, float epsilon,
                         const vk::Buffer& pyramid, const vk::Buffer& levels) const {
     const vk::Extent3 dims = index_field.extent();
     const OctreeLayout layout = octree_layout(dims);
     OctreePush push{};
-    push.dims = glm::uvec4(dims.x, dims.y, dims.z, OCTREE_MODE_LEAF_RANGE);
+    push.dims = glm::uvec4(dims.x, dims.y, dims.z, 0);
     push.offsets0 = glm::uvec4(layout.offsets[0], layout.offsets[1], layout.offsets[2], layout.offsets[3]);
     push.offsets1 = glm::uvec4(layout.offsets[4], layout.offsets[5], layout.max_level, 0);
     push.epsilon = epsilon;
@@ -47,20 +54,18 @@ void OctreePass::record(vk::CommandRecorder& recorder, const vk::Image3D& index_
         vk::Binding::storage_buffer(OCTREE_BINDING_LEVELS, levels)};
     const VkCommandBuffer cmd = recorder.get();
     const auto voxel_groups = vk::linear_groups(dims.count(), VOLUME_GROUP_SIZE);
-    pipeline_.dispatch(cmd, bindings, push, voxel_groups.x, voxel_groups.y);
+    pipelines_[OCTREE_MODE_LEAF_RANGE].dispatch(cmd, bindings, push, voxel_groups.x, voxel_groups.y);
     recorder.compute_barrier();
     // Each level reduces the one below it: a barrier between levels.
     for (uint32_t level = 1; level <= layout.max_level; ++level) {
         const uint32_t step = 1u << level;
         const glm::uvec3 level_dims((dims.x + step - 1) / step, (dims.y + step - 1) / step, (dims.z + step - 1) / step);
-        push.dims.w = OCTREE_MODE_REDUCE;
         push.level_dims = glm::uvec4(level_dims, level);
         const auto groups = vk::linear_groups(uint64_t{level_dims.x} * level_dims.y * level_dims.z, VOLUME_GROUP_SIZE);
-        pipeline_.dispatch(cmd, bindings, push, groups.x, groups.y);
+        pipelines_[OCTREE_MODE_REDUCE].dispatch(cmd, bindings, push, groups.x, groups.y);
         recorder.compute_barrier();
     }
-    push.dims.w = OCTREE_MODE_LEVEL_MAP;
-    pipeline_.dispatch(cmd, bindings, push, voxel_groups.x, voxel_groups.y);
+    pipelines_[OCTREE_MODE_LEVEL_MAP].dispatch(cmd, bindings, push, voxel_groups.x, voxel_groups.y);
 }
 
 }  // namespace refract::passes

@@ -5,6 +5,7 @@
 #include <array>
 
 #include "vk/commands.h"
+#include "passes/mode_pipelines.h"
 #include "vk/pipeline.h"
 
 namespace refract::passes {
@@ -28,7 +29,7 @@ public:
                 const vk::Buffer& pyramid, const vk::Buffer& levels) const;
 
 private:
-    vk::ComputePipeline pipeline_;
+    ModePipelines pipelines_;  // by OCTREE_MODE_*
 };
 
 }  // namespace refract::passes

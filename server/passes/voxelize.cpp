@@ -12,17 +12,23 @@ namespace refract::passes {
 using shaders::SmoothPush;
 using shaders::VoxelizePush;
 
+namespace {
+constexpr vk::BindingLayout kVoxelizeLayout[] = {
+    {VOXELIZE_BINDING_TRIANGLES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {VOXELIZE_BINDING_TILE_RANGES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {VOXELIZE_BINDING_TILE_ITEMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {VOXELIZE_BINDING_COVERAGE_X, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {VOXELIZE_BINDING_COVERAGE_Y, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {VOXELIZE_BINDING_COVERAGE_Z, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {VOXELIZE_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+};
+static_assert(VOXELIZE_MODE_COLUMNS == 0 && VOXELIZE_MODE_COMBINE == 1);
+}  // namespace
+
 VoxelizePass::VoxelizePass(vk::Context& context)
     : context_(context),
-      voxelize_(context, voxelize_spv,
-                {{VOXELIZE_BINDING_TRIANGLES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {VOXELIZE_BINDING_TILE_RANGES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {VOXELIZE_BINDING_TILE_ITEMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {VOXELIZE_BINDING_COVERAGE_X, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {VOXELIZE_BINDING_COVERAGE_Y, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {VOXELIZE_BINDING_COVERAGE_Z, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                 {VOXELIZE_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
-                sizeof(VoxelizePush), "voxelize"),
+      voxelize_(context, voxelize_spv, kVoxelizeLayout, sizeof(VoxelizePush),
+                {"voxelize columns", "voxelize combine"}),
       smooth_(context, smooth_spv,
               {{SMOOTH_BINDING_SOURCE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
                {SMOOTH_BINDING_TARGET, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
@@ -107,15 +113,15 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
     };
     for (uint32_t axis = 0; axis < 3; ++axis) {
         const uint32_t ua = (axis + 1) % 3, va = (axis + 2) % 3;
-        VoxelizePush push{glm::uvec4(dims[0], dims[1], dims[2], VOXELIZE_MODE_COLUMNS), axis, kTileSize,
+        VoxelizePush push{glm::uvec4(dims[0], dims[1], dims[2], 0), axis, kTileSize,
                           (dims[ua] + kTileSize - 1) / kTileSize, kSubsamples};
         const auto groups = vk::linear_groups(uint64_t{dims[ua]} * dims[va], VOLUME_GROUP_SIZE);
-        voxelize_.dispatch(cmd, std::span<const vk::Binding>(bindings(axis)), push, groups.x, groups.y);
+        voxelize_[VOXELIZE_MODE_COLUMNS].dispatch(cmd, std::span<const vk::Binding>(bindings(axis)), push, groups.x, groups.y);
     }
     recorder.compute_barrier();
     const auto voxel_groups = vk::linear_groups(grid.dims.count(), VOLUME_GROUP_SIZE);
-    VoxelizePush combine{glm::uvec4(dims[0], dims[1], dims[2], VOXELIZE_MODE_COMBINE), 0, kTileSize, 1, kSubsamples};
-    voxelize_.dispatch(cmd, std::span<const vk::Binding>(bindings(0)), combine, voxel_groups.x, voxel_groups.y);
+    VoxelizePush combine{glm::uvec4(dims[0], dims[1], dims[2], 0), 0, kTileSize, 1, kSubsamples};
+    voxelize_[VOXELIZE_MODE_COMBINE].dispatch(cmd, std::span<const vk::Binding>(bindings(0)), combine, voxel_groups.x, voxel_groups.y);
     recorder.compute_barrier();
     if (smoothing) {
         // x: scratch -> coverage, y: coverage -> scratch, z: scratch -> coverage.

@@ -9,6 +9,7 @@
 #include "scene/grid_geometry.h"
 #include "vk/commands.h"
 #include "vk/gpu_timer.h"
+#include "passes/mode_pipelines.h"
 #include "vk/pipeline.h"
 
 namespace refract::passes {
@@ -39,7 +40,7 @@ public:
 
 private:
     vk::Context& context_;
-    vk::ComputePipeline voxelize_;
+    ModePipelines voxelize_;  // by VOXELIZE_MODE_*
     vk::ComputePipeline smooth_;
 };
 

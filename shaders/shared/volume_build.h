@@ -10,6 +10,14 @@ REFRACT_SHADERS_BEGIN
 #define VOLUME_GROUP_SIZE 64
 #define VOLUME_GROUP_3D 4  // 4x4x4 workgroups for per-voxel passes
 
+// Specialization constant: which job (*_MODE_*, INDEX_KIND_*) a pipeline of a multi-job shader does.
+// lavapipe runs both sides of every branch, even one on a push constant, so a shader that branched on
+// its job at run time would run all of them in every dispatch.
+#define VOLUME_CONSTANT_MODE 0
+#ifndef __cplusplus
+layout(constant_id = VOLUME_CONSTANT_MODE) const uint kMode = 0u;
+#endif
+
 // --- voxelize ---------------------------------------------------------------------------------------
 #define VOXELIZE_BINDING_TRIANGLES 0   // 3 x vec4 per triangle, positions in voxel coordinates
 #define VOXELIZE_BINDING_TILE_RANGES 1 // uvec2 (first, count) per tile of the column plane
@@ -24,7 +32,7 @@ REFRACT_SHADERS_BEGIN
 #define VOXELIZE_MODE_COMBINE 1u
 
 struct VoxelizePush {
-    uvec4 dims;    // xyz: grid size; w: mode
+    uvec4 dims;    // xyz: grid size; w: unused
     uint axis;     // column direction of this dispatch (0, 1, 2)
     uint tile_size;   // voxels per tile side on the column plane
     uint tiles_u;     // tiles along the plane's first axis ((axis + 1) % 3)
@@ -54,7 +62,7 @@ struct SmoothPush {
 #define INDEX_KIND_GRID 3u
 
 struct IndexFieldPush {
-    uvec4 dims;        // xyz: grid size; w: index kind
+    uvec4 dims;        // xyz: grid size; w: unused
     vec4 origin;       // xyz: world position of the grid's min corner; w: voxel size (m)
     vec4 sphere;       // procedural fields: xyz centre (world), w radius
     float n_medium;
@@ -72,7 +80,7 @@ struct IndexFieldPush {
 #define OCTREE_MODE_LEVEL_MAP 2u
 
 struct OctreePush {
-    uvec4 dims;        // xyz: grid size; w: mode
+    uvec4 dims;        // xyz: grid size; w: unused
     uvec4 level_dims;  // xyz: node count of the level being written (REDUCE); w: level
     uvec4 offsets0;    // node offset of levels 0..3 in the pyramid buffer
     uvec4 offsets1;    // node offset of levels 4..5; z: max level; w: unused

@@ -1,0 +1,26 @@
+// A volume-building shader that does several jobs (octree: leaf ranges, reduce, level map; voxelize:
+// columns, combine; index field: one per kind of field), compiled once per job with the job as
+// specialization constant VOLUME_CONSTANT_MODE (shaders/shared/volume_build.h). lavapipe runs both
+// sides of every branch, so a branch on a push constant would run every job in every dispatch.
+#pragma once
+
+#include <initializer_list>
+#include <span>
+#include <vector>
+
+#include "vk/pipeline.h"
+
+namespace refract::passes {
+
+class ModePipelines {
+public:
+    // One pipeline per name; the i-th does job (mode) i. Names are string literals (kept, not copied).
+    ModePipelines(vk::Context& context, std::span<const uint32_t> spirv, std::span<const vk::BindingLayout> layout,
+                  uint32_t push_constant_bytes, std::initializer_list<const char*> names);
+    const vk::ComputePipeline& operator[](uint32_t mode) const { return pipelines_.at(mode); }
+
+private:
+    std::vector<vk::ComputePipeline> pipelines_;
+};
+
+}  // namespace refract::passes
