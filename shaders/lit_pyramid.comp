@@ -2,14 +2,15 @@
 #extension GL_GOOGLE_include_directive : require
 // The lit pyramid (transport.h): which cells of LIT_BLOCK^3 index-field voxels, and of 2^k times that
 // many, any photon light reaches, so that eye rays cross the others without gathering. One dispatch
-// finds level 0 from the radiance grid; one per level above merges each 2^3 cells of the level below.
-// Every cell is written once, by one invocation reading a fixed footprint: cheaper on lavapipe than
-// having every lit voxel mark the cells it touches, which ran a store loop per level for every voxel.
+// finds level 0 from the radiance grid; one per level above merges each 2^3 cells of the level below;
+// a last one turns level 0 into unlit-level counts (transport.h). Every cell is written by one
+// invocation reading a fixed footprint: cheaper on lavapipe than having every lit voxel mark the cells
+// it touches, which ran a store loop per level for every voxel.
 #include "transport.h"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
 
-layout(constant_id = LIT_CONSTANT_BASE) const bool kBaseLevel = true;
+layout(constant_id = LIT_CONSTANT_MODE) const uint kMode = LIT_MODE_BASE;
 layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
 layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform readonly image3D flux;
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) buffer LitBlocks { uint lit_blocks[]; };
@@ -44,12 +45,22 @@ bool children_lit(uint level, uvec3 c) {
     return lit != 0u;
 }
 
+// How many levels are unlit at level-0 block b. A lit cell's parents are lit, so these are the finest.
+uint unlit_levels(uvec3 b) {
+    uint unlit = 0u;
+    for (uint level = 0u; level < LIT_LEVELS; ++level) unlit += lit_blocks[cell_index(level, b >> level)] == 0u ? 1u : 0u;
+    return unlit;
+}
+
 void main() {
-    uint level = kBaseLevel ? 0u : push.level;
+    uint level = kMode == LIT_MODE_MERGE ? push.level : 0u;
     uvec3 cells = lit_cells(params.grid_dims.xyz, level);
     uint i = linear_invocation();
     if (i >= cells.x * cells.y * cells.z) return;
     uvec3 c = uvec3(i % cells.x, (i / cells.x) % cells.y, i / (cells.x * cells.y));
-    bool lit = kBaseLevel ? block_lit(c) : children_lit(level, c);
-    lit_blocks[cell_index(level, c)] = lit ? 1u : 0u;
+    uint value;
+    if (kMode == LIT_MODE_BASE) value = block_lit(c) ? 1u : 0u;
+    else if (kMode == LIT_MODE_MERGE) value = children_lit(level, c) ? 1u : 0u;
+    else value = unlit_levels(c);  // reads only this block's own level-0 entry, so rewriting it is safe
+    lit_blocks[cell_index(level, c)] = value;
 }

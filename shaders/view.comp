@@ -18,22 +18,20 @@ layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks
 // The level-0 block (LIT_BLOCK^3 voxels) that holds p.
 uvec3 lit_block_of(vec3 p) { return uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / LIT_BLOCK; }
 
-// Whether the lit-pyramid cell of `level` above level-0 block b is lit.
-bool lit(uint level, uvec3 b) {
-    uvec3 cells = lit_cells(params.grid_dims.xyz, level);
-    uvec3 c = b >> level;
-    return lit_blocks[params.lit_offsets[level] + (c.z * cells.y + c.y) * cells.x + c.x] != 0u;
+// How many levels of the lit pyramid are unlit around p's level-0 block (0: the block is lit), which
+// the lit-pyramid pass counted once per block, so the ray needs one lookup.
+uint unlit_levels(vec3 p) {
+    uvec3 b = lit_block_of(p);
+    uvec3 cells = lit_cells(params.grid_dims.xyz, 0u);
+    return lit_blocks[params.lit_offsets[0] + (b.z * cells.y + b.y) * cells.x + b.x];
 }
 
-bool block_lit(vec3 p) { return lit(0u, lit_block_of(p)); }
+bool block_lit(vec3 p) { return unlit_levels(p) == 0u; }
 
 // The side (voxels) of the largest cell of the lit pyramid that holds p and no light; 0 where p's block
-// is lit. A lit cell's parents are lit, so the unlit levels at p are the finest ones: counting them
-// finds the largest without a branch per level.
+// is lit.
 float unlit_cell(vec3 p) {
-    uvec3 b = lit_block_of(p);
-    uint unlit = 0u;
-    for (uint level = 0u; level < LIT_LEVELS; ++level) unlit += lit(level, b) ? 0u : 1u;
+    uint unlit = unlit_levels(p);
     return unlit == 0u ? 0.0 : float(uint(LIT_BLOCK) << (unlit - 1u));
 }
 

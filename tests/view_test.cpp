@@ -340,8 +340,9 @@ TEST_F(ViewTest, SingleScatteringOfASpotBeamMatchesTheAirlightIntegralInItsCone)
 
 // The lit pyramid, which decides where eye rays gather, against its definition applied on the host to
 // the radiance grid the photons left: a cell of level k (LIT_BLOCK << k voxels a side) is lit exactly
-// when some radiance voxel with fluence lies within one radiance voxel of it. Checked with the radiance
-// grid at full and at half resolution (interactive frames), for a narrow beam that lights some cells only.
+// when some radiance voxel with fluence lies within one radiance voxel of it; level 0 holds, per block,
+// the number of levels unlit there. Checked with the radiance grid at full and at half resolution
+// (interactive frames), for a narrow beam that lights some cells only.
 TEST_F(ViewTest, LitPyramidMarksExactlyTheCellsWithinReachOfLitRadianceVoxels) {
     const json isotropic = {{"model", "isotropic"}, {"g", 0}};
     json scene = airlight_scene(isotropic, kSigma, 6.0);
@@ -373,10 +374,23 @@ TEST_F(ViewTest, LitPyramidMarksExactlyTheCellsWithinReachOfLitRadianceVoxels) {
                                     expected[static_cast<size_t>(offset + (cz * cells.y + cy) * cells.x + cx)] = 1u;
                     }
                 }
+        const glm::ivec3 blocks(shaders::lit_cells(glm::uvec3(dims), 0));
+        for (int z = 0; z < blocks.z; ++z)
+            for (int y = 0; y < blocks.y; ++y)
+                for (int x = 0; x < blocks.x; ++x) {
+                    uint32_t unlit = 0;
+                    for (uint32_t level = 0; level < LIT_LEVELS; ++level) {
+                        const glm::ivec3 cells(shaders::lit_cells(glm::uvec3(dims), level));
+                        const glm::ivec3 c = glm::ivec3(x, y, z) >> static_cast<int>(level);
+                        const int offset = static_cast<int>(params.lit_offsets[static_cast<int>(level)]);
+                        unlit += expected[static_cast<size_t>(offset + (c.z * cells.y + c.y) * cells.x + c.x)] == 0u;
+                    }
+                    expected[static_cast<size_t>((z * blocks.y + y) * blocks.x + x)] = unlit;
+                }
         const auto lit = gpu.read_lit_pyramid();
         size_t lit_cells = 0, mismatches = 0;
         for (size_t i = 0; i < lit.size(); ++i) {
-            lit_cells += lit[i];
+            lit_cells += i < params.lit_offsets[1] ? lit[i] == 0u : lit[i];
             mismatches += lit[i] != expected[i];
         }
         std::printf("radiance voxels per axis %d: %zu of %zu cells lit, %zu differ from the definition\n",

@@ -13,14 +13,17 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 // constant_id i takes entry i: the transport constants (unused here) come first.
-static_assert(LIT_CONSTANT_BASE == 2);
-constexpr uint32_t kBase[] = {0u, 0u, 1u};
-constexpr uint32_t kMerge[] = {0u, 0u, 0u};
+static_assert(LIT_CONSTANT_MODE == 2);
+constexpr uint32_t kBase[] = {0u, 0u, LIT_MODE_BASE};
+constexpr uint32_t kMerge[] = {0u, 0u, LIT_MODE_MERGE};
+constexpr uint32_t kCount[] = {0u, 0u, LIT_MODE_COUNT};
 }  // namespace
 
 LitPyramidPass::LitPyramidPass(vk::Context& context)
     : base_(context, lit_pyramid_spv, kLayout, sizeof(shaders::LitPyramidPush), "lit pyramid (level 0)", kBase),
-      merge_(context, lit_pyramid_spv, kLayout, sizeof(shaders::LitPyramidPush), "lit pyramid (merge)", kMerge) {}
+      merge_(context, lit_pyramid_spv, kLayout, sizeof(shaders::LitPyramidPush), "lit pyramid (merge)", kMerge),
+      count_(context, lit_pyramid_spv, kLayout, sizeof(shaders::LitPyramidPush), "lit pyramid (unlit counts)",
+             kCount) {}
 
 void LitPyramidPass::record(vk::CommandRecorder& recorder, const vk::Buffer& params, const vk::Image3D& flux,
                             const vk::Buffer& lit_blocks, vk::Extent3 grid_dims) const {
@@ -28,12 +31,17 @@ void LitPyramidPass::record(vk::CommandRecorder& recorder, const vk::Buffer& par
                                     vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
                                     vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, lit_blocks)};
     const auto offsets = lit_pyramid_offsets(grid_dims);
+    const auto groups_at = [&](uint32_t level) {
+        return vk::linear_groups(offsets[level + 1] - offsets[level], TRANSPORT_GROUP_SIZE);
+    };
     for (uint32_t level = 0; level < LIT_LEVELS; ++level) {
         if (level > 0) recorder.compute_barrier();
-        const auto groups = vk::linear_groups(offsets[level + 1] - offsets[level], TRANSPORT_GROUP_SIZE);
-        const shaders::LitPyramidPush push{level};
-        (level == 0 ? base_ : merge_).dispatch(recorder.get(), bindings, push, groups.x, groups.y);
+        const auto groups = groups_at(level);
+        (level == 0 ? base_ : merge_).dispatch(recorder.get(), bindings, shaders::LitPyramidPush{level}, groups.x, groups.y);
     }
+    recorder.compute_barrier();
+    const auto groups = groups_at(0);
+    count_.dispatch(recorder.get(), bindings, shaders::LitPyramidPush{0}, groups.x, groups.y);
 }
 
 }  // namespace refract::passes

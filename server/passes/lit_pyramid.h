@@ -11,13 +11,15 @@ class LitPyramidPass {
 public:
     explicit LitPyramidPass(vk::Context& context);
     // Reads the fluence (w) of `flux` as the radiance resolve left it; writes every cell of `lit_blocks`
-    // (lit_pyramid_offsets(grid_dims) of them) for an index field of `grid_dims` voxels.
+    // (lit_pyramid_offsets(grid_dims) of them) for an index field of `grid_dims` voxels: 1 where lit
+    // at levels above 0, and at level 0 the count of unlit levels (transport.h).
     void record(vk::CommandRecorder& recorder, const vk::Buffer& params, const vk::Image3D& flux,
                 const vk::Buffer& lit_blocks, vk::Extent3 grid_dims) const;
 
 private:
     vk::ComputePipeline base_;   // level 0, from the radiance grid
     vk::ComputePipeline merge_;  // each level above, from the one below
+    vk::ComputePipeline count_;  // level 0 rewritten as unlit-level counts
 };
 
 }  // namespace refract::passes

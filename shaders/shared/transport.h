@@ -33,10 +33,11 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when flags.x == 1
 #define TRANSPORT_BINDING_LIT_BLOCKS 18     // the lit pyramid: uint per cell per level, 1 where any light arrives
 
-// Eye rays cross unlit fog in whole cells of the lit pyramid: level 0 has a flag per LIT_BLOCK^3 voxels,
-// set when photons reached any voxel whose trilinear footprint overlaps the block; each level above
-// merges 2^3 cells of the one below, so a ray far from the light crosses fog in cells of up to
-// LIT_BLOCK << (LIT_LEVELS - 1) voxels.
+// Eye rays cross unlit fog in whole cells of the lit pyramid: a level-0 cell of LIT_BLOCK^3 voxels is
+// lit when photons reached any voxel whose trilinear footprint overlaps it; each level above merges 2^3
+// cells of the one below (1 where lit), so a ray far from the light crosses fog in cells of up to
+// LIT_BLOCK << (LIT_LEVELS - 1) voxels. Level 0 finally holds, per block, how many levels are unlit
+// there (0: the block is lit; k: the cells of levels 0..k-1 around it are unlit).
 #define LIT_BLOCK 4
 #define LIT_LEVELS 4
 
@@ -118,11 +119,16 @@ REFRACT_INLINE vec3 grey_colour(vec4 photon_flux) {
     return vec3(photon_flux) * (3.0f / max(photon_flux.x + photon_flux.y + photon_flux.z, 1e-30f));
 }
 
-// The lit-pyramid pass: specialization constant, true for the dispatch that finds level 0 from the
-// radiance grid, false for those that merge a level's cells into the level above (push.level).
-#define LIT_CONSTANT_BASE 2  // after the transport constants, which every transport shader declares
+// The lit-pyramid pass, one specialization per job (constant LIT_CONSTANT_MODE, after the transport
+// constants, which every transport shader declares): find level 0 from the radiance grid; merge a
+// level's cells into the level above (push.level); finally replace each level-0 flag by the number of
+// levels that are unlit at that block, so an eye ray finds its largest unlit cell with one lookup.
+#define LIT_CONSTANT_MODE 2
+#define LIT_MODE_BASE 0u
+#define LIT_MODE_MERGE 1u
+#define LIT_MODE_COUNT 2u
 struct LitPyramidPush {
-    uint level;  // the level this dispatch writes (>= 1 when merging)
+    uint level;  // the level a merge writes (>= 1)
 };
 
 // Cells per axis of level `level` of the lit pyramid over a grid of `dims` voxels.
