@@ -38,43 +38,49 @@ void columns() {
     uint tile = (iv / push.tile_size) * push.tiles_u + iu / push.tile_size;
     uvec2 range = tile_ranges[tile];
     uint length_along = dims[axis];
-    float weight = 1.0 / float(push.subsamples * push.subsamples);
+    const uint rays = VOXELIZE_SUBSAMPLES * VOXELIZE_SUBSAMPLES;
+    float weight = 1.0 / float(rays);
 
-    float crossing_w[VOXELIZE_MAX_CROSSINGS];
-    int crossing_wind[VOXELIZE_MAX_CROSSINGS];
+    // Each triangle of the column's bin is loaded once and tested against all of its rays (storage-buffer
+    // loads run lane by lane on lavapipe; loading per ray cost a third of the pass). Ray r keeps its
+    // crossings in slots [r * VOXELIZE_MAX_CROSSINGS, (r + 1) * VOXELIZE_MAX_CROSSINGS).
+    float crossing_w[rays * VOXELIZE_MAX_CROSSINGS];
+    int crossing_wind[rays * VOXELIZE_MAX_CROSSINGS];
+    int count[rays];
+    for (uint r = 0u; r < rays; ++r) count[r] = 0;
     bool reliable = true;
-    for (uint s = 0u; s < push.subsamples * push.subsamples && reliable; ++s) {
-        // Sub-sample positions are offset by small irrational amounts so rays miss edges and vertices.
-        float u = float(iu) + (float(s % push.subsamples) + 0.5) / float(push.subsamples) + 1.3217e-4;
-        float v = float(iv) + (float(s / push.subsamples) + 0.5) / float(push.subsamples) + 0.7731e-4;
-        int count = 0;
-        for (uint t = 0u; t < range.y; ++t) {
-            uint tri = tile_items[range.x + t];
-            vec3 a = vertices[3u * tri].xyz, b = vertices[3u * tri + 1u].xyz, c = vertices[3u * tri + 2u].xyz;
-            vec2 pa = vec2(a[ua], a[va]), pb = vec2(b[ua], b[va]), pc = vec2(c[ua], c[va]);
-            vec2 p = vec2(u, v);
-            float area = (pb.x - pa.x) * (pc.y - pa.y) - (pb.y - pa.y) * (pc.x - pa.x);
-            if (area == 0.0) continue;  // parallel to the ray
+    for (uint t = 0u; t < range.y; ++t) {
+        uint tri = tile_items[range.x + t];
+        vec3 a = vertices[3u * tri].xyz, b = vertices[3u * tri + 1u].xyz, c = vertices[3u * tri + 2u].xyz;
+        vec2 pa = vec2(a[ua], a[va]), pb = vec2(b[ua], b[va]), pc = vec2(c[ua], c[va]);
+        float area = (pb.x - pa.x) * (pc.y - pa.y) - (pb.y - pa.y) * (pc.x - pa.x);
+        if (area == 0.0) continue;  // parallel to the rays
+        for (uint r = 0u; r < rays; ++r) {
+            // Sub-sample positions are offset by small irrational amounts so rays miss edges and vertices.
+            vec2 p = vec2(float(iu) + (float(r % VOXELIZE_SUBSAMPLES) + 0.5) / float(VOXELIZE_SUBSAMPLES) + 1.3217e-4,
+                          float(iv) + (float(r / VOXELIZE_SUBSAMPLES) + 0.5) / float(VOXELIZE_SUBSAMPLES) + 0.7731e-4);
             float w0 = (pb.x - p.x) * (pc.y - p.y) - (pb.y - p.y) * (pc.x - p.x);
             float w1 = (pc.x - p.x) * (pa.y - p.y) - (pc.y - p.y) * (pa.x - p.x);
             float w2 = area - w0 - w1;
             bool inside = area > 0.0 ? (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0)
                                      : (w0 <= 0.0 && w1 <= 0.0 && w2 <= 0.0);
             if (!inside) continue;
-            if (count == VOXELIZE_MAX_CROSSINGS) { reliable = false; break; }
-            float depth = (w0 * a[axis] + w1 * b[axis] + w2 * c[axis]) / area;
+            if (count[r] == VOXELIZE_MAX_CROSSINGS) { reliable = false; continue; }
+            uint slot = r * VOXELIZE_MAX_CROSSINGS + uint(count[r]);
+            crossing_w[slot] = (w0 * a[axis] + w1 * b[axis] + w2 * c[axis]) / area;
             // area > 0 means the normal has a positive component along the ray: the ray leaves there.
-            crossing_w[count] = depth;
-            crossing_wind[count] = area > 0.0 ? -1 : 1;
-            ++count;
+            crossing_wind[slot] = area > 0.0 ? -1 : 1;
+            ++count[r];
         }
-        if (!reliable) break;
+    }
+    for (uint r = 0u; r < rays && reliable; ++r) {
+        int first = int(r * VOXELIZE_MAX_CROSSINGS), n = count[r];
         // Insertion sort by depth: crossings per ray are few.
-        for (int i = 1; i < count; ++i) {
+        for (int i = first + 1; i < first + n; ++i) {
             float w = crossing_w[i];
             int k = crossing_wind[i];
             int j = i - 1;
-            while (j >= 0 && crossing_w[j] > w) {
+            while (j >= first && crossing_w[j] > w) {
                 crossing_w[j + 1] = crossing_w[j];
                 crossing_wind[j + 1] = crossing_wind[j];
                 --j;
@@ -83,13 +89,13 @@ void columns() {
             crossing_wind[j + 1] = k;
         }
         int winding = 0;
-        for (int i = 0; i < count; ++i) winding += crossing_wind[i];
+        for (int i = first; i < first + n; ++i) winding += crossing_wind[i];
         if (winding != 0) { reliable = false; break; }
         // Walk the sorted crossings and add each inside interval's overlap with every voxel.
-        for (int i = 0; i < count; ++i) {
+        for (int i = first; i < first + n; ++i) {
             winding += crossing_wind[i];
             // Nonzero rule: an inside-out mesh winds -1 inside and must fill the same.
-            if (winding == 0 || i + 1 >= count) continue;
+            if (winding == 0 || i + 1 >= first + n) continue;
             float w_in = clamp(crossing_w[i], 0.0, float(length_along));
             float w_out = clamp(crossing_w[i + 1], 0.0, float(length_along));
             if (w_out <= w_in) continue;

@@ -2,10 +2,10 @@
 // per voxel holding n and grad n, plus an r32f coverage image for extinction and scattering.
 #pragma once
 
+#include "passes/mode_pipelines.h"
 #include "protocol/scene_document.h"
 #include "scene/grid_geometry.h"
 #include "vk/commands.h"
-#include "passes/mode_pipelines.h"
 #include "vk/pipeline.h"
 
 namespace refract::passes {

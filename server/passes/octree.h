@@ -4,8 +4,8 @@
 
 #include <array>
 
-#include "vk/commands.h"
 #include "passes/mode_pipelines.h"
+#include "vk/commands.h"
 #include "vk/pipeline.h"
 
 namespace refract::passes {

@@ -114,13 +114,13 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
     for (uint32_t axis = 0; axis < 3; ++axis) {
         const uint32_t ua = (axis + 1) % 3, va = (axis + 2) % 3;
         VoxelizePush push{glm::uvec4(dims[0], dims[1], dims[2], 0), axis, kTileSize,
-                          (dims[ua] + kTileSize - 1) / kTileSize, kSubsamples};
+                          (dims[ua] + kTileSize - 1) / kTileSize, 0};
         const auto groups = vk::linear_groups(uint64_t{dims[ua]} * dims[va], VOLUME_GROUP_SIZE);
         voxelize_[VOXELIZE_MODE_COLUMNS].dispatch(cmd, std::span<const vk::Binding>(bindings(axis)), push, groups.x, groups.y);
     }
     recorder.compute_barrier();
     const auto voxel_groups = vk::linear_groups(grid.dims.count(), VOLUME_GROUP_SIZE);
-    VoxelizePush combine{glm::uvec4(dims[0], dims[1], dims[2], 0), 0, kTileSize, 1, kSubsamples};
+    VoxelizePush combine{glm::uvec4(dims[0], dims[1], dims[2], 0), 0, kTileSize, 1, 0};
     voxelize_[VOXELIZE_MODE_COMBINE].dispatch(cmd, std::span<const vk::Binding>(bindings(0)), combine, voxel_groups.x, voxel_groups.y);
     recorder.compute_barrier();
     if (smoothing) {

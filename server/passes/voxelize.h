@@ -6,11 +6,12 @@
 #include <array>
 
 #include "mesh/mesh.h"
+#include "passes/mode_pipelines.h"
 #include "scene/grid_geometry.h"
 #include "vk/commands.h"
 #include "vk/gpu_timer.h"
-#include "passes/mode_pipelines.h"
 #include "vk/pipeline.h"
+#include "volume_build.h"
 
 namespace refract::passes {
 
@@ -31,7 +32,7 @@ public:
                            const scene::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
                            const vk::Buffer& coverage) const;
 
-    static constexpr uint32_t kSubsamples = 4;  // 4 x 4 rays per voxel column and axis
+    static constexpr uint32_t kSubsamples = VOXELIZE_SUBSAMPLES;  // S x S rays per voxel column and axis
     // Triangles are binned per tile of kTileSize^2 columns; each ray tests its tile's list. One column
     // per tile: every ray tests only triangles over its own column (sphere at 128^3: voxelize 700-750
     // -> 515 ms against 4 x 4 tiles; 28,496-triangle bunny 620-740 -> 320-330 ms), and binning stays

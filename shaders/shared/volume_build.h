@@ -27,7 +27,8 @@ layout(constant_id = VOLUME_CONSTANT_MODE) const uint kMode = 0u;
 #define VOXELIZE_BINDING_COVERAGE_Y 4
 #define VOXELIZE_BINDING_COVERAGE_Z 5
 #define VOXELIZE_BINDING_COVERAGE 6    // combined (median) coverage
-#define VOXELIZE_MAX_CROSSINGS 32
+#define VOXELIZE_MAX_CROSSINGS 32  // per ray
+#define VOXELIZE_SUBSAMPLES 4      // S: S x S rays per voxel column and axis
 #define VOXELIZE_MODE_COLUMNS 0u
 #define VOXELIZE_MODE_COMBINE 1u
 
@@ -36,7 +37,7 @@ struct VoxelizePush {
     uint axis;     // column direction of this dispatch (0, 1, 2)
     uint tile_size;   // voxels per tile side on the column plane
     uint tiles_u;     // tiles along the plane's first axis ((axis + 1) % 3)
-    uint subsamples;  // S: S x S rays per voxel column
+    uint pad0;
 };
 
 // --- smooth -----------------------------------------------------------------------------------------
