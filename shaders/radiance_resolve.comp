@@ -18,34 +18,35 @@ layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform writeonly image3D 
 layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform writeonly image3D flux;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D floor_map;
 
-void main() {
-    uint i = linear_invocation();
+layout(constant_id = RESOLVE_CONSTANT_FLOOR) const bool kFloorMap = false;
+
+void resolve_voxel(uint i) {
     uvec3 dims = params.radiance_grid.xyz;
-    uint voxels = dims.x * dims.y * dims.z;
+    if (i >= dims.x * dims.y * dims.z) return;
     float reference_flux = params.photon_flux.w;
-    if (i < voxels) {
-        ivec3 v = ivec3(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
-        float h = params.grid_origin.w * float(params.radiance_grid.w);  // a radiance voxel's side
-        // sum is in photon-voxel-lengths x scale; flux x length / volume = sum / scale x flux x h / h^3.
-        float to_fluence = reference_flux / (params.stepping.z * h * h);
-        // Unpack (transport.h): the low half of each word is its own sum (signed where it can be
-        // negative); the high half is what remains once the low half is taken out.
-        uint64_t bx = accum_bx[i], yz = accum_yz[i];
-        float blue = float(uint(bx & 0xffffffffUL));
-        float dir_x = float(int(int64_t(bx) >> 32));
-        int dir_y = int(uint(yz & 0xffffffffUL));
-        float dir_z = float(int((int64_t(yz) - int64_t(dir_y)) >> 32));
-        float mean = blue;  // grey transport: the blue slot holds the channels' mean
-        if (!kGreyTransport) {
-            uint64_t rg = accum_rg[i];
-            vec3 colour = vec3(float(uint(rg & 0xffffffffUL)), float(uint(rg >> 32)), blue);
-            mean = (colour.r + colour.g + colour.b) * (1.0 / 3.0);
-            imageStore(radiance, v, vec4(colour * to_fluence, 0.0));
-        }
-        imageStore(flux, v, vec4(vec3(dir_x, float(dir_y), dir_z) * to_fluence, mean * to_fluence));
-        return;
+    ivec3 v = ivec3(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
+    float h = params.grid_origin.w * float(params.radiance_grid.w);  // a radiance voxel's side
+    // sum is in photon-voxel-lengths x scale; flux x length / volume = sum / scale x flux x h / h^3.
+    float to_fluence = reference_flux / (params.stepping.z * h * h);
+    // Unpack (transport.h): the low half of each word is its own sum (signed where it can be
+    // negative); the high half is what remains once the low half is taken out.
+    uint64_t bx = accum_bx[i], yz = accum_yz[i];
+    float blue = float(uint(bx & 0xffffffffUL));
+    float dir_x = float(int(int64_t(bx) >> 32));
+    int dir_y = int(uint(yz & 0xffffffffUL));
+    float dir_z = float(int((int64_t(yz) - int64_t(dir_y)) >> 32));
+    float mean = blue;  // grey transport: the blue slot holds the channels' mean
+    if (!kGreyTransport) {
+        uint64_t rg = accum_rg[i];
+        vec3 colour = vec3(float(uint(rg & 0xffffffffUL)), float(uint(rg >> 32)), blue);
+        mean = (colour.r + colour.g + colour.b) * (1.0 / 3.0);
+        imageStore(radiance, v, vec4(colour * to_fluence, 0.0));
     }
-    uint texel = i - voxels;
+    imageStore(flux, v, vec4(vec3(dir_x, float(dir_y), dir_z) * to_fluence, mean * to_fluence));
+}
+
+void resolve_floor_texel(uint texel) {
+    float reference_flux = params.photon_flux.w;
     uint side = uint(params.floor_map.w);
     if (texel >= side * side) return;
     float texel_area = (params.floor_map.z / float(side)) * (params.floor_map.z / float(side));
@@ -54,4 +55,10 @@ void main() {
     vec3 irradiance = vec3(float(int(accum_floor[3u * texel])), float(int(accum_floor[3u * texel + 1u])),
                            float(int(accum_floor[3u * texel + 2u]))) * to_irradiance;
     imageStore(floor_map, ivec3(texel % side, texel / side, 0), vec4(irradiance, 0.0));
+}
+
+// Two dispatches, one per job (kFloorMap): lavapipe would run both jobs' code in every invocation.
+void main() {
+    if (kFloorMap) resolve_floor_texel(linear_invocation());
+    else resolve_voxel(linear_invocation());
 }

@@ -1,5 +1,7 @@
 #include "passes/radiance_resolve.h"
 
+#include <array>
+
 #include "radiance_resolve_spv.h"
 #include "transport.h"
 
@@ -18,24 +20,34 @@ constexpr vk::BindingLayout kLayout[] = {
 };
 }  // namespace
 
-RadianceResolvePass::RadianceResolvePass(vk::Context& context)
-    : pipeline_(context, radiance_resolve_spv, kLayout, "radiance resolve") {}
+RadianceResolvePass::RadianceResolvePass(vk::Context& context) {
+    static_assert(TRANSPORT_CONSTANT_GREY == 0 && RESOLVE_CONSTANT_FLOOR == 2);
+    const char* names[] = {"radiance resolve", "radiance resolve (grey)", "floor map resolve",
+                           "floor map resolve (grey)"};
+    pipelines_.reserve(4);
+    for (uint32_t i = 0; i < 4; ++i) {
+        const std::array<uint32_t, 3> constants{i & 1u, 0u, i >> 1};  // the coverage fetch is never used here
+        pipelines_.emplace_back(context, radiance_resolve_spv, kLayout, 0, names[i], constants);
+    }
+}
 
 void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer& params,
                                  const PhotonAccumulators& accum, bool grey, const vk::Image3D& radiance,
                                  const vk::Image3D& flux, const vk::Image3D& floor_map) const {
-    const uint64_t items = flux.extent().count() + uint64_t{floor_map.extent().x} * floor_map.extent().y;
-    const auto groups = vk::linear_groups(items, TRANSPORT_GROUP_SIZE);
-    pipeline_({grey, false}).dispatch(recorder.get(),
-                             {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, params),
-                              vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.voxel[0]),
-                              vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_BX, accum.voxel[1]),
-                              vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_YZ, accum.voxel[2]),
-                              vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
-                              vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
-                              vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
-                              vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map)},
-                             nullptr, 0, groups.x, groups.y);
+    const vk::Binding bindings[] = {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, params),
+                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.voxel[0]),
+                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_BX, accum.voxel[1]),
+                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_YZ, accum.voxel[2]),
+                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
+                                    vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
+                                    vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
+                                    vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map)};
+    const uint32_t variant = grey ? 1u : 0u;
+    const auto voxel_groups = vk::linear_groups(flux.extent().count(), TRANSPORT_GROUP_SIZE);
+    pipelines_[variant].dispatch(recorder.get(), bindings, nullptr, 0, voxel_groups.x, voxel_groups.y);
+    const auto texel_groups =
+        vk::linear_groups(uint64_t{floor_map.extent().x} * floor_map.extent().y, TRANSPORT_GROUP_SIZE);
+    pipelines_[variant + 2].dispatch(recorder.get(), bindings, nullptr, 0, texel_groups.x, texel_groups.y);
 }
 
 }  // namespace refract::passes

@@ -2,6 +2,8 @@
 // rate and net flux vector per voxel, W/m^2) and the floor irradiance map.
 #pragma once
 
+#include <vector>
+
 #include "passes/photon_trace.h"
 
 namespace refract::passes {
@@ -14,7 +16,8 @@ public:
     // `radiance` (rgb fluence) is written by coloured transport only; grey transport binds any image.
 
 private:
-    TransportPipeline pipeline_;
+    // Indexed grey + 2 x floor: grey or coloured transport, radiance-grid voxels or floor-map texels.
+    std::vector<vk::ComputePipeline> pipelines_;
 };
 
 }  // namespace refract::passes

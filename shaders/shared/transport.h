@@ -119,6 +119,10 @@ REFRACT_INLINE vec3 grey_colour(vec4 photon_flux) {
     return vec3(photon_flux) * (3.0f / max(photon_flux.x + photon_flux.y + photon_flux.z, 1e-30f));
 }
 
+// The radiance resolve, one specialization per job (constant RESOLVE_CONSTANT_FLOOR, after the transport
+// constants): true for the dispatch that resolves the floor map, false for the radiance grid's voxels.
+#define RESOLVE_CONSTANT_FLOOR 2
+
 // The lit-pyramid pass, one specialization per job (constant LIT_CONSTANT_MODE, after the transport
 // constants, which every transport shader declares): find level 0 from the radiance grid; merge a
 // level's cells into the level above (push.level); finally replace each level-0 flag by the number of
