@@ -183,15 +183,10 @@ void shade(uvec2 pixel) {
         position = to_world(p);
     }
     if (any(greaterThan(transmittance, vec3(0.0)))) {
-        vec3 background;
-        if (on_floor) {
-            background = floor_radiance(position);
-        } else if (floor_on && d.y < 0.0 && position.y > params.floor_plane.x) {
-            background = floor_radiance(position + d * ((position.y - params.floor_plane.x) / -d.y));
-        } else {
-            background = sky(d);
-        }
-        radiance_sum += transmittance * background;
+        // One floor_radiance call site: lavapipe would run each call (and its fetch) for every pixel.
+        bool sees_floor = on_floor || (floor_on && d.y < 0.0 && position.y > params.floor_plane.x);
+        vec3 floor_point = on_floor ? position : position + d * ((position.y - params.floor_plane.x) / -d.y);
+        radiance_sum += transmittance * (sees_floor ? floor_radiance(floor_point) : sky(d));
     }
     atomicAdd(stats.view_steps, march_steps);
     uint index = pixel.y * width + pixel.x;
