@@ -26,8 +26,6 @@ uint unlit_levels(vec3 p) {
     return lit_blocks[params.lit_offsets[0] + (b.z * cells.y + b.y) * cells.x + b.x];
 }
 
-bool block_lit(vec3 p) { return unlit_levels(p) == 0u; }
-
 // The side (voxels) of the largest cell of the lit pyramid that holds p and no light; 0 where p's block
 // is lit.
 float unlit_cell(vec3 p) {
@@ -149,9 +147,11 @@ void shade(uvec2 pixel) {
                 vec3 step_attenuation = exp(-kappa * gather_step);
                 vec3 step_path = transmitted_path(kappa, gather_step, step_attenuation);
                 float t = 0.0;
+                // A run that enters unlit fog inside its leaf gathers zeros there rather than stopping:
+                // a lit-pyramid lookup on every step cost more (~10% of a camera edit in the default
+                // scene) than the unlit steps it saved in a narrow beam. Leaves that start unlit are
+                // crossed in pyramid cells.
                 while (t < run) {
-                    // An unlit block ends the run; the next pass of the outer loop crosses it.
-                    if (t > 0.0 && !block_lit(ray.p + t * ray.d)) break;
                     float len = min(gather_step, run - t);
                     bool whole = len == gather_step;
                     vec3 attenuation = whole ? step_attenuation : exp(-kappa * len);
