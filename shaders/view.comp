@@ -15,21 +15,12 @@ layout(std430, binding = TRANSPORT_BINDING_HDR) writeonly buffer Hdr { vec4 hdr[
 layout(std430, binding = TRANSPORT_BINDING_LDR) writeonly buffer Ldr { uint ldr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
 
-// The level-0 block (LIT_BLOCK^3 voxels) that holds p.
-uvec3 lit_block_of(vec3 p) { return uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / LIT_BLOCK; }
-
-// How many levels of the lit pyramid are unlit around p's level-0 block (0: the block is lit), which
-// the lit-pyramid pass counted once per block, so the ray needs one lookup.
-uint unlit_levels(vec3 p) {
-    uvec3 b = lit_block_of(p);
-    uvec3 cells = lit_cells(params.grid_dims.xyz, 0u);
-    return lit_blocks[params.lit_offsets[0] + (b.z * cells.y + b.y) * cells.x + b.x];
-}
-
 // The side (voxels) of the largest cell of the lit pyramid that holds p and no light; 0 where p's block
-// is lit.
+// is lit. Level 0 holds the count of unlit levels per block, so this is one lookup.
 float unlit_cell(vec3 p) {
-    uint unlit = unlit_levels(p);
+    uvec3 b = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / LIT_BLOCK;  // p's level-0 block
+    uvec3 cells = lit_cells(params.grid_dims.xyz, 0u);
+    uint unlit = lit_blocks[params.lit_offsets[0] + (b.z * cells.y + b.y) * cells.x + b.x];
     return unlit == 0u ? 0.0 : float(uint(LIT_BLOCK) << (unlit - 1u));
 }
 

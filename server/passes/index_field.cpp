@@ -18,7 +18,8 @@ constexpr vk::BindingLayout kLayout[] = {
 
 IndexFieldPass::IndexFieldPass(vk::Context& context)
     : pipelines_(context, index_field_spv, kLayout, sizeof(IndexFieldPush),
-                 {"index field (uniform)", "index field (Luneburg)", "index field (Maxwell)", "index field (grid)"}) {
+                 {"index field (uniform)", "index field (Luneburg)", "index field (Maxwell)", "index field (grid)"},
+                 VOLUME_CONSTANT_MODE) {
     static_assert(INDEX_KIND_UNIFORM == 0 && INDEX_KIND_LUNEBURG == 1 && INDEX_KIND_MAXWELL == 2 &&
                   INDEX_KIND_GRID == 3);
 }

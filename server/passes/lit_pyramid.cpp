@@ -12,18 +12,13 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
-// constant_id i takes entry i: the transport constants (unused here) come first.
-static_assert(LIT_CONSTANT_MODE == 2);
-constexpr uint32_t kBase[] = {0u, 0u, LIT_MODE_BASE};
-constexpr uint32_t kMerge[] = {0u, 0u, LIT_MODE_MERGE};
-constexpr uint32_t kCount[] = {0u, 0u, LIT_MODE_COUNT};
 }  // namespace
 
 LitPyramidPass::LitPyramidPass(vk::Context& context)
-    : base_(context, lit_pyramid_spv, kLayout, sizeof(shaders::LitPyramidPush), "lit pyramid (level 0)", kBase),
-      merge_(context, lit_pyramid_spv, kLayout, sizeof(shaders::LitPyramidPush), "lit pyramid (merge)", kMerge),
-      count_(context, lit_pyramid_spv, kLayout, sizeof(shaders::LitPyramidPush), "lit pyramid (unlit counts)",
-             kCount) {}
+    : pipelines_(context, lit_pyramid_spv, kLayout, sizeof(shaders::LitPyramidPush),
+                 {"lit pyramid (level 0)", "lit pyramid (merge)", "lit pyramid (unlit counts)"}, LIT_CONSTANT_MODE) {
+    static_assert(LIT_MODE_BASE == 0 && LIT_MODE_MERGE == 1 && LIT_MODE_COUNT == 2);
+}
 
 void LitPyramidPass::record(vk::CommandRecorder& recorder, const vk::Buffer& params, const vk::Image3D& flux,
                             const vk::Buffer& lit_blocks, vk::Extent3 grid_dims) const {
@@ -37,11 +32,11 @@ void LitPyramidPass::record(vk::CommandRecorder& recorder, const vk::Buffer& par
     for (uint32_t level = 0; level < LIT_LEVELS; ++level) {
         if (level > 0) recorder.compute_barrier();
         const auto groups = groups_at(level);
-        (level == 0 ? base_ : merge_).dispatch(recorder.get(), bindings, shaders::LitPyramidPush{level}, groups.x, groups.y);
+        pipelines_[level == 0 ? LIT_MODE_BASE : LIT_MODE_MERGE].dispatch(recorder.get(), bindings, shaders::LitPyramidPush{level}, groups.x, groups.y);
     }
     recorder.compute_barrier();
     const auto groups = groups_at(0);
-    count_.dispatch(recorder.get(), bindings, shaders::LitPyramidPush{0}, groups.x, groups.y);
+    pipelines_[LIT_MODE_COUNT].dispatch(recorder.get(), bindings, shaders::LitPyramidPush{0}, groups.x, groups.y);
 }
 
 }  // namespace refract::passes

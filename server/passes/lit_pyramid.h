@@ -2,8 +2,8 @@
 // (shaders/shared/transport.h), so the viewing pass crosses unlit fog without gathering.
 #pragma once
 
+#include "passes/mode_pipelines.h"
 #include "vk/commands.h"
-#include "vk/pipeline.h"
 
 namespace refract::passes {
 
@@ -17,9 +17,7 @@ public:
                 const vk::Buffer& lit_blocks, vk::Extent3 grid_dims) const;
 
 private:
-    vk::ComputePipeline base_;   // level 0, from the radiance grid
-    vk::ComputePipeline merge_;  // each level above, from the one below
-    vk::ComputePipeline count_;  // level 0 rewritten as unlit-level counts
+    ModePipelines pipelines_;  // by LIT_MODE_*
 };
 
 }  // namespace refract::passes

@@ -1,7 +1,8 @@
-// A volume-building shader that does several jobs (octree: leaf ranges, reduce, level map; voxelize:
-// columns, combine; index field: one per kind of field), compiled once per job with the job as
-// specialization constant VOLUME_CONSTANT_MODE (shaders/shared/volume_build.h). lavapipe runs both
-// sides of every branch, so a branch on a push constant would run every job in every dispatch.
+// A shader that does several jobs (octree: leaf ranges, reduce, level map; voxelize: columns, combine;
+// index field: one per kind of field; lit pyramid: level 0, merge, unlit counts), compiled once per job
+// with the job as a specialization constant (VOLUME_CONSTANT_MODE in shaders/shared/volume_build.h,
+// LIT_CONSTANT_MODE in transport.h). lavapipe runs both sides of every branch, so a branch on a push
+// constant would run every job in every dispatch.
 #pragma once
 
 #include <initializer_list>
@@ -14,9 +15,10 @@ namespace refract::passes {
 
 class ModePipelines {
 public:
-    // One pipeline per name; the i-th does job (mode) i. Names are string literals (kept, not copied).
+    // One pipeline per name; the i-th does job i: constant `constant_id` is i, any before it 0. Names are
+    // string literals (kept, not copied).
     ModePipelines(vk::Context& context, std::span<const uint32_t> spirv, std::span<const vk::BindingLayout> layout,
-                  uint32_t push_constant_bytes, std::initializer_list<const char*> names);
+                  uint32_t push_constant_bytes, std::initializer_list<const char*> names, uint32_t constant_id);
     const vk::ComputePipeline& operator[](uint32_t mode) const { return pipelines_.at(mode); }
 
 private:

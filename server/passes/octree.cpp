@@ -35,7 +35,7 @@ constexpr vk::BindingLayout kLayout[] = {
 
 OctreePass::OctreePass(vk::Context& context)
     : pipelines_(context, octree_spv, kLayout, sizeof(OctreePush),
-                 {"octree leaf ranges", "octree reduce", "octree level map"}) {
+                 {"octree leaf ranges", "octree reduce", "octree level map"}, VOLUME_CONSTANT_MODE) {
     static_assert(OCTREE_MODE_LEAF_RANGE == 0 && OCTREE_MODE_REDUCE == 1 && OCTREE_MODE_LEVEL_MAP == 2);
 }
 

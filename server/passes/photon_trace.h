@@ -16,7 +16,7 @@ struct PhotonAccumulators {
     vk::Buffer floor;                 // 3 uints per floor texel
     vk::Buffer stats;                 // PhotonStats (host-readable)
     vk::Buffer exits;                 // PhotonExit per photon when recorded (tests), else one entry
-    vk::Buffer lit_blocks;            // uint per LIT_BLOCK^3 block, written by LitPyramidPass
+    vk::Buffer lit_blocks;            // the lit pyramid (transport.h), written by LitPyramidPass
 };
 
 // `dims`: the index field's voxels (lit blocks cover those); `radiance_dims`: the radiance grid's.

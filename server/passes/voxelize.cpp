@@ -28,7 +28,7 @@ static_assert(VOXELIZE_MODE_COLUMNS == 0 && VOXELIZE_MODE_COMBINE == 1);
 VoxelizePass::VoxelizePass(vk::Context& context)
     : context_(context),
       voxelize_(context, voxelize_spv, kVoxelizeLayout, sizeof(VoxelizePush),
-                {"voxelize columns", "voxelize combine"}),
+                {"voxelize columns", "voxelize combine"}, VOLUME_CONSTANT_MODE),
       smooth_(context, smooth_spv,
               {{SMOOTH_BINDING_SOURCE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
                {SMOOTH_BINDING_TARGET, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},

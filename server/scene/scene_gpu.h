@@ -88,7 +88,8 @@ public:
     std::vector<glm::vec4> read_radiance() const;  // fluence rate rgb (W/m^2)
     std::vector<glm::vec4> read_flux() const;      // net flux vector xyz, fluence rate w (channel mean; W/m^2)
     bool grey() const { return grey_; }            // the kind of transport the photons last ran
-    // The lit pyramid: 1 per lit cell, levels one after another (passes::lit_pyramid_offsets).
+    // The lit pyramid, levels one after another (passes::lit_pyramid_offsets): 1 per lit cell above
+    // level 0, and per level-0 block the number of levels unlit there (transport.h).
     std::vector<uint32_t> read_lit_pyramid() const;
     // The change of floor irradiance the grid causes (W/m^2, signed), floor_map_side()^2 texels.
     std::vector<glm::vec4> read_floor_map() const;

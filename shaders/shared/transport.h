@@ -31,7 +31,7 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_HDR 15            // vec4 per pixel: linear radiance before exposure
 #define TRANSPORT_BINDING_LDR 16            // uint per pixel: tone-mapped sRGB RGBA8
 #define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when flags.x == 1
-#define TRANSPORT_BINDING_LIT_BLOCKS 18     // the lit pyramid: uint per cell per level, 1 where any light arrives
+#define TRANSPORT_BINDING_LIT_BLOCKS 18     // the lit pyramid: uint per cell per level (see LIT_BLOCK)
 
 // Eye rays cross unlit fog in whole cells of the lit pyramid: a level-0 cell of LIT_BLOCK^3 voxels is
 // lit when photons reached any voxel whose trilinear footprint overlaps it; each level above merges 2^3
