@@ -6,6 +6,8 @@
 // the grid changes: its shadow and caustics) or the sky. Output: linear radiance and a tone-mapped sRGB pixel.
 #include "transport_common.glsl"
 #include "phase.h"
+#include "tone_map.glsl"
+#include "view_tiles.glsl"
 
 layout(local_size_x = VIEW_GROUP_SIZE, local_size_y = VIEW_GROUP_SIZE) in;
 layout(binding = TRANSPORT_BINDING_RADIANCE) uniform sampler3D radiance;
@@ -14,6 +16,11 @@ layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
 layout(std430, binding = TRANSPORT_BINDING_HDR) writeonly buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LDR) writeonly buffer Ldr { uint ldr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
+layout(std430, binding = TRANSPORT_BINDING_REFINE) readonly buffer Refine {
+    ViewRefineHeader refine;
+    uint refine_pixels[];
+};
+layout(push_constant) uniform Push { ViewPush push; };
 
 // The side (voxels) of the largest cell of the lit pyramid that holds p and no light; 0 where p's block
 // is lit. Level 0 holds the count of unlit levels per block, so this is one lookup.
@@ -72,12 +79,6 @@ vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
 }
 
 vec3 sky(vec3 d) { return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0)); }
-
-// Narkowicz's fit of the ACES filmic curve, then the sRGB transfer function.
-vec3 tone_map(vec3 x) {
-    x = clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
-    return mix(12.92 * x, 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055, greaterThan(x, vec3(0.0031308)));
-}
 
 // Traces the eye ray of one pixel and writes its HDR and sRGB values.
 void shade(uvec2 pixel) {
@@ -182,23 +183,25 @@ void shade(uvec2 pixel) {
     atomicAdd(stats.view_steps, march_steps);
     uint index = pixel.y * width + pixel.x;
     hdr[index] = vec4(radiance_sum, 1.0);
-    vec3 srgb = tone_map(radiance_sum * params.tone.x);
-    uvec3 bytes = uvec3(clamp(srgb, 0.0, 1.0) * 255.0 + 0.5);
-    ldr[index] = bytes.r | (bytes.g << 8u) | (bytes.b << 16u) | (255u << 24u);
+    ldr[index] = srgb8(radiance_sum, params.tone.x);
 }
 
-// The queue runs through the image in 8x8 tiles, and within a tile in Morton order, so the pixels of a
-// subgroup (8 on lavapipe) form a 4x2 block rather than a row: their rays stay closer together, cross
-// octree leaves at more similar distances, and the lanes idle less in the gather loop.
-#if VIEW_GROUP_SIZE != 8
-#error "the Morton order below is written for 8x8 tiles"
-#endif
-uint even_bits(uint v) { return (v & 1u) | ((v >> 1u) & 2u) | ((v >> 2u) & 4u); }
-
+// The queue runs through the image (or its coarse pixels) tile by tile (view_tiles.glsl). Listed pixels
+// come in the order view_refine.comp listed them, which keeps a subgroup's neighbours together.
 void main() {
-    uint job = take_from_queue(QUEUE_VIEW_PIXELS);
+    bool listed = push.pixels == VIEW_PIXELS_LISTED;
+    uint job = take_from_queue(listed ? QUEUE_VIEW_REFINED : QUEUE_VIEW_PIXELS);
+    uint stride = push.pixels == VIEW_PIXELS_COARSE ? 2u : 1u;
+    uvec2 extent = (params.image.xy + (stride - 1u)) / stride;  // the pixels this dispatch walks
+    uint tiles_x = (extent.x + (VIEW_GROUP_SIZE - 1u)) / VIEW_GROUP_SIZE;
     uint tile = job / (VIEW_GROUP_SIZE * VIEW_GROUP_SIZE), within = job % (VIEW_GROUP_SIZE * VIEW_GROUP_SIZE);
-    uvec2 pixel = uvec2(tile % params.image.z, tile / params.image.z) * VIEW_GROUP_SIZE +
-                  uvec2(even_bits(within), even_bits(within >> 1u));
-    if (tile < params.image.w && pixel.x < params.image.x && pixel.y < params.image.y) shade(pixel);
+    uvec2 walked = tile_pixel(uvec2(tile % tiles_x, tile / tiles_x), within);
+    uvec2 pixel = walked * stride;
+    bool valid = all(lessThan(walked, extent));
+    if (listed) {
+        valid = job < refine.count;
+        uint index = refine_pixels[min(job, refine.count - 1u)];
+        pixel = uvec2(index % params.image.x, index / params.image.x);
+    }
+    if (valid) shade(pixel);
 }

@@ -115,6 +115,11 @@ Arguments parse_arguments(const std::vector<std::string>& args) {
         };
         if (a == "--out" || a == "-o") out.out = value();
         else if (a == "--hdr") out.hdr = value();
+        else if (a == "--quality") {
+            const std::string q = value();
+            if (q != "still" && q != "interactive") throw std::runtime_error("--quality is still or interactive, not " + q);
+            out.interactive = q == "interactive";
+        }
         else if (a == "--stats") out.stats = value();
         else if (a == "--device") out.device = value();
         else if (a == "--scene") out.scene_file = value();
@@ -224,7 +229,8 @@ int render_command(const Arguments& args) {
     scene::PassKit kit(context);
     scene::SceneGpu gpu(kit);
     const auto host_start = std::chrono::steady_clock::now();
-    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_mesh(loaded), nullptr);
+    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_mesh(loaded), nullptr,
+                               scene::run_options_for(args.interactive ? scene::Quality::interactive : scene::Quality::still));
     const auto encode_start = std::chrono::steady_clock::now();
     const auto png = image::encode_png(gpu.read_ldr(), gpu.width(), gpu.height());
     const auto end = std::chrono::steady_clock::now();
@@ -238,6 +244,7 @@ int render_command(const Arguments& args) {
                     {"height", gpu.height()},
                     {"photons_traced", stats.photons_entered},
                     {"mean_steps_per_photon", stats.mean_steps_per_photon()},
+                    {"view_steps", stats.view_steps},
                     {"gpu_ms", timings_json(stats.gpu_ms)},
                     {"encode_ms", std::chrono::duration<double, std::milli>(end - encode_start).count()},
                     {"host_ms", std::chrono::duration<double, std::milli>(end - host_start).count()}};

@@ -11,6 +11,7 @@ struct Arguments {
     std::vector<std::pair<std::string, std::string>> meshes;  // --mesh NAME=FILE.obj
     std::string out, hdr, stats, device, scene_file, suite, daemon, only;  // only: --case prefix
     bool json = false;
+    bool interactive = false;  // --quality interactive
     int runs = 0;
 };
 

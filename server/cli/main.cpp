@@ -17,6 +17,8 @@ Commands:
   trace SCENE.json --out DIR              ... + photons; writes radiance slices, floor caustic map, summary.json
   render SCENE.json -o FRAME.png          the whole pipeline once
          [--hdr FRAME.pfm] [--stats STATS.json]
+         [--quality still|interactive]    interactive: the passes as refractd runs them during a
+                                          drag, at the document's own image size and photon count
   bench [--scene FILE | --suite standard] [--case PREFIX] [--runs N] [--json]
                                           per-pass GPU milliseconds (timestamp queries) for fixed scenes
   bench --daemon HOST:PORT [--runs N]     a running refractd end to end: edit + frame round trips

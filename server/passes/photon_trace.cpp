@@ -45,7 +45,7 @@ constexpr vk::BindingLayout kLayout[] = {
 }  // namespace
 
 PhotonTracePass::PhotonTracePass(vk::Context& context)
-    : pipeline_(context, photon_trace_spv, kLayout, "photon trace") {}
+    : pipeline_(context, photon_trace_spv, kLayout, 0, "photon trace") {}
 
 void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
                              const PhotonAccumulators& accum, uint32_t photon_count) const {

@@ -190,9 +190,7 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     p.camera_forward = glm::vec4(forward, 0.0f);
     p.camera_right = glm::vec4(right, 0.0f);
     p.camera_up = glm::vec4(up, 0.0f);
-    const uint32_t tiles_x = (document.image.width + VIEW_GROUP_SIZE - 1) / VIEW_GROUP_SIZE;
-    const uint32_t tiles_y = (document.image.height + VIEW_GROUP_SIZE - 1) / VIEW_GROUP_SIZE;
-    p.image = glm::uvec4(document.image.width, document.image.height, tiles_x, tiles_x * tiles_y);
+    p.image = glm::uvec4(document.image.width, document.image.height, 0u, 0u);
     p.tone = glm::vec4(std::exp2(static_cast<float>(document.image.exposure)), options.view_step, 0.0f, 0.0f);
     // How passes find coverage for each coefficient, and whether photons need to deposit at all.
     const bool uniform_index = object.index_field == protocol::IndexFieldKind::uniform &&

@@ -18,7 +18,7 @@ struct TransportVariant {
 class TransportPipeline {
 public:
     TransportPipeline(vk::Context& context, std::span<const uint32_t> spirv,
-                      std::span<const vk::BindingLayout> layout, const char* name);
+                      std::span<const vk::BindingLayout> layout, uint32_t push_constant_bytes, const char* name);
     const vk::ComputePipeline& operator()(TransportVariant variant) const {
         return pipelines_[(variant.grey ? 1u : 0u) + (variant.coverage_fetch ? 2u : 0u)];
     }

@@ -20,34 +20,59 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_LDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_REFINE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 }  // namespace
 
-ViewPass::ViewPass(vk::Context& context) : pipeline_(context, view_spv, kLayout, "view") {}
+ViewPass::ViewPass(vk::Context& context)
+    : context_(context), pipeline_(context, view_spv, kLayout, sizeof(shaders::ViewPush), "view"), refine_(context) {}
 
 void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, const vk::Image3D& radiance,
                       const vk::Image3D& flux, const vk::Image3D& floor_map, const ViewOutputs& out,
-                      uint32_t width, uint32_t height) const {
-    // Only the view's counters restart (steps and the pixel queue, adjacent): the photon pass's counters
-    // belong to the last photon run.
+                      uint32_t width, uint32_t height, bool adaptive) const {
+    // Only the view's counters restart (steps and its two pixel queues, adjacent): the photon pass's
+    // counters belong to the last photon run.
     static_assert(offsetof(shaders::PhotonStats, queue_taken) + 4 * QUEUE_VIEW_PIXELS ==
-                  offsetof(shaders::PhotonStats, view_steps) + 4);
-    vkCmdFillBuffer(recorder.get(), out.stats.get(), offsetof(shaders::PhotonStats, view_steps), 2 * sizeof(uint32_t), 0);
+                      offsetof(shaders::PhotonStats, view_steps) + 4 &&
+                  QUEUE_VIEW_REFINED == QUEUE_VIEW_PIXELS + 1);
+    vkCmdFillBuffer(recorder.get(), out.stats.get(), offsetof(shaders::PhotonStats, view_steps), 3 * sizeof(uint32_t), 0);
+    // The listed round is one indirect dispatch of up to all non-coarse pixels: past the device's group
+    // count limit (images far larger than interactive frames are), every pixel is traced.
+    const uint64_t listable = uint64_t{width} * height - uint64_t{(width + 1) / 2} * ((height + 1) / 2);
+    adaptive = adaptive && vk::group_count(static_cast<uint32_t>(listable), VIEW_GROUP_SIZE * VIEW_GROUP_SIZE) <=
+                               context_.limits().maxComputeWorkGroupCount[0];
+    if (adaptive) {
+        const shaders::ViewRefineHeader empty{0, 1, 1, 0};
+        recorder.update(out.refine, 0, &empty, sizeof(empty));
+    }
     recorder.transfer_to_compute_barrier();
-    pipeline_(in.variant).dispatch(recorder.get(),
-                                {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
-                                 vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
-                                 vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
-                                 vk::Binding::sampled_image(TRANSPORT_BINDING_RADIANCE, radiance, in.sampler),
-                                 vk::Binding::sampled_image(TRANSPORT_BINDING_FLUX, flux, in.sampler),
-                                 vk::Binding::sampled_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map, in.sampler),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, out.hdr),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_LDR, out.ldr),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, out.lit_blocks)},
-                                nullptr, 0, vk::group_count(width, VIEW_GROUP_SIZE),
-                                vk::group_count(height, VIEW_GROUP_SIZE));
+    const vk::Binding bindings[] = {
+        vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
+        vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
+        vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
+        vk::Binding::sampled_image(TRANSPORT_BINDING_RADIANCE, radiance, in.sampler),
+        vk::Binding::sampled_image(TRANSPORT_BINDING_FLUX, flux, in.sampler),
+        vk::Binding::sampled_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map, in.sampler),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, out.hdr),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_LDR, out.ldr),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, out.lit_blocks),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_REFINE, out.refine)};
+    const vk::ComputePipeline& view = pipeline_(in.variant);
+    if (!adaptive) {
+        view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_ALL},
+                      vk::group_count(width, VIEW_GROUP_SIZE), vk::group_count(height, VIEW_GROUP_SIZE));
+        return;
+    }
+    view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_COARSE},
+                  vk::group_count((width + 1) / 2, VIEW_GROUP_SIZE), vk::group_count((height + 1) / 2, VIEW_GROUP_SIZE));
+    recorder.compute_barrier();
+    refine_.record(recorder, in.params, out.hdr, out.ldr, out.refine, width, height);
+    recorder.compute_barrier();
+    const shaders::ViewPush listed{VIEW_PIXELS_LISTED};
+    view.dispatch_indirect(recorder.get(), bindings, &listed, sizeof(listed), out.refine,
+                           offsetof(shaders::ViewRefineHeader, groups_x));
 }
 
 }  // namespace refract::passes

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "passes/photon_trace.h"
+#include "passes/view_refine.h"
 
 namespace refract::passes {
 
@@ -11,17 +12,22 @@ struct ViewOutputs {
     const vk::Buffer& ldr;  // RGBA8 per pixel
     const vk::Buffer& stats;  // PhotonStats; the view pass counts view_steps
     const vk::Buffer& lit_blocks;
+    const vk::Buffer& refine;  // ViewRefineHeader + a pixel index per pixel (transport.h), for adaptive frames
 };
 
 class ViewPass {
 public:
     explicit ViewPass(vk::Context& context);
+    // `adaptive`: trace the pixels with even x and y, then only those others whose traced neighbours
+    // differ on screen; interpolate the rest (interactive frames; transport.h, VIEW_PIXELS_*).
     void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const vk::Image3D& radiance,
                 const vk::Image3D& flux, const vk::Image3D& floor_map, const ViewOutputs& outputs,
-                uint32_t width, uint32_t height) const;
+                uint32_t width, uint32_t height, bool adaptive) const;
 
 private:
+    vk::Context& context_;
     TransportPipeline pipeline_;
+    ViewRefinePass refine_;
 };
 
 }  // namespace refract::passes

@@ -24,7 +24,8 @@ int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t 
     // while it runs.
     const int64_t per_voxel = 4 + 4 + 16 + 4 + 10 + 4 + 24 + 16 + 16 + 12;
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
-    return voxels * per_voxel + floor + int64_t{width} * height * 20;
+    // Per pixel: HDR (16), sRGB (4), a slot in the refinement list (4).
+    return voxels * per_voxel + floor + int64_t{width} * height * 24;
 }
 
 SceneGpu::SceneGpu(PassKit& kit) : kit_(kit), recorder_(kit.context, "scene passes"), timer_(kit.context) {}
@@ -92,8 +93,12 @@ void SceneGpu::allocate_frame(uint32_t width, uint32_t height) {
     const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
     hdr_ = {};
     ldr_ = {};
+    refine_ = {};
     hdr_ = vk::Buffer(ctx, uint64_t{width} * height * sizeof(glm::vec4), usage, vk::MemoryUse::readback, "hdr frame");
     ldr_ = vk::Buffer(ctx, uint64_t{width} * height * sizeof(uint32_t), usage, vk::MemoryUse::readback, "ldr frame");
+    refine_ = vk::Buffer(ctx, sizeof(shaders::ViewRefineHeader) + uint64_t{width} * height * sizeof(uint32_t),
+                         usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                         vk::MemoryUse::device, "view refinement list");
     width_ = width;
     height_ = height;
 }
@@ -214,7 +219,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     }
     if (stale & kView) {
         timer_.begin(cmd, "view");
-        kit_.view.record(recorder_, inputs, radiance_, flux_, floor_map_, {hdr_, ldr_, accum_->stats, accum_->lit_blocks}, width_, height_);
+        kit_.view.record(recorder_, inputs, radiance_, flux_, floor_map_,
+                         {hdr_, ldr_, accum_->stats, accum_->lit_blocks, refine_}, width_, height_, options.adaptive_view);
         timer_.end(cmd);
     }
     recorder_.to_host_barrier();

@@ -59,6 +59,7 @@ struct RunOptions {
     PassSet limit = kAllPasses;   // passes outside this set are not run (the CLI's voxelize and trace)
     float view_step = 1.0f;       // eye-ray step in scattering media (voxels); interactive frames use 2
     uint32_t radiance_factor = 1; // index-field voxels per radiance-grid voxel per axis; interactive: 2
+    bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
 };
 
 // Device memory a scene of this size holds (bytes), for budgets before allocating.
@@ -125,7 +126,7 @@ private:
     vk::Buffer params_buffer_, exits_;
     vk::Image3D radiance_, flux_, floor_map_;  // radiance_: per-channel fluence, coloured transport only
     // Frame
-    vk::Buffer hdr_, ldr_;
+    vk::Buffer hdr_, ldr_, refine_;
     vk::CommandRecorder recorder_;
     vk::GpuTimer timer_;
 };

@@ -44,9 +44,10 @@ void memory_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAcces
 void CommandRecorder::compute_barrier() {
     memory_barrier(command_buffer_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                    VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
-                   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT |
+                       VK_PIPELINE_STAGE_DRAW_INDIRECT_BIT,
                    VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT |
-                       VK_ACCESS_TRANSFER_WRITE_BIT);
+                       VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_INDIRECT_COMMAND_READ_BIT);
 }
 
 void CommandRecorder::transfer_to_compute_barrier() {
@@ -76,6 +77,13 @@ void CommandRecorder::init_image(const Image3D& image) {
 
 void CommandRecorder::fill(const Buffer& buffer, uint32_t value) {
     vkCmdFillBuffer(command_buffer_, buffer.get(), 0, VK_WHOLE_SIZE, value);
+}
+
+void CommandRecorder::update(const Buffer& buffer, VkDeviceSize offset, const void* data, VkDeviceSize bytes) {
+    if (bytes == 0 || bytes > 65536 || bytes % 4 != 0 || offset % 4 != 0 || offset + bytes > buffer.size())
+        throw Error("buffer update of " + std::to_string(bytes) + " bytes at " + std::to_string(offset) +
+                    " does not fit vkCmdUpdateBuffer's rules or the buffer");
+    vkCmdUpdateBuffer(command_buffer_, buffer.get(), offset, bytes, data);
 }
 
 void CommandRecorder::copy(const Buffer& src, const Buffer& dst, VkDeviceSize bytes) {

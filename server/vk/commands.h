@@ -20,7 +20,7 @@ public:
     void submit_and_wait();
     VkCommandBuffer get() const { return command_buffer_; }
 
-    // Compute writes visible to later compute reads/writes and transfers.
+    // Compute writes visible to later compute reads/writes, indirect dispatch arguments and transfers.
     void compute_barrier();
     // Transfer writes (copies, fills) visible to compute shaders.
     void transfer_to_compute_barrier();
@@ -29,6 +29,8 @@ public:
     // First use of an image: UNDEFINED -> GENERAL (contents discarded).
     void init_image(const Image3D& image);
     void fill(const Buffer& buffer, uint32_t value);
+    // Writes `bytes` (at most 65536, a multiple of 4) from host memory into `buffer` at `offset`.
+    void update(const Buffer& buffer, VkDeviceSize offset, const void* data, VkDeviceSize bytes);
     void copy(const Buffer& src, const Buffer& dst, VkDeviceSize bytes);
     void copy(const Buffer& src, const Image3D& dst);
     void copy(const Image3D& src, const Buffer& dst);

@@ -75,13 +75,28 @@ ComputePipeline::ComputePipeline(Context& context, std::span<const uint32_t> spi
 void ComputePipeline::dispatch(VkCommandBuffer cmd, std::span<const Binding> bindings,
                                const void* push_constants, uint32_t push_bytes, uint32_t groups_x,
                                uint32_t groups_y, uint32_t groups_z) const {
-    if (push_bytes != push_constant_bytes_)
-        throw Error(std::string(name_) + ": push constants of " + std::to_string(push_bytes) +
-                    " bytes, pipeline declares " + std::to_string(push_constant_bytes_));
     const auto& limits = context_.limits();
     if (groups_x > limits.maxComputeWorkGroupCount[0] || groups_y > limits.maxComputeWorkGroupCount[1] ||
         groups_z > limits.maxComputeWorkGroupCount[2])
         throw Error(std::string(name_) + ": dispatch exceeds the device's workgroup count limit");
+    bind(cmd, bindings, push_constants, push_bytes);
+    vkCmdDispatch(cmd, groups_x, groups_y, groups_z);
+}
+
+void ComputePipeline::dispatch_indirect(VkCommandBuffer cmd, std::span<const Binding> bindings,
+                                        const void* push_constants, uint32_t push_bytes, const Buffer& args,
+                                        VkDeviceSize offset) const {
+    if (offset % 4 != 0 || offset + sizeof(VkDispatchIndirectCommand) > args.size())
+        throw Error(std::string(name_) + ": indirect dispatch arguments outside their buffer");
+    bind(cmd, bindings, push_constants, push_bytes);
+    vkCmdDispatchIndirect(cmd, args.get(), offset);
+}
+
+void ComputePipeline::bind(VkCommandBuffer cmd, std::span<const Binding> bindings, const void* push_constants,
+                           uint32_t push_bytes) const {
+    if (push_bytes != push_constant_bytes_)
+        throw Error(std::string(name_) + ": push constants of " + std::to_string(push_bytes) +
+                    " bytes, pipeline declares " + std::to_string(push_constant_bytes_));
     std::vector<VkDescriptorBufferInfo> buffer_infos(bindings.size());
     std::vector<VkDescriptorImageInfo> image_infos(bindings.size());
     std::vector<VkWriteDescriptorSet> writes;
@@ -106,7 +121,6 @@ void ComputePipeline::dispatch(VkCommandBuffer cmd, std::span<const Binding> bin
                                  static_cast<uint32_t>(writes.size()), writes.data());
     if (push_bytes)
         vkCmdPushConstants(cmd, layout_.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push_constants);
-    vkCmdDispatch(cmd, groups_x, groups_y, groups_z);
 }
 
 }  // namespace refract::vk

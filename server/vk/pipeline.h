@@ -64,7 +64,15 @@ public:
                  groups_y, groups_z);
     }
 
+    // The same with the group counts read by the device from `args` at `offset` (a
+    // VkDispatchIndirectCommand an earlier pass wrote; the barrier before must cover indirect reads).
+    void dispatch_indirect(VkCommandBuffer cmd, std::span<const Binding> bindings, const void* push_constants,
+                           uint32_t push_bytes, const Buffer& args, VkDeviceSize offset) const;
+
 private:
+    void bind(VkCommandBuffer cmd, std::span<const Binding> bindings, const void* push_constants,
+              uint32_t push_bytes) const;
+
     Context& context_;
     UniqueShaderModule module_;
     UniqueDescriptorSetLayout set_layout_;

@@ -32,6 +32,7 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_LDR 16            // uint per pixel: tone-mapped sRGB RGBA8
 #define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when flags.x == 1
 #define TRANSPORT_BINDING_LIT_BLOCKS 18     // the lit pyramid: uint per cell per level (see LIT_BLOCK)
+#define TRANSPORT_BINDING_REFINE 19         // ViewRefineList: pixels the viewing pass traces after the coarse ones
 
 // Eye rays cross unlit fog in whole cells of the lit pyramid: a level-0 cell of LIT_BLOCK^3 voxels is
 // lit when photons reached any voxel whose trilinear footprint overlaps it; each level above merges 2^3
@@ -100,7 +101,7 @@ struct TransportParams {
     vec4 camera_forward;
     vec4 camera_right;
     vec4 camera_up;
-    uvec4 image;              // x: width, y: height, z: 8x8 tiles per row, w: tiles in all
+    uvec4 image;              // x: width, y: height, zw: unused
     vec4 tone;                // x: exposure multiplier (2^exposure), y: view step (voxels), zw: unused
     vec4 sky_zenith;          // rgb background above the horizon
     vec4 sky_horizon;         // rgb background at the horizon
@@ -155,16 +156,43 @@ struct PhotonStats {
     uint steps;             // photon integration steps taken
     uint floor_hits;
     uint view_steps;        // eye-ray march steps (the viewing pass)
-    uint queue_taken[2];    // work items handed out so far by each pass's queue (take_from_queue)
+    uint queue_taken[3];    // work items handed out so far by each pass's queue (take_from_queue)
 };
 #define QUEUE_VIEW_PIXELS 0u
-#define QUEUE_PHOTONS 1u
+#define QUEUE_VIEW_REFINED 1u
+#define QUEUE_PHOTONS 2u
+
+// Which pixels one dispatch of the viewing pass traces (ViewPush::pixels). Interactive frames trace in
+// two rounds: first the pixels with even x and y (a quarter), then view_refine.comp fills each other
+// pixel by interpolating its traced neighbours where they agree and lists it for a second, indirect
+// dispatch where they do not (edges, silhouettes, caustics).
+#define VIEW_PIXELS_ALL 0u
+#define VIEW_PIXELS_COARSE 1u
+#define VIEW_PIXELS_LISTED 2u
+struct ViewPush {
+    uint pixels;  // VIEW_PIXELS_*
+};
+
+// Traced neighbours whose sRGB values differ by at most this many 8-bit levels in every channel are
+// interpolated; 4 levels keeps 99% of the interpolated pixels within 3 levels of the traced value in
+// the default scene (half a percent of the display range), while a quarter of the pixels plus ~12% are
+// traced.
+#define VIEW_REFINE_LEVELS 4u
+#define VIEW_REFINE_GROUP_SIZE (VIEW_GROUP_SIZE * VIEW_GROUP_SIZE)  // one group per tile
+
+// The list view_refine.comp fills: the header is the indirect dispatch of the listed pixels (groups of
+// VIEW_GROUP_SIZE^2 invocations), then the count, then the pixels (y * width + x) in the order listed.
+struct ViewRefineHeader {
+    uint groups_x, groups_y, groups_z;
+    uint count;
+};
 
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
 static_assert(sizeof(refract::shaders::TransportParams) == 31 * 16);
-static_assert(sizeof(refract::shaders::PhotonStats) == 24);
+static_assert(sizeof(refract::shaders::PhotonStats) == 28);
+static_assert(sizeof(refract::shaders::ViewRefineHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 64);
 #endif
 

@@ -1,0 +1,65 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_ballot : require
+// Between the two rounds of an interactive frame (transport.h, VIEW_PIXELS_*): every pixel the coarse
+// round did not trace sits between two or four traced ones (even x and y). Where those agree to within
+// VIEW_REFINE_LEVELS on screen, the pixel takes their mean; where they do not, it is listed for the
+// second round, and the list's header counts the groups of that indirect dispatch.
+#include "transport.h"
+#include "tone_map.glsl"
+#include "view_tiles.glsl"
+layout(local_size_x = VIEW_REFINE_GROUP_SIZE) in;
+
+layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
+layout(std430, binding = TRANSPORT_BINDING_HDR) buffer Hdr { vec4 hdr[]; };
+layout(std430, binding = TRANSPORT_BINDING_LDR) buffer Ldr { uint ldr[]; };
+layout(std430, binding = TRANSPORT_BINDING_REFINE) buffer Refine {
+    ViewRefineHeader refine;
+    uint refine_pixels[];
+};
+
+
+uvec3 bytes_of(uint rgba) { return uvec3(rgba, rgba >> 8u, rgba >> 16u) & 0xffu; }
+
+void main() {
+    // One group per tile, walked as the viewing pass walks it, so the pixels a subgroup lists are
+    // neighbours and the second round traces them side by side.
+    uint width = params.image.x, height = params.image.y;
+    uvec2 pixel = tile_pixel(gl_WorkGroupID.xy, gl_LocalInvocationID.x);
+    bool inside = pixel.x < width && pixel.y < height;
+    bool traced = (pixel.x & 1u) == 0u && (pixel.y & 1u) == 0u;
+    // Traced neighbours: the pixel itself along an even axis, the two beside it along an odd one.
+    uvec2 odd = pixel & 1u;
+    uvec2 lo = pixel - odd, hi = min(pixel + odd, uvec2(width, height) - 1u);
+    bool bounded = all(lessThan(pixel + odd, uvec2(width, height)));  // the far neighbour exists
+    uint corner[4] = uint[4](lo.y * width + lo.x, lo.y * width + hi.x, hi.y * width + lo.x, hi.y * width + hi.x);
+    uvec3 least = uvec3(255u), most = uvec3(0u);
+    vec3 sum = vec3(0.0);
+    for (int k = 0; k < 4; ++k) {
+        uint c = inside ? corner[k] : 0u;
+        uvec3 b = bytes_of(ldr[c]);
+        least = min(least, b);
+        most = max(most, b);
+        sum += hdr[c].rgb;
+    }
+    bool agree = bounded && all(lessThanEqual(most - least, uvec3(VIEW_REFINE_LEVELS)));
+    uint index = pixel.y * width + pixel.x;
+    if (inside && !traced && agree) {
+        hdr[index] = vec4(0.25 * sum, 1.0);
+        ldr[index] = srgb8(0.25 * sum, params.tone.x);
+    }
+    bool listed = inside && !traced && !agree;
+    uvec4 ballot = subgroupBallot(listed);
+    uint count = subgroupBallotBitCount(ballot);
+    uint first = 0u;
+    if (subgroupElect() && count > 0u) {
+        first = atomicAdd(refine.count, count);
+        // The indirect dispatch needs ceil(listed / group) groups: add the groups this append begins.
+        const uint group = VIEW_GROUP_SIZE * VIEW_GROUP_SIZE;
+        uint groups = (first + count + group - 1u) / group - (first + group - 1u) / group;
+        if (groups > 0u) atomicAdd(refine.groups_x, groups);
+    }
+    first = subgroupBroadcastFirst(first);
+    if (listed) refine_pixels[first + subgroupBallotExclusiveBitCount(ballot)] = index;
+}
