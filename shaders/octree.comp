@@ -1,8 +1,10 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
 // The paper's data-parallel octree: a min/max pyramid of n and, per voxel, the level of the leaf that
-// covers it (the coarsest node whose n range is below epsilon). Level-0 ranges span each voxel's 3x3x3
-// neighbourhood so that trilinear interpolation anywhere inside a leaf stays within its range.
+// covers it (the coarsest node whose n range is below epsilon; level 0 where none is). A node's range
+// spans the 3x3x3 neighbourhood of each of its voxels, so that trilinear interpolation anywhere inside
+// a leaf stays within its range. The pyramid starts at level 1: a voxel is level 0 exactly when its
+// level-1 node is not a leaf, so per-voxel ranges are never needed.
 #include "volume_build.h"
 // The workgroup size comes before linear_id.glsl: gl_WorkGroupSize used ahead of the declaration folds
 // to 1, which breaks every dispatch folded past 65535 groups.
@@ -23,18 +25,24 @@ uint node_index(uint level, uvec3 node) {
     return level_offset(level) + (node.z * d.y + node.y) * d.x + node.x;
 }
 
-void leaf_range(uint i) {
-    uvec3 dims = push.dims.xyz;
-    ivec3 v = ivec3(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
+// Level 1 straight from the index field: a level-1 node's range covers the 3x3x3 neighbourhoods of its
+// 2x2x2 voxels, the 4x4x4 voxels from 2 node - 1 to 2 node + 2 (clamped: a repeated edge voxel changes
+// no minimum or maximum, and covers the last node of an odd side, which has one voxel along it).
+// Eight loads per voxel; a level of per-voxel ranges would take 27 and write as many ranges as voxels.
+void level1_range(uint i) {
+    uvec3 d = level_dims(1u);
+    if (i >= d.x * d.y * d.z) return;
+    ivec3 first = 2 * ivec3(i % d.x, (i / d.x) % d.y, i / (d.x * d.y)) - 1;
+    ivec3 last = ivec3(push.dims.xyz) - 1;
     float lo = 1e30, hi = -1e30;
-    for (int z = -1; z <= 1; ++z)
-        for (int y = -1; y <= 1; ++y)
-            for (int x = -1; x <= 1; ++x) {
-                float n = imageLoad(index_field, clamp(v + ivec3(x, y, z), ivec3(0), ivec3(dims) - 1)).r;
+    for (int z = 0; z < 4; ++z)
+        for (int y = 0; y < 4; ++y)
+            for (int x = 0; x < 4; ++x) {
+                float n = imageLoad(index_field, clamp(first + ivec3(x, y, z), ivec3(0), last)).r;
                 lo = min(lo, n);
                 hi = max(hi, n);
             }
-    pyramid[i] = vec2(lo, hi);
+    pyramid[level_offset(1u) + i] = vec2(lo, hi);
 }
 
 void reduce(uint i) {
@@ -68,8 +76,8 @@ void level_map(uint i) {
 void main() {
     uint i = linear_invocation();
     uint voxels = push.dims.x * push.dims.y * push.dims.z;
-    if (kMode == OCTREE_MODE_LEAF_RANGE) {
-        if (i < voxels) leaf_range(i);
+    if (kMode == OCTREE_MODE_LEVEL1_RANGE) {
+        level1_range(i);
     } else if (kMode == OCTREE_MODE_REDUCE) {
         reduce(i);
     } else if (i < voxels) {

@@ -16,7 +16,7 @@ OctreeLayout octree_layout(vk::Extent3 dims) {
     const uint32_t log2 = static_cast<uint32_t>(std::bit_width(longest)) - 1;
     layout.max_level = std::min<uint32_t>(OCTREE_MAX_LEVEL, log2 > 1 ? log2 - 1 : 0);
     uint64_t offset = 0;
-    for (uint32_t level = 0; level <= layout.max_level; ++level) {
+    for (uint32_t level = 1; level <= layout.max_level; ++level) {
         layout.offsets[level] = static_cast<uint32_t>(offset);
         const uint32_t step = 1u << level;
         offset += uint64_t{(dims.x + step - 1) / step} * ((dims.y + step - 1) / step) * ((dims.z + step - 1) / step);
@@ -35,8 +35,8 @@ constexpr vk::BindingLayout kLayout[] = {
 
 OctreePass::OctreePass(vk::Context& context)
     : pipelines_(context, octree_spv, kLayout, sizeof(OctreePush),
-                 {"octree leaf ranges", "octree reduce", "octree level map"}, VOLUME_CONSTANT_MODE) {
-    static_assert(OCTREE_MODE_LEAF_RANGE == 0 && OCTREE_MODE_REDUCE == 1 && OCTREE_MODE_LEVEL_MAP == 2);
+                 {"octree level-1 ranges", "octree reduce", "octree level map"}, VOLUME_CONSTANT_MODE) {
+    static_assert(OCTREE_MODE_LEVEL1_RANGE == 0 && OCTREE_MODE_REDUCE == 1 && OCTREE_MODE_LEVEL_MAP == 2);
 }
 
 void OctreePass::record(vk::CommandRecorder& recorder, const vk::Image3D& index_field, float epsilon,
@@ -53,18 +53,16 @@ void OctreePass::record(vk::CommandRecorder& recorder, const vk::Image3D& index_
         vk::Binding::storage_buffer(OCTREE_BINDING_PYRAMID, pyramid),
         vk::Binding::storage_buffer(OCTREE_BINDING_LEVELS, levels)};
     const VkCommandBuffer cmd = recorder.get();
-    const auto voxel_groups = vk::linear_groups(dims.count(), VOLUME_GROUP_SIZE);
-    pipelines_[OCTREE_MODE_LEAF_RANGE].dispatch(cmd, bindings, push, voxel_groups.x, voxel_groups.y);
-    recorder.compute_barrier();
-    // Each level reduces the one below it: a barrier between levels.
+    // Level 1 from the index field, then each level from the one below it: a barrier between levels.
     for (uint32_t level = 1; level <= layout.max_level; ++level) {
         const uint32_t step = 1u << level;
         const glm::uvec3 level_dims((dims.x + step - 1) / step, (dims.y + step - 1) / step, (dims.z + step - 1) / step);
         push.level_dims = glm::uvec4(level_dims, level);
         const auto groups = vk::linear_groups(uint64_t{level_dims.x} * level_dims.y * level_dims.z, VOLUME_GROUP_SIZE);
-        pipelines_[OCTREE_MODE_REDUCE].dispatch(cmd, bindings, push, groups.x, groups.y);
+        pipelines_[level == 1 ? OCTREE_MODE_LEVEL1_RANGE : OCTREE_MODE_REDUCE].dispatch(cmd, bindings, push, groups.x, groups.y);
         recorder.compute_barrier();
     }
+    const auto voxel_groups = vk::linear_groups(dims.count(), VOLUME_GROUP_SIZE);
     pipelines_[OCTREE_MODE_LEVEL_MAP].dispatch(cmd, bindings, push, voxel_groups.x, voxel_groups.y);
 }
 

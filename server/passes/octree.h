@@ -12,11 +12,12 @@ namespace refract::passes {
 
 struct OctreeLayout {
     uint32_t max_level = 0;
-    std::array<uint32_t, 6> offsets{};  // first node of each level in the pyramid buffer
-    uint64_t node_count = 0;            // all levels
+    std::array<uint32_t, 6> offsets{};  // first node of each level (1..max_level) in the pyramid buffer
+    uint64_t node_count = 0;            // levels 1..max_level
 };
 
-// Levels 0..max_level for a grid of `dims`; max_level = min(5, floor(log2(longest side)) - 1).
+// Levels 0..max_level for a grid of `dims`; max_level = min(5, floor(log2(longest side)) - 1). The
+// pyramid holds nodes of levels 1 and up: level 0 is where no level-1 node is a leaf.
 OctreeLayout octree_layout(vk::Extent3 dims);
 
 class OctreePass {

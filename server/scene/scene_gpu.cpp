@@ -1,5 +1,6 @@
 #include "scene/scene_gpu.h"
 
+#include <algorithm>
 #include <cstring>
 
 #include "scene/renderer.h"
@@ -19,10 +20,10 @@ PassKit::PassKit(vk::Context& ctx)
 
 int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t height) {
     const int64_t voxels = static_cast<int64_t>(grid.dims.count());
-    // coverage + scratch (4+4), index field (16), coverage image (4), pyramid (8 x 8/7), levels (4),
+    // coverage + scratch (4+4), index field (16), coverage image (4), pyramid (8 x 1/7: levels 1 and up), levels (4),
     // packed accumulators (24), net flux (16), coloured radiance (16); voxelize's per-axis scratch (12)
     // while it runs.
-    const int64_t per_voxel = 4 + 4 + 16 + 4 + 10 + 4 + 24 + 16 + 16 + 12;
+    const int64_t per_voxel = 4 + 4 + 16 + 4 + 2 + 4 + 24 + 16 + 16 + 12;
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
     // Per pixel: HDR (16), sRGB (4), a slot in the refinement list (4).
     return voxels * per_voxel + floor + int64_t{width} * height * 24;
@@ -50,7 +51,7 @@ void SceneGpu::allocate_volume(const GridGeometry& grid) {
     scratch_ = vk::Buffer(ctx, voxel_bytes, storage, vk::MemoryUse::device, "coverage scratch");
     index_field_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "index field");
     coverage_image_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32_SFLOAT, "coverage image");
-    pyramid_ = vk::Buffer(ctx, passes::octree_layout(grid.dims).node_count * 2 * sizeof(float), storage,
+    pyramid_ = vk::Buffer(ctx, std::max<uint64_t>(passes::octree_layout(grid.dims).node_count, 1) * 2 * sizeof(float), storage,
                           vk::MemoryUse::device, "octree pyramid");
     levels_ = vk::Buffer(ctx, grid.dims.count() * sizeof(uint32_t), storage, vk::MemoryUse::device, "octree levels");
     grid_ = grid;

@@ -73,17 +73,17 @@ struct IndexFieldPush {
 
 // --- octree -----------------------------------------------------------------------------------------
 #define OCTREE_BINDING_INDEX_FIELD 0  // rgba32f storage image (n in .r)
-#define OCTREE_BINDING_PYRAMID 1      // vec2 (min, max) per node, all levels back to back
+#define OCTREE_BINDING_PYRAMID 1      // vec2 (min, max) per node, levels 1 and up back to back
 #define OCTREE_BINDING_LEVELS 2       // uint per voxel: level of the leaf covering it
 #define OCTREE_MAX_LEVEL 5            // leaves up to 32 voxels on a side
-#define OCTREE_MODE_LEAF_RANGE 0u
+#define OCTREE_MODE_LEVEL1_RANGE 0u
 #define OCTREE_MODE_REDUCE 1u
 #define OCTREE_MODE_LEVEL_MAP 2u
 
 struct OctreePush {
     uvec4 dims;        // xyz: grid size; w: unused
     uvec4 level_dims;  // xyz: node count of the level being written (REDUCE); w: level
-    uvec4 offsets0;    // node offset of levels 0..3 in the pyramid buffer
+    uvec4 offsets0;    // node offset of levels 0..3 in the pyramid buffer (level 0 has no nodes there)
     uvec4 offsets1;    // node offset of levels 4..5; z: max level; w: unused
     float epsilon;     // a node is a leaf when max n - min n < epsilon
     float pad0, pad1, pad2;
