@@ -22,10 +22,11 @@ void main() {
     uint stride = axis == 0u ? 1u : (axis == 1u ? dims.x : dims.x * dims.y);
     int position = int(v[axis]);
     int last = int(dims[axis]) - 1;
+    // Divided by the weights' sum as added here, so a fully covered neighbourhood gives exactly 1.
     float sum = 0.0, weights = 0.0;
     for (int o = -push.radius; o <= push.radius; ++o) {
-        float w = exp(-0.5 * float(o * o) / (push.sigma * push.sigma));
         int p = clamp(position + o, 0, last);
+        float w = push.weights[abs(o)];
         sum += w * source[int(i) + (p - position) * int(stride)];
         weights += w;
     }

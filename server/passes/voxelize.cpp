@@ -127,9 +127,11 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
         // x: scratch -> coverage, y: coverage -> scratch, z: scratch -> coverage.
         const vk::Buffer* source = &scratch;
         const vk::Buffer* target = &coverage;
-        const int radius = static_cast<int>(std::ceil(3.0f * sigma));
+        SmoothPush push{};
+        push.radius = std::min(static_cast<int>(std::ceil(3.0f * sigma)), SMOOTH_MAX_RADIUS);
+        for (int o = 0; o <= push.radius; ++o) push.weights[o] = std::exp(-0.5f * static_cast<float>(o * o) / (sigma * sigma));
         for (uint32_t axis = 0; axis < 3; ++axis) {
-            SmoothPush push{glm::uvec4(dims[0], dims[1], dims[2], axis), sigma, radius, 0, 0};
+            push.dims = glm::uvec4(dims[0], dims[1], dims[2], axis);
             smooth_.dispatch(cmd,
                              {vk::Binding::storage_buffer(SMOOTH_BINDING_SOURCE, *source),
                               vk::Binding::storage_buffer(SMOOTH_BINDING_TARGET, *target)},

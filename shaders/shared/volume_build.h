@@ -44,11 +44,16 @@ struct VoxelizePush {
 #define SMOOTH_BINDING_SOURCE 0
 #define SMOOTH_BINDING_TARGET 1
 
+#define SMOOTH_MAX_RADIUS 12  // taps each side for sigma up to 4 voxels (3 sigma)
+
 struct SmoothPush {
     uvec4 dims;    // xyz: grid size; w: axis of this 1D pass
-    float sigma;   // Gaussian sigma in voxels (> 0)
-    int radius;    // taps each side
-    uint pad0, pad1;
+    int radius;    // taps each side (<= SMOOTH_MAX_RADIUS)
+    uint pad0, pad1, pad2;
+    // Gaussian weights exp(-o^2 / (2 sigma^2)) of the taps at distance o = 0..radius, computed once
+    // on the host rather than an exp per tap per voxel.
+    float weights[SMOOTH_MAX_RADIUS + 1];
+    uint pad3, pad4, pad5;
 };
 
 // --- index field ------------------------------------------------------------------------------------
@@ -93,7 +98,7 @@ REFRACT_SHADERS_END
 
 #ifdef __cplusplus
 static_assert(sizeof(refract::shaders::VoxelizePush) == 32);
-static_assert(sizeof(refract::shaders::SmoothPush) == 32);
+static_assert(sizeof(refract::shaders::SmoothPush) == 96);
 static_assert(sizeof(refract::shaders::IndexFieldPush) == 64);
 static_assert(sizeof(refract::shaders::OctreePush) == 80);
 #endif
