@@ -116,8 +116,16 @@ TEST_F(RendererTest, SwitchingBetweenGreyAndColouredTransportMatchesFreshScenes)
 TEST_F(RendererTest, MemoryBudgetDropsTheLeastRecentlyUsedScene) {
     const SceneDocument doc = small();
     RendererOptions options;
-    // Room for one 32^3 scene (a few MiB) but not two.
-    options.device_memory_budget = context->allocated_bytes() + 6 * (1 << 20);
+    // Room for one 32^3 scene but not two: one and a half times what one scene holds, as measured.
+    int64_t one_scene = 0;
+    {
+        const int64_t before = context->allocated_bytes();
+        Renderer measure(*context);
+        measure.render("first", doc, no_assets);
+        one_scene = context->allocated_bytes() - before;
+    }
+    ASSERT_GT(one_scene, 0);
+    options.device_memory_budget = context->allocated_bytes() + one_scene * 3 / 2;
     Renderer renderer(*context, options);
     renderer.render("first", doc, no_assets);
     EXPECT_EQ(renderer.resident_scenes(), 1u);

@@ -41,10 +41,9 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
     const uint64_t listable = uint64_t{width} * height - uint64_t{(width + 1) / 2} * ((height + 1) / 2);
     adaptive = adaptive && vk::group_count(static_cast<uint32_t>(listable), VIEW_GROUP_SIZE * VIEW_GROUP_SIZE) <=
                                context_.limits().maxComputeWorkGroupCount[0];
-    if (adaptive) {
-        const shaders::ViewRefineHeader empty{0, 1, 1, 0};
-        recorder.update(out.refine, 0, &empty, sizeof(empty));
-    }
+    // An empty list (also when not adaptive: every dispatch then reads a defined count).
+    const shaders::ViewRefineHeader empty{0, 1, 1, 0};
+    recorder.update(out.refine, 0, &empty, sizeof(empty));
     recorder.transfer_to_compute_barrier();
     const vk::Binding bindings[] = {
         vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
