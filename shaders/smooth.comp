@@ -13,22 +13,32 @@ layout(std430, binding = SMOOTH_BINDING_SOURCE) readonly buffer Source { float s
 layout(std430, binding = SMOOTH_BINDING_TARGET) writeonly buffer Target { float target[]; };
 layout(push_constant) uniform Push { SmoothPush push; };
 
+// Each invocation smooths SMOOTH_RUN consecutive voxels along the axis, so the taps they share are
+// loaded once: SMOOTH_RUN + 2 radius loads instead of SMOOTH_RUN (2 radius + 1) (storage-buffer loads
+// run lane by lane on lavapipe). Every voxel still adds its taps in order from -radius to +radius.
 void main() {
     uvec3 dims = push.dims.xyz;
-    uint i = linear_invocation();
-    if (i >= dims.x * dims.y * dims.z) return;
-    uvec3 v = uvec3(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
     uint axis = push.dims.w;
+    uvec3 runs_dims = dims;
+    runs_dims[axis] = (dims[axis] + SMOOTH_RUN - 1u) / SMOOTH_RUN;
+    uint i = linear_invocation();
+    if (i >= runs_dims.x * runs_dims.y * runs_dims.z) return;
+    uvec3 v = uvec3(i % runs_dims.x, (i / runs_dims.x) % runs_dims.y, i / (runs_dims.x * runs_dims.y));
+    v[axis] *= SMOOTH_RUN;
     uint stride = axis == 0u ? 1u : (axis == 1u ? dims.x : dims.x * dims.y);
-    int position = int(v[axis]);
-    int last = int(dims[axis]) - 1;
-    // Divided by the weights' sum as added here, so a fully covered neighbourhood gives exactly 1.
-    float sum = 0.0, weights = 0.0;
-    for (int o = -push.radius; o <= push.radius; ++o) {
-        int p = clamp(position + o, 0, last);
-        float w = push.weights[abs(o)];
-        sum += w * source[int(i) + (p - position) * int(stride)];
-        weights += w;
+    uint first = (v.z * dims.y + v.y) * dims.x + v.x - v[axis] * stride;  // the line's voxel at 0
+    int start = int(v[axis]), last = int(dims[axis]) - 1, radius = push.radius;
+    float sum[SMOOTH_RUN], weights = 0.0;
+    for (int j = 0; j < SMOOTH_RUN; ++j) sum[j] = 0.0;
+    for (int o = -radius; o <= radius; ++o) weights += push.weights[abs(o)];
+    // Tap k lies at start - radius + k: offset o = k - radius - j from voxel start + j.
+    for (int k = 0; k < SMOOTH_RUN + 2 * radius; ++k) {
+        float value = source[first + uint(clamp(start - radius + k, 0, last)) * stride];
+        for (int j = 0; j < SMOOTH_RUN; ++j) {
+            int o = k - radius - j;
+            if (abs(o) <= radius) sum[j] += push.weights[abs(o)] * value;
+        }
     }
-    target[i] = sum / weights;
+    for (int j = 0; j < SMOOTH_RUN; ++j)
+        if (start + j <= last) target[first + uint(start + j) * stride] = sum[j] / weights;
 }

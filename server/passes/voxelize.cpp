@@ -132,10 +132,13 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
         for (int o = 0; o <= push.radius; ++o) push.weights[o] = std::exp(-0.5f * static_cast<float>(o * o) / (sigma * sigma));
         for (uint32_t axis = 0; axis < 3; ++axis) {
             push.dims = glm::uvec4(dims[0], dims[1], dims[2], axis);
+            // One invocation per SMOOTH_RUN voxels along the axis (smooth.comp).
+            const auto run_groups = vk::linear_groups(
+                grid.dims.count() / dims[axis] * vk::group_count(dims[axis], SMOOTH_RUN), VOLUME_GROUP_SIZE);
             smooth_.dispatch(cmd,
                              {vk::Binding::storage_buffer(SMOOTH_BINDING_SOURCE, *source),
                               vk::Binding::storage_buffer(SMOOTH_BINDING_TARGET, *target)},
-                             push, voxel_groups.x, voxel_groups.y);
+                             push, run_groups.x, run_groups.y);
             recorder.compute_barrier();
             std::swap(source, target);
         }

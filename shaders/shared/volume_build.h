@@ -45,6 +45,7 @@ struct VoxelizePush {
 #define SMOOTH_BINDING_TARGET 1
 
 #define SMOOTH_MAX_RADIUS 12  // taps each side for sigma up to 4 voxels (3 sigma)
+#define SMOOTH_RUN 4          // consecutive voxels along the axis per invocation
 
 struct SmoothPush {
     uvec4 dims;    // xyz: grid size; w: axis of this 1D pass
