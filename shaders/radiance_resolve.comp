@@ -27,7 +27,12 @@ void resolve_voxel(uint i) {
     ivec3 v = ivec3(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
     float h = params.grid_origin.w * float(params.radiance_grid.w);  // a radiance voxel's side
     // sum is in photon-voxel-lengths x scale; flux x length / volume = sum / scale x flux x h / h^3.
-    float to_fluence = reference_flux / (params.stepping.z * h * h);
+    // On a side that is not a multiple of f the last radiance voxel reaches past the grid, where
+    // photons never go: its fluence is per the volume it has inside.
+    uint f = params.radiance_grid.w;
+    uvec3 inside = min(uvec3(f), params.grid_dims.xyz - f * uvec3(v));
+    float inside_fraction = float(inside.x * inside.y * inside.z) / float(f * f * f);
+    float to_fluence = reference_flux / (params.stepping.z * h * h * inside_fraction);
     // Unpack (transport.h): the low half of each word is its own sum (signed where it can be
     // negative); the high half is what remains once the low half is taken out.
     uint64_t bx = accum_bx[i], yz = accum_yz[i];

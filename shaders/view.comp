@@ -64,7 +64,9 @@ vec3 floor_radiance(vec3 x) {
 // blends towards isotropic as the net flux shortens against the fluence (light from many directions).
 // Both are interpolated as sums, so the blend is flux-weighted between voxels.
 vec3 in_scattered(vec3 x, vec3 d, uint model, float g) {
-    vec3 q = x / grid_dims();
+    // The radiance grid's voxel v spans index-field voxels [f v, f (v + 1)) (transport.h), so its
+    // texture covers f x its dims: more than the index field where a side is not a multiple of f.
+    vec3 q = x / (vec3(params.radiance_grid.xyz) * float(params.radiance_grid.w));
     vec4 net = textureLod(flux, q, 0.0);  // xyz: net flux vector, w: fluence (channel mean)
     vec3 fluence = kGreyTransport ? net.w * grey_colour(params.photon_flux) : textureLod(radiance, q, 0.0).rgb;
     float along = length(net.xyz);

@@ -275,7 +275,8 @@ protected:
 
 // With no extinction a uniform beam of irradiance E has fluence rate E everywhere: the grid's
 // normalization (flux x path / voxel volume) must give exactly that, whatever the photon count and
-// whether the radiance grid has the index field's resolution or half of it (interactive frames).
+// whether the radiance grid has the index field's resolution or half of it (interactive frames), also
+// on a grid with odd sides, whose last half-resolution voxels reach one index voxel past the grid.
 TEST_F(EnergyTest, UniformBeamGivesFluenceEqualToIrradiance) {
     const double E = 2.0;
     const json patch = {{"light", {{"type", "directional"}, {"direction", {0, 0, 1}}, {"intensity", E}}},
@@ -286,18 +287,34 @@ TEST_F(EnergyTest, UniformBeamGivesFluenceEqualToIrradiance) {
                         {"image", {{"width", 8}, {"height", 8}}},
                         {"photons", {{"count", 1 << 16}}},
                         {"volume", {{"resolution", 48}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 1, 1}}}}}}};
-    for (const uint32_t factor : {1u, 2u}) {
-        const auto gpu = photons(protocol::parse_scene(patch), nullptr, factor);
+    for (const auto& [factor, resolution] : {std::pair{1u, 48u}, std::pair{2u, 48u}, std::pair{2u, 47u}}) {
+        json sized = patch;
+        sized["volume"]["resolution"] = resolution;
+        const auto gpu = photons(protocol::parse_scene(sized), nullptr, factor);
         const auto radiance = gpu->read_radiance();
-        ASSERT_EQ(radiance.size(), size_t{48 / factor} * (48 / factor) * (48 / factor));
+        const size_t side = (resolution + factor - 1) / factor;
+        ASSERT_EQ(radiance.size(), side * side * side);
         double sum = 0.0;
         for (const auto& v : radiance) sum += static_cast<double>(v.r);
         const double mean = sum / static_cast<double>(radiance.size());
-        std::printf("uniform beam, radiance voxel %u index voxels wide: mean fluence %.5f, expected %.5f\n", factor,
-                    mean, E);
+        std::printf("uniform beam, %u^3 grid, radiance voxel %u index voxels wide: mean fluence %.5f, expected %.5f\n",
+                    resolution, factor, mean, E);
         // Every photon crosses the whole grid, so only fixed-point rounding (stochastic, unbiased) and
         // float sums enter: 1% is the bound and far above both.
         EXPECT_NEAR(mean, E, 0.01 * E);
+        // The same for the last layer of voxels across the beam and along it: on the odd grid they lie
+        // half outside, and a normalization by the whole voxel's volume would halve them.
+        double last_x = 0.0, last_z = 0.0;
+        for (size_t a = 0; a < side; ++a)
+            for (size_t b = 0; b < side; ++b) {
+                last_x += static_cast<double>(radiance[(a * side + b) * side + side - 1].r);
+                last_z += static_cast<double>(radiance[((side - 1) * side + a) * side + b].r);
+            }
+        last_x /= static_cast<double>(side * side);
+        last_z /= static_cast<double>(side * side);
+        std::printf("  last layer across the beam %.5f, along it %.5f\n", last_x, last_z);
+        EXPECT_NEAR(last_x, E, 0.01 * E);
+        EXPECT_NEAR(last_z, E, 0.01 * E);
         // A collimated beam's net flux vector is its irradiance along its direction: E (0, 0, 1).
         glm::dvec3 net(0.0);
         for (const auto& v : gpu->read_flux()) net += glm::dvec3(v.x, v.y, v.z);
