@@ -275,8 +275,8 @@ protected:
 
 // With no extinction a uniform beam of irradiance E has fluence rate E everywhere: the grid's
 // normalization (flux x path / voxel volume) must give exactly that, whatever the photon count and
-// whether the radiance grid has the index field's resolution or half of it (interactive frames), also
-// on a grid with odd sides, whose last half-resolution voxels reach one index voxel past the grid.
+// whether the radiance grid has the index field's resolution or a half or a third of it (interactive
+// frames), also on grids whose sides they do not divide, where the last voxels reach past the grid.
 TEST_F(EnergyTest, UniformBeamGivesFluenceEqualToIrradiance) {
     const double E = 2.0;
     const json patch = {{"light", {{"type", "directional"}, {"direction", {0, 0, 1}}, {"intensity", E}}},
@@ -287,7 +287,7 @@ TEST_F(EnergyTest, UniformBeamGivesFluenceEqualToIrradiance) {
                         {"image", {{"width", 8}, {"height", 8}}},
                         {"photons", {{"count", 1 << 16}}},
                         {"volume", {{"resolution", 48}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 1, 1}}}}}}};
-    for (const auto& [factor, resolution] : {std::pair{1u, 48u}, std::pair{2u, 48u}, std::pair{2u, 47u}}) {
+    for (const auto& [factor, resolution] : {std::pair{1u, 48u}, std::pair{2u, 48u}, std::pair{2u, 47u}, std::pair{3u, 47u}}) {
         json sized = patch;
         sized["volume"]["resolution"] = resolution;
         const auto gpu = photons(protocol::parse_scene(sized), nullptr, factor);
@@ -302,8 +302,9 @@ TEST_F(EnergyTest, UniformBeamGivesFluenceEqualToIrradiance) {
         // Every photon crosses the whole grid, so only fixed-point rounding (stochastic, unbiased) and
         // float sums enter: 1% is the bound and far above both.
         EXPECT_NEAR(mean, E, 0.01 * E);
-        // The same for the last layer of voxels across the beam and along it: on the odd grid they lie
-        // half outside, and a normalization by the whole voxel's volume would halve them.
+        // The same for the last layer of voxels across the beam and along it: on 47 voxels they lie
+        // partly outside, and a normalization by the whole voxel's volume would leave them only their
+        // inside share (a half, or two thirds).
         double last_x = 0.0, last_z = 0.0;
         for (size_t a = 0; a < side; ++a)
             for (size_t b = 0; b < side; ++b) {

@@ -38,7 +38,7 @@ RunOptions run_options_for(Quality quality) {
     RunOptions options;
     if (quality == Quality::interactive) {
         options.view_step = 2.0f;
-        options.radiance_factor = 2;
+        options.radiance_factor = 3;
         options.adaptive_view = true;
     }
     return options;

@@ -58,7 +58,7 @@ struct RunOptions {
     bool record_photon_exits = false;
     PassSet limit = kAllPasses;   // passes outside this set are not run (the CLI's voxelize and trace)
     float view_step = 1.0f;       // eye-ray step in scattering media (voxels); interactive frames use 2
-    uint32_t radiance_factor = 1; // index-field voxels per radiance-grid voxel per axis; interactive: 2
+    uint32_t radiance_factor = 1; // index-field voxels per radiance-grid voxel per axis; interactive: 3
     bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
 };
 

@@ -109,8 +109,8 @@ struct TransportParams {
                               // y: how extinction finds coverage, z: how scattering does (COVERAGE_*)
                               // w: 1 = something scatters (photons deposit into the radiance grid)
     uvec4 radiance_grid;      // xyz: radiance grid voxels; w: index-field voxels per radiance voxel along
-                              // each axis (1; 2 for interactive frames: 1/8 the voxels to clear, resolve
-                              // and cross)
+                              // each axis (1; 3 for interactive frames: 1/27 the voxels to clear and
+                              // resolve, 1/3 as many for a photon to cross)
     uvec4 lit_offsets;        // where each level of the lit pyramid starts in the lit-blocks buffer
 };
 
