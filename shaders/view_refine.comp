@@ -19,7 +19,6 @@ layout(std430, binding = TRANSPORT_BINDING_REFINE) buffer Refine {
     uint refine_pixels[];
 };
 
-
 uvec3 bytes_of(uint rgba) { return uvec3(rgba, rgba >> 8u, rgba >> 16u) & 0xffu; }
 
 void main() {
