@@ -178,44 +178,53 @@ int bench_daemon(const std::string& address, int runs, bool as_json) {
     if (colon == std::string::npos) throw std::runtime_error("--daemon takes HOST:PORT");
     httplib::Client client(address.substr(0, colon), std::stoi(address.substr(colon + 1)));
     client.set_read_timeout(600, 0);
-    const std::string id = "bench-" + std::to_string(::getpid());
-    const json scene = {{"image", {{"width", 256}, {"height", 256}}}, {"photons", {{"count", 1 << 16}}},
-                        {"volume", {{"resolution", 128}}}};
-    auto created = client.Post(("/api/scenes?id=" + id).c_str(), scene.dump(), "application/json");
-    if (!created || created->status != 201)
-        throw std::runtime_error("bench: cannot create a scene on " + address +
-                                 (created ? ": " + created->body : ": no answer (is refractd running?)"));
-    auto frame = [&](const json& patch, double& round_trip, double& passes) {
-        const auto start = Clock::now();
-        auto res = client.Post(("/api/scenes/" + id + "/frame.png").c_str(), patch.dump(), "application/merge-patch+json");
-        round_trip = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-        if (!res || res->status != 200) throw std::runtime_error("bench: frame failed" + (res ? ": " + res->body : std::string()));
-        passes = server_timing_ms(res->get_header_value("Server-Timing"));
-    };
-    double warm_trip = 0.0, warm_passes = 0.0;
-    frame(json::object(), warm_trip, warm_passes);  // builds everything once
     json report = {{"daemon", address}, {"runs", runs}, {"edits", json::object()}};
-    for (const std::string edit : {"camera", "light"}) {
-        std::vector<double> trips, passes, overheads;
-        for (int r = 0; r < runs; ++r) {
-            const double x = 0.3 * ((r % 2) ? 1.0 : -1.0);
-            const json patch = edit == "camera" ? json{{"camera", {{"position", {x, 0.5, 5.0}}}}}
-                                                : json{{"light", {{"position", {2.0 + x, 3.0, 1.0}}}}};
-            double trip = 0.0, pass = 0.0;
-            frame(patch, trip, pass);
-            trips.push_back(trip);
-            passes.push_back(pass);
-            overheads.push_back(trip - pass);
+    // Still frames of the targets' sizes, and interactive ones of a document twice the side with four
+    // times the photons, which refractd renders at the same sizes while a client drags.
+    for (const bool interactive : {false, true}) {
+        const std::string id = "bench-" + std::to_string(::getpid()) + (interactive ? "-interactive" : "");
+        const int side = interactive ? 512 : 256;
+        const json scene = {{"image", {{"width", side}, {"height", side}}},
+                            {"photons", {{"count", interactive ? 1 << 18 : 1 << 16}}},
+                            {"volume", {{"resolution", 128}}}};
+        auto created = client.Post(("/api/scenes?id=" + id).c_str(), scene.dump(), "application/json");
+        if (!created || created->status != 201)
+            throw std::runtime_error("bench: cannot create a scene on " + address +
+                                     (created ? ": " + created->body : ": no answer (is refractd running?)"));
+        const std::string target = "/api/scenes/" + id + "/frame.png" + (interactive ? "?quality=interactive" : "");
+        auto frame = [&](const json& patch, double& round_trip, double& passes) {
+            const auto start = Clock::now();
+            auto res = client.Post(target.c_str(), patch.dump(), "application/merge-patch+json");
+            round_trip = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+            if (!res || res->status != 200)
+                throw std::runtime_error("bench: frame failed" + (res ? ": " + res->body : std::string()));
+            passes = server_timing_ms(res->get_header_value("Server-Timing"));
+        };
+        double warm_trip = 0.0, warm_passes = 0.0;
+        frame(json::object(), warm_trip, warm_passes);  // builds everything once
+        for (const std::string edit : {"camera", "light"}) {
+            std::vector<double> trips, passes, overheads;
+            for (int r = 0; r < runs; ++r) {
+                const double x = 0.3 * ((r % 2) ? 1.0 : -1.0);
+                const json patch = edit == "camera" ? json{{"camera", {{"position", {x, 0.5, 5.0}}}}}
+                                                    : json{{"light", {{"position", {2.0 + x, 3.0, 1.0}}}}};
+                double trip = 0.0, pass = 0.0;
+                frame(patch, trip, pass);
+                trips.push_back(trip);
+                passes.push_back(pass);
+                overheads.push_back(trip - pass);
+            }
+            const Summary t = summarize(trips), p = summarize(passes), o = summarize(overheads);
+            const std::string name = edit + (interactive ? " interactive" : "");
+            report["edits"][name] = {{"round_trip_ms", t.median}, {"passes_ms", p.median}, {"overhead_ms", o.median},
+                                     {"overhead_percent", 100.0 * o.median / t.median}};
+            if (!as_json)
+                std::printf("daemon %-18s edit + frame: round trip %.1f ms (%.1f-%.1f), passes + encode %.1f ms, "
+                            "service overhead %.1f ms (%.1f%%)\n",
+                            name.c_str(), t.median, t.min, t.max, p.median, o.median, 100.0 * o.median / t.median);
         }
-        const Summary t = summarize(trips), p = summarize(passes), o = summarize(overheads);
-        report["edits"][edit] = {{"round_trip_ms", t.median}, {"passes_ms", p.median}, {"overhead_ms", o.median},
-                                 {"overhead_percent", 100.0 * o.median / t.median}};
-        if (!as_json)
-            std::printf("daemon %-6s edit + frame: round trip %.1f ms (%.1f-%.1f), passes + encode %.1f ms, "
-                        "service overhead %.1f ms (%.1f%%)\n",
-                        edit.c_str(), t.median, t.min, t.max, p.median, o.median, 100.0 * o.median / t.median);
+        client.Delete(("/api/scenes/" + id).c_str());
     }
-    client.Delete(("/api/scenes/" + id).c_str());
     if (as_json) std::cout << report.dump(2) << "\n";
     return 0;
 }
