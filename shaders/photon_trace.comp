@@ -11,8 +11,7 @@
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) buffer AccumRG { uint64_t accum_rg[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_BX) buffer AccumBX { uint64_t accum_bx[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_YZ) buffer AccumYZ { uint64_t accum_yz[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLUX) buffer AccumFlux { uint64_t accum_flux[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) buffer AccumFloor { uint accum_floor[]; };
 layout(std430, binding = TRANSPORT_BINDING_PHOTON_EXITS) writeonly buffer Exits { PhotonExit exits[]; };
 
@@ -88,10 +87,42 @@ uint voxel_index(ivec3 v) { return (uint(v.z) * params.radiance_grid.y + uint(v.
 // Two fixed-point values as one 64-bit addend: `low` sign-extended plus `high` << 32 (see transport.h).
 uint64_t pack(int low, int high) { return uint64_t(int64_t(low)) + (uint64_t(int64_t(high)) << 32); }
 
+// The photon's deposits into the radiance-grid voxel it is in, summed until it moves on to another:
+// consecutive steps often stay in one voxel (a third of all deposits at the interactive radiance
+// resolution), and one set of atomics then serves them all. Sums are in fixed-point units, unrounded.
+const uint kNoVoxel = 0xffffffffu;
+uint pending_voxel = kNoVoxel;
+vec3 pending_flux;       // weight x length per channel
+vec3 pending_direction;  // direction x the channels' mean
+bool pending_unbent;     // every deposit summed came before the photon bent (transport.h)
+// A point or spot light in radiance-grid voxels, and the square of the distance from it (in the same
+// units) below which a voxel takes no unbent deposits (0 for a directional light).
+vec3 light_in_radiance_voxels;
+float near_light_squared;
+
+// Adds the pending sums to the radiance grid, stochastically rounded to fixed point: an unbent photon's
+// to word 0, a bent one's to the word of one axis, drawn in proportion to that axis's share of
+// |direction|_1 (transport.h). One word either way, so lanes of both kinds share one atomic.
+void flush_deposit() {
+    if (pending_voxel == kNoVoxel) return;
+    float jitter = next_unit();
+    float mean = (pending_flux.r + pending_flux.g + pending_flux.b) * (1.0 / 3.0);
+    ivec3 q = ivec3(pending_flux + jitter);
+    vec3 along = abs(pending_direction);
+    float l1 = along.x + along.y + along.z;
+    float pick = next_unit() * l1;
+    uint axis = pick < along.x ? 0u : (pick < along.x + along.y ? 1u : 2u);
+    int direction = pending_unbent ? int(mean + jitter) : int(floor(sign(pending_direction[axis]) * l1 + jitter));
+    if (!kGreyTransport) atomicAdd(accum_rg[pending_voxel], pack(q.r, q.g));
+    atomicAdd(accum_flux[RADIANCE_FLUX_WORDS * pending_voxel + (pending_unbent ? 0u : 1u + axis)],
+              pack(kGreyTransport ? int(mean + jitter) : q.b, direction));
+    pending_voxel = kNoVoxel;
+}
+
 // Adds weight x length to each radiance-grid voxel the straight segment p + t d, t in [0, len), crosses
 // (3D DDA; p, len and kappa in radiance-grid voxels), attenuated by exp(-kappa t): per voxel where the
 // segment absorbs noticeably, else once at its middle.
-void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa) {
+void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa, bool photon_unbent) {
     float scale = params.stepping.z;
     ivec3 cell = ivec3(floor(p));
     ivec3 step_dir = ivec3(sign(d));
@@ -109,13 +140,17 @@ void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa) {
         if (piece > 0.0 && all(greaterThanEqual(cell, ivec3(0))) && all(lessThan(cell, dims))) {
             vec3 w = (absorbs ? weight * exp(-kappa * (t + 0.5 * piece)) * scale : segment_weight) * piece;
             uint index = voxel_index(cell);
-            float jitter = next_unit();
-            float mean = (w.r + w.g + w.b) * (1.0 / 3.0);
-            ivec3 q = ivec3(w + jitter);
-            ivec3 dq = ivec3(floor(d * mean + jitter));
-            if (!kGreyTransport) atomicAdd(accum_rg[index], pack(q.r, q.g));
-            atomicAdd(accum_bx[index], pack(kGreyTransport ? int(mean + jitter) : q.b, dq.x));
-            atomicAdd(accum_yz[index], pack(dq.y, dq.z));
+            vec3 from_light = vec3(cell) + 0.5 - light_in_radiance_voxels;
+            bool unbent = photon_unbent && dot(from_light, from_light) >= near_light_squared;
+            if (index != pending_voxel || unbent != pending_unbent) {
+                flush_deposit();
+                pending_voxel = index;
+                pending_unbent = unbent;
+                pending_flux = vec3(0.0);
+                pending_direction = vec3(0.0);
+            }
+            pending_flux += w;
+            pending_direction += d * ((w.r + w.g + w.b) * (1.0 / 3.0));
         }
         t = t_next;
         if (t_max.x <= t_max.y && t_max.x <= t_max.z) { cell.x += step_dir.x; t_max.x += t_delta.x; }
@@ -184,6 +219,10 @@ void main() {
     float radiance_factor = float(params.radiance_grid.w);
     float outcome = 0.0;
     float path = 0.0;  // voxels travelled inside the grid
+    // Unbent until the photon meets a gradient of n (transport.h).
+    bool unbent = true;
+    light_in_radiance_voxels = to_voxel(origin) / radiance_factor;
+    near_light_squared = params.models.z == LIGHT_DIRECTIONAL ? 0.0 : UNBENT_MIN_DISTANCE * UNBENT_MIN_DISTANCE;
     for (; steps < params.photon_info.z; ++steps) {
         uint level = fixed_step ? 0u : octree_level(ray.p);
         float ds = safe_step(level, ray.p, ray.d, shell_step);
@@ -193,7 +232,8 @@ void main() {
         bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
         float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
         float len = min(ds, min(to_exit, to_floor));
-        if (deposits) deposit(ray.p / radiance_factor, ray.d, len / radiance_factor, weight, kappa * radiance_factor);
+        unbent = unbent && all(equal(ray.field.yzw, vec3(0.0)));
+        if (deposits) deposit(ray.p / radiance_factor, ray.d, len / radiance_factor, weight, kappa * radiance_factor, unbent);
         path += len;
         if (to_floor <= min(ds, to_exit)) {
             weight *= exp(-kappa * to_floor);
@@ -210,6 +250,7 @@ void main() {
         ray_step(ray, ds);
         if (max(weight.r, max(weight.g, weight.b)) < 1e-4) break;
     }
+    flush_deposit();
     // The floor deposit sits outside the loop, once: lavapipe runs every line of a loop body on each pass.
     // A photon that left the grid goes on straight (outside is empty) to the floor.
     if (outcome == 2.0 || (outcome == 1.0 && floor_on && ray.d.y < 0.0)) {

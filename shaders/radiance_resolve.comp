@@ -11,8 +11,7 @@ layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 
 layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) readonly buffer AccumRG { uint64_t accum_rg[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_BX) readonly buffer AccumBX { uint64_t accum_bx[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_YZ) readonly buffer AccumYZ { uint64_t accum_yz[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLUX) readonly buffer AccumFlux { uint64_t accum_flux[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) readonly buffer AccumFloor { uint accum_floor[]; };
 layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform writeonly image3D radiance;
 layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform writeonly image3D flux;
@@ -33,13 +32,18 @@ void resolve_voxel(uint i) {
     uvec3 inside = min(uvec3(f), params.grid_dims.xyz - f * uvec3(v));
     float inside_fraction = float(inside.x * inside.y * inside.z) / float(f * f * f);
     float to_fluence = reference_flux / (params.stepping.z * h * h * inside_fraction);
-    // Unpack (transport.h): the low half of each word is its own sum (signed where it can be
-    // negative); the high half is what remains once the low half is taken out.
-    uint64_t bx = accum_bx[i], yz = accum_yz[i];
-    float blue = float(uint(bx & 0xffffffffUL));
-    float dir_x = float(int(int64_t(bx) >> 32));
-    int dir_y = int(uint(yz & 0xffffffffUL));
-    float dir_z = float(int((int64_t(yz) - int64_t(dir_y)) >> 32));
+    // Unpack (transport.h): the low half of each word is its own sum (unsigned, so the high half is
+    // what an arithmetic shift leaves). Unbent photons carry their flux along the light's direction.
+    uint64_t unbent = accum_flux[RADIANCE_FLUX_WORDS * i];
+    float blue = float(uint(unbent & 0xffffffffUL));
+    vec3 centre = params.grid_origin.xyz + (vec3(v) + 0.5) * h;
+    vec3 net = float(uint(unbent >> 32)) *
+               unbent_direction(params.models.z, params.light_position.xyz, params.emit_axis.xyz, centre);
+    for (uint a = 0u; a < 3u; ++a) {
+        uint64_t word = accum_flux[RADIANCE_FLUX_WORDS * i + 1u + a];
+        blue += float(uint(word & 0xffffffffUL));
+        net[a] += float(int(int64_t(word) >> 32));
+    }
     float mean = blue;  // grey transport: the blue slot holds the channels' mean
     if (!kGreyTransport) {
         uint64_t rg = accum_rg[i];
@@ -47,7 +51,7 @@ void resolve_voxel(uint i) {
         mean = (colour.r + colour.g + colour.b) * (1.0 / 3.0);
         imageStore(radiance, v, vec4(colour * to_fluence, 0.0));
     }
-    imageStore(flux, v, vec4(vec3(dir_x, float(dir_y), dir_z) * to_fluence, mean * to_fluence));
+    imageStore(flux, v, vec4(net * to_fluence, mean * to_fluence));
 }
 
 void resolve_floor_texel(uint texel) {

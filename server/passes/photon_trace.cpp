@@ -13,9 +13,9 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
     const uint64_t voxels = radiance_dims.count();
     const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     PhotonAccumulators accum;
-    const char* names[3] = {"radiance sums red+green", "radiance sums blue (grey: mean)+direction x", "direction sums y+z"};
-    for (size_t i = 0; i < 3; ++i)
-        accum.voxel[i] = vk::Buffer(context, voxels * sizeof(uint64_t), usage, vk::MemoryUse::device, names[i]);
+    accum.red_green = vk::Buffer(context, voxels * sizeof(uint64_t), usage, vk::MemoryUse::device, "radiance sums red+green");
+    accum.flux = vk::Buffer(context, voxels * RADIANCE_FLUX_WORDS * sizeof(uint64_t), usage, vk::MemoryUse::device,
+                            "radiance sums blue (grey: mean)+net flux");
     accum.floor = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * 3 * sizeof(uint32_t), usage,
                              vk::MemoryUse::device, "floor flux sum");
     accum.stats = vk::Buffer(context, sizeof(shaders::PhotonStats), usage, vk::MemoryUse::readback, "photon stats");
@@ -36,8 +36,7 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_ACCUM_RG, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-    {TRANSPORT_BINDING_ACCUM_BX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-    {TRANSPORT_BINDING_ACCUM_YZ, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_ACCUM_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_PHOTON_EXITS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -49,7 +48,8 @@ PhotonTracePass::PhotonTracePass(vk::Context& context)
 
 void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
                              const PhotonAccumulators& accum, uint32_t photon_count) const {
-    for (size_t i = in.variant.grey ? 1 : 0; i < accum.voxel.size(); ++i) recorder.fill(accum.voxel[i], 0);
+    if (!in.variant.grey) recorder.fill(accum.red_green, 0);
+    recorder.fill(accum.flux, 0);
     recorder.fill(accum.floor, 0);
     recorder.fill(accum.stats, 0);
     recorder.fill(accum.exits, 0);
@@ -60,9 +60,8 @@ void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInput
                                  vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
                                  vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
                                  vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.voxel[0]),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_BX, accum.voxel[1]),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_YZ, accum.voxel[2]),
+                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.red_green),
+                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLUX, accum.flux),
                                  vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
                                  vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
                                  vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits)},

@@ -2,8 +2,6 @@
 // caustic map from one dispatch, one thread per photon.
 #pragma once
 
-#include <array>
-
 #include "vk/commands.h"
 #include "passes/transport_pipeline.h"
 #include "vk/pipeline.h"
@@ -12,7 +10,8 @@ namespace refract::passes {
 
 // Everything the photon pass writes and the resolve pass reads.
 struct PhotonAccumulators {
-    std::array<vk::Buffer, 3> voxel;  // packed 64-bit sums RG, BX, YZ (see shaders/shared/transport.h); grey: no RG
+    vk::Buffer red_green;             // packed 64-bit sums per voxel (shaders/shared/transport.h); unused when grey
+    vk::Buffer flux;                  // RADIANCE_FLUX_WORDS packed 64-bit sums per voxel: blue (grey: mean) + net flux
     vk::Buffer floor;                 // 3 uints per floor texel
     vk::Buffer stats;                 // PhotonStats (host-readable)
     vk::Buffer exits;                 // PhotonExit per photon when recorded (tests), else one entry

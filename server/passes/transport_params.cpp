@@ -136,9 +136,10 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     const uint32_t max_steps = 4 * (grid.dims.x + grid.dims.y + grid.dims.z);
     p.photon_info = glm::uvec4(photons, document.photons.seed, max_steps, options.fixed_step ? 1u : 0u);
     // Fixed-point scales chosen so no voxel or texel sum can overflow 2^31 even if every photon
-    // deposited its full weight (a voxel crossing is at most sqrt(3) voxel lengths) into it.
+    // deposited its full weight into it: a voxel crossing is at most sqrt(3) voxel lengths, and a net
+    // flux deposit is |d|_1 <= sqrt(3) times that (transport.h), so 3 x scale per photon at most.
     const double n = static_cast<double>(photons);
-    p.stepping = glm::vec4(options.shell_step, 0.02f, power_of_two_below(2147483647.0 / (2.0 * n)),
+    p.stepping = glm::vec4(options.shell_step, 0.02f, power_of_two_below(2147483647.0 / (4.0 * n)),
                            power_of_two_below(2147483647.0 / n));
 
     // Floor and the caustic map's footprint: where the grid's shadow (and the grid itself) falls.

@@ -15,14 +15,24 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_INDEX_FIELD 1     // sampler3D rgba32f (n, grad n per voxel)
 #define TRANSPORT_BINDING_COVERAGE 2        // sampler3D r32f
 #define TRANSPORT_BINDING_LEVELS 3          // uint per voxel (octree leaf level)
-// Per voxel, fixed-point sums packed in pairs into 64-bit words, so one 64-bit atomic adds two:
-// RG = red | green << 32, BX = blue | dir_x << 32, YZ = dir_y | dir_z << 32 (dir_* are signed and
-// weighted by the channels' mean; colour sums are flux x path length). Grey transport keeps no RG word
-// and puts the channels' mean in the blue slot. Every half-sum stays within 31 bits by the choice of
-// fixed-point scale, so halves never carry into each other beyond what decoding undoes exactly.
+// Per voxel, fixed-point sums packed in pairs into 64-bit words, so one 64-bit atomic adds two. Colour
+// sums are flux x path length; the net flux (direction x the channels' mean) is signed. RG holds
+// red | green << 32 (coloured transport only). FLUX holds RADIANCE_FLUX_WORDS words per voxel, and
+// each deposit adds to one of them (blue below is the channels' mean under grey transport):
+//  - word 0: blue | the channels' mean << 32 from unbent photons, which have met no gradient of n yet
+//    (and are UNBENT_MIN_DISTANCE from a point or spot light): the resolve pass knows their net flux
+//    without storing it, that mean along the light's own direction at the voxel (unbent_direction);
+//  - word 1 + a: blue of bent photons | their net flux along axis a << 32. A bent deposit picks axis a
+//    with probability |d_a| / |d|_1 and adds d_a's sign x |d|_1: unbiased, and one atomic.
+// Every half-sum stays within 31 bits by the choice of fixed-point scale, so halves never carry into
+// each other beyond what decoding undoes exactly.
 #define TRANSPORT_BINDING_ACCUM_RG 4
-#define TRANSPORT_BINDING_ACCUM_BX 5
-#define TRANSPORT_BINDING_ACCUM_YZ 6
+#define TRANSPORT_BINDING_ACCUM_FLUX 5
+#define RADIANCE_FLUX_WORDS 4
+// A point or spot light's photons go in every direction from it: only voxels whose centres are this
+// many radiance-voxel sides from the light or more take unbent deposits. Directions within such a voxel
+// stay within 12 degrees of the direction to its centre, and their mean is that direction to second order.
+#define UNBENT_MIN_DISTANCE 4.0f
 #define TRANSPORT_BINDING_ACCUM_FLOOR 10    // fixed-point signed floor flux change, 3 per texel
 #define TRANSPORT_BINDING_STATS 11          // photon statistics (see PhotonStats)
 #define TRANSPORT_BINDING_RADIANCE 12       // rgba32f: fluence rate (W/m^2) rgb; coloured transport only
@@ -113,6 +123,12 @@ struct TransportParams {
                               // resolve, 1/3 as many for a photon to cross)
     uvec4 lit_offsets;        // where each level of the lit pyramid starts in the lit-blocks buffer
 };
+
+// The unit direction light travels at world point x as if nothing were in its way: the net flux
+// direction of photons the object has not bent.
+REFRACT_INLINE vec3 unbent_direction(uint light_type, vec3 light_position, vec3 emit_axis, vec3 x) {
+    return light_type == LIGHT_DIRECTIONAL ? emit_axis : normalize(x - light_position);
+}
 
 // Grey transport: each channel's fluence is the channels' mean times this, the light's colour scaled to
 // a mean of 1 (photon_flux is TransportParams::photon_flux).
