@@ -9,11 +9,12 @@
 namespace refract::passes {
 
 PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, vk::Extent3 radiance_dims,
-                                            uint32_t floor_texels, uint32_t exit_count) {
+                                            uint32_t floor_texels, uint32_t exit_count, bool grey) {
     const uint64_t voxels = radiance_dims.count();
     const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     PhotonAccumulators accum;
-    accum.red_green = vk::Buffer(context, voxels * sizeof(uint64_t), usage, vk::MemoryUse::device, "radiance sums red+green");
+    accum.red_green = vk::Buffer(context, (grey ? 1 : voxels) * sizeof(uint64_t), usage, vk::MemoryUse::device,
+                                 "radiance sums red+green");
     accum.flux = vk::Buffer(context, voxels * RADIANCE_FLUX_WORDS * sizeof(uint64_t), usage, vk::MemoryUse::device,
                             "radiance sums blue (grey: mean)+net flux");
     accum.floor = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * 3 * sizeof(uint32_t), usage,

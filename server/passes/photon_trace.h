@@ -10,7 +10,7 @@ namespace refract::passes {
 
 // Everything the photon pass writes and the resolve pass reads.
 struct PhotonAccumulators {
-    vk::Buffer red_green;             // packed 64-bit sums per voxel (shaders/shared/transport.h); unused when grey
+    vk::Buffer red_green;             // packed 64-bit sums per voxel (shaders/shared/transport.h); one word when grey
     vk::Buffer flux;                  // RADIANCE_FLUX_WORDS packed 64-bit sums per voxel: blue (grey: mean) + net flux
     vk::Buffer floor;                 // 3 uints per floor texel
     vk::Buffer stats;                 // PhotonStats (host-readable)
@@ -18,9 +18,10 @@ struct PhotonAccumulators {
     vk::Buffer lit_blocks;            // the lit pyramid (transport.h), written by LitPyramidPass
 };
 
-// `dims`: the index field's voxels (lit blocks cover those); `radiance_dims`: the radiance grid's.
+// `dims`: the index field's voxels (lit blocks cover those); `radiance_dims`: the radiance grid's; `grey`:
+// grey transport, which keeps no red and green sums.
 PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, vk::Extent3 radiance_dims,
-                                            uint32_t floor_texels, uint32_t exit_count);
+                                            uint32_t floor_texels, uint32_t exit_count, bool grey);
 
 // Inputs shared by the photon and viewing passes.
 struct TransportInputs {

@@ -64,9 +64,9 @@ void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits, uint
     const uint32_t exits = record_exits ? photon_count : 1u;
     const uint32_t f = radiance_factor;
     const vk::Extent3 radiance_dims = grid_.coarsened(f);
-    if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_) {
+    if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_ || grey != grey_) {
         accum_.reset();
-        accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels, exits));
+        accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels, exits, grey));
         exit_capacity_ = exits;
     }
     if (!flux_.get() || f != radiance_factor_) {
