@@ -21,9 +21,9 @@ PassKit::PassKit(vk::Context& ctx)
 int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t height) {
     const int64_t voxels = static_cast<int64_t>(grid.dims.count());
     // coverage + scratch (4+4), index field (16), coverage image (4), pyramid (8 x 1/7: levels 1 and up), levels (4),
-    // packed accumulators (24), net flux (16), coloured radiance (16); voxelize's per-axis scratch (12)
-    // while it runs.
-    const int64_t per_voxel = 4 + 4 + 16 + 4 + 2 + 4 + 24 + 16 + 16 + 12;
+    // packed accumulators (RADIANCE_FLUX_WORDS x 8, and 8 for red and green in colour), net flux (16),
+    // coloured radiance (16); voxelize's per-axis scratch (12) while it runs.
+    const int64_t per_voxel = 4 + 4 + 16 + 4 + 2 + 4 + (RADIANCE_FLUX_WORDS + 1) * 8 + 16 + 16 + 12;
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
     // Per pixel: HDR (16), sRGB (4), a slot in the refinement list (4).
     return voxels * per_voxel + floor + int64_t{width} * height * 24;
