@@ -9,6 +9,7 @@
 // direction. Accumulation is fixed-point integer atomics: deterministic on every device.
 #include "transport_common.glsl"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
+layout(constant_id = PHOTON_CONSTANT_SAMPLED_DEPOSITS) const bool kSampledDeposits = false;
 
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) buffer AccumRG { uint64_t accum_rg[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLUX) buffer AccumFlux { uint64_t accum_flux[]; };
@@ -119,39 +120,67 @@ void flush_deposit() {
     pending_voxel = kNoVoxel;
 }
 
-// Adds weight x length to each radiance-grid voxel the straight segment p + t d, t in [0, len), crosses
-// (3D DDA; p, len and kappa in radiance-grid voxels), attenuated by exp(-kappa t): per voxel where the
-// segment absorbs noticeably, else once at its middle.
+// Adds deposit w (weight x length) of a photon travelling along d to radiance-grid voxel `cell`: to the
+// pending sums while the photon stays in that voxel.
+void add_deposit(ivec3 cell, vec3 w, vec3 d, bool photon_unbent) {
+    if (any(lessThan(cell, ivec3(0))) || any(greaterThanEqual(cell, ivec3(params.radiance_grid.xyz)))) return;
+    uint index = voxel_index(cell);
+    vec3 from_light = vec3(cell) + 0.5 - light_in_radiance_voxels;
+    bool unbent = photon_unbent && dot(from_light, from_light) >= near_light_squared;
+    if (index != pending_voxel || unbent != pending_unbent) {
+        flush_deposit();
+        pending_voxel = index;
+        pending_unbent = unbent;
+        pending_flux = vec3(0.0);
+        pending_direction = vec3(0.0);
+    }
+    pending_flux += w;
+    pending_direction += d * ((w.r + w.g + w.b) * (1.0 / 3.0));
+}
+
+// Where each sampled deposit falls within its piece of a segment: a Weyl sequence over photons and, per
+// photon, over segments, from a random start per frame. Every offset is uniform, so each sample is
+// unbiased; neighbouring photons' offsets spread evenly, which makes their sum less noisy than
+// independent offsets do.
+uint deposit_phase;
+
+// Adds weight x length along the straight segment p + t d, t in [0, len) (p, len and kappa in
+// radiance-grid voxels), attenuated by exp(-kappa t), to the radiance grid: the track-length estimator
+// of fluence. Exact by default: every voxel the segment crosses takes its crossing length (3D DDA),
+// attenuated at the crossing's middle where the segment absorbs noticeably, else at the segment's.
+// Sampled deposits (kSampledDeposits, interactive frames) cut the segment into pieces of at most one
+// voxel and give each piece's whole length to the voxel of one point drawn in it: unbiased, since the
+// point is uniform in its piece, and cheaper, with one deposit per voxel of path where the DDA makes
+// |d|_1 (up to 1.7) crossings and does more work for each.
 void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa, bool photon_unbent) {
     float scale = params.stepping.z;
+    bool absorbs = max(kappa.r, max(kappa.g, kappa.b)) * len > 0.02;
+    vec3 segment_weight = weight * exp(-kappa * (0.5 * len)) * scale;
+    if (kSampledDeposits) {
+        int pieces = max(int(ceil(len)), 1);
+        float piece = len / float(pieces);
+        float offset = to_unit(deposit_phase);
+        deposit_phase += 3242174889u;  // 2^32 / the plastic number: a second, independent Weyl step
+        for (int k = 0; k < pieces; ++k) {
+            float t = (float(k) + offset) * piece;
+            add_deposit(ivec3(floor(p + d * t)), (absorbs ? weight * exp(-kappa * t) * scale : segment_weight) * piece,
+                        d, photon_unbent);
+        }
+        return;
+    }
     ivec3 cell = ivec3(floor(p));
     ivec3 step_dir = ivec3(sign(d));
     vec3 inv = 1.0 / d;
     vec3 t_max = mix((vec3(cell) - p) * inv, (vec3(cell + 1) - p) * inv, greaterThan(d, vec3(0.0)));
     t_max = mix(t_max, vec3(1e30), equal(d, vec3(0.0)));
     vec3 t_delta = mix(abs(inv), vec3(1e30), equal(d, vec3(0.0)));
-    ivec3 dims = ivec3(params.radiance_grid.xyz);
-    bool absorbs = max(kappa.r, max(kappa.g, kappa.b)) * len > 0.02;
-    vec3 segment_weight = weight * exp(-kappa * (0.5 * len)) * scale;
     float t = 0.0;
     for (int guard = 0; guard < 4096 && t < len; ++guard) {
         float t_next = min(min(t_max.x, t_max.y), min(t_max.z, len));
         float piece = t_next - t;
-        if (piece > 0.0 && all(greaterThanEqual(cell, ivec3(0))) && all(lessThan(cell, dims))) {
-            vec3 w = (absorbs ? weight * exp(-kappa * (t + 0.5 * piece)) * scale : segment_weight) * piece;
-            uint index = voxel_index(cell);
-            vec3 from_light = vec3(cell) + 0.5 - light_in_radiance_voxels;
-            bool unbent = photon_unbent && dot(from_light, from_light) >= near_light_squared;
-            if (index != pending_voxel || unbent != pending_unbent) {
-                flush_deposit();
-                pending_voxel = index;
-                pending_unbent = unbent;
-                pending_flux = vec3(0.0);
-                pending_direction = vec3(0.0);
-            }
-            pending_flux += w;
-            pending_direction += d * ((w.r + w.g + w.b) * (1.0 / 3.0));
-        }
+        if (piece > 0.0)
+            add_deposit(cell, (absorbs ? weight * exp(-kappa * (t + 0.5 * piece)) * scale : segment_weight) * piece, d,
+                        photon_unbent);
         t = t_next;
         if (t_max.x <= t_max.y && t_max.x <= t_max.z) { cell.x += step_dir.x; t_max.x += t_delta.x; }
         else if (t_max.y <= t_max.z) { cell.y += step_dir.y; t_max.y += t_delta.y; }
@@ -191,6 +220,7 @@ void main() {
     vec3 origin, direction;
     if (!emit(i, origin, direction)) return;
     rng_state = hash(i ^ hash(params.photon_info.y));
+    deposit_phase = i * 2654435769u + hash(params.photon_info.y + 1u);  // 2^32 / the golden ratio
     vec3 weight = params.photon_flux.rgb / params.photon_flux.w;  // relative to the reference flux
     // The dispersion hook: a photon for one wavelength band carries only its channel.
     if (params.models.w != CHANNEL_ALL) weight *= vec3(equal(uvec3(0u, 1u, 2u), uvec3(params.models.w)));

@@ -252,10 +252,11 @@ class EnergyTest : public testing::GpuTest {
 protected:
     // Runs photons (no view) and returns the scene's GPU state for read-back.
     std::unique_ptr<scene::SceneGpu> photons(const protocol::SceneDocument& doc, scene::RunStats* stats = nullptr,
-                                             uint32_t radiance_factor = 1) {
+                                             uint32_t radiance_factor = 1, bool sampled_deposits = false) {
         auto gpu = std::make_unique<scene::SceneGpu>(kit());
         scene::RunOptions options;
         options.radiance_factor = radiance_factor;
+        options.sampled_deposits = sampled_deposits;
         options.limit = scene::kAllPasses & ~scene::kView;
         const auto s = gpu->run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
         if (stats) *stats = s;
@@ -534,6 +535,75 @@ TEST_F(EnergyTest, ExtinctionFollowsBeerLambert) {
                         kappa[c], gpu->grey() ? "grey" : "coloured", measured, expected, worst);
             EXPECT_NEAR(measured, expected, 0.01 * expected);
             EXPECT_LT(worst, 0.01);
+        }
+    }
+}
+
+// Sampled deposits (interactive frames) follow the same photon paths as exact ones and move each piece
+// of path by less than a voxel from where the exact DDA puts it, with zero mean: a region's sum differs
+// only by the pieces that straddle its boundary. In the default scene (a spot light, a glass sphere in
+// fog) both estimators must give the same total fluence and net flux, and the same sums over a block of
+// directly lit fog and over the caustic under the sphere, to within that boundary noise.
+TEST_F(EnergyTest, SampledDepositsAgreeWithExactOnes) {
+    const auto doc = protocol::parse_scene({{"photons", {{"count", 1 << 16}}},
+                                            {"volume", {{"resolution", 64}}},
+                                            {"image", {{"width", 8}, {"height", 8}}}});
+    for (const uint32_t factor : {1u, 3u}) {
+        const auto exact = photons(doc, nullptr, factor, false);
+        const auto sampled = photons(doc, nullptr, factor, true);
+        const auto a = exact->read_flux(), b = sampled->read_flux();
+        ASSERT_EQ(a.size(), b.size());
+        const glm::uvec3 dims(exact->params().radiance_grid);
+        // Sums over the block [lo, hi) of radiance voxels (given as fractions of the grid per axis).
+        struct Block {
+            double fluence_a = 0, fluence_b = 0, voxels = 0, faces = 0;  // faces: on the boundary, inside the grid
+            glm::dvec3 net_a{0.0}, net_b{0.0};
+        };
+        auto block = [&](glm::dvec3 lo, glm::dvec3 hi) {
+            const glm::uvec3 l(glm::dvec3(dims) * lo), h(glm::dvec3(dims) * hi);
+            Block s;
+            for (uint32_t z = l.z; z < h.z; ++z)
+                for (uint32_t y = l.y; y < h.y; ++y)
+                    for (uint32_t x = l.x; x < h.x; ++x) {
+                        const size_t i = (size_t{z} * dims.y + y) * dims.x + x;
+                        s.fluence_a += static_cast<double>(a[i].w);
+                        s.fluence_b += static_cast<double>(b[i].w);
+                        s.net_a += glm::dvec3(a[i]);
+                        s.net_b += glm::dvec3(b[i]);
+                    }
+            const glm::dvec3 n(h - l);
+            s.voxels = n.x * n.y * n.z;
+            for (int k = 0; k < 3; ++k) {
+                const double face = s.voxels / n[k];
+                s.faces += face * ((l[k] > 0 ? 1.0 : 0.0) + (h[k] < dims[k] ? 1.0 : 0.0));
+            }
+            return s;
+        };
+        // The fluence one photon adds to a radiance voxel it crosses unattenuated: flux x side / volume.
+        const glm::vec4 pf = exact->params().photon_flux;
+        const double side = static_cast<double>(exact->grid().voxel_size) * factor;
+        const double per_crossing = static_cast<double>(pf.x + pf.y + pf.z) / 3.0 / (side * side);
+        for (const auto& [name, lo, hi] : {std::tuple{"whole grid", glm::dvec3(0.0), glm::dvec3(1.0)},
+                                           std::tuple{"lit fog", glm::dvec3(0.75, 0.75, 0.5), glm::dvec3(0.95, 0.95, 0.7)},
+                                           std::tuple{"caustic", glm::dvec3(0.4, 0.1, 0.4), glm::dvec3(0.6, 0.35, 0.6)}}) {
+            const Block s = block(lo, hi);
+            ASSERT_GT(s.fluence_a, 0.0);
+            // A voxel holds about n = mean fluence / per_crossing photon crossings. Each piece straddling
+            // a boundary face moves at most its deposit (~ per_crossing), each way with probability at
+            // most 1/2: over the ~faces x n such pieces the sum's standard deviation is at most
+            // per_crossing sqrt(faces x n) / 2. The net flux adds the random axis of each bent deposit
+            // (transport.h), up to sqrt(3) per_crossing over each of the ~voxels x n deposits, in either
+            // estimator. Fixed-point rounding stays far below 1e-3.
+            const double n = std::max(s.fluence_a / s.voxels / per_crossing, 1.0);
+            const double boundary = per_crossing * std::sqrt(s.faces * n) / 2.0 / s.fluence_a;
+            const double axes = std::sqrt(3.0) * per_crossing * std::sqrt(2.0 * s.voxels * n) / glm::length(s.net_a);
+            const double net_error = glm::length(s.net_b - s.net_a) / glm::length(s.net_a);
+            std::printf("sampled deposits, radiance voxel %u index voxels wide, %s (%.0f crossings per voxel): fluence "
+                        "%+.5f (bound %.5f), net flux %.5f (bound %.5f)\n",
+                        factor, name, n, s.fluence_b / s.fluence_a - 1.0, 4.0 * boundary + 1e-3, net_error,
+                        4.0 * (boundary + axes) + 1e-3);
+            EXPECT_NEAR(s.fluence_b / s.fluence_a, 1.0, 4.0 * boundary + 1e-3) << name;
+            EXPECT_LT(net_error, 4.0 * (boundary + axes) + 1e-3) << name;
         }
     }
 }

@@ -44,11 +44,17 @@ constexpr vk::BindingLayout kLayout[] = {
 };
 }  // namespace
 
+namespace {
+static_assert(PHOTON_CONSTANT_SAMPLED_DEPOSITS == TRANSPORT_CONSTANT_COVERAGE_FETCH + 1);
+constexpr uint32_t kExact[] = {0u}, kSampled[] = {1u};
+}  // namespace
+
 PhotonTracePass::PhotonTracePass(vk::Context& context)
-    : pipeline_(context, photon_trace_spv, kLayout, 0, "photon trace") {}
+    : exact_(context, photon_trace_spv, kLayout, 0, "photon trace", kExact),
+      sampled_(context, photon_trace_spv, kLayout, 0, "photon trace (sampled deposits)", kSampled) {}
 
 void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
-                             const PhotonAccumulators& accum, uint32_t photon_count) const {
+                             const PhotonAccumulators& accum, uint32_t photon_count, bool sampled_deposits) const {
     if (!in.variant.grey) recorder.fill(accum.red_green, 0);
     recorder.fill(accum.flux, 0);
     recorder.fill(accum.floor, 0);
@@ -56,7 +62,7 @@ void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInput
     recorder.fill(accum.exits, 0);
     recorder.transfer_to_compute_barrier();
     const auto groups = vk::linear_groups(photon_count, TRANSPORT_GROUP_SIZE);
-    pipeline_(in.variant).dispatch(recorder.get(),
+    (sampled_deposits ? sampled_ : exact_)(in.variant).dispatch(recorder.get(),
                                 {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
                                  vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
                                  vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),

@@ -36,12 +36,13 @@ struct TransportInputs {
 class PhotonTracePass {
 public:
     explicit PhotonTracePass(vk::Context& context);
-    // Clears the accumulators and traces `photon_count` photons.
+    // Clears the accumulators and traces `photon_count` photons; `sampled_deposits`: one deposit per
+    // radiance voxel of path instead of one per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS).
     void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const PhotonAccumulators& accum,
-                uint32_t photon_count) const;
+                uint32_t photon_count, bool sampled_deposits) const;
 
 private:
-    TransportPipeline pipeline_;
+    TransportPipeline exact_, sampled_;
 };
 
 }  // namespace refract::passes

@@ -17,8 +17,10 @@ struct TransportVariant {
 
 class TransportPipeline {
 public:
+    // `pass_constants`: the pass's own specialization constants, numbered after the transport constants.
     TransportPipeline(vk::Context& context, std::span<const uint32_t> spirv,
-                      std::span<const vk::BindingLayout> layout, uint32_t push_constant_bytes, const char* name);
+                      std::span<const vk::BindingLayout> layout, uint32_t push_constant_bytes, const char* name,
+                      std::span<const uint32_t> pass_constants = {});
     const vk::ComputePipeline& operator()(TransportVariant variant) const {
         return pipelines_[(variant.grey ? 1u : 0u) + (variant.coverage_fetch ? 2u : 0u)];
     }

@@ -39,6 +39,7 @@ RunOptions run_options_for(Quality quality) {
     if (quality == Quality::interactive) {
         options.view_step = 2.0f;
         options.radiance_factor = 3;
+        options.sampled_deposits = true;
         options.adaptive_view = true;
     }
     return options;

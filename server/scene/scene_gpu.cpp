@@ -125,10 +125,12 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         allocate_volume(grid);
         stale = kAllPasses;
     }
-    // Another radiance-grid resolution (interactive <-> still) or kind of transport means new photons
-    // into a new grid.
+    // Another radiance-grid resolution or deposit estimator (interactive <-> still) or kind of transport
+    // means new photons into a new grid.
     const bool grey = passes::grey_transport(document);
-    if (options.radiance_factor != radiance_factor_ || grey != grey_) built_ &= ~(kPhotons | kView);
+    if (options.radiance_factor != radiance_factor_ || options.sampled_deposits != sampled_deposits_ || grey != grey_)
+        built_ &= ~(kPhotons | kView);
+    sampled_deposits_ = options.sampled_deposits;
     stale |= kAllPasses & ~built_;
     // Each pass depends on all before it.
     for (PassSet p : {kVoxelize, kIndexField, kOctree, kPhotons})
@@ -210,7 +212,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                                          {grey_, params_.flags.y == COVERAGE_FETCH || params_.flags.z == COVERAGE_FETCH}};
     if (stale & kPhotons) {
         timer_.begin(cmd, "photons");
-        kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count);
+        kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count, options.sampled_deposits);
         recorder_.compute_barrier();
         kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, grey_, radiance_, flux_, floor_map_);
         recorder_.compute_barrier();

@@ -59,6 +59,8 @@ struct RunOptions {
     PassSet limit = kAllPasses;   // passes outside this set are not run (the CLI's voxelize and trace)
     float view_step = 1.0f;       // eye-ray step in scattering media (voxels); interactive frames use 2
     uint32_t radiance_factor = 1; // index-field voxels per radiance-grid voxel per axis; interactive: 3
+    bool sampled_deposits = false; // photons deposit once per radiance voxel of path, not exactly per
+                                   // voxel crossed (photon_trace.comp); interactive
     bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
 };
 
@@ -116,6 +118,7 @@ private:
     GridGeometry grid_{};
     PassSet built_ = 0;
     uint32_t width_ = 0, height_ = 0, floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
+    bool sampled_deposits_ = false;  // how the photons in the radiance grid were deposited (RunOptions)
     bool grey_ = false;
     shaders::TransportParams params_{};
     // Volume (voxelize, index field, octree)

@@ -67,6 +67,9 @@ REFRACT_SHADERS_BEGIN
 // (COVERAGE_FETCH). Without it the coverage texture is never read: lavapipe would fetch it on every
 // step whatever the mode.
 #define TRANSPORT_CONSTANT_COVERAGE_FETCH 1
+// Specialization constant of the photon pass (after the transport constants): deposits are sampled, one
+// per radiance voxel of path, rather than exact per voxel crossed (photon_trace.comp, deposit).
+#define PHOTON_CONSTANT_SAMPLED_DEPOSITS 2
 #ifndef __cplusplus
 layout(constant_id = TRANSPORT_CONSTANT_GREY) const bool kGreyTransport = false;
 layout(constant_id = TRANSPORT_CONSTANT_COVERAGE_FETCH) const bool kCoverageFetch = true;
