@@ -41,8 +41,8 @@ struct Assets {
 enum class Quality { interactive, still };
 
 // How the passes run for a quality: `interactive` takes two-voxel eye-ray steps in fog, a radiance
-// grid of a third of the resolution per axis and adaptive pixels (the document's image and photon count
-// are halved and quartered separately, by the renderer).
+// grid of a third of the resolution per axis, sampled photon deposits and adaptive pixels (the
+// document's image and photon count are halved and quartered separately, by the renderer).
 RunOptions run_options_for(Quality quality);
 
 struct PassTiming {
