@@ -42,9 +42,7 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_PHOTON_EXITS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
-}  // namespace
-
-namespace {
+// The photon pass's own specialization constant (PHOTON_CONSTANT_SAMPLED_DEPOSITS), per pipeline set.
 static_assert(PHOTON_CONSTANT_SAMPLED_DEPOSITS == TRANSPORT_CONSTANT_COVERAGE_FETCH + 1);
 constexpr uint32_t kExact[] = {0u}, kSampled[] = {1u};
 }  // namespace
@@ -62,17 +60,18 @@ void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInput
     recorder.fill(accum.exits, 0);
     recorder.transfer_to_compute_barrier();
     const auto groups = vk::linear_groups(photon_count, TRANSPORT_GROUP_SIZE);
-    (sampled_deposits ? sampled_ : exact_)(in.variant).dispatch(recorder.get(),
-                                {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
-                                 vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
-                                 vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.red_green),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLUX, accum.flux),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
-                                 vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits)},
-                                nullptr, 0, groups.x, groups.y);
+    const vk::ComputePipeline& pipeline = (sampled_deposits ? sampled_ : exact_)(in.variant);
+    pipeline.dispatch(recorder.get(),
+                      {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
+                       vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
+                       vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
+                       vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
+                       vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.red_green),
+                       vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLUX, accum.flux),
+                       vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
+                       vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
+                       vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits)},
+                      nullptr, 0, groups.x, groups.y);
 }
 
 }  // namespace refract::passes
