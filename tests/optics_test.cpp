@@ -543,7 +543,8 @@ TEST_F(EnergyTest, ExtinctionFollowsBeerLambert) {
 // of path by less than a voxel from where the exact DDA puts it, with zero mean: a region's sum differs
 // only by the pieces that straddle its boundary. In the default scene (a spot light, a glass sphere in
 // fog) both estimators must give the same total fluence and net flux, and the same sums over a block of
-// directly lit fog and over the caustic under the sphere, to within that boundary noise.
+// directly lit fog and over the caustic under the sphere, to within that boundary noise; and a resident
+// scene switched to the other estimator must rerun its photons.
 TEST_F(EnergyTest, SampledDepositsAgreeWithExactOnes) {
     const auto doc = protocol::parse_scene({{"photons", {{"count", 1 << 16}}},
                                             {"volume", {{"resolution", 64}}},
@@ -605,6 +606,15 @@ TEST_F(EnergyTest, SampledDepositsAgreeWithExactOnes) {
             EXPECT_NEAR(s.fluence_b / s.fluence_a, 1.0, 4.0 * boundary + 1e-3) << name;
             EXPECT_LT(net_error, 4.0 * (boundary + axes) + 1e-3) << name;
         }
+        // A resident scene asked for the other estimator reruns its photons, and matches a fresh scene.
+        scene::RunOptions options;
+        options.radiance_factor = factor;
+        options.sampled_deposits = true;
+        options.limit = scene::kAllPasses & ~scene::kView;
+        const auto rerun = exact->run(0, doc, world_mesh(doc), nullptr, options);
+        EXPECT_TRUE(rerun.ran & scene::kPhotons);
+        const auto resident = exact->read_flux();
+        EXPECT_TRUE(std::equal(resident.begin(), resident.end(), b.begin()));
     }
 }
 
