@@ -214,6 +214,7 @@ void deposit_floor(vec3 x, vec3 weight, int sign) {
 }
 
 void main() {
+    load_params();
     uint i = take_from_queue(QUEUE_PHOTONS);
     if (i >= params.photon_info.x) return;
     i = coherent_order(i, params.photon_info.x);

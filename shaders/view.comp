@@ -191,6 +191,7 @@ void shade(uvec2 pixel) {
 // The queue runs through the image (or its coarse pixels) tile by tile (view_tiles.glsl). Listed pixels
 // come in the order view_refine.comp listed them, which keeps a subgroup's neighbours together.
 void main() {
+    load_params();
     bool listed = push.pixels == VIEW_PIXELS_LISTED;
     uint job = take_from_queue(listed ? QUEUE_VIEW_REFINED : QUEUE_VIEW_PIXELS);
     uint stride = push.pixels == VIEW_PIXELS_COARSE ? 2u : 1u;
