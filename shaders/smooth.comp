@@ -12,6 +12,7 @@ layout(local_size_x = VOLUME_GROUP_SIZE) in;
 layout(std430, binding = SMOOTH_BINDING_SOURCE) readonly buffer Source { float source[]; };
 layout(std430, binding = SMOOTH_BINDING_TARGET) writeonly buffer Target { float target[]; };
 layout(push_constant) uniform Push { SmoothPush push; };
+layout(constant_id = SMOOTH_CONSTANT_RADIUS) const int kRadius = 1;
 
 // Each invocation smooths SMOOTH_RUN consecutive voxels along the axis, so the taps they share are
 // loaded once: SMOOTH_RUN + 2 radius loads instead of SMOOTH_RUN (2 radius + 1) (storage-buffer loads
@@ -27,16 +28,16 @@ void main() {
     v[axis] *= SMOOTH_RUN;
     uint stride = axis == 0u ? 1u : (axis == 1u ? dims.x : dims.x * dims.y);
     uint first = (v.z * dims.y + v.y) * dims.x + v.x - v[axis] * stride;  // the line's voxel at 0
-    int start = int(v[axis]), last = int(dims[axis]) - 1, radius = push.radius;
+    int start = int(v[axis]), last = int(dims[axis]) - 1;
     float sum[SMOOTH_RUN], weights = 0.0;
     for (int j = 0; j < SMOOTH_RUN; ++j) sum[j] = 0.0;
-    for (int o = -radius; o <= radius; ++o) weights += push.weights[abs(o)];
-    // Tap k lies at start - radius + k: offset o = k - radius - j from voxel start + j.
-    for (int k = 0; k < SMOOTH_RUN + 2 * radius; ++k) {
-        float value = source[first + uint(clamp(start - radius + k, 0, last)) * stride];
+    for (int o = -kRadius; o <= kRadius; ++o) weights += push.weights[abs(o)];
+    // Tap k lies at start - kRadius + k: offset o = k - kRadius - j from voxel start + j.
+    for (int k = 0; k < SMOOTH_RUN + 2 * kRadius; ++k) {
+        float value = source[first + uint(clamp(start - kRadius + k, 0, last)) * stride];
         for (int j = 0; j < SMOOTH_RUN; ++j) {
-            int o = k - radius - j;
-            if (abs(o) <= radius) sum[j] += push.weights[abs(o)] * value;
+            int o = k - kRadius - j;
+            if (abs(o) <= kRadius) sum[j] += push.weights[abs(o)] * value;
         }
     }
     for (int j = 0; j < SMOOTH_RUN; ++j)

@@ -28,15 +28,23 @@ static_assert(VOXELIZE_MODE_COLUMNS == 0 && VOXELIZE_MODE_COMBINE == 1);
 VoxelizePass::VoxelizePass(vk::Context& context)
     : context_(context),
       voxelize_(context, voxelize_spv, kVoxelizeLayout, sizeof(VoxelizePush),
-                {"voxelize columns", "voxelize combine"}, VOLUME_CONSTANT_MODE),
-      smooth_(context, smooth_spv,
-              {{SMOOTH_BINDING_SOURCE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-               {SMOOTH_BINDING_TARGET, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}},
-              sizeof(SmoothPush), "smooth") {}
+                {"voxelize columns", "voxelize combine"}, VOLUME_CONSTANT_MODE) {}
+
+const vk::ComputePipeline& VoxelizePass::smooth(int radius) {
+    static_assert(VOLUME_CONSTANT_MODE == 0 && SMOOTH_CONSTANT_RADIUS == 1);
+    static constexpr vk::BindingLayout kLayout[] = {{SMOOTH_BINDING_SOURCE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                                                    {SMOOTH_BINDING_TARGET, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}};
+    auto& pipeline = smooth_.at(static_cast<size_t>(radius));
+    if (!pipeline) {
+        const uint32_t constants[] = {0u, static_cast<uint32_t>(radius)};
+        pipeline.emplace(context_, smooth_spv, kLayout, static_cast<uint32_t>(sizeof(SmoothPush)), "smooth", constants);
+    }
+    return *pipeline;
+}
 
 VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::Mesh& mesh_world,
                                      const scene::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
-                                     const vk::Buffer& coverage) const {
+                                     const vk::Buffer& coverage) {
     if (mesh_world.triangles.empty()) throw vk::Error("voxelize: the mesh has no triangles");
     const std::array<uint32_t, 3> dims{grid.dims.x, grid.dims.y, grid.dims.z};
     const VkDeviceSize voxel_bytes = grid.dims.count() * sizeof(float);
@@ -127,18 +135,19 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
         // x: scratch -> coverage, y: coverage -> scratch, z: scratch -> coverage.
         const vk::Buffer* source = &scratch;
         const vk::Buffer* target = &coverage;
+        const int radius = std::min(static_cast<int>(std::ceil(3.0f * sigma)), SMOOTH_MAX_RADIUS);
+        const vk::ComputePipeline& pipeline = smooth(radius);
         SmoothPush push{};
-        push.radius = std::min(static_cast<int>(std::ceil(3.0f * sigma)), SMOOTH_MAX_RADIUS);
-        for (int o = 0; o <= push.radius; ++o) push.weights[o] = std::exp(-0.5f * static_cast<float>(o * o) / (sigma * sigma));
+        for (int o = 0; o <= radius; ++o) push.weights[o] = std::exp(-0.5f * static_cast<float>(o * o) / (sigma * sigma));
         for (uint32_t axis = 0; axis < 3; ++axis) {
             push.dims = glm::uvec4(dims[0], dims[1], dims[2], axis);
             // One invocation per SMOOTH_RUN voxels along the axis (smooth.comp).
             const auto run_groups = vk::linear_groups(
                 grid.dims.count() / dims[axis] * vk::group_count(dims[axis], SMOOTH_RUN), VOLUME_GROUP_SIZE);
-            smooth_.dispatch(cmd,
-                             {vk::Binding::storage_buffer(SMOOTH_BINDING_SOURCE, *source),
-                              vk::Binding::storage_buffer(SMOOTH_BINDING_TARGET, *target)},
-                             push, run_groups.x, run_groups.y);
+            pipeline.dispatch(cmd,
+                              {vk::Binding::storage_buffer(SMOOTH_BINDING_SOURCE, *source),
+                               vk::Binding::storage_buffer(SMOOTH_BINDING_TARGET, *target)},
+                              push, run_groups.x, run_groups.y);
             recorder.compute_barrier();
             std::swap(source, target);
         }

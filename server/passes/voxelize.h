@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <optional>
 
 #include "mesh/mesh.h"
 #include "passes/mode_pipelines.h"
@@ -30,7 +31,7 @@ public:
     // smoothing with `sigma` voxels. Returns the uploads the recorded commands use.
     VoxelizeUploads record(vk::CommandRecorder& recorder, const mesh::Mesh& mesh_world,
                            const scene::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
-                           const vk::Buffer& coverage) const;
+                           const vk::Buffer& coverage);
 
     static constexpr uint32_t kSubsamples = VOXELIZE_SUBSAMPLES;  // S x S rays per voxel column and axis
     // Triangles are binned per tile of kTileSize^2 columns; each ray tests its tile's list. One column
@@ -40,9 +41,13 @@ public:
     static constexpr uint32_t kTileSize = 1;
 
 private:
+    // The smoothing pipeline for `radius` taps each side (SMOOTH_CONSTANT_RADIUS), compiled on first use:
+    // a scene keeps its sigma, and compiling all SMOOTH_MAX_RADIUS of them would slow every start.
+    const vk::ComputePipeline& smooth(int radius);
+
     vk::Context& context_;
     ModePipelines voxelize_;  // by VOXELIZE_MODE_*
-    vk::ComputePipeline smooth_;
+    std::array<std::optional<vk::ComputePipeline>, SMOOTH_MAX_RADIUS + 1> smooth_;
 };
 
 }  // namespace refract::passes
