@@ -4,7 +4,7 @@
 // covers it (the coarsest node whose n range is below epsilon; level 0 where none is). A node's range
 // spans the 3x3x3 neighbourhood of each of its voxels, so that trilinear interpolation anywhere inside
 // a leaf stays within its range. The pyramid starts at level 1: a voxel is level 0 exactly when its
-// level-1 node is not a leaf, so per-voxel ranges are never needed.
+// level-1 node is not a leaf, so per-voxel ranges are never needed, nor per-voxel levels.
 #include "volume_build.h"
 // The workgroup size comes before linear_id.glsl: gl_WorkGroupSize used ahead of the declaration folds
 // to 1, which breaks every dispatch folded past 65535 groups.
@@ -61,12 +61,15 @@ void reduce(uint i) {
     pyramid[level_offset(level) + i] = range;
 }
 
+// The level map has one entry per level-1 node: its 2x2x2 voxels have the same ancestors, so the same
+// leaf level, and one entry for eight voxels makes this job 8x smaller.
 void level_map(uint i) {
-    uvec3 dims = push.dims.xyz;
-    uvec3 v = uvec3(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
+    uvec3 cells = level_dims(1u);
+    if (i >= cells.x * cells.y * cells.z) return;
+    uvec3 c = uvec3(i % cells.x, (i / cells.x) % cells.y, i / (cells.x * cells.y));
     uint level = 0u;
     for (uint l = 1u; l <= push.offsets1.z; ++l) {
-        vec2 r = pyramid[node_index(l, v >> l)];
+        vec2 r = pyramid[node_index(l, c >> (l - 1u))];
         if (r.y - r.x >= push.epsilon) break;
         level = l;
     }
@@ -75,12 +78,11 @@ void level_map(uint i) {
 
 void main() {
     uint i = linear_invocation();
-    uint voxels = push.dims.x * push.dims.y * push.dims.z;
     if (kMode == OCTREE_MODE_LEVEL1_RANGE) {
         level1_range(i);
     } else if (kMode == OCTREE_MODE_REDUCE) {
         reduce(i);
-    } else if (i < voxels) {
+    } else {
         level_map(i);
     }
 }

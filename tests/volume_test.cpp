@@ -649,7 +649,7 @@ std::vector<uint32_t> gpu_levels(vk::Context& context, const passes::OctreePass&
     const passes::OctreeLayout layout = passes::octree_layout(dims);
     vk::Buffer pyramid(context, layout.node_count * sizeof(glm::vec2), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                        vk::MemoryUse::device, "test pyramid");
-    vk::Buffer levels(context, n.size() * sizeof(uint32_t), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+    vk::Buffer levels(context, layout.cell_count * sizeof(uint32_t), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                       vk::MemoryUse::readback, "test levels");
     vk::run_once(context, [&](vk::CommandRecorder& r) {
         r.init_image(field);
@@ -658,9 +658,9 @@ std::vector<uint32_t> gpu_levels(vk::Context& context, const passes::OctreePass&
         octree.record(r, field, epsilon, pyramid, levels);
         r.to_host_barrier();
     });
-    std::vector<uint32_t> out(n.size());
-    levels.read(out.data(), out.size() * sizeof(uint32_t));
-    return out;
+    std::vector<uint32_t> cells(layout.cell_count);
+    levels.read(cells.data(), cells.size() * sizeof(uint32_t));
+    return passes::levels_per_voxel(cells, dims);
 }
 
 // A quiet background (noise well below epsilon) with random boxes of random size laid over it: some of

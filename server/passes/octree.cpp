@@ -22,7 +22,19 @@ OctreeLayout octree_layout(vk::Extent3 dims) {
         offset += uint64_t{(dims.x + step - 1) / step} * ((dims.y + step - 1) / step) * ((dims.z + step - 1) / step);
     }
     layout.node_count = offset;
+    layout.cell_count = uint64_t{(dims.x + 1) / 2} * ((dims.y + 1) / 2) * ((dims.z + 1) / 2);
     return layout;
+}
+
+std::vector<uint32_t> levels_per_voxel(std::span<const uint32_t> cell_levels, vk::Extent3 dims) {
+    const uint32_t cells_x = (dims.x + 1) / 2, cells_y = (dims.y + 1) / 2;
+    std::vector<uint32_t> levels(dims.count());
+    for (uint32_t z = 0; z < dims.z; ++z)
+        for (uint32_t y = 0; y < dims.y; ++y)
+            for (uint32_t x = 0; x < dims.x; ++x)
+                levels[(size_t{z} * dims.y + y) * dims.x + x] =
+                    cell_levels[(size_t{z / 2} * cells_y + y / 2) * cells_x + x / 2];
+    return levels;
 }
 
 namespace {
@@ -62,8 +74,8 @@ void OctreePass::record(vk::CommandRecorder& recorder, const vk::Image3D& index_
         pipelines_[level == 1 ? OCTREE_MODE_LEVEL1_RANGE : OCTREE_MODE_REDUCE].dispatch(cmd, bindings, push, groups.x, groups.y);
         recorder.compute_barrier();
     }
-    const auto voxel_groups = vk::linear_groups(dims.count(), VOLUME_GROUP_SIZE);
-    pipelines_[OCTREE_MODE_LEVEL_MAP].dispatch(cmd, bindings, push, voxel_groups.x, voxel_groups.y);
+    const auto cell_groups = vk::linear_groups(layout.cell_count, VOLUME_GROUP_SIZE);
+    pipelines_[OCTREE_MODE_LEVEL_MAP].dispatch(cmd, bindings, push, cell_groups.x, cell_groups.y);
 }
 
 }  // namespace refract::passes

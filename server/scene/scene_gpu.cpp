@@ -20,10 +20,10 @@ PassKit::PassKit(vk::Context& ctx)
 
 int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t height) {
     const int64_t voxels = static_cast<int64_t>(grid.dims.count());
-    // coverage + scratch (4+4), index field (16), coverage image (4), pyramid (8 x 1/7: levels 1 and up), levels (4),
+    // coverage + scratch (4+4), index field (16), coverage image (4), pyramid (8 x 1/7: levels 1 and up), levels (4 / 8),
     // packed accumulators (RADIANCE_FLUX_WORDS x 8, and 8 for red and green in colour), net flux (16),
     // coloured radiance (16); voxelize's per-axis scratch (12) while it runs.
-    const int64_t per_voxel = 4 + 4 + 16 + 4 + 2 + 4 + (RADIANCE_FLUX_WORDS + 1) * 8 + 16 + 16 + 12;
+    const int64_t per_voxel = 4 + 4 + 16 + 4 + 2 + 1 + (RADIANCE_FLUX_WORDS + 1) * 8 + 16 + 16 + 12;
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
     // Per pixel: HDR (16), sRGB (4), a slot in the refinement list (4).
     return voxels * per_voxel + floor + int64_t{width} * height * 24;
@@ -53,7 +53,8 @@ void SceneGpu::allocate_volume(const GridGeometry& grid) {
     coverage_image_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32_SFLOAT, "coverage image");
     pyramid_ = vk::Buffer(ctx, std::max<uint64_t>(passes::octree_layout(grid.dims).node_count, 1) * 2 * sizeof(float), storage,
                           vk::MemoryUse::device, "octree pyramid");
-    levels_ = vk::Buffer(ctx, grid.dims.count() * sizeof(uint32_t), storage, vk::MemoryUse::device, "octree levels");
+    levels_ = vk::Buffer(ctx, passes::octree_layout(grid.dims).cell_count * sizeof(uint32_t), storage,
+                         vk::MemoryUse::device, "octree levels");
     grid_ = grid;
     built_ = 0;
 }
@@ -295,7 +296,9 @@ std::vector<glm::vec4> widen(const std::vector<uint16_t>& half) {
 
 std::vector<float> SceneGpu::read_coverage() const { return read_image<float>(coverage_image_); }
 std::vector<glm::vec4> SceneGpu::read_index_field() const { return read_image<glm::vec4>(index_field_); }
-std::vector<uint32_t> SceneGpu::read_levels() const { return read_buffer<uint32_t>(levels_); }
+std::vector<uint32_t> SceneGpu::read_levels() const {
+    return passes::levels_per_voxel(read_buffer<uint32_t>(levels_), grid_.dims);
+}
 std::vector<glm::vec4> SceneGpu::read_flux() const { return read_image<glm::vec4>(flux_); }
 std::vector<uint32_t> SceneGpu::read_lit_pyramid() const { return read_buffer<uint32_t>(accum_->lit_blocks); }
 

@@ -87,7 +87,7 @@ public:
     // Read-backs (each a separate submission): float per voxel / texel, x fastest.
     std::vector<float> read_coverage() const;
     std::vector<glm::vec4> read_index_field() const;
-    std::vector<uint32_t> read_levels() const;
+    std::vector<uint32_t> read_levels() const;  // octree leaf level per voxel
     std::vector<glm::vec4> read_radiance() const;  // fluence rate rgb (W/m^2)
     std::vector<glm::vec4> read_flux() const;      // net flux vector xyz, fluence rate w (channel mean; W/m^2)
     bool grey() const { return grey_; }            // the kind of transport the photons last ran

@@ -14,7 +14,7 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_PARAMS 0
 #define TRANSPORT_BINDING_INDEX_FIELD 1     // sampler3D rgba32f (n, grad n per voxel)
 #define TRANSPORT_BINDING_COVERAGE 2        // sampler3D r32f
-#define TRANSPORT_BINDING_LEVELS 3          // uint per voxel (octree leaf level)
+#define TRANSPORT_BINDING_LEVELS 3          // uint per level-1 octree node (its voxels' leaf level)
 // Per voxel, fixed-point sums packed in pairs into 64-bit words, so one 64-bit atomic adds two. Colour
 // sums are flux x path length; the net flux (direction x the channels' mean) is signed. RG holds
 // red | green << 32 (coloured transport only). FLUX holds RADIANCE_FLUX_WORDS words per voxel, and

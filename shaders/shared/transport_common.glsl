@@ -57,9 +57,11 @@ float coverage_as(uint mode, float coverage) { return mode == COVERAGE_CONSTANT 
 
 bool inside_grid(vec3 p) { return all(greaterThanEqual(p, vec3(0.0))) && all(lessThan(p, grid_dims())); }
 
+// The leaf level at p, from the level-1 node holding p's voxel (octree.comp).
 uint octree_level(vec3 p) {
-    uvec3 v = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0));
-    return levels[(v.z * params.grid_dims.y + v.y) * params.grid_dims.x + v.x];
+    uvec3 c = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) >> 1u;
+    uvec3 cells = (params.grid_dims.xyz + 1u) >> 1u;
+    return levels[(c.z * cells.y + c.y) * cells.x + c.x];
 }
 
 // Distance along unit direction d from p to the exit of the axis-aligned cube of side `size` (voxels)

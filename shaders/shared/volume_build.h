@@ -82,7 +82,7 @@ struct IndexFieldPush {
 // --- octree -----------------------------------------------------------------------------------------
 #define OCTREE_BINDING_INDEX_FIELD 0  // rgba32f storage image (n in .r)
 #define OCTREE_BINDING_PYRAMID 1      // vec2 (min, max) per node, levels 1 and up back to back
-#define OCTREE_BINDING_LEVELS 2       // uint per voxel: level of the leaf covering it
+#define OCTREE_BINDING_LEVELS 2       // uint per level-1 node: level of the leaf covering its voxels
 #define OCTREE_MAX_LEVEL 5            // leaves up to 32 voxels on a side
 #define OCTREE_MODE_LEVEL1_RANGE 0u
 #define OCTREE_MODE_REDUCE 1u
