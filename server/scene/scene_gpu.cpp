@@ -51,10 +51,10 @@ void SceneGpu::allocate_volume(const GridGeometry& grid) {
     scratch_ = vk::Buffer(ctx, voxel_bytes, storage, vk::MemoryUse::device, "coverage scratch");
     index_field_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "index field");
     coverage_image_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32_SFLOAT, "coverage image");
-    pyramid_ = vk::Buffer(ctx, std::max<uint64_t>(passes::octree_layout(grid.dims).node_count, 1) * 2 * sizeof(float), storage,
+    const passes::OctreeLayout octree = passes::octree_layout(grid.dims);
+    pyramid_ = vk::Buffer(ctx, std::max<uint64_t>(octree.node_count, 1) * 2 * sizeof(float), storage,
                           vk::MemoryUse::device, "octree pyramid");
-    levels_ = vk::Buffer(ctx, passes::octree_layout(grid.dims).cell_count * sizeof(uint32_t), storage,
-                         vk::MemoryUse::device, "octree levels");
+    levels_ = vk::Buffer(ctx, octree.cell_count * sizeof(uint32_t), storage, vk::MemoryUse::device, "octree levels");
     grid_ = grid;
     built_ = 0;
 }
