@@ -8,6 +8,7 @@
 // length to every voxel they cross (the track-length estimator of fluence) plus a flux-weighted
 // direction. Accumulation is fixed-point integer atomics: deterministic on every device.
 #include "transport_common.glsl"
+#include "emission.glsl"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 layout(constant_id = PHOTON_CONSTANT_SAMPLED_DEPOSITS) const bool kSampledDeposits = false;
 
@@ -15,8 +16,8 @@ layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) buffer AccumRG { uint64_t a
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLUX) buffer AccumFlux { uint64_t accum_flux[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) buffer AccumFloor { uint accum_floor[]; };
 layout(std430, binding = TRANSPORT_BINDING_PHOTON_EXITS) writeonly buffer Exits { PhotonExit exits[]; };
+layout(std430, binding = TRANSPORT_BINDING_LIGHT_MAP) readonly buffer LightMap { float light_map[]; };
 
-const float kPi = 3.14159265358979;
 
 uint hash(uint x) {
     x ^= x >> 16u;
@@ -55,32 +56,6 @@ uint coherent_order(uint j, uint n) {
     uint b = (uint(findMSB(n)) - 3u) / 2u;  // low bits of the index: the cell's height
     uint low_mask = (1u << b) - 1u;
     return (j & ~((8u << b) - 1u)) | ((j & 7u) << b) | ((j >> 3u) & low_mask);
-}
-
-vec3 perpendicular(vec3 a) {
-    return normalize(abs(a.x) < 0.9 ? cross(a, vec3(1.0, 0.0, 0.0)) : cross(a, vec3(0.0, 1.0, 0.0)));
-}
-
-// Emits photon i: world origin and unit direction; returns false for a photon outside a spot's cone.
-bool emit(uint i, out vec3 origin, out vec3 direction) {
-    vec2 s = stratified(i, params.photon_info.x, params.photon_info.y);
-    if (params.models.z == LIGHT_DIRECTIONAL) {
-        origin = params.emit_origin.xyz + s.x * params.emit_u.xyz + s.y * params.emit_v.xyz;
-        direction = params.emit_axis.xyz;
-        return true;
-    }
-    // Uniform in solid angle over the cone around emit_axis.
-    float cos_t = 1.0 - s.x * (1.0 - params.emit_axis.w);
-    float sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
-    float phi = 2.0 * kPi * s.y;
-    vec3 w = params.emit_axis.xyz;
-    vec3 u = perpendicular(w);
-    vec3 v = cross(w, u);
-    direction = normalize(cos_t * w + sin_t * (cos(phi) * u + sin(phi) * v));
-    origin = params.emit_origin.xyz;
-    if (params.models.z == LIGHT_SPOT && dot(direction, params.light_direction.xyz) < params.light_position.w)
-        return false;
-    return true;
 }
 
 uint voxel_index(ivec3 v) { return (uint(v.z) * params.radiance_grid.y + uint(v.y)) * params.radiance_grid.x + uint(v.x); }
@@ -219,7 +194,8 @@ void main() {
     if (i >= params.photon_info.x) return;
     i = coherent_order(i, params.photon_info.x);
     vec3 origin, direction;
-    if (!emit(i, origin, direction)) return;
+    vec2 sample_point = stratified(i, params.photon_info.x, params.photon_info.y);
+    if (!emit_ray(sample_point, origin, direction)) return;
     rng_state = hash(i ^ hash(params.photon_info.y));
     deposit_phase = i * 2654435769u + hash(params.photon_info.y + 1u);  // 2^32 / the golden ratio
     vec3 weight = params.photon_flux.rgb / params.photon_flux.w;  // relative to the reference flux
@@ -234,7 +210,8 @@ void main() {
         // Misses the grid: lands where the analytic irradiance already counts it.
         return;
     }
-    p += direction * (span.x + 1e-3);
+    float along = span.x + 1e-3;  // voxels from the emitter, while the photon goes straight
+    p += direction * along;
     if (floor_on && p.y <= floor_y) return;  // entered the grid below the floor
     atomicAdd(stats.photons_entered, 1u);
     if (floor_on && direction.y < 0.0)
@@ -254,17 +231,29 @@ void main() {
     bool unbent = true;
     light_in_radiance_voxels = to_voxel(origin) / radiance_factor;
     near_light_squared = params.models.z == LIGHT_DIRECTIONAL ? 0.0 : UNBENT_MIN_DISTANCE * UNBENT_MIN_DISTANCE;
+    // Direct light (transport.h): from `near` to the light map's value the direct-light pass counts this
+    // photon's light, so it deposits nothing there. Steps end on those two points, so that each step
+    // lies wholly on one side. Should the photon bend inside that span after all, it still leaves the
+    // rest of the span to the direct light (the light lands a little off course, but is counted once).
+    float direct_from = params.direct_light.y;
+    float direct_to = params.direct_light.w > 0.5 ? light_map[light_map_texel(sample_point)] : 0.0;
+    bool overlap = false;  // bent or met the object inside that span
     for (; steps < params.photon_info.z; ++steps) {
         uint level = fixed_step ? 0u : octree_level(ray.p);
         float ds = safe_step(level, ray.p, ray.d, shell_step);
-        vec3 kappa = extinction_at(coverage_for(params.flags.y, ray.p, ray.field.x)) * h;  // per voxel length
+        float coverage = coverage_for(params.flags.y, ray.p, ray.field.x);
+        vec3 kappa = extinction_at(coverage) * h;  // per voxel length
+        bool in_direct = along >= direct_from && along < direct_to;
+        overlap = overlap || (in_direct && !flat_medium(ray.field, coverage));
+        if (along < direct_to && direct_from < direct_to)
+            ds = min(ds, max((along < direct_from ? direct_from : direct_to) - along, 1e-3));
         // Stop at the floor or the grid's far side within this step.
         float to_exit = grid_interval(ray.p, ray.d).y;
         bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
         float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
         float len = min(ds, min(to_exit, to_floor));
         unbent = unbent && all(equal(ray.field.yzw, vec3(0.0)));
-        if (deposits) deposit(ray.p / radiance_factor, ray.d, len / radiance_factor, weight, kappa * radiance_factor, unbent);
+        if (deposits && !in_direct) deposit(ray.p / radiance_factor, ray.d, len / radiance_factor, weight, kappa * radiance_factor, unbent);
         path += len;
         if (to_floor <= min(ds, to_exit)) {
             weight *= exp(-kappa * to_floor);
@@ -279,6 +268,7 @@ void main() {
             break;
         }
         ray_step(ray, ds);
+        along += ds;
         if (max(weight.r, max(weight.g, weight.b)) < 1e-4) break;
     }
     flush_deposit();
@@ -289,6 +279,7 @@ void main() {
         deposit_floor(to_world(landing), weight, 1);
     }
     atomicAdd(stats.steps, steps + 1u);
+    if (overlap) atomicAdd(stats.direct_overlaps, 1u);
     if (params.flags.x == 1u) exits[i] = PhotonExit(vec4(entry, 1.0), vec4(direction, path * h), vec4(to_world(ray.p), outcome),
                                                 vec4(ray.d, float(steps + 1u)));
 }

@@ -17,7 +17,7 @@ layout(std430, binding = TRANSPORT_BINDING_HDR) writeonly buffer Hdr { vec4 hdr[
 layout(std430, binding = TRANSPORT_BINDING_LDR) writeonly buffer Ldr { uint ldr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
 layout(std430, binding = TRANSPORT_BINDING_REFINE) readonly buffer Refine {
-    ViewRefineHeader refine;
+    WorkListHeader refine;
     uint refine_pixels[];
 };
 layout(push_constant) uniform Push { ViewPush push; };

@@ -15,7 +15,7 @@ layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportPar
 layout(std430, binding = TRANSPORT_BINDING_HDR) buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LDR) buffer Ldr { uint ldr[]; };
 layout(std430, binding = TRANSPORT_BINDING_REFINE) buffer Refine {
-    ViewRefineHeader refine;
+    WorkListHeader refine;
     uint refine_pixels[];
 };
 

@@ -8,8 +8,14 @@
 
 namespace refract::passes {
 
+uint64_t direct_reach_words(vk::Extent3 radiance_dims) {
+    // One more word: the last run of voxels reads the word after its own.
+    return uint64_t{(radiance_dims.x + 32) / 32} * (radiance_dims.y + 1) * (radiance_dims.z + 1) + 1;
+}
+
 PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, vk::Extent3 radiance_dims,
-                                            uint32_t floor_texels, uint32_t exit_count, bool grey) {
+                                            uint32_t floor_texels, uint32_t light_map_side, uint32_t exit_count,
+                                            bool grey) {
     const uint64_t voxels = radiance_dims.count();
     const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     PhotonAccumulators accum;
@@ -25,53 +31,64 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
     accum.lit_blocks = vk::Buffer(context, lit_cells * sizeof(uint32_t),
                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                                   vk::MemoryUse::device, "lit pyramid");
+    const uint64_t light_map_bytes = uint64_t{light_map_side} * light_map_side * sizeof(float);
+    accum.light_map_traced = vk::Buffer(context, light_map_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                        vk::MemoryUse::device, "light map (traced)");
+    accum.light_map = vk::Buffer(context, light_map_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                                 vk::MemoryUse::device, "light map");
+    // Room for every voxel, up to what one indirect dispatch can take (the pass does the rest at once).
+    const uint64_t edge_capacity =
+        std::min<uint64_t>(voxels, uint64_t{context.limits().maxComputeWorkGroupCount[0]} * TRANSPORT_GROUP_SIZE);
+    accum.direct_edges = vk::Buffer(context, sizeof(shaders::WorkListHeader) + edge_capacity * sizeof(uint32_t),
+                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT |
+                                        VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                    vk::MemoryUse::device, "direct light edge voxels");
+    accum.direct_reach = vk::Buffer(context, direct_reach_words(radiance_dims) * sizeof(uint32_t),
+                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::device, "direct light reach bits");
     accum.exits = vk::Buffer(context, uint64_t{std::max(exit_count, 1u)} * sizeof(shaders::PhotonExit), usage,
                              vk::MemoryUse::readback, "photon exits");
     return accum;
 }
 
 namespace {
-constexpr vk::BindingLayout kLayout[] = {
-    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
-    {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
-    {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
-    {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_ACCUM_RG, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_ACCUM_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_PHOTON_EXITS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_LIGHT_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 // The photon pass's own specialization constant (PHOTON_CONSTANT_SAMPLED_DEPOSITS), per pipeline set.
 static_assert(PHOTON_CONSTANT_SAMPLED_DEPOSITS == TRANSPORT_CONSTANT_COVERAGE_FETCH + 1);
 constexpr uint32_t kExact[] = {0u}, kSampled[] = {1u};
+constexpr auto kLayout = transport_layout(kOwnLayout);
 }  // namespace
 
 PhotonTracePass::PhotonTracePass(vk::Context& context)
     : exact_(context, photon_trace_spv, kLayout, 0, "photon trace", kExact),
       sampled_(context, photon_trace_spv, kLayout, 0, "photon trace (sampled deposits)", kSampled) {}
 
-void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
-                             const PhotonAccumulators& accum, uint32_t photon_count, bool sampled_deposits) const {
-    if (!in.variant.grey) recorder.fill(accum.red_green, 0);
+void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey) {
+    if (!grey) recorder.fill(accum.red_green, 0);
     recorder.fill(accum.flux, 0);
     recorder.fill(accum.floor, 0);
     recorder.fill(accum.stats, 0);
     recorder.fill(accum.exits, 0);
     recorder.transfer_to_compute_barrier();
+}
+
+void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
+                             const PhotonAccumulators& accum, uint32_t photon_count, bool sampled_deposits) const {
     const auto groups = vk::linear_groups(photon_count, TRANSPORT_GROUP_SIZE);
     const vk::ComputePipeline& pipeline = (sampled_deposits ? sampled_ : exact_)(in.variant);
-    pipeline.dispatch(recorder.get(),
-                      {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
-                       vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
-                       vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
-                       vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
-                       vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.red_green),
-                       vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLUX, accum.flux),
-                       vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
-                       vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
-                       vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits)},
-                      nullptr, 0, groups.x, groups.y);
+    const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.red_green),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLUX, accum.flux),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP, accum.light_map)};
+    pipeline.dispatch(recorder.get(), transport_bindings(in, own), nullptr, 0, groups.x, groups.y);
 }
 
 }  // namespace refract::passes

@@ -16,28 +16,29 @@ struct PhotonAccumulators {
     vk::Buffer stats;                 // PhotonStats (host-readable)
     vk::Buffer exits;                 // PhotonExit per photon when recorded (tests), else one entry
     vk::Buffer lit_blocks;            // the lit pyramid (transport.h), written by LitPyramidPass
+    vk::Buffer light_map_traced;      // float per light-map texel (DirectLightPass)
+    vk::Buffer light_map;             // float per light-map texel: where each texel's direct light ends
+    vk::Buffer direct_edges;          // WorkListHeader + radiance voxels the direct light's edge crosses
+    vk::Buffer direct_reach;          // a bit per radiance-voxel corner (DirectLightPass)
 };
+
+// Words of direct_reach for a radiance grid of `radiance_dims` voxels: rows of 32 corners along x.
+uint64_t direct_reach_words(vk::Extent3 radiance_dims);
 
 // `dims`: the index field's voxels (lit blocks cover those); `radiance_dims`: the radiance grid's; `grey`:
 // grey transport, which keeps no red and green sums.
 PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, vk::Extent3 radiance_dims,
-                                            uint32_t floor_texels, uint32_t exit_count, bool grey);
+                                            uint32_t floor_texels, uint32_t light_map_side, uint32_t exit_count,
+                                            bool grey);
 
-// Inputs shared by the photon and viewing passes.
-struct TransportInputs {
-    const vk::Buffer& params;
-    const vk::Image3D& index_field;
-    const vk::Image3D& coverage;
-    const vk::Buffer& levels;
-    VkSampler sampler;
-    TransportVariant variant;
-};
+// Zeroes the sums, counters and exits before a frame's direct light and photons add to them.
+void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey);
 
 class PhotonTracePass {
 public:
     explicit PhotonTracePass(vk::Context& context);
-    // Clears the accumulators and traces `photon_count` photons; `sampled_deposits`: one deposit per
-    // radiance voxel of path instead of one per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS).
+    // Traces `photon_count` photons into the accumulators; `sampled_deposits`: one deposit per radiance
+    // voxel of path instead of one per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS).
     void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const PhotonAccumulators& accum,
                 uint32_t photon_count, bool sampled_deposits) const;
 

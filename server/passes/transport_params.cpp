@@ -32,6 +32,11 @@ std::array<glm::vec3, 8> corners(const scene::GridGeometry& grid) {
     return c;
 }
 
+// A unit vector perpendicular to unit vector a (any will do; this one is never parallel to a).
+glm::vec3 unit_across(glm::vec3 a) {
+    return glm::normalize(std::abs(a.x) < 0.9f ? glm::cross(a, glm::vec3(1, 0, 0)) : glm::cross(a, glm::vec3(0, 1, 0)));
+}
+
 // Largest power of two not above x (x >= 1).
 float power_of_two_below(double x) { return static_cast<float>(std::exp2(std::floor(std::log2(std::max(x, 1.0))))); }
 
@@ -41,6 +46,13 @@ uint32_t floor_map_texels(const scene::GridGeometry& grid) {
     // The map spans up to 4 grid extents; about two voxels per texel keeps the photon noise down.
     const float extent = static_cast<float>(std::max({grid.dims.x, grid.dims.y, grid.dims.z}));
     return std::clamp(static_cast<uint32_t>(extent * 4.0f / 2.0f), 64u, 1024u);
+}
+
+uint32_t light_map_texels(const scene::GridGeometry& grid, uint32_t photons) {
+    // About a texel per voxel across the grid, and no more rays than a sixteenth of the photons: the map
+    // costs a ray each, and a coarser one only leaves more of the light to the photons.
+    const auto quarter_root = static_cast<uint32_t>(std::sqrt(static_cast<double>(photons)) / 4.0);
+    return std::clamp(std::min(std::max({grid.dims.x, grid.dims.y, grid.dims.z}), quarter_root), 32u, 512u);
 }
 
 std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims) {
@@ -91,8 +103,7 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     if (light_type == LIGHT_DIRECTIONAL) {
         // A rectangle perpendicular to the light covering the grid's projection, just in front of it.
         const glm::vec3 d = light_direction;
-        const glm::vec3 u = glm::normalize(std::abs(d.x) < 0.9f ? glm::cross(d, glm::vec3(1, 0, 0))
-                                                                 : glm::cross(d, glm::vec3(0, 1, 0)));
+        const glm::vec3 u = unit_across(d);
         const glm::vec3 v = glm::cross(d, u);
         glm::vec3 lo(1e30f), hi(-1e30f);
         for (const auto& c : corners(grid)) {
@@ -127,6 +138,9 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
             }
         }
         p.emit_axis = glm::vec4(axis, cos_cone);
+        const glm::vec3 u = unit_across(axis);
+        p.emit_u = glm::vec4(u, 0.0f);
+        p.emit_v = glm::vec4(glm::cross(axis, u), 0.0f);
         p.emit_origin = glm::vec4(light_position, 1.0f);
         const float solid_angle = 2.0f * std::numbers::pi_v<float> * (1.0f - cos_cone);
         flux = power * solid_angle / static_cast<float>(photons);
@@ -210,6 +224,11 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     const auto lit = lit_pyramid_offsets(grid.dims);
     static_assert(LIT_LEVELS == 4);
     p.lit_offsets = glm::uvec4(lit[0], lit[1], lit[2], lit[3]);
+    // Direct light from UNBENT_MIN_DISTANCE radiance voxels (plus one, for the voxel's own extent) from a
+    // point or spot light on: every voxel it reaches takes unbent deposits (transport.h).
+    const float near = light_type == LIGHT_DIRECTIONAL ? 0.0f : (UNBENT_MIN_DISTANCE + 1.0f) * static_cast<float>(options.radiance_factor);
+    p.direct_light = glm::vec4(static_cast<float>(light_map_texels(grid, photons)), near, 0.0f,
+                               options.direct_light && any_scattering ? 1.0f : 0.0f);
     p.sky_zenith = glm::vec4(0.010f, 0.014f, 0.024f, 0.0f);
     p.sky_horizon = glm::vec4(0.045f, 0.050f, 0.060f, 0.0f);
     return p;

@@ -18,6 +18,7 @@ struct TransportOptions {
     float view_step = 1.0f;    // voxels, eye-ray step where the medium scatters
     uint32_t max_level = 0;    // octree levels present
     uint32_t radiance_factor = 1;  // index-field voxels per radiance voxel along each axis (1 or 2)
+    bool direct_light = true;  // unbent light in closed form (DirectLightPass) rather than by photons
 };
 
 shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
@@ -32,5 +33,8 @@ std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims);
 
 // Texels per side of the floor caustic map for this grid.
 uint32_t floor_map_texels(const scene::GridGeometry& grid);
+
+// Texels per side of the light map (DirectLightPass) for this grid and photon count.
+uint32_t light_map_texels(const scene::GridGeometry& grid, uint32_t photons);
 
 }  // namespace refract::passes

@@ -3,10 +3,14 @@
 // work: a uniform branch would not do, as lavapipe runs both sides of every branch.
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <span>
 #include <vector>
 
+#include "transport.h"
 #include "vk/pipeline.h"
+#include "vk/resources.h"
 
 namespace refract::passes {
 
@@ -14,6 +18,46 @@ struct TransportVariant {
     bool grey = false;            // grey transport (TRANSPORT_CONSTANT_GREY)
     bool coverage_fetch = false;  // some coefficient reads the coverage texture (TRANSPORT_CONSTANT_COVERAGE_FETCH)
 };
+
+// What every transport pass reads first: the frame's parameters, the index field, its coverage and the
+// octree's levels, at the same bindings in each (TRANSPORT_BINDING_*).
+struct TransportInputs {
+    const vk::Buffer& params;
+    const vk::Image3D& index_field;
+    const vk::Image3D& coverage;
+    const vk::Buffer& levels;
+    VkSampler sampler;
+    TransportVariant variant;
+};
+
+inline constexpr vk::BindingLayout kTransportInputLayout[] = {
+    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
+    {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+};
+constexpr size_t kTransportInputCount = std::size(kTransportInputLayout);
+
+// A pass's layout: the inputs' bindings, then its own.
+template <size_t N>
+constexpr std::array<vk::BindingLayout, kTransportInputCount + N> transport_layout(const vk::BindingLayout (&own)[N]) {
+    std::array<vk::BindingLayout, kTransportInputCount + N> layout{};
+    for (size_t i = 0; i < kTransportInputCount; ++i) layout[i] = kTransportInputLayout[i];
+    for (size_t i = 0; i < N; ++i) layout[kTransportInputCount + i] = own[i];
+    return layout;
+}
+
+// The bindings for transport_layout(own): the inputs', then the pass's own, in the same order.
+template <size_t N>
+std::array<vk::Binding, kTransportInputCount + N> transport_bindings(const TransportInputs& in, const vk::Binding (&own)[N]) {
+    std::array<vk::Binding, kTransportInputCount + N> bindings{
+        vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
+        vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
+        vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels)};
+    for (size_t i = 0; i < N; ++i) bindings[kTransportInputCount + i] = own[i];
+    return bindings;
+}
 
 class TransportPipeline {
 public:

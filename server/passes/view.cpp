@@ -8,11 +8,7 @@
 namespace refract::passes {
 
 namespace {
-constexpr vk::BindingLayout kLayout[] = {
-    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
-    {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
-    {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
-    {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
@@ -22,6 +18,7 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_REFINE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
+constexpr auto kLayout = transport_layout(kOwnLayout);
 }  // namespace
 
 ViewPass::ViewPass(vk::Context& context)
@@ -42,22 +39,18 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
     adaptive = adaptive && vk::group_count(static_cast<uint32_t>(listable), VIEW_GROUP_SIZE * VIEW_GROUP_SIZE) <=
                                context_.limits().maxComputeWorkGroupCount[0];
     // An empty list (also when not adaptive: every dispatch then reads a defined count).
-    const shaders::ViewRefineHeader empty{0, 1, 1, 0};
+    const shaders::WorkListHeader empty{0, 1, 1, 0};
     recorder.update(out.refine, 0, &empty, sizeof(empty));
     recorder.transfer_to_compute_barrier();
-    const vk::Binding bindings[] = {
-        vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
-        vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
-        vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
-        vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
-        vk::Binding::sampled_image(TRANSPORT_BINDING_RADIANCE, radiance, in.sampler),
-        vk::Binding::sampled_image(TRANSPORT_BINDING_FLUX, flux, in.sampler),
-        vk::Binding::sampled_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map, in.sampler),
-        vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, out.hdr),
-        vk::Binding::storage_buffer(TRANSPORT_BINDING_LDR, out.ldr),
-        vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats),
-        vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, out.lit_blocks),
-        vk::Binding::storage_buffer(TRANSPORT_BINDING_REFINE, out.refine)};
+    const vk::Binding own[] = {vk::Binding::sampled_image(TRANSPORT_BINDING_RADIANCE, radiance, in.sampler),
+                               vk::Binding::sampled_image(TRANSPORT_BINDING_FLUX, flux, in.sampler),
+                               vk::Binding::sampled_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map, in.sampler),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, out.hdr),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_LDR, out.ldr),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, out.lit_blocks),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_REFINE, out.refine)};
+    const auto bindings = transport_bindings(in, own);
     const vk::ComputePipeline& view = pipeline_(in.variant);
     if (!adaptive) {
         view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_ALL},
@@ -71,7 +64,7 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
     recorder.compute_barrier();
     const shaders::ViewPush listed{VIEW_PIXELS_LISTED};
     view.dispatch_indirect(recorder.get(), bindings, &listed, sizeof(listed), out.refine,
-                           offsetof(shaders::ViewRefineHeader, groups_x));
+                           offsetof(shaders::WorkListHeader, groups_x));
 }
 
 }  // namespace refract::passes

@@ -12,7 +12,7 @@ struct ViewOutputs {
     const vk::Buffer& ldr;  // RGBA8 per pixel
     const vk::Buffer& stats;  // PhotonStats; the view pass counts view_steps
     const vk::Buffer& lit_blocks;
-    const vk::Buffer& refine;  // ViewRefineHeader + a pixel index per pixel (transport.h), for adaptive frames
+    const vk::Buffer& refine;  // WorkListHeader + a pixel index per pixel (transport.h), for adaptive frames
 };
 
 class ViewPass {

@@ -12,6 +12,7 @@ PassKit::PassKit(vk::Context& ctx)
       voxelize(ctx),
       index_field(ctx),
       octree(ctx),
+      direct_light(ctx),
       photon_trace(ctx),
       radiance_resolve(ctx),
       lit_pyramid(ctx),
@@ -59,6 +60,9 @@ void SceneGpu::allocate_volume(const GridGeometry& grid) {
     built_ = 0;
 }
 
+// The light map is sized for the grid at any photon count; a frame uses as much of it as its count needs.
+constexpr uint32_t kMaxLightMapPhotons = 0xffffffffu;
+
 void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits, uint32_t radiance_factor, bool grey) {
     vk::Context& ctx = kit_.context;
     const uint32_t floor_texels = passes::floor_map_texels(grid_);
@@ -67,7 +71,8 @@ void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits, uint
     const vk::Extent3 radiance_dims = grid_.coarsened(f);
     if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_ || grey != grey_) {
         accum_.reset();
-        accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels, exits, grey));
+        accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels,
+                                                        passes::light_map_texels(grid_, kMaxLightMapPhotons), exits, grey));
         exit_capacity_ = exits;
     }
     if (!flux_.get() || f != radiance_factor_) {
@@ -98,7 +103,7 @@ void SceneGpu::allocate_frame(uint32_t width, uint32_t height) {
     refine_ = {};
     hdr_ = vk::Buffer(ctx, uint64_t{width} * height * sizeof(glm::vec4), usage, vk::MemoryUse::readback, "hdr frame");
     ldr_ = vk::Buffer(ctx, uint64_t{width} * height * sizeof(uint32_t), usage, vk::MemoryUse::readback, "ldr frame");
-    refine_ = vk::Buffer(ctx, sizeof(shaders::ViewRefineHeader) + uint64_t{width} * height * sizeof(uint32_t),
+    refine_ = vk::Buffer(ctx, sizeof(shaders::WorkListHeader) + uint64_t{width} * height * sizeof(uint32_t),
                          usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                          vk::MemoryUse::device, "view refinement list");
     width_ = width;
@@ -146,6 +151,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     transport_options.view_step = options.view_step;
     transport_options.max_level = passes::octree_layout(grid_.dims).max_level;
     transport_options.radiance_factor = options.radiance_factor;
+    transport_options.direct_light = options.direct_light;
     params_ = passes::make_transport_params(document, grid_, transport_options);
     params_.flags.x = options.record_photon_exits ? 1u : 0u;
     if (!params_buffer_.get())
@@ -213,6 +219,12 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                                          {grey_, params_.flags.y == COVERAGE_FETCH || params_.flags.z == COVERAGE_FETCH}};
     if (stale & kPhotons) {
         timer_.begin(cmd, "photons");
+        passes::clear_photon_accumulators(recorder_, *accum_, grey_);
+        if (params_.direct_light.w > 0.5f) {
+            kit_.direct_light.record(recorder_, inputs, *accum_, static_cast<uint32_t>(params_.direct_light.x),
+                                     grid_.coarsened(options.radiance_factor));
+            recorder_.compute_barrier();
+        }
         kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count, options.sampled_deposits);
         recorder_.compute_barrier();
         kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, grey_, radiance_, flux_, floor_map_);
@@ -242,6 +254,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             stats.photons_entered = counters.photons_entered;
             stats.photon_steps = counters.steps;
             stats.floor_hits = counters.floor_hits;
+            stats.direct_overlaps = counters.direct_overlaps;
         }
         if (stale & kView) stats.view_steps = counters.view_steps;
     }

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "mesh/mesh.h"
+#include "passes/direct_light.h"
 #include "passes/index_field.h"
 #include "passes/lit_pyramid.h"
 #include "passes/octree.h"
@@ -33,6 +34,7 @@ struct PassKit {
     passes::VoxelizePass voxelize;
     passes::IndexFieldPass index_field;
     passes::OctreePass octree;
+    passes::DirectLightPass direct_light;
     passes::PhotonTracePass photon_trace;
     passes::RadianceResolvePass radiance_resolve;
     passes::LitPyramidPass lit_pyramid;
@@ -47,6 +49,7 @@ struct RunStats {
     uint64_t photons_entered = 0;
     uint64_t photon_steps = 0;
     uint64_t floor_hits = 0;
+    uint64_t direct_overlaps = 0;  // photons that bent where direct light was still counted (transport.h)
     uint64_t view_steps = 0;  // eye-ray march steps, when the viewing pass ran
     double mean_steps_per_photon() const {
         return photons_entered ? static_cast<double>(photon_steps) / static_cast<double>(photons_entered) : 0.0;
@@ -62,6 +65,7 @@ struct RunOptions {
     bool sampled_deposits = false; // photons deposit once per radiance voxel of path, not exactly per
                                    // voxel crossed (photon_trace.comp); interactive
     bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
+    bool direct_light = true;     // unbent light in closed form; false: photons carry all light (tests)
 };
 
 // Device memory a scene of this size holds (bytes), for budgets before allocating.

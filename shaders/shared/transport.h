@@ -43,6 +43,34 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when flags.x == 1
 #define TRANSPORT_BINDING_LIT_BLOCKS 18     // the lit pyramid: uint per cell per level (see LIT_BLOCK)
 #define TRANSPORT_BINDING_REFINE 19         // ViewRefineList: pixels the viewing pass traces after the coarse ones
+#define TRANSPORT_BINDING_LIGHT_MAP 20      // float per light-map texel: where its photons' direct light ends
+#define TRANSPORT_BINDING_LIGHT_MAP_TRACED 21  // float per texel: where the texel's own ray stops going straight
+
+// Direct light (direct_light.comp). Light that has met no gradient of n and no object travels straight
+// from the light through the medium, so its fluence is known in closed form: the light's intensity
+// over r^2 (or its irradiance), times Beer-Lambert through the medium. Photons and the direct-light
+// pass split it between them by one rule: a photon skips its deposits over the part of its path from
+// `near` (direct_light.y; 0 for a directional light) to the light map's value at its emission sample,
+// and the pass adds, per radiance voxel, the closed-form fluence of exactly that part of every ray.
+// The light map holds, per texel of the emission square (photon_trace.comp, emit), how far (voxels,
+// from the light or the emitter's plane) the rays of that texel certainly still go straight: the
+// least of the traced stops of the texel and its neighbours, less a margin. A photon that bends
+// earlier anyway is counted in PhotonStats::direct_overlaps.
+#define DIRECT_CONSTANT_MODE 2   // after the transport constants
+#define DIRECT_MODE_TRACE 0u     // one ray per light-map texel: where it stops going straight
+#define DIRECT_MODE_MARGIN 1u    // the light map: the least stop around each texel, less the margin
+#define DIRECT_MODE_REACH 2u     // one invocation per 32 radiance-voxel corners along x: which of them
+                                 // photons leave to the direct light, a bit each
+#define DIRECT_MODE_DEPOSIT 3u   // one invocation per radiance voxel: the closed-form direct light where
+                                 // all its corners take it; listed where only some do
+#define DIRECT_MODE_EDGE 4u      // one invocation per listed voxel: the same on a finer rule
+#define TRANSPORT_BINDING_DIRECT_EDGES 22  // WorkListHeader + radiance voxels (DIRECT_MODE_EDGE)
+#define TRANSPORT_BINDING_DIRECT_REACH 23  // bits per radiance-voxel corner, rows of 32 along x (DIRECT_MODE_REACH)
+#define DIRECT_MARGIN 2.0f       // voxels
+// Direct light treats a gradient of n (per voxel) and a coverage up to this as none: the smoothing
+// Gaussian's tails leave values of 1e-15 and so far from any object, which over a 1000-voxel path bend
+// light by under 1e-3 rad and change its extinction by a millionth of the object's.
+#define DIRECT_FLAT 1e-6f
 
 // Eye rays cross unlit fog in whole cells of the lit pyramid: a level-0 cell of LIT_BLOCK^3 voxels is
 // lit when photons reached any voxel whose trilinear footprint overlaps it; each level above merges 2^3
@@ -98,8 +126,8 @@ struct TransportParams {
     vec4 light_power;         // rgb: intensity x colour (W/sr or W/m^2); w: unused
     // Photon generation: photons cover a cone (point, spot) or a rectangle (directional)
     vec4 emit_axis;           // cone axis or rectangle normal (= travel direction); w: cos of cone half-angle
-    vec4 emit_u;              // rectangle first edge (world, full length); w: unused
-    vec4 emit_v;              // rectangle second edge; w: unused
+    vec4 emit_u;              // rectangle first edge (world, full length); a cone's unit x across its axis; w: unused
+    vec4 emit_v;              // rectangle second edge; a cone's unit y (axis x emit_u); w: unused
     vec4 emit_origin;         // rectangle corner (world) or cone apex (light position)
     vec4 photon_flux;         // rgb: flux carried by each photon at emission (W); w: reference flux
     uvec4 photon_info;        // x: photon count, y: seed, z: max steps per photon, w: fixed step (1) or adaptive (0)
@@ -125,6 +153,8 @@ struct TransportParams {
                               // each axis (1; 3 for interactive frames: 1/27 the voxels to clear and
                               // resolve, 1/3 as many for a photon to cross)
     uvec4 lit_offsets;        // where each level of the lit pyramid starts in the lit-blocks buffer
+    vec4 direct_light;        // x: light-map texels per side; y: near, where direct light may begin (voxels
+                              // from a point or spot light); z: unused; w: 1 = direct light in closed form
 };
 
 // The unit direction light travels at world point x as if nothing were in its way: the net flux
@@ -176,6 +206,7 @@ struct PhotonStats {
     uint floor_hits;
     uint view_steps;        // eye-ray march steps (the viewing pass)
     uint queue_taken[3];    // work items handed out so far by each pass's queue (take_from_queue)
+    uint direct_overlaps;   // photons that bent (or met the object) where direct light was still counted
 };
 #define QUEUE_VIEW_PIXELS 0u
 #define QUEUE_VIEW_REFINED 1u
@@ -199,9 +230,10 @@ struct ViewPush {
 #define VIEW_REFINE_LEVELS 4u
 #define VIEW_REFINE_GROUP_SIZE (VIEW_GROUP_SIZE * VIEW_GROUP_SIZE)  // one group per tile
 
-// The list view_refine.comp fills: the header is the indirect dispatch of the listed pixels (groups of
-// VIEW_GROUP_SIZE^2 invocations), then the count, then the pixels (y * width + x) in the order listed.
-struct ViewRefineHeader {
+// A list of work items one pass appends and an indirect dispatch then takes: the header is that
+// dispatch's group counts, then the count of items, then the items in the order listed. view_refine.comp
+// lists pixels (y * width + x; groups of VIEW_GROUP_SIZE^2), direct_light.comp radiance voxels.
+struct WorkListHeader {
     uint groups_x, groups_y, groups_z;
     uint count;
 };
@@ -209,9 +241,9 @@ struct ViewRefineHeader {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == 31 * 16);
-static_assert(sizeof(refract::shaders::PhotonStats) == 28);
-static_assert(sizeof(refract::shaders::ViewRefineHeader) == 16);
+static_assert(sizeof(refract::shaders::TransportParams) == 32 * 16);
+static_assert(sizeof(refract::shaders::PhotonStats) == 32);
+static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 64);
 #endif
 

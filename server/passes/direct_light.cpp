@@ -1,0 +1,68 @@
+#include "passes/direct_light.h"
+
+#include <array>
+#include <cstddef>
+#include <iterator>
+
+#include "direct_light_spv.h"
+#include "transport.h"
+
+namespace refract::passes {
+
+namespace {
+constexpr vk::BindingLayout kOwnLayout[] = {
+    {TRANSPORT_BINDING_ACCUM_RG, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_ACCUM_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_LIGHT_MAP_TRACED, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_LIGHT_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_DIRECT_EDGES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_DIRECT_REACH, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+};
+constexpr auto kLayout = transport_layout(kOwnLayout);
+static_assert(DIRECT_CONSTANT_MODE == TRANSPORT_CONSTANT_COVERAGE_FETCH + 1);
+constexpr uint32_t kTrace[] = {DIRECT_MODE_TRACE}, kMargin[] = {DIRECT_MODE_MARGIN}, kReach[] = {DIRECT_MODE_REACH},
+                   kDeposit[] = {DIRECT_MODE_DEPOSIT}, kEdge[] = {DIRECT_MODE_EDGE};
+
+std::array<vk::Binding, kLayout.size()> bindings(const TransportInputs& in, const PhotonAccumulators& accum) {
+    const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.red_green),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLUX, accum.flux),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP_TRACED, accum.light_map_traced),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP, accum.light_map),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_DIRECT_EDGES, accum.direct_edges),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_DIRECT_REACH, accum.direct_reach)};
+    return transport_bindings(in, own);
+}
+
+void dispatch(const TransportPipeline& pipeline, vk::CommandRecorder& recorder, const TransportInputs& in,
+              const PhotonAccumulators& accum, uint64_t items) {
+    const auto groups = vk::linear_groups(items, TRANSPORT_GROUP_SIZE);
+    pipeline(in.variant).dispatch(recorder.get(), bindings(in, accum), nullptr, 0, groups.x, groups.y);
+}
+}  // namespace
+
+DirectLightPass::DirectLightPass(vk::Context& context)
+    : trace_(context, direct_light_spv, kLayout, 0, "light map (trace)", kTrace),
+      margin_(context, direct_light_spv, kLayout, 0, "light map (margin)", kMargin),
+      reach_(context, direct_light_spv, kLayout, 0, "direct light (reach)", kReach),
+      deposit_(context, direct_light_spv, kLayout, 0, "direct light", kDeposit),
+      edge_(context, direct_light_spv, kLayout, 0, "direct light (edge voxels)", kEdge) {}
+
+void DirectLightPass::record(vk::CommandRecorder& recorder, const TransportInputs& inputs,
+                             const PhotonAccumulators& accum, uint32_t light_map_side, vk::Extent3 radiance_dims) const {
+    const shaders::WorkListHeader empty{0, 1, 1, 0};
+    recorder.update(accum.direct_edges, 0, &empty, sizeof(empty));
+    recorder.transfer_to_compute_barrier();
+    const uint64_t texels = uint64_t{light_map_side} * light_map_side;
+    dispatch(trace_, recorder, inputs, accum, texels);
+    recorder.compute_barrier();
+    dispatch(margin_, recorder, inputs, accum, texels);
+    recorder.compute_barrier();
+    dispatch(reach_, recorder, inputs, accum, direct_reach_words(radiance_dims));
+    recorder.compute_barrier();
+    dispatch(deposit_, recorder, inputs, accum, uint64_t{(radiance_dims.x + 31) / 32} * radiance_dims.y * radiance_dims.z);
+    recorder.compute_barrier();
+    edge_(inputs.variant).dispatch_indirect(recorder.get(), bindings(inputs, accum), nullptr, 0, accum.direct_edges,
+                                           offsetof(shaders::WorkListHeader, groups_x));
+}
+
+}  // namespace refract::passes

@@ -1,0 +1,242 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+// Direct light in closed form (transport.h, DIRECT_*): the light map, then the fluence of the light that
+// photons leave to this pass, added to the radiance grid's sums in the photons' own fixed-point units.
+// Unbent light is about half of all photon deposits; in closed form it costs one evaluation per radiance
+// voxel and carries no photon noise.
+#include "transport_common.glsl"
+#include "emission.glsl"
+layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
+#include "linear_id.glsl"
+layout(constant_id = DIRECT_CONSTANT_MODE) const uint kMode = DIRECT_MODE_TRACE;
+
+layout(std430, binding = TRANSPORT_BINDING_LIGHT_MAP_TRACED) buffer Traced { float traced[]; };
+layout(std430, binding = TRANSPORT_BINDING_LIGHT_MAP) buffer LightMap { float light_map[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) buffer AccumRG { uint64_t accum_rg[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLUX) buffer AccumFlux { uint64_t accum_flux[]; };
+layout(std430, binding = TRANSPORT_BINDING_DIRECT_EDGES) buffer Edges {
+    WorkListHeader edges;
+    uint edge_voxels[];
+};
+layout(std430, binding = TRANSPORT_BINDING_DIRECT_REACH) buffer Reach { uint reach[]; };
+
+const float kStraightOn = 1e30;  // a ray that leaves the grid without bending
+
+// How far (voxels from the emitter) the photon of emission sample s goes straight through medium: the
+// photon pass's own stepping, stopped at the first step that starts on a gradient of n or on the
+// object, or at the floor; 0 where no photon is emitted or it enters below the floor.
+float straight_run(vec2 s) {
+    vec3 origin, direction;
+    if (!emit_ray(s, origin, direction)) return 0.0;
+    vec3 p = to_voxel(origin);
+    vec2 span = grid_interval(p, direction);
+    if (span.x >= span.y) return kStraightOn;
+    float along = span.x + 1e-3;
+    p += direction * along;
+    bool floor_on = floor_enabled();
+    float floor_y = floor_height_voxels();
+    if (floor_on && p.y <= floor_y) return 0.0;
+    Ray ray = start_ray(p, direction);
+    bool fixed_step = params.photon_info.w == 1u;
+    float near = params.direct_light.y;
+    for (uint steps = 0u; steps < params.photon_info.z; ++steps) {
+        if (!flat_medium(ray.field, coverage_for(params.flags.y, ray.p, ray.field.x))) return along;
+        float ds = safe_step(fixed_step ? 0u : octree_level(ray.p), ray.p, ray.d, params.stepping.x);
+        if (along < near) ds = min(ds, max(near - along, 1e-3));  // the photons' step there (photon_trace.comp)
+        float to_exit = grid_interval(ray.p, ray.d).y;
+        if (floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y && (ray.p.y - floor_y) / -ray.d.y < to_exit)
+            return along + (ray.p.y - floor_y) / -ray.d.y;
+        // Photons of the texel's other rays start their steps elsewhere: look for the object or a
+        // gradient of n every voxel along this step, not only where it starts.
+        for (float t = 1.0; t < min(ds, to_exit); t += 1.0) {
+            vec4 field = index_at(ray.p + t * ray.d);
+            if (!flat_medium(field, coverage_for(params.flags.y, ray.p + t * ray.d, field.x))) return along + t - 1.0;
+        }
+        if (to_exit <= ds) return kStraightOn;
+        ray_step(ray, ds);
+        along += ds;
+    }
+    return along;
+}
+
+// The light map: the least straight run over a texel and its neighbours, less DIRECT_MARGIN, so that the
+// photons of a texel (anywhere in it) still go straight where the map says. The emission square of a
+// cone is polar (s.x from the axis, s.y around it, which wraps); near the axis every texel of the first
+// columns neighbours every other, so those take the least of the first three columns.
+float light_map_value(uvec2 t) {
+    int side = int(params.direct_light.x);
+    bool cone = params.models.z != LIGHT_DIRECTIONAL;
+    float least = kStraightOn;
+    if (cone && (t.x <= 1u || t.x + 2u >= uint(side))) {
+        int first = t.x <= 1u ? 0 : side - 3;
+        for (int y = 0; y < side; ++y)
+            for (int x = first; x < first + 3; ++x) least = min(least, traced[y * side + x]);
+    } else {
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+                int x = clamp(int(t.x) + dx, 0, side - 1);
+                int y = int(t.y) + dy;
+                y = cone ? (y + side) % side : clamp(y, 0, side - 1);
+                least = min(least, traced[y * side + x]);
+            }
+    }
+    return least - DIRECT_MARGIN;
+}
+
+// Whether photons leave the light at world point x to this pass; then `along` is how far x lies along its
+// ray (voxels) and d the ray's direction.
+bool direct_reaches(vec3 x, out float along, out vec3 d) {
+    vec2 s;
+    return emission_sample(x, s, along, d) && along >= params.direct_light.y && along < light_map[light_map_texel(s)];
+}
+
+// The direct light's fluence rate (rgb, W/m^2) at voxel point p, `along` voxels down its ray along d: the
+// light's intensity over r^2 (or its irradiance), through the medium from the grid's face.
+vec3 direct_fluence(vec3 p, float along, vec3 d) {
+    float h = voxel_size();
+    float in_medium = (along - grid_interval(p - d * along, d).x) * h;  // metres
+    vec3 light = params.models.z == LIGHT_DIRECTIONAL ? params.light_power.rgb : params.light_power.rgb / (along * along * h * h);
+    if (params.models.w != CHANNEL_ALL) light *= vec3(equal(uvec3(0u, 1u, 2u), uvec3(params.models.w)));
+    return light * exp(-params.medium_extinction.rgb * in_medium);
+}
+
+// The mean of a point light's 1/r^2 over a box of `extent` (voxels) centred `along` voxels from it in
+// direction d, over its value at the centre: 1 + sum_i extent_i^2 / 24 (d^2/dx_i^2 r^-2) / r^-2 to second
+// order, which the midpoint rule misses (a third of a percent five voxels from the light). Beer-Lambert
+// and a directional light vary too slowly across a voxel to matter.
+float box_mean_factor(vec3 extent, float along, vec3 d) {
+    if (params.models.z == LIGHT_DIRECTIONAL) return 1.0;
+    return 1.0 + dot(extent * extent, 8.0 * d * d - 2.0) / (24.0 * along * along);
+}
+
+// The part of radiance voxel i inside the grid (index-field voxels): its low corner and extent.
+void voxel_box(uint i, out vec3 lo, out vec3 extent) {
+    uvec3 dims = params.radiance_grid.xyz;
+    uvec3 v = uvec3(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
+    uint f = params.radiance_grid.w;
+    lo = vec3(f * v);
+    extent = vec3(min(uvec3(f), params.grid_dims.xyz - f * v));
+}
+
+// Two fixed-point values as one 64-bit addend (transport.h).
+uint64_t pack(int low, int high) { return uint64_t(int64_t(low)) + (uint64_t(int64_t(high)) << 32); }
+
+// Stores mean fluence rate `fluence` over radiance voxel i's part inside the grid as the photons' sums
+// would hold it (flux x length x scale / reference flux), for the resolve pass to read back. The pass
+// runs between the sums' clear and the photons, which add to them.
+void store_sums(uint i, vec3 extent, vec3 fluence) {
+    float f = float(params.radiance_grid.w);
+    float h_r = voxel_size() * f;
+    float inside_fraction = extent.x * extent.y * extent.z / (f * f * f);
+    vec3 units = fluence * (params.stepping.z * h_r * h_r * inside_fraction / params.photon_flux.w);
+    ivec3 q = ivec3(units + 0.5);
+    int mean = int((units.r + units.g + units.b) * (1.0 / 3.0) + 0.5);
+    // Word 0 holds unbent light's sums.
+    if (!kGreyTransport) accum_rg[i] = pack(q.r, q.g);
+    accum_flux[RADIANCE_FLUX_WORDS * i] = pack(kGreyTransport ? mean : q.b, mean);
+}
+
+// A voxel the direct light's edge crosses: the mean over 3^3 points.
+void deposit_edge_voxel(uint i) {
+    vec3 lo, extent;
+    voxel_box(i, lo, extent);
+    vec3 sum = vec3(0.0);
+    for (uint k = 0u; k < 27u; ++k) {
+        vec3 p = lo + extent * ((vec3(k % 3u, (k / 3u) % 3u, k / 9u) + 0.5) * (1.0 / 3.0));
+        float along;
+        vec3 d;
+        if (direct_reaches(to_world(p), along, d)) sum += direct_fluence(p, along, d);
+    }
+    store_sums(i, extent, sum * (1.0 / 27.0));
+}
+
+// The corners of the radiance voxels: (dims + 1) per axis, at index-field voxel points clamped to the
+// grid (where the last voxel of a side reaches past it). Their reach bits lie in rows along x of
+// reach_words() words each.
+uint reach_words() { return (params.radiance_grid.x + 32u) / 32u; }
+vec3 corner_point(uvec3 c) { return vec3(min(c * params.radiance_grid.w, params.grid_dims.xyz)); }
+uint reach_bit(uvec3 c) {
+    uint word = ((c.z * (params.radiance_grid.y + 1u) + c.y) * reach_words() + c.x / 32u);
+    return (reach[word] >> (c.x % 32u)) & 1u;
+}
+
+// One word of reach bits: 32 corners along x.
+void mark_reach(uint i) {
+    uint words = reach_words();
+    uvec3 dims = params.radiance_grid.xyz + 1u;
+    if (i >= words * dims.y * dims.z) return;
+    uvec3 c = uvec3(32u * (i % words), (i / words) % dims.y, i / (words * dims.y));
+    uint bits = 0u;
+    for (uint b = 0u; b < 32u; ++b) {
+        float along;
+        vec3 d;
+        uvec3 corner = uvec3(c.x + b, c.yz);
+        if (corner.x < dims.x && direct_reaches(to_world(corner_point(corner)), along, d)) bits |= 1u << b;
+    }
+    reach[i] = bits;
+}
+
+// 32 radiance voxels along x (one word of reach bits): where all of a voxel's corners take direct light,
+// the fluence at its centre (the midpoint rule); where some do, the voxel is listed for
+// deposit_edge_voxel (or done at once if the list is full).
+void deposit_run(uint i) {
+    uvec3 dims = params.radiance_grid.xyz;
+    uint words = (dims.x + 31u) / 32u;
+    bool valid = i < words * dims.y * dims.z;
+    uvec3 first = uvec3(32u * (i % words), (i / words) % dims.y, min(i / (words * dims.y), dims.z - 1u));
+    // The four rows of corners around the run, each with the word after (the corner past its last voxel).
+    uint64_t rows[4];
+    for (uint r = 0u; r < 4u; ++r) {
+        uvec3 c = uvec3(first.x, first.y + (r & 1u), first.z + (r >> 1u));
+        uint word = (c.z * (dims.y + 1u) + c.y) * reach_words() + c.x / 32u;
+        rows[r] = uint64_t(reach[word]) | (uint64_t(reach[word + 1u]) << 32);
+    }
+    for (uint b = 0u; b < 32u; ++b) {
+        uint x = first.x + b;
+        bool inside = valid && x < dims.x;
+        uint reached = 0u;
+        for (uint r = 0u; r < 4u; ++r) reached += bitCount(uint(rows[r] >> b) & 3u);
+        uint voxel = (first.z * dims.y + first.y) * dims.x + min(x, dims.x - 1u);
+        if (inside && reached == 8u) {
+            vec3 lo, extent;
+            voxel_box(voxel, lo, extent);
+            vec3 centre = lo + 0.5 * extent;
+            float along;
+            vec3 d = ray_through(to_world(centre), along);
+            store_sums(voxel, extent, direct_fluence(centre, along, d) * box_mean_factor(extent, along, d));
+        }
+        // Appends the crossed voxels to the list a subgroup at a time, as view_refine.comp does.
+        bool edge = inside && reached != 0u && reached != 8u;
+        uvec4 ballot = subgroupBallot(edge);
+        uint count = subgroupBallotBitCount(ballot);
+        uint slot = 0u;
+        if (subgroupElect() && count > 0u) {
+            slot = atomicAdd(edges.count, count);
+            uint listed = min(slot + count, uint(edge_voxels.length()));
+            uint groups = (listed + TRANSPORT_GROUP_SIZE - 1u) / TRANSPORT_GROUP_SIZE -
+                          (min(slot, listed) + TRANSPORT_GROUP_SIZE - 1u) / TRANSPORT_GROUP_SIZE;
+            if (groups > 0u) atomicAdd(edges.groups_x, groups);
+        }
+        slot = subgroupBroadcastFirst(slot) + subgroupBallotExclusiveBitCount(ballot);
+        if (edge && slot < uint(edge_voxels.length())) edge_voxels[slot] = voxel;
+        else if (edge) deposit_edge_voxel(voxel);
+    }
+}
+
+void main() {
+    load_params();
+    uint i = linear_invocation();
+    uint side = uint(params.direct_light.x);
+    if (kMode == DIRECT_MODE_TRACE) {
+        if (i < side * side) traced[i] = straight_run((vec2(i % side, i / side) + 0.5) / float(side));
+    } else if (kMode == DIRECT_MODE_MARGIN) {
+        if (i < side * side) light_map[i] = light_map_value(uvec2(i % side, i / side));
+    } else if (kMode == DIRECT_MODE_REACH) {
+        mark_reach(i);
+    } else if (kMode == DIRECT_MODE_DEPOSIT) {
+        deposit_run(i);
+    } else {
+        if (i < min(edges.count, uint(edge_voxels.length()))) deposit_edge_voxel(edge_voxels[i]);
+    }
+}
