@@ -54,6 +54,12 @@ TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
         const SceneDocument after = protocol::apply_merge_patch(before, c.patch);
         EXPECT_EQ(pass_names(passes_invalidated(before, after)), pass_names(c.expected)) << c.what;
     }
+    // Photons deposit only where something scatters: fog appearing in a clear scene, or the last of it
+    // going, reruns them; changing how much it scatters does not.
+    const json clear = {{"medium", {{"scattering", {0, 0, 0}}}}, {"object", {{"scattering", {0, 0, 0}}}}};
+    const SceneDocument clear_scene = protocol::apply_merge_patch(before, clear);
+    EXPECT_EQ(pass_names(passes_invalidated(clear_scene, before)), pass_names(kPhotons | kView));
+    EXPECT_EQ(pass_names(passes_invalidated(before, clear_scene)), pass_names(kPhotons | kView));
 }
 
 class RendererTest : public ::testing::Test {

@@ -215,6 +215,7 @@ int trace_command(const Arguments& args) {
                     {"photons_traced", stats.photons_entered},
                     {"mean_steps_per_photon", stats.mean_steps_per_photon()},
                     {"floor_hits", stats.floor_hits},
+                    {"direct_overlaps", stats.direct_overlaps},
                     {"peak_fluence_w_m2", sorted.back()},
                     {"gpu_ms", timings_json(stats.gpu_ms)}};
     write_json(dir / "summary.json", summary);

@@ -69,6 +69,12 @@ bool grey_transport(const protocol::SceneDocument& document) {
     return grey(document.medium.extinction) && grey(document.object.extinction);
 }
 
+bool any_scattering(const protocol::SceneDocument& document) {
+    const auto& m = document.medium.scattering;
+    const auto& o = document.object.scattering;
+    return std::max({m[0], m[1], m[2], o[0], o[1], o[2]}) > 0.0;
+}
+
 shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
                                                const scene::GridGeometry& grid, const TransportOptions& options) {
     shaders::TransportParams p{};
@@ -214,11 +220,10 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
         if (coefficients_equal) return COVERAGE_CONSTANT;
         return uniform_index ? COVERAGE_FROM_INDEX : COVERAGE_FETCH;
     };
-    const bool any_scattering = std::max({medium.scattering[0], medium.scattering[1], medium.scattering[2],
-                                          object.scattering[0], object.scattering[1], object.scattering[2]}) > 0.0;
+    const bool scatters = any_scattering(document);
     p.flags = glm::uvec4(0u, coverage_mode(medium.extinction == object.extinction),
                          coverage_mode(medium.scattering == object.scattering && medium.phase == object.phase),
-                         any_scattering ? 1u : 0u);
+                         scatters ? 1u : 0u);
     const vk::Extent3 radiance_dims = grid.coarsened(options.radiance_factor);
     p.radiance_grid = glm::uvec4(radiance_dims.x, radiance_dims.y, radiance_dims.z, options.radiance_factor);
     const auto lit = lit_pyramid_offsets(grid.dims);
@@ -228,7 +233,7 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     // point or spot light on: every voxel it reaches takes unbent deposits (transport.h).
     const float near = light_type == LIGHT_DIRECTIONAL ? 0.0f : (UNBENT_MIN_DISTANCE + 1.0f) * static_cast<float>(options.radiance_factor);
     p.direct_light = glm::vec4(static_cast<float>(light_map_texels(grid, photons)), near, 0.0f,
-                               options.direct_light && any_scattering ? 1.0f : 0.0f);
+                               options.direct_light && scatters ? 1.0f : 0.0f);
     p.sky_zenith = glm::vec4(0.010f, 0.014f, 0.024f, 0.0f);
     p.sky_horizon = glm::vec4(0.045f, 0.050f, 0.060f, 0.0f);
     return p;

@@ -28,6 +28,9 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
 // in the medium and in the object (TRANSPORT_CONSTANT_GREY).
 bool grey_transport(const protocol::SceneDocument& document);
 
+// Whether anything scatters: photons deposit into the radiance grid (and direct light is computed) only then.
+bool any_scattering(const protocol::SceneDocument& document);
+
 // Where each level of the lit pyramid starts in the lit-blocks buffer; the last entry is its length.
 std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims);
 

@@ -1,5 +1,7 @@
 #include "scene/passes.h"
 
+#include "passes/transport_params.h"
+
 namespace refract::scene {
 
 std::string pass_names(PassSet passes) {
@@ -30,8 +32,9 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
         before.medium.ior != after.medium.ior)
         stale |= kIndexField | kOctree | kPhotons | kView;
     if (before.volume.octree_epsilon != after.volume.octree_epsilon) stale |= kOctree | kPhotons | kView;
-    // What photons see: the light, their number, extinction (Beer-Lambert) and where the floor stops them.
-    if (!(before.light == after.light) || !(before.photons == after.photons) || a.extinction != b.extinction ||
+    // What photons see: the light, their number, extinction (Beer-Lambert) and where the floor stops them;
+    // and whether they deposit at all (only where something scatters).
+    if (passes::any_scattering(before) != passes::any_scattering(after) || !(before.light == after.light) || !(before.photons == after.photons) || a.extinction != b.extinction ||
         before.medium.extinction != after.medium.extinction || before.floor.enabled != after.floor.enabled ||
         before.floor.height != after.floor.height)
         stale |= kPhotons | kView;
