@@ -6,7 +6,9 @@
 // completion. Photons start where the light's rays enter the grid, follow the ray equation with the
 // octree's largest safe step, lose flux to extinction (Beer-Lambert per channel), and add flux x path
 // length to every voxel they cross (the track-length estimator of fluence) plus a flux-weighted
-// direction. Accumulation is fixed-point integer atomics: deterministic on every device.
+// direction, except over the part of their path whose light the direct-light pass stores in closed
+// form (transport.h, DIRECT_*). Accumulation is fixed-point integer atomics: deterministic on every
+// device.
 #include "transport_common.glsl"
 #include "emission.glsl"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
@@ -17,7 +19,6 @@ layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLUX) buffer AccumFlux { uint64
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) buffer AccumFloor { uint accum_floor[]; };
 layout(std430, binding = TRANSPORT_BINDING_PHOTON_EXITS) writeonly buffer Exits { PhotonExit exits[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIGHT_MAP) readonly buffer LightMap { float light_map[]; };
-
 
 uint hash(uint x) {
     x ^= x >> 16u;

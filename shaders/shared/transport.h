@@ -21,7 +21,8 @@ REFRACT_SHADERS_BEGIN
 // each deposit adds to one of them (blue below is the channels' mean under grey transport):
 //  - word 0: blue | the channels' mean << 32 from unbent photons, which have met no gradient of n yet
 //    (and are UNBENT_MIN_DISTANCE from a point or spot light): the resolve pass knows their net flux
-//    without storing it, that mean along the light's own direction at the voxel (unbent_direction);
+//    without storing it, that mean along the light's own direction at the voxel (unbent_direction).
+//    The direct-light pass stores its closed-form sums here too, before the photons add theirs;
 //  - word 1 + a: blue of bent photons | their net flux along axis a << 32. A bent deposit picks axis a
 //    with probability |d_a| / |d|_1 and adds d_a's sign x |d|_1: unbiased, and one atomic.
 // Every half-sum stays within 31 bits by the choice of fixed-point scale, so halves never carry into
