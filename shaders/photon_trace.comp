@@ -233,21 +233,22 @@ void main() {
     light_in_radiance_voxels = to_voxel(origin) / radiance_factor;
     near_light_squared = params.models.z == LIGHT_DIRECTIONAL ? 0.0 : UNBENT_MIN_DISTANCE * UNBENT_MIN_DISTANCE;
     // Direct light (transport.h): from `near` to the light map's value the direct-light pass counts this
-    // photon's light, so it deposits nothing there. Steps end on those two points, so that each step
-    // lies wholly on one side. Should the photon bend inside that span after all, it still leaves the
-    // rest of the span to the direct light (the light lands a little off course, but is counted once).
+    // photon's light, so it deposits nothing there, and as the map says its path there is straight
+    // through the medium, it crosses that span in one step. Steps before it end where it begins.
     float direct_from = params.direct_light.y;
     float direct_to = params.direct_light.w > 0.5 ? light_map[light_map_texel(sample_point)] : 0.0;
-    bool overlap = false;  // bent or met the object inside that span
+    bool jumped = false;   // the last step crossed the direct span
+    bool overlap = false;  // it landed where n varies or on the object: the map was wrong for this photon
     for (; steps < params.photon_info.z; ++steps) {
         uint level = fixed_step ? 0u : octree_level(ray.p);
         float ds = safe_step(level, ray.p, ray.d, shell_step);
         float coverage = coverage_for(params.flags.y, ray.p, ray.field.x);
         vec3 kappa = extinction_at(coverage) * h;  // per voxel length
+        overlap = overlap || (jumped && !flat_medium(ray.field, coverage));
         bool in_direct = along >= direct_from && along < direct_to;
-        overlap = overlap || (in_direct && !flat_medium(ray.field, coverage));
-        if (along < direct_to && direct_from < direct_to)
-            ds = min(ds, max((along < direct_from ? direct_from : direct_to) - along, 1e-3));
+        if (in_direct) ds = direct_to - along;
+        else if (along < direct_from && direct_from < direct_to) ds = min(ds, max(direct_from - along, 1e-3));
+        jumped = in_direct;
         // Stop at the floor or the grid's far side within this step.
         float to_exit = grid_interval(ray.p, ray.d).y;
         bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;

@@ -623,8 +623,8 @@ TEST_F(EnergyTest, SampledDepositsAgreeWithExactOnes) {
 // Direct light in closed form (transport.h) must give the radiance grid photons give: the same fluence
 // over every block of the grid (directly lit fog, the sphere, its shadow and caustic, the spot's edge,
 // the floor), to within the photons' own noise there, for a spot light over a glass sphere (the
-// default scene), an oblique directional light, and a point light inside the fog; and next to no photon
-// may bend where the light map still counts its light.
+// default scene), an oblique directional light, and a point light inside the fog; and next to no
+// photon's straight step over its direct span may land where n varies.
 TEST_F(EnergyTest, DirectLightMatchesPhotons) {
     const json base = {{"photons", {{"count", 1 << 18}}}, {"volume", {{"resolution", 48}}}, {"image", {{"width", 8}, {"height", 8}}}};
     struct Case {
@@ -646,6 +646,9 @@ TEST_F(EnergyTest, DirectLightMatchesPhotons) {
         scene::RunStats stats;
         const auto direct = photons(doc, &stats, c.radiance_factor, sampled, true);
         const auto traced = photons(doc, nullptr, c.radiance_factor, sampled, false);
+        // The map checks each texel's ray every voxel and keeps the least run around it less two voxels:
+        // a photon lands where n varies only by grazing the thin outer edge of the sphere's smoothing
+        // where none of those rays did, a sliver of the light by the silhouette (well under 0.1%).
         EXPECT_LT(static_cast<double>(stats.direct_overlaps), 1e-3 * static_cast<double>(stats.photons_entered)) << c.name;
         const auto a = traced->read_flux(), b = direct->read_flux();
         ASSERT_EQ(a.size(), b.size());

@@ -53,10 +53,11 @@ REFRACT_SHADERS_BEGIN
 // pass split it between them by one rule: a photon skips its deposits over the part of its path from
 // `near` (direct_light.y; 0 for a directional light) to the light map's value at its emission sample,
 // and the pass adds, per radiance voxel, the closed-form fluence of exactly that part of every ray.
-// The light map holds, per texel of the emission square (photon_trace.comp, emit), how far (voxels,
-// from the light or the emitter's plane) the rays of that texel certainly still go straight: the
-// least of the traced stops of the texel and its neighbours, less a margin. A photon that bends
-// earlier anyway is counted in PhotonStats::direct_overlaps.
+// The light map holds, per texel of the emission square (emission.glsl), how far (voxels, from the
+// light or the emitter's plane) the rays of that texel certainly still go straight: the least of the
+// traced stops of the texel and its neighbours, less a margin. So a photon crosses that part of its
+// path in one straight step; one that lands where n varies or on the object (the map was wrong for
+// it) is counted in PhotonStats::direct_overlaps.
 #define DIRECT_CONSTANT_MODE 2   // after the transport constants
 #define DIRECT_MODE_TRACE 0u     // one ray per light-map texel: where it stops going straight
 #define DIRECT_MODE_MARGIN 1u    // the light map: the least stop around each texel, less the margin
@@ -207,7 +208,7 @@ struct PhotonStats {
     uint floor_hits;
     uint view_steps;        // eye-ray march steps (the viewing pass)
     uint queue_taken[3];    // work items handed out so far by each pass's queue (take_from_queue)
-    uint direct_overlaps;   // photons that bent (or met the object) where direct light was still counted
+    uint direct_overlaps;   // photons whose straight step over their direct span landed where n varies
 };
 #define QUEUE_VIEW_PIXELS 0u
 #define QUEUE_VIEW_REFINED 1u
