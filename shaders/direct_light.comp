@@ -2,9 +2,9 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // Direct light in closed form (transport.h, DIRECT_*): the light map, then the fluence of the light that
-// photons leave to this pass, added to the radiance grid's sums in the photons' own fixed-point units.
-// Unbent light is about half of all photon deposits; in closed form it costs one evaluation per radiance
-// voxel and carries no photon noise.
+// photons leave to this pass, stored in the radiance grid's sums (in the photons' own fixed-point units)
+// before the photons add theirs. Unbent light was a third of the photon pass's time; in closed form it
+// costs about one evaluation per radiance-voxel corner and carries no photon noise.
 #include "transport_common.glsl"
 #include "emission.glsl"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
