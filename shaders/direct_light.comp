@@ -213,9 +213,8 @@ void deposit_run(uint i) {
         uint slot = 0u;
         if (subgroupElect() && count > 0u) {
             slot = atomicAdd(edges.count, count);
-            uint listed = min(slot + count, uint(edge_voxels.length()));
-            uint groups = (listed + TRANSPORT_GROUP_SIZE - 1u) / TRANSPORT_GROUP_SIZE -
-                          (min(slot, listed) + TRANSPORT_GROUP_SIZE - 1u) / TRANSPORT_GROUP_SIZE;
+            uint end = min(slot + count, uint(edge_voxels.length()));  // what fits; the rest is done at once
+            uint groups = work_list_groups_begun(min(slot, end), end, TRANSPORT_GROUP_SIZE);
             if (groups > 0u) atomicAdd(edges.groups_x, groups);
         }
         slot = subgroupBroadcastFirst(slot) + subgroupBallotExclusiveBitCount(ballot);

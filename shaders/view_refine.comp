@@ -54,9 +54,7 @@ void main() {
     uint first = 0u;
     if (subgroupElect() && count > 0u) {
         first = atomicAdd(refine.count, count);
-        // The indirect dispatch needs ceil(listed / group) groups: add the groups this append begins.
-        const uint group = VIEW_GROUP_SIZE * VIEW_GROUP_SIZE;
-        uint groups = (first + count + group - 1u) / group - (first + group - 1u) / group;
+        uint groups = work_list_groups_begun(first, first + count, VIEW_GROUP_SIZE * VIEW_GROUP_SIZE);
         if (groups > 0u) atomicAdd(refine.groups_x, groups);
     }
     first = subgroupBroadcastFirst(first);

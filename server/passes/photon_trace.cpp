@@ -34,8 +34,8 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
     const uint64_t light_map_bytes = uint64_t{light_map_side} * light_map_side * sizeof(float);
     accum.light_map_traced = vk::Buffer(context, light_map_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                                         vk::MemoryUse::device, "light map (traced)");
-    accum.light_map = vk::Buffer(context, light_map_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                                 vk::MemoryUse::device, "light map");
+    accum.light_map = vk::Buffer(context, light_map_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::device,
+                                 "light map");
     // Room for every voxel, up to what one indirect dispatch can take (the pass does the rest at once).
     const uint64_t edge_capacity =
         std::min<uint64_t>(voxels, uint64_t{context.limits().maxComputeWorkGroupCount[0]} * TRANSPORT_GROUP_SIZE);

@@ -48,11 +48,16 @@ uint32_t floor_map_texels(const scene::GridGeometry& grid) {
     return std::clamp(static_cast<uint32_t>(extent * 4.0f / 2.0f), 64u, 1024u);
 }
 
+uint32_t light_map_capacity(const scene::GridGeometry& grid) {
+    // About a texel per voxel across the grid.
+    return std::clamp(std::max({grid.dims.x, grid.dims.y, grid.dims.z}), 32u, 512u);
+}
+
 uint32_t light_map_texels(const scene::GridGeometry& grid, uint32_t photons) {
-    // About a texel per voxel across the grid, and no more rays than a sixteenth of the photons: the map
-    // costs a ray each, and a coarser one only leaves more of the light to the photons.
+    // No more rays than a sixteenth of the photons: the map costs a ray each, and a coarser one only
+    // leaves more of the light to the photons.
     const auto quarter_root = static_cast<uint32_t>(std::sqrt(static_cast<double>(photons)) / 4.0);
-    return std::clamp(std::min(std::max({grid.dims.x, grid.dims.y, grid.dims.z}), quarter_root), 32u, 512u);
+    return std::max(std::min(light_map_capacity(grid), quarter_root), 32u);
 }
 
 std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims) {

@@ -37,7 +37,9 @@ std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims);
 // Texels per side of the floor caustic map for this grid.
 uint32_t floor_map_texels(const scene::GridGeometry& grid);
 
-// Texels per side of the light map (DirectLightPass) for this grid and photon count.
+// Texels per side of the light map (DirectLightPass) for this grid and photon count, and the most any
+// photon count uses (what a scene allocates).
 uint32_t light_map_texels(const scene::GridGeometry& grid, uint32_t photons);
+uint32_t light_map_capacity(const scene::GridGeometry& grid);
 
 }  // namespace refract::passes

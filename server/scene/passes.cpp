@@ -34,9 +34,9 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     if (before.volume.octree_epsilon != after.volume.octree_epsilon) stale |= kOctree | kPhotons | kView;
     // What photons see: the light, their number, extinction (Beer-Lambert) and where the floor stops them;
     // and whether they deposit at all (only where something scatters).
-    if (passes::any_scattering(before) != passes::any_scattering(after) || !(before.light == after.light) || !(before.photons == after.photons) || a.extinction != b.extinction ||
+    if (!(before.light == after.light) || !(before.photons == after.photons) || a.extinction != b.extinction ||
         before.medium.extinction != after.medium.extinction || before.floor.enabled != after.floor.enabled ||
-        before.floor.height != after.floor.height)
+        before.floor.height != after.floor.height || passes::any_scattering(before) != passes::any_scattering(after))
         stale |= kPhotons | kView;
     // Only the viewing pass reads scattering, phase functions, the floor's look, the camera and the image.
     if (!(before.camera == after.camera) || !(before.image == after.image) || a.scattering != b.scattering ||

@@ -19,9 +19,6 @@ PassKit::PassKit(vk::Context& ctx)
       view(ctx),
       linear_sampler(vk::make_linear_sampler(ctx)) {}
 
-// The light map is sized for the grid at any photon count; a frame uses as much of it as its count needs.
-constexpr uint32_t kMaxLightMapPhotons = 0xffffffffu;
-
 int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t height) {
     const int64_t voxels = static_cast<int64_t>(grid.dims.count());
     // coverage + scratch (4+4), index field (16), coverage image (4), pyramid (8 x 1/7: levels 1 and up), levels (4 / 8),
@@ -30,8 +27,7 @@ int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t 
     // per-axis scratch (12) while it runs.
     const int64_t per_voxel = 4 + 4 + 16 + 4 + 2 + 1 + (RADIANCE_FLUX_WORDS + 1) * 8 + 16 + 16 + 4 + 1 + 12;
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
-    const int64_t light_map = int64_t{passes::light_map_texels(grid, kMaxLightMapPhotons)} *
-                              passes::light_map_texels(grid, kMaxLightMapPhotons) * 2 * 4;
+    const int64_t light_map = int64_t{passes::light_map_capacity(grid)} * passes::light_map_capacity(grid) * 2 * 4;
     // Per pixel: HDR (16), sRGB (4), a slot in the refinement list (4).
     return voxels * per_voxel + floor + light_map + int64_t{width} * height * 24;
 }
@@ -75,7 +71,7 @@ void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits, uint
     if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_ || grey != grey_) {
         accum_.reset();
         accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels,
-                                                        passes::light_map_texels(grid_, kMaxLightMapPhotons), exits, grey));
+                                                        passes::light_map_capacity(grid_), exits, grey));
         exit_capacity_ = exits;
     }
     if (!flux_.get() || f != radiance_factor_) {

@@ -43,7 +43,7 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_LDR 16            // uint per pixel: tone-mapped sRGB RGBA8
 #define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when flags.x == 1
 #define TRANSPORT_BINDING_LIT_BLOCKS 18     // the lit pyramid: uint per cell per level (see LIT_BLOCK)
-#define TRANSPORT_BINDING_REFINE 19         // ViewRefineList: pixels the viewing pass traces after the coarse ones
+#define TRANSPORT_BINDING_REFINE 19         // WorkListHeader + pixels the viewing pass traces after the coarse ones
 #define TRANSPORT_BINDING_LIGHT_MAP 20      // float per light-map texel: where its photons' direct light ends
 #define TRANSPORT_BINDING_LIGHT_MAP_TRACED 21  // float per texel: where the texel's own ray stops going straight
 
@@ -52,7 +52,7 @@ REFRACT_SHADERS_BEGIN
 // over r^2 (or its irradiance), times Beer-Lambert through the medium. Photons and the direct-light
 // pass split it between them by one rule: a photon skips its deposits over the part of its path from
 // `near` (direct_light.y; 0 for a directional light) to the light map's value at its emission sample,
-// and the pass adds, per radiance voxel, the closed-form fluence of exactly that part of every ray.
+// and the pass stores, per radiance voxel, the closed-form fluence of exactly that part of every ray.
 // The light map holds, per texel of the emission square (emission.glsl), how far (voxels, from the
 // light or the emitter's plane) the rays of that texel certainly still go straight: the least of the
 // traced stops of the texel and its neighbours, less a margin. So a photon crosses that part of its
@@ -68,7 +68,7 @@ REFRACT_SHADERS_BEGIN
 #define DIRECT_MODE_EDGE 4u      // one invocation per listed voxel: the same on a finer rule
 #define TRANSPORT_BINDING_DIRECT_EDGES 22  // WorkListHeader + radiance voxels (DIRECT_MODE_EDGE)
 #define TRANSPORT_BINDING_DIRECT_REACH 23  // bits per radiance-voxel corner, rows of 32 along x (DIRECT_MODE_REACH)
-#define DIRECT_MARGIN 2.0f       // voxels
+#define DIRECT_MARGIN 2.0f       // voxels: a photon's ray lies between its texel's neighbours', not on one
 // Direct light treats a gradient of n (per voxel) and a coverage up to this as none: the smoothing
 // Gaussian's tails leave values of 1e-15 and so far from any object, which over a 1000-voxel path bend
 // light by under 1e-3 rad and change its extinction by a millionth of the object's.
@@ -239,6 +239,12 @@ struct WorkListHeader {
     uint groups_x, groups_y, groups_z;
     uint count;
 };
+
+// The groups of `group` invocations an append of items [first, end) adds to a work list's dispatch:
+// it needs ceil(items / group) in all, so each append adds those whose first item it holds.
+REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
+    return (end + group - 1u) / group - (first + group - 1u) / group;
+}
 
 REFRACT_SHADERS_END
 
