@@ -79,6 +79,8 @@ constexpr Range kIntensity{0.0, 1e6, false, false, "a number in [0, 1e6]"};
 constexpr Range kCone{0.0, 90.0, true, false, "a number in (0, 90]"};
 constexpr Range kScale{0.0, 1e3, true, false, "a number in (0, 1e3]"};
 constexpr Range kIor{1.0, 4.0, false, false, "a number in [1, 4]"};
+constexpr const char* kAbbeRule = "must be 0 (no dispersion) or a number in [5, 1000]";
+constexpr Range kAbbe{0.0, 1000.0, false, false, kAbbeRule};
 constexpr Range kCoefficient{0.0, 1e3, false, false, "a number in [0, 1000] (per metre)"};
 constexpr Range kPhaseG{-0.99, 0.99, false, false, "a number in [-0.99, 0.99]"};
 constexpr Range kSmoothing{0.0, 4.0, false, false, "a number in [0, 4]"};
@@ -395,7 +397,7 @@ private:
         const std::string base = "/object";
         if (const json* j = section(root, "", "object",
                                     {"mesh", "position", "rotation_deg", "scale", "index_field", "ior",
-                                     "maxwell_n0", "extinction", "scattering", "phase", "grid"})) {
+                                     "maxwell_n0", "abbe", "extinction", "scattering", "phase", "grid"})) {
             static constexpr const char* kMeshRule =
                 "must be \"sphere\", \"cube\", \"torus\" or \"upload:NAME\" with NAME 1..64 characters of "
                 "[A-Za-z0-9_.-]";
@@ -417,6 +419,9 @@ private:
                                          {"grid", IndexFieldKind::grid}});
             o.ior = number(*j, base, "ior", o.ior, kIor);
             o.maxwell_n0 = number(*j, base, "maxwell_n0", o.maxwell_n0, kIor);
+            o.abbe = number(*j, base, "abbe", o.abbe, kAbbe);
+            // Below 5 no glass exists, and channels would part by more than the field's own contrast.
+            if (o.abbe > 0.0 && o.abbe < 5.0) fail(child(base, "abbe"), kAbbeRule);
             coefficients(*j, base, o.extinction, o.scattering);
             o.phase = phase(*j, base, o.phase);
             static constexpr const char* kGridRule =
@@ -573,6 +578,7 @@ json to_json(const SceneDocument& d) {
           {"index_field", name(d.object.index_field)},
           {"ior", d.object.ior},
           {"maxwell_n0", d.object.maxwell_n0},
+          {"abbe", d.object.abbe},
           {"extinction", vec(d.object.extinction)},
           {"scattering", vec(d.object.scattering)},
           {"phase", phase_json(d.object.phase)},

@@ -61,6 +61,10 @@ struct Object {
     IndexFieldKind index_field = IndexFieldKind::uniform;
     double ior = 1.5;        // for uniform; luneburg ignores it; maxwell uses it as n0 when set via maxwell_n0
     double maxwell_n0 = 2.0; // n0 of the Maxwell fish-eye
+    // Abbe number V_d of the index contrast against the medium: each colour channel's index departs
+    // from the medium's by (1 + k_c / V) times the field's (Cauchy's law; passes::dispersion_scales).
+    // 0: no dispersion.
+    double abbe = 0.0;
     Vec3 extinction{0.05, 0.05, 0.05};  // per metre
     Vec3 scattering{0.02, 0.02, 0.02};  // per metre, each channel <= extinction
     Phase phase{};

@@ -97,7 +97,6 @@ vec3 direct_fluence(vec3 p, float along, vec3 d) {
     float h = voxel_size();
     float in_medium = (along - grid_interval(p - d * along, d).x) * h;  // metres
     vec3 light = params.models.z == LIGHT_DIRECTIONAL ? params.light_power.rgb : params.light_power.rgb / (along * along * h * h);
-    if (params.models.w != CHANNEL_ALL) light *= vec3(equal(uvec3(0u, 1u, 2u), uvec3(params.models.w)));
     return light * exp(-params.medium_extinction.rgb * in_medium);
 }
 

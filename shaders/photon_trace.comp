@@ -191,17 +191,24 @@ void deposit_floor(vec3 x, vec3 weight, int sign) {
 
 void main() {
     load_params();
-    uint i = take_from_queue(QUEUE_PHOTONS);
-    if (i >= params.photon_info.x) return;
-    i = coherent_order(i, params.photon_info.x);
+    uint count = params.photon_info.x;
+    uint job = take_from_queue(QUEUE_PHOTONS);
+    // Dispersive transport traces every emission sample once per channel, channel by channel, so
+    // neighbouring lanes share a channel as well as a sample cell.
+    uint channel = kDispersive ? job / count : 0u;
+    if (channel >= (kDispersive ? 3u : 1u)) return;
+    uint i = coherent_order(job - channel * count, count);
     vec3 origin, direction;
-    vec2 sample_point = stratified(i, params.photon_info.x, params.photon_info.y);
+    vec2 sample_point = stratified(i, count, params.photon_info.y);
     if (!emit_ray(sample_point, origin, direction)) return;
+    // A sample's three paths share its random streams, as one photon's channels do without dispersion.
     rng_state = hash(i ^ hash(params.photon_info.y));
     deposit_phase = i * 2654435769u + hash(params.photon_info.y + 1u);  // 2^32 / the golden ratio
     vec3 weight = params.photon_flux.rgb / params.photon_flux.w;  // relative to the reference flux
-    // The dispersion hook: a photon for one wavelength band carries only its channel.
-    if (params.models.w != CHANNEL_ALL) weight *= vec3(equal(uvec3(0u, 1u, 2u), uvec3(params.models.w)));
+    if (kDispersive) {
+        weight *= vec3(equal(uvec3(0u, 1u, 2u), uvec3(channel)));
+        ray_contrast = params.dispersion[channel];
+    }
 
     vec3 p = to_voxel(origin);
     vec2 span = grid_interval(p, direction);
@@ -282,6 +289,6 @@ void main() {
     }
     atomicAdd(stats.steps, steps + 1u);
     if (overlap) atomicAdd(stats.direct_overlaps, 1u);
-    if (params.flags.x == 1u) exits[i] = PhotonExit(vec4(entry, 1.0), vec4(direction, path * h), vec4(to_world(ray.p), outcome),
+    if (params.flags.x == 1u) exits[i + channel * count] = PhotonExit(vec4(entry, 1.0), vec4(direction, path * h), vec4(to_world(ray.p), outcome),
                                                 vec4(ray.d, float(steps + 1u)));
 }

@@ -82,16 +82,10 @@ vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
 
 vec3 sky(vec3 d) { return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0)); }
 
-// Traces the eye ray of one pixel and writes its HDR and sRGB values.
-void shade(uvec2 pixel) {
-    uint width = params.image.x, height = params.image.y;
-    float tan_half = params.camera_position.w;
-    float aspect = float(width) / float(height);
-    vec2 ndc = vec2((2.0 * (float(pixel.x) + 0.5) / float(width) - 1.0) * aspect,
-                    1.0 - 2.0 * (float(pixel.y) + 0.5) / float(height)) * tan_half;
-    vec3 d = normalize(params.camera_forward.xyz + ndc.x * params.camera_right.xyz + ndc.y * params.camera_up.xyz);
-    vec3 position = params.camera_position.xyz;  // world, where the straight part of the ray resumes
-
+// The radiance an eye ray from world point `position` along d brings back (rgb; under dispersive
+// transport only the channel of ray_contrast counts). Adds its march steps to `march_steps`.
+vec3 eye_radiance(vec3 position, vec3 d, inout uint march_steps) {
+    uint steps = 0u;
     vec3 radiance_sum = vec3(0.0);
     vec3 transmittance = vec3(1.0);
     bool on_floor = false;
@@ -102,7 +96,6 @@ void shade(uvec2 pixel) {
     vec2 span = grid_interval(p, d);
     float floor_y = floor_height_voxels();
     float floor_t = (floor_on && d.y < 0.0) ? (p.y - floor_y) / -d.y : 1e30;
-    uint march_steps = 0u;
     if (span.x < span.y && span.x < floor_t) {
         p += d * (span.x + 1e-3);
         Ray ray = start_ray(p, d);
@@ -110,7 +103,7 @@ void shade(uvec2 pixel) {
         // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch
         // appears once: the loop below takes one octree leaf (or shell step) per pass, and the inner
         // loop, which holds the only in-scattering fetches, takes that leaf's view steps.
-        while (march_steps < 8192u) {
+        while (steps < 8192u) {
             float coverage = coverage_for(max(params.flags.y, params.flags.z), ray.p, ray.field.x);
             float scatter_coverage = coverage_as(params.flags.z, coverage);
             vec3 sigma_s = scattering_at(scatter_coverage) * h;
@@ -154,12 +147,12 @@ void shade(uvec2 pixel) {
                                     in_scattered(ray.p + (t + 0.5 * len) * ray.d, ray.d, model, g);
                     transmittance *= attenuation;
                     t += len;
-                    ++march_steps;
+                    ++steps;
                 }
                 run = t;
             } else {
                 transmittance *= exp(-kappa * run);
-                ++march_steps;
+                ++steps;
             }
             if (run >= to_end) {
                 ray.p += ray.d * run;
@@ -181,6 +174,27 @@ void shade(uvec2 pixel) {
         bool sees_floor = on_floor || (floor_on && d.y < 0.0 && position.y > params.floor_plane.x);
         vec3 floor_point = on_floor ? position : position + d * ((position.y - params.floor_plane.x) / -d.y);
         radiance_sum += transmittance * (sees_floor ? floor_radiance(floor_point) : sky(d));
+    }
+    march_steps += steps;
+    return radiance_sum;
+}
+
+// Traces the eye ray of one pixel (under dispersive transport one per channel, each bent by its own
+// index) and writes its HDR and sRGB values.
+void shade(uvec2 pixel) {
+    uint width = params.image.x, height = params.image.y;
+    float tan_half = params.camera_position.w;
+    float aspect = float(width) / float(height);
+    vec2 ndc = vec2((2.0 * (float(pixel.x) + 0.5) / float(width) - 1.0) * aspect,
+                    1.0 - 2.0 * (float(pixel.y) + 0.5) / float(height)) * tan_half;
+    vec3 d = normalize(params.camera_forward.xyz + ndc.x * params.camera_right.xyz + ndc.y * params.camera_up.xyz);
+    vec3 radiance_sum = vec3(0.0);
+    uint march_steps = 0u;
+    // One call site: lavapipe would run every call of the march for every pixel.
+    for (uint c = 0u; c < (kDispersive ? 3u : 1u); ++c) {
+        if (kDispersive) ray_contrast = params.dispersion[c];
+        vec3 radiance = eye_radiance(params.camera_position.xyz, d, march_steps);
+        radiance_sum = kDispersive ? radiance_sum + radiance * vec3(equal(uvec3(0u, 1u, 2u), uvec3(c))) : radiance;
     }
     atomicAdd(stats.view_steps, march_steps);
     uint index = pixel.y * width + pixel.x;

@@ -6,10 +6,12 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <span>
 
 #include <nlohmann/json.hpp>
 
 #include "gpu_fixture.h"
+#include "passes/transport_params.h"
 
 namespace refract {
 namespace {
@@ -160,49 +162,94 @@ bool trace_sphere(glm::dvec3 p, glm::dvec3 d, double n, double R, glm::dvec3& ex
     return refract(inside, -exit_p / R, n, exit_d);
 }
 
-// Ball lens n = 1.5, radius R, smoothed: paraxial rays cross the axis at f = nR / (2(n-1)) = 1.5 R.
-TEST_F(OpticsTest, BallLensFocusesParaxialRaysAtItsFocalLength) {
-    const double n = 1.5, R = 1.0, sigma = 0.75;
-    const json patch = {{"object", {{"mesh", "sphere"}, {"ior", n}, {"scale", R}}},
-                        {"volume", {{"resolution", 128}, {"smoothing", sigma}, {"octree_epsilon", 0.005},
-                                    {"bounds", {{"min", {-1.2, -1.2, -1.2}}, {"max", {1.2, 1.2, 2.0}}}}}}};
-    const Traced t = trace(optics_scene(patch));
-    const double h = t.grid.voxel_size;
-    const double f = n * R / (2.0 * (n - 1.0));
+// A ball lens of radius R at the origin, smoothed by sigma voxels, under a parallel beam along +z.
+const double kBallR = 1.0, kBallSigma = 0.75;
+json ball_lens_patch(double n, double abbe) {
+    return {{"object", {{"mesh", "sphere"}, {"ior", n}, {"scale", kBallR}, {"abbe", abbe}}},
+            {"volume", {{"resolution", 128}, {"smoothing", kBallSigma}, {"octree_epsilon", 0.005},
+                        {"bounds", {{"min", {-1.2, -1.2, -1.2}}, {"max", {1.2, 1.2, 2.0}}}}}}};
+}
+
+// The ball lens's paraxial focus (distance from the centre) of index n: f = nR / (2(n-1)).
+double ball_focus(double n) { return n * kBallR / (2.0 * (n - 1.0)); }
+
+// Tolerance of one estimate of the ball lens's focus. Smoothing turns the interface into a shell:
+// coverage rises over the supersampled boundary voxel (+-0.5 voxel) and the Gaussian widens it by about
+// +-2 sigma, so the radius at which the shell acts as a refracting surface lies within
+// R +- (2 sigma + 0.5) h. f = nR/(2(n-1)) scales with that radius: |df| <= n/(2(n-1)) (2 sigma + 0.5) h.
+// One voxel more covers the tracer's discretization (steps of one voxel through the shell). Single
+// photons scatter about the median by the voxelized surface's roughness (4 x 4 sub-samples per voxel
+// column), which smoothing damps: measured rms 0.053, 0.026, 0.010 for sigma 0.3, 0.75, 1.5.
+double ball_focus_tolerance(double n, double h) { return ball_focus(n) / kBallR * (2.0 * kBallSigma + 0.5) * h + h; }
+
+// The median paraxial focus of the photon paths `exits` through a ball lens of index n: each path's axis
+// crossing, less the sharp lens's crossing for the same ray (its spherical aberration, up to 0.05 at the
+// largest height), plus f: one estimate of the paraxial focus each.
+double median_ball_focus(std::span<const PhotonExit> exits, double n) {
     // The sharp reference itself: near the axis it crosses at f (the paraxial formula).
     glm::dvec3 sp, sd;
-    ASSERT_TRUE(trace_sphere({1e-3, 0, -2}, {0, 0, 1}, n, R, sp, sd));
-    EXPECT_NEAR(sp.z + sd.z * (-sp.x / sd.x), f, 1e-4);
-    // Each photon's axis crossing, less the sharp lens's crossing for the same ray (its spherical
-    // aberration, up to 0.05 at the largest height), plus f: one estimate of the paraxial focus each.
+    EXPECT_TRUE(trace_sphere({1e-3, 0, -2}, {0, 0, 1}, n, kBallR, sp, sd));
+    EXPECT_NEAR(sp.z + sd.z * (-sp.x / sd.x), ball_focus(n), 1e-4);
     std::vector<double> focus;
-    for (const auto& e : t.exits) {
+    for (const auto& e : exits) {
         if (e.entry.w != 1.0f || e.position.w != 1.0f) continue;
         const double rho = std::hypot(double{e.entry.x}, double{e.entry.y});
         // Heights where the crossing is well conditioned: near the axis the exit angle is so small that
-        // the voxelized surface's roughness (below) dominates; beyond 0.35 R aberration grows fast.
-        if (rho < 0.15 * R || rho > 0.35 * R) continue;
+        // the voxelized surface's roughness dominates; beyond 0.35 R aberration grows fast.
+        if (rho < 0.15 * kBallR || rho > 0.35 * kBallR) continue;
         const glm::dvec3 p = d3(e.position), d = d3(e.direction);
         const glm::dvec2 pxy(p.x, p.y), dxy(d.x, d.y);
         const double z_cross = p.z + d.z * (-glm::dot(pxy, dxy) / glm::dot(dxy, dxy));
-        ASSERT_TRUE(trace_sphere(d3(e.entry), d3(e.entry_direction), n, R, sp, sd));
+        if (!trace_sphere(d3(e.entry), d3(e.entry_direction), n, kBallR, sp, sd)) {
+            ADD_FAILURE() << "the sharp lens misses a ray at height " << rho;
+            continue;
+        }
         const glm::dvec2 sxy(sp.x, sp.y), sdxy(sd.x, sd.y);
         const double z_sharp = sp.z + sd.z * (-glm::dot(sxy, sdxy) / glm::dot(sdxy, sdxy));
-        focus.push_back(f + (z_cross - z_sharp));
+        focus.push_back(ball_focus(n) + (z_cross - z_sharp));
     }
-    ASSERT_GT(focus.size(), 200u);
-    const double median = percentile(focus, 0.5);
-    // Tolerance. Smoothing turns the interface into a shell: coverage rises over the supersampled
-    // boundary voxel (+-0.5 voxel) and the Gaussian widens it by about +-2 sigma, so the radius at which
-    // the shell acts as a refracting surface lies within R +- (2 sigma + 0.5) h. f = nR/(2(n-1)) scales
-    // with that radius: |df| <= n/(2(n-1)) (2 sigma + 0.5) h. One voxel more covers the tracer's
-    // discretization (steps of one voxel through the shell). Single photons scatter about the median
-    // by the voxelized surface's roughness (4 x 4 sub-samples per voxel column), which smoothing damps:
-    // measured rms 0.053, 0.026, 0.010 for sigma 0.3, 0.75, 1.5.
-    const double tolerance = n / (2.0 * (n - 1.0)) * (2.0 * sigma + 0.5) * h + h;
-    std::printf("ball lens: f %.3f, %zu photons, focus median %.4f (p10 %.4f, p90 %.4f), tolerance %.4f (h %.4f)\n",
-                f, focus.size(), median, percentile(focus, 0.1), percentile(focus, 0.9), tolerance, h);
-    EXPECT_NEAR(median, f, tolerance);
+    EXPECT_GT(focus.size(), 200u);
+    return focus.empty() ? 0.0 : percentile(focus, 0.5);
+}
+
+// Ball lens n = 1.5, radius R, smoothed: paraxial rays cross the axis at f = nR / (2(n-1)) = 1.5 R.
+TEST_F(OpticsTest, BallLensFocusesParaxialRaysAtItsFocalLength) {
+    const double n = 1.5;
+    const Traced t = trace(optics_scene(ball_lens_patch(n, 0.0)));
+    const double h = t.grid.voxel_size;
+    const double median = median_ball_focus(t.exits, n), tolerance = ball_focus_tolerance(n, h);
+    std::printf("ball lens: f %.3f, focus median %.4f, tolerance %.4f (h %.4f)\n", ball_focus(n), median, tolerance, h);
+    EXPECT_NEAR(median, ball_focus(n), tolerance);
+}
+
+// Dispersion (abbe V): each channel's photons see n_c - 1 = (n - 1) s_c and focus at f(n_c), blue nearest.
+// Each channel's median focus must lie within the ball lens's own tolerance of f(n_c). The ratio of the
+// blue and red foci is a sharper check: the shell's effective radius, the tolerance's main term, scales
+// both alike and cancels, which leaves the tracer's discretization, at most one voxel in each focus:
+// |f_B / f_R - f(n_B) / f(n_R)| <= 2h / f(n_R). At V = 10 the two foci differ by 6.3%, about twice that
+// bound (3.3%): the check fails without dispersion, with twice it or with the channels swapped.
+TEST_F(OpticsTest, DispersiveBallLensFocusesEachChannelAtItsOwnIndex) {
+    const double n = 1.5, abbe = 10.0;
+    const json patch = ball_lens_patch(n, abbe);
+    const protocol::SceneDocument doc = optics_scene(patch);
+    const Traced t = trace(doc);
+    const double h = t.grid.voxel_size;
+    const size_t count = doc.photons.count;
+    ASSERT_EQ(t.exits.size(), 3 * count);  // one path per emission sample and channel, channel by channel
+    const glm::dvec3 scales(passes::dispersion_scales(abbe));
+    double focus[3];
+    for (int c = 0; c < 3; ++c) {
+        const double n_c = 1.0 + (n - 1.0) * scales[c];
+        focus[c] = median_ball_focus(std::span(t.exits).subspan(static_cast<size_t>(c) * count, count), n_c);
+        std::printf("dispersive ball lens, channel %d: n %.4f, f %.4f, focus median %.4f, tolerance %.4f\n", c, n_c,
+                    ball_focus(n_c), focus[c], ball_focus_tolerance(n_c, h));
+        EXPECT_NEAR(focus[c], ball_focus(n_c), ball_focus_tolerance(n_c, h));
+    }
+    const double n_red = 1.0 + (n - 1.0) * scales[0], n_blue = 1.0 + (n - 1.0) * scales[2];
+    const double expected_ratio = ball_focus(n_blue) / ball_focus(n_red);
+    std::printf("blue / red focus: %.4f, expected %.4f, tolerance %.4f\n", focus[2] / focus[0], expected_ratio,
+                2.0 * h / ball_focus(n_red));
+    EXPECT_NEAR(focus[2] / focus[0], expected_ratio, 2.0 * h / ball_focus(n_red));
 }
 
 // A tilted slab (the cube, thickness 2, turned 30 degrees): a beam leaves parallel to itself, shifted
@@ -502,20 +549,25 @@ TEST_F(EnergyTest, RefractionConservesFlux) {
 
 // Beer-Lambert along straight paths: transmitted flux E A exp(-kappa H), and the fluence rate in each
 // layer of voxels E exp(-kappa s) averaged over the layer's depth, per channel: for grey extinction (the
-// radiance grid keeps one fluence and the light's colour) and for extinction that differs by channel.
+// radiance grid keeps one fluence and the light's colour), for extinction that differs by channel, and
+// under dispersive transport (an object with no index contrast disperses nothing, but each channel's
+// light is then carried by photons of its own).
 TEST_F(EnergyTest, ExtinctionFollowsBeerLambert) {
     const double E = 2.0, H = 2.4;
-    for (const glm::dvec3 kappa : {glm::dvec3(0.5), glm::dvec3(0.2, 0.5, 1.0)}) {
+    const std::pair<glm::dvec3, double> cases[] = {
+        {glm::dvec3(0.5), 0.0}, {glm::dvec3(0.2, 0.5, 1.0), 0.0}, {glm::dvec3(0.2, 0.5, 1.0), 20.0}};
+    for (const auto& [kappa, abbe] : cases) {
         const json k = {kappa.r, kappa.g, kappa.b};
         const json patch = {{"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", E}}},
                             {"medium", {{"ior", 1.0}, {"extinction", k}, {"scattering", k}}},
-                            {"object", {{"ior", 1.0}, {"extinction", k}, {"scattering", k}}},
+                            {"object", {{"ior", 1.0}, {"abbe", abbe}, {"extinction", k}, {"scattering", k}}},
                             {"floor", {{"enabled", true}, {"height", -1.5}}},
                             {"image", {{"width", 8}, {"height", 8}}},
                             {"photons", {{"count", 1 << 16}}},
                             {"volume", {{"resolution", 48}, {"bounds", {{"min", {-1.2, -1.2, -1.2}}, {"max", {1.2, 1.2, 1.2}}}}}}};
         const auto gpu = photons(protocol::parse_scene(patch));
-        EXPECT_EQ(gpu->grey(), kappa.r == kappa.b);
+        const uint32_t channels = abbe > 0.0 ? CHANNELS_DISPERSIVE : kappa.r == kappa.b ? CHANNELS_GREY : CHANNELS_RGB;
+        EXPECT_EQ(gpu->channels(), channels);
         const auto radiance = gpu->read_radiance();
         const auto dims = gpu->grid().dims;
         const double h = gpu->grid().voxel_size;
@@ -533,8 +585,9 @@ TEST_F(EnergyTest, ExtinctionFollowsBeerLambert) {
                 const double layer = E * std::exp(-kappa[c] * depth_top) * (1.0 - std::exp(-kappa[c] * h)) / (kappa[c] * h);
                 worst = std::max(worst, std::abs(mean / layer - 1.0));
             }
+            const char* kind = channels == CHANNELS_GREY ? "grey" : channels == CHANNELS_RGB ? "coloured" : "dispersive";
             std::printf("beer-lambert, kappa %.2f (%s transport): floor %.5f W, expected %.5f W; worst layer error %.4f\n",
-                        kappa[c], gpu->grey() ? "grey" : "coloured", measured, expected, worst);
+                        kappa[c], kind, measured, expected, worst);
             EXPECT_NEAR(measured, expected, 0.01 * expected);
             EXPECT_LT(worst, 0.01);
         }

@@ -51,6 +51,7 @@ SceneDocument customised() {
     d.object.index_field = IndexFieldKind::grid;
     d.object.ior = 1.0 / 3.0 + 1.0;
     d.object.maxwell_n0 = 2.5;
+    d.object.abbe = 36.4;
     d.object.extinction = {0.1, 0.2, 0.3};
     d.object.scattering = {0.1, 0.1, 0.1};
     d.object.phase = {PhaseModel::schlick, -0.4};
@@ -151,7 +152,7 @@ TEST(SceneDocument, ToJsonEmitsEveryField) {
         {"image", {"width", "height", "exposure"}},
         {"light", {"type", "position", "direction", "color", "intensity", "cone_deg"}},
         {"object",
-         {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "extinction",
+         {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "abbe", "extinction",
           "scattering", "phase", "grid"}},
         {"medium", {"ior", "extinction", "scattering", "phase"}},
         {"volume", {"resolution", "smoothing", "octree_epsilon", "margin"}},
@@ -227,7 +228,7 @@ TEST(SceneDocument, BoundaryValuesAccepted) {
         "camera": {"fov_deg": 169.9, "position": [10000, -10000, 10000]},
         "image": {"width": 1, "height": 4096, "exposure": -20},
         "light": {"type": "point", "direction": [0, 0, 0], "intensity": 1e6, "color": [0, 1000, 0], "cone_deg": 90},
-        "object": {"scale": 1000, "ior": 4, "maxwell_n0": 1, "extinction": [1000, 0, 0], "scattering": [1000, 0, 0],
+        "object": {"scale": 1000, "ior": 4, "maxwell_n0": 1, "abbe": 5, "extinction": [1000, 0, 0], "scattering": [1000, 0, 0],
                    "phase": {"model": "henyey-greenstein", "g": -0.99}},
         "medium": {"ior": 1, "phase": {"g": 0.99}},
         "volume": {"resolution": 32, "smoothing": 4, "octree_epsilon": 1, "margin": 0},
@@ -459,6 +460,11 @@ std::vector<BadPatch> bad_patches() {
         {"ior below 1", json::parse(R"({"object": {"ior": 0.9}})"), "/object/ior"},
         {"ior above 4", json::parse(R"({"object": {"ior": 4.5}})"), "/object/ior"},
         {"maxwell n0 above 4", json::parse(R"({"object": {"maxwell_n0": 5}})"), "/object/maxwell_n0"},
+        {"abbe between 0 and 5", json::parse(R"({"object": {"abbe": 4.9}})"), "/object/abbe"},
+        {"abbe negative", json::parse(R"({"object": {"abbe": -20}})"), "/object/abbe"},
+        {"abbe above 1000", json::parse(R"({"object": {"abbe": 1001}})"), "/object/abbe"},
+        {"abbe not a number", json::parse(R"({"object": {"abbe": "flint"}})"), "/object/abbe"},
+        {"abbe NaN", json{{"object", {{"abbe", std::nan("")}}}}, "/object/abbe"},
         {"unknown index field", json::parse(R"({"object": {"index_field": "Uniform"}})"),
          "/object/index_field"},
         {"negative extinction", json::parse(R"({"object": {"extinction": [0.05, -1, 0.05]}})"),

@@ -42,6 +42,7 @@ TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
         {"extinction", {{"object", {{"extinction", {0.5, 0.5, 0.5}}}}}, kPhotons | kView},
         {"floor height", {{"floor", {{"height", -1.2}}}}, kPhotons | kView},
         {"octree epsilon", {{"volume", {{"octree_epsilon", 0.01}}}}, kOctree | kPhotons | kView},
+        {"dispersion", {{"object", {{"abbe", 30}}}}, kOctree | kPhotons | kView},
         {"ior", {{"object", {{"ior", 1.33}}}}, kIndexField | kOctree | kPhotons | kView},
         {"index field kind", {{"object", {{"index_field", "luneburg"}}}}, kIndexField | kOctree | kPhotons | kView},
         {"mesh", {{"object", {{"mesh", "torus"}}}}, kAllPasses},
@@ -102,21 +103,27 @@ TEST_F(RendererTest, SwitchingQualityRerunsPhotonsIntoTheRightGrid) {
 }
 
 // Extinction that differs by channel switches the resident scene from grey to coloured transport (a
-// per-channel radiance grid appears) and back: each frame must equal a fresh scene's frame of the
-// same document, so nothing of the other kind of transport is left behind.
-TEST_F(RendererTest, SwitchingBetweenGreyAndColouredTransportMatchesFreshScenes) {
+// per-channel radiance grid appears), dispersion to dispersive transport (three paths per photon
+// sample), and back: each frame must equal a fresh scene's frame of the same document, so nothing of
+// another kind of transport is left behind.
+TEST_F(RendererTest, SwitchingBetweenGreyColouredAndDispersiveTransportMatchesFreshScenes) {
     const SceneDocument grey = small({{"photons", {{"count", 4096}}}});
     const SceneDocument coloured =
         protocol::apply_merge_patch(grey, {{"medium", {{"extinction", {0.2, 0.3, 0.5}}}}});
+    const SceneDocument dispersive = protocol::apply_merge_patch(grey, {{"object", {{"abbe", 20}}}});
     Renderer resident(*context);
     const FrameResult first = resident.render("a", grey, no_assets);
     const FrameResult switched = resident.render("a", coloured, no_assets);
     EXPECT_EQ(switched.rerun, kPhotons | kView);
+    const FrameResult dispersed = resident.render("a", dispersive, no_assets);
+    EXPECT_EQ(dispersed.rerun, kOctree | kPhotons | kView);
     const FrameResult back = resident.render("a", grey, no_assets);
     EXPECT_EQ(back.png, first.png);
     Renderer fresh(*context);
     EXPECT_EQ(fresh.render("b", coloured, no_assets).png, switched.png);
+    EXPECT_EQ(fresh.render("c", dispersive, no_assets).png, dispersed.png);
     EXPECT_NE(switched.png, first.png);
+    EXPECT_NE(dispersed.png, first.png);
 }
 
 TEST_F(RendererTest, MemoryBudgetDropsTheLeastRecentlyUsedScene) {

@@ -33,10 +33,17 @@ std::array<vk::Binding, kLayout.size()> bindings(const TransportInputs& in, cons
     return transport_bindings(in, own);
 }
 
+// Direct light has met no gradient of n, so it is the same light in every channel's path: dispersive
+// transport takes the RGB pipelines (the same sums, and no variant compiled for nothing).
+TransportVariant direct_variant(TransportVariant variant) {
+    if (variant.channels == CHANNELS_DISPERSIVE) variant.channels = CHANNELS_RGB;
+    return variant;
+}
+
 void dispatch(const TransportPipeline& pipeline, vk::CommandRecorder& recorder, const TransportInputs& in,
               const PhotonAccumulators& accum, uint64_t items) {
     const auto groups = vk::linear_groups(items, TRANSPORT_GROUP_SIZE);
-    pipeline(in.variant).dispatch(recorder.get(), bindings(in, accum), nullptr, 0, groups.x, groups.y);
+    pipeline(direct_variant(in.variant)).dispatch(recorder.get(), bindings(in, accum), nullptr, 0, groups.x, groups.y);
 }
 }  // namespace
 
@@ -61,7 +68,7 @@ void DirectLightPass::record(vk::CommandRecorder& recorder, const TransportInput
     recorder.compute_barrier();
     dispatch(deposit_, recorder, inputs, accum, uint64_t{(radiance_dims.x + 31) / 32} * radiance_dims.y * radiance_dims.z);
     recorder.compute_barrier();
-    edge_(inputs.variant).dispatch_indirect(recorder.get(), bindings(inputs, accum), nullptr, 0, accum.direct_edges,
+    edge_(direct_variant(inputs.variant)).dispatch_indirect(recorder.get(), bindings(inputs, accum), nullptr, 0, accum.direct_edges,
                                            offsetof(shaders::WorkListHeader, groups_x));
 }
 

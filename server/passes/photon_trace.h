@@ -14,7 +14,7 @@ struct PhotonAccumulators {
     vk::Buffer flux;                  // RADIANCE_FLUX_WORDS packed 64-bit sums per voxel: blue (grey: mean) + net flux
     vk::Buffer floor;                 // 3 uints per floor texel
     vk::Buffer stats;                 // PhotonStats (host-readable)
-    vk::Buffer exits;                 // PhotonExit per photon when recorded (tests), else one entry
+    vk::Buffer exits;                 // PhotonExit per photon path when recorded (tests), else one entry
     vk::Buffer lit_blocks;            // the lit pyramid (transport.h), written by LitPyramidPass
     vk::Buffer light_map_traced;      // float per light-map texel (DirectLightPass)
     vk::Buffer light_map;             // float per light-map texel: where each texel's direct light ends
@@ -37,8 +37,9 @@ void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumu
 class PhotonTracePass {
 public:
     explicit PhotonTracePass(vk::Context& context);
-    // Traces `photon_count` photons into the accumulators; `sampled_deposits`: one deposit per radiance
-    // voxel of path instead of one per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS).
+    // Traces `photon_count` photons (photon_paths of them: one per channel under dispersive transport)
+    // into the accumulators; `sampled_deposits`: one deposit per radiance voxel of path instead of one
+    // per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS).
     void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const PhotonAccumulators& accum,
                 uint32_t photon_count, bool sampled_deposits) const;
 

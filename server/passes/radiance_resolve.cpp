@@ -20,7 +20,9 @@ constexpr vk::BindingLayout kLayout[] = {
 }  // namespace
 
 RadianceResolvePass::RadianceResolvePass(vk::Context& context) {
-    static_assert(TRANSPORT_CONSTANT_GREY == 0 && RESOLVE_CONSTANT_FLOOR == 2);
+    // Dispersive transport resolves as RGB does: per-channel sums either way.
+    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && RESOLVE_CONSTANT_FLOOR == 2 && CHANNELS_RGB == 0 &&
+                  CHANNELS_GREY == 1);
     const char* names[] = {"radiance resolve", "radiance resolve (grey)", "floor map resolve",
                            "floor map resolve (grey)"};
     pipelines_.reserve(4);

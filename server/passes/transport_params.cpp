@@ -69,15 +69,42 @@ std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims) {
     return offsets;
 }
 
-bool grey_transport(const protocol::SceneDocument& document) {
+uint32_t transport_channels(const protocol::SceneDocument& document) {
+    if (document.object.abbe > 0.0) return CHANNELS_DISPERSIVE;
     auto grey = [](const auto& rgb) { return rgb[0] == rgb[1] && rgb[1] == rgb[2]; };
-    return grey(document.medium.extinction) && grey(document.object.extinction);
+    return grey(document.medium.extinction) && grey(document.object.extinction) ? CHANNELS_GREY : CHANNELS_RGB;
+}
+
+uint32_t photon_paths(uint32_t photons, uint32_t channels) {
+    return channels == CHANNELS_DISPERSIVE ? 3 * photons : photons;
+}
+
+glm::vec3 dispersion_scales(double abbe) {
+    if (abbe <= 0.0) return glm::vec3(1.0f);
+    // Cauchy's n(lambda) = A + B / lambda^2 through n_d (587.56 nm) with Abbe number
+    // V = (n_d - 1) / (n_F - n_C) is n(lambda) - 1 = (n_d - 1) (1 + k(lambda) / V), with
+    // k = (lambda^-2 - lambda_d^-2) / (lambda_F^-2 - lambda_C^-2): the deviation from vacuum scales by
+    // 1 + k / V. Applied to the contrast against the medium, it is exact for an object in air and
+    // makes every point of a graded field disperse like a glass of that Abbe number. Each channel
+    // takes the dominant wavelength of its sRGB primary.
+    auto inverse_square = [](double nm) { return 1.0 / (nm * nm); };
+    const double d = inverse_square(587.56), f_minus_c = inverse_square(486.13) - inverse_square(656.27);
+    glm::vec3 scales;
+    const double channel_nm[3] = {611.0, 549.0, 464.0};
+    for (int c = 0; c < 3; ++c)
+        scales[c] = static_cast<float>(1.0 + (inverse_square(channel_nm[c]) - d) / f_minus_c / abbe);
+    return scales;
 }
 
 bool any_scattering(const protocol::SceneDocument& document) {
     const auto& m = document.medium.scattering;
     const auto& o = document.object.scattering;
     return std::max({m[0], m[1], m[2], o[0], o[1], o[2]}) > 0.0;
+}
+
+float octree_epsilon(const protocol::SceneDocument& document) {
+    const glm::vec3 scales = dispersion_scales(document.object.abbe);
+    return static_cast<float>(document.volume.octree_epsilon) / std::max({scales.r, scales.g, scales.b, 1.0f});
 }
 
 shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
@@ -102,7 +129,8 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     uint32_t light_type = LIGHT_POINT;
     if (light.type == LightType::spot) light_type = LIGHT_SPOT;
     if (light.type == LightType::directional) light_type = LIGHT_DIRECTIONAL;
-    p.models = glm::uvec4(phase_model(medium.phase.model), phase_model(object.phase.model), light_type, CHANNEL_ALL);
+    p.models = glm::uvec4(phase_model(medium.phase.model), phase_model(object.phase.model), light_type, 0u);
+    p.dispersion = glm::vec4(dispersion_scales(object.abbe), 0.0f);
     p.light_position = glm::vec4(light_position, cos_spot);
     p.light_direction = glm::vec4(light_direction, 0.0f);
     p.light_power = glm::vec4(power, 0.0f);

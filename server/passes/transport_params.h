@@ -24,9 +24,23 @@ struct TransportOptions {
 shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
                                                const scene::GridGeometry& grid, const TransportOptions& options);
 
-// Whether photons keep their colour from emission to deposit: extinction is the same in every channel,
-// in the medium and in the object (TRANSPORT_CONSTANT_GREY).
-bool grey_transport(const protocol::SceneDocument& document);
+// How the colour channels travel (CHANNELS_*, TRANSPORT_CONSTANT_CHANNELS): dispersive where the object
+// has an Abbe number; else grey where extinction is the same in every channel, in the medium and in the
+// object (photons then keep their colour from emission to deposit); else RGB.
+uint32_t transport_channels(const protocol::SceneDocument& document);
+
+// Photon paths one frame traces for `photons` emission samples: one per sample and channel under
+// dispersive transport, else one per sample.
+uint32_t photon_paths(uint32_t photons, uint32_t channels);
+
+// Each channel's index contrast against the medium relative to the field's (TransportParams::dispersion)
+// for Abbe number `abbe` (0: none, all 1).
+glm::vec3 dispersion_scales(double abbe);
+
+// The octree's epsilon for the index field as stored (the reference channel's): volume.octree_epsilon
+// over the largest dispersion scale, so that n varies by less than epsilon within a leaf in every
+// channel.
+float octree_epsilon(const protocol::SceneDocument& document);
 
 // Whether anything scatters: photons deposit into the radiance grid (and direct light is computed) only then.
 bool any_scattering(const protocol::SceneDocument& document);

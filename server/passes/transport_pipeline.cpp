@@ -1,5 +1,7 @@
 #include "passes/transport_pipeline.h"
 
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "transport.h"
@@ -8,14 +10,25 @@ namespace refract::passes {
 
 TransportPipeline::TransportPipeline(vk::Context& context, std::span<const uint32_t> spirv,
                                      std::span<const vk::BindingLayout> layout, uint32_t push_constant_bytes,
-                                     const char* name, std::span<const uint32_t> pass_constants) {
-    static_assert(TRANSPORT_CONSTANT_GREY == 0 && TRANSPORT_CONSTANT_COVERAGE_FETCH == 1);
-    pipelines_.reserve(4);
-    for (uint32_t i = 0; i < 4; ++i) {
-        std::vector<uint32_t> constants{i & 1u, (i >> 1) & 1u};
-        constants.insert(constants.end(), pass_constants.begin(), pass_constants.end());
-        pipelines_.emplace_back(context, spirv, layout, push_constant_bytes, name, constants);
+                                     const char* name, std::span<const uint32_t> pass_constants)
+    : context_(context),
+      spirv_(spirv),
+      layout_(layout.begin(), layout.end()),
+      push_constant_bytes_(push_constant_bytes),
+      name_(name),
+      pass_constants_(pass_constants.begin(), pass_constants.end()) {}
+
+const vk::ComputePipeline& TransportPipeline::operator()(TransportVariant variant) const {
+    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && TRANSPORT_CONSTANT_COVERAGE_FETCH == 1);
+    if (variant.channels > CHANNELS_DISPERSIVE)
+        throw std::invalid_argument(std::string(name_) + ": no transport channels " + std::to_string(variant.channels));
+    std::optional<vk::ComputePipeline>& pipeline = pipelines_[variant.channels + (variant.coverage_fetch ? 3u : 0u)];
+    if (!pipeline) {
+        std::vector<uint32_t> constants{variant.channels, variant.coverage_fetch ? 1u : 0u};
+        constants.insert(constants.end(), pass_constants_.begin(), pass_constants_.end());
+        pipeline.emplace(context_, spirv_, layout_, push_constant_bytes_, name_, constants);
     }
+    return *pipeline;
 }
 
 }  // namespace refract::passes

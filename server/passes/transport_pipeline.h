@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstddef>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -15,8 +16,8 @@
 namespace refract::passes {
 
 struct TransportVariant {
-    bool grey = false;            // grey transport (TRANSPORT_CONSTANT_GREY)
-    bool coverage_fetch = false;  // some coefficient reads the coverage texture (TRANSPORT_CONSTANT_COVERAGE_FETCH)
+    uint32_t channels = CHANNELS_RGB;  // how the colour channels travel (TRANSPORT_CONSTANT_CHANNELS)
+    bool coverage_fetch = false;       // some coefficient reads the coverage texture (TRANSPORT_CONSTANT_COVERAGE_FETCH)
 };
 
 // What every transport pass reads first: the frame's parameters, the index field, its coverage and the
@@ -59,18 +60,27 @@ std::array<vk::Binding, kTransportInputCount + N> transport_bindings(const Trans
     return bindings;
 }
 
+// Each variant is compiled the first time a frame needs it: most scenes use one or two of the six, and
+// lavapipe takes tens of milliseconds to compile a large shader. Not thread-safe (one thread records).
 class TransportPipeline {
 public:
+    // `spirv` and `name` must outlive the pipeline (the compiled-in shaders and string literals do);
     // `pass_constants`: the pass's own specialization constants, numbered after the transport constants.
     TransportPipeline(vk::Context& context, std::span<const uint32_t> spirv,
                       std::span<const vk::BindingLayout> layout, uint32_t push_constant_bytes, const char* name,
                       std::span<const uint32_t> pass_constants = {});
-    const vk::ComputePipeline& operator()(TransportVariant variant) const {
-        return pipelines_[(variant.grey ? 1u : 0u) + (variant.coverage_fetch ? 2u : 0u)];
-    }
+    const vk::ComputePipeline& operator()(TransportVariant variant) const;
 
 private:
-    std::vector<vk::ComputePipeline> pipelines_;  // indexed as operator() does
+    static constexpr size_t kVariants = 3 * 2;  // CHANNELS_* x coverage fetch
+
+    vk::Context& context_;
+    std::span<const uint32_t> spirv_;
+    std::vector<vk::BindingLayout> layout_;
+    uint32_t push_constant_bytes_;
+    const char* name_;
+    std::vector<uint32_t> pass_constants_;
+    mutable std::array<std::optional<vk::ComputePipeline>, kVariants> pipelines_;
 };
 
 }  // namespace refract::passes

@@ -31,7 +31,9 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     if (a.index_field != b.index_field || a.ior != b.ior || a.maxwell_n0 != b.maxwell_n0 ||
         before.medium.ior != after.medium.ior)
         stale |= kIndexField | kOctree | kPhotons | kView;
-    if (before.volume.octree_epsilon != after.volume.octree_epsilon) stale |= kOctree | kPhotons | kView;
+    // The octree's leaves keep n within epsilon in every channel, so dispersion changes them too.
+    if (before.volume.octree_epsilon != after.volume.octree_epsilon || a.abbe != b.abbe)
+        stale |= kOctree | kPhotons | kView;
     // What photons see: the light, their number, extinction (Beer-Lambert) and where the floor stops them;
     // and whether they deposit at all (only where something scatters).
     if (!(before.light == after.light) || !(before.photons == after.photons) || a.extinction != b.extinction ||

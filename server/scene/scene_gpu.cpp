@@ -62,13 +62,16 @@ void SceneGpu::allocate_volume(const GridGeometry& grid) {
     built_ = 0;
 }
 
-void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits, uint32_t radiance_factor, bool grey) {
+void SceneGpu::allocate_transport(uint32_t photon_paths, bool record_exits, uint32_t radiance_factor,
+                                  uint32_t channels) {
     vk::Context& ctx = kit_.context;
+    const bool grey = channels == CHANNELS_GREY;
     const uint32_t floor_texels = passes::floor_map_texels(grid_);
-    const uint32_t exits = record_exits ? photon_count : 1u;
+    const uint32_t exits = record_exits ? photon_paths : 1u;
     const uint32_t f = radiance_factor;
     const vk::Extent3 radiance_dims = grid_.coarsened(f);
-    if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_ || grey != grey_) {
+    if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_ ||
+        grey != (channels_ == CHANNELS_GREY)) {
         accum_.reset();
         accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels,
                                                         passes::light_map_capacity(grid_), exits, grey));
@@ -85,7 +88,7 @@ void SceneGpu::allocate_transport(uint32_t photon_count, bool record_exits, uint
         radiance_ = {};
         radiance_ = vk::Image3D(ctx, colour_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "radiance grid (per channel)");
     }
-    grey_ = grey;
+    channels_ = channels;
     if (floor_texels != floor_texels_ || !floor_map_.get()) {
         floor_map_ = vk::Image3D(ctx, {floor_texels, floor_texels, 1}, VK_FORMAT_R16G16B16A16_SFLOAT,
                                  "floor caustic map");
@@ -132,8 +135,9 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     }
     // Another radiance-grid resolution or deposit estimator (interactive <-> still) or kind of transport
     // means new photons into a new grid.
-    const bool grey = passes::grey_transport(document);
-    if (options.radiance_factor != radiance_factor_ || options.sampled_deposits != sampled_deposits_ || grey != grey_)
+    const uint32_t channels = passes::transport_channels(document);
+    if (options.radiance_factor != radiance_factor_ || options.sampled_deposits != sampled_deposits_ ||
+        channels != channels_)
         built_ &= ~(kPhotons | kView);
     sampled_deposits_ = options.sampled_deposits;
     stale |= kAllPasses & ~built_;
@@ -142,7 +146,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         if (stale & p) stale |= (kAllPasses & ~(p - 1));
     stale &= options.limit;
     if (stale & kPhotons)
-        allocate_transport(document.photons.count, options.record_photon_exits, options.radiance_factor, grey);
+        allocate_transport(passes::photon_paths(document.photons.count, channels), options.record_photon_exits,
+                           options.radiance_factor, channels);
     allocate_frame(document.image.width, document.image.height);
 
     passes::TransportOptions transport_options;
@@ -208,17 +213,16 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     }
     if (stale & kOctree) {
         timer_.begin(cmd, "octree");
-        kit_.octree.record(recorder_, index_field_, static_cast<float>(document.volume.octree_epsilon), pyramid_,
-                           levels_);
+        kit_.octree.record(recorder_, index_field_, passes::octree_epsilon(document), pyramid_, levels_);
         recorder_.compute_barrier();
         timer_.end(cmd);
     }
     const passes::TransportInputs inputs{params_buffer_, index_field_, coverage_image_, levels_,
                                          kit_.linear_sampler.get(),
-                                         {grey_, params_.flags.y == COVERAGE_FETCH || params_.flags.z == COVERAGE_FETCH}};
+                                         {channels_, params_.flags.y == COVERAGE_FETCH || params_.flags.z == COVERAGE_FETCH}};
     if (stale & kPhotons) {
         timer_.begin(cmd, "photons");
-        passes::clear_photon_accumulators(recorder_, *accum_, grey_);
+        passes::clear_photon_accumulators(recorder_, *accum_, channels_ == CHANNELS_GREY);
         if (params_.direct_light.w > 0.5f) {
             kit_.direct_light.record(recorder_, inputs, *accum_, static_cast<uint32_t>(params_.direct_light.x),
                                      grid_.coarsened(options.radiance_factor));
@@ -226,7 +230,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         }
         kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count, options.sampled_deposits);
         recorder_.compute_barrier();
-        kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, grey_, radiance_, flux_, floor_map_);
+        kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, channels_ == CHANNELS_GREY, radiance_, flux_, floor_map_);
         recorder_.compute_barrier();
         kit_.lit_pyramid.record(recorder_, params_buffer_, flux_, accum_->lit_blocks, index_field_.extent());
         recorder_.compute_barrier();
@@ -315,7 +319,7 @@ std::vector<glm::vec4> SceneGpu::read_flux() const { return read_image<glm::vec4
 std::vector<uint32_t> SceneGpu::read_lit_pyramid() const { return read_buffer<uint32_t>(accum_->lit_blocks); }
 
 std::vector<glm::vec4> SceneGpu::read_radiance() const {
-    if (!grey_) return read_image<glm::vec4>(radiance_);
+    if (channels_ != CHANNELS_GREY) return read_image<glm::vec4>(radiance_);
     // Grey transport: the light's colour times the channels' mean, as the viewing pass shades it.
     const glm::vec3 colour = shaders::grey_colour(params_.photon_flux);
     std::vector<glm::vec4> out = read_flux();

@@ -94,7 +94,7 @@ public:
     std::vector<uint32_t> read_levels() const;  // octree leaf level per voxel
     std::vector<glm::vec4> read_radiance() const;  // fluence rate rgb (W/m^2)
     std::vector<glm::vec4> read_flux() const;      // net flux vector xyz, fluence rate w (channel mean; W/m^2)
-    bool grey() const { return grey_; }            // the kind of transport the photons last ran
+    uint32_t channels() const { return channels_; }  // how the photons last ran carried colour (CHANNELS_*)
     // The lit pyramid, levels one after another (passes::lit_pyramid_offsets): 1 per lit cell above
     // level 0, and per level-0 block the number of levels unlit there (transport.h).
     std::vector<uint32_t> read_lit_pyramid() const;
@@ -111,7 +111,7 @@ public:
 
 private:
     void allocate_volume(const GridGeometry& grid);
-    void allocate_transport(uint32_t photon_count, bool record_exits, uint32_t radiance_factor, bool grey);
+    void allocate_transport(uint32_t photon_paths, bool record_exits, uint32_t radiance_factor, uint32_t channels);
     void allocate_frame(uint32_t width, uint32_t height);
     template <typename T>
     std::vector<T> read_image(const vk::Image3D& image) const;
@@ -123,7 +123,7 @@ private:
     PassSet built_ = 0;
     uint32_t width_ = 0, height_ = 0, floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
     bool sampled_deposits_ = false;  // how the photons in the radiance grid were deposited (RunOptions)
-    bool grey_ = false;
+    uint32_t channels_ = CHANNELS_RGB;
     shaders::TransportParams params_{};
     // Volume (voxelize, index field, octree)
     vk::Buffer coverage_, scratch_, grid_values_, pyramid_, levels_;

@@ -86,13 +86,20 @@ REFRACT_SHADERS_BEGIN
 #define LIGHT_SPOT 1u
 #define LIGHT_DIRECTIONAL 2u
 
-#define CHANNEL_ALL 3u  // a photon carries all three channels (no dispersion)
-
-// Specialization constant of the photon, resolve and viewing passes. Grey transport: extinction is the
-// same in every channel (and no dispersion), so a photon's colour never changes from emission to
-// deposit. The radiance grid then keeps one fluence (the channels' mean) and the light's colour is
-// applied when shading: one atomic word per deposit and one texture fetch per eye-ray step fewer.
-#define TRANSPORT_CONSTANT_GREY 0
+// Specialization constant of the photon, resolve and viewing passes: how the three colour channels
+// travel (CHANNELS_*).
+//  - Grey: extinction is the same in every channel and nothing disperses, so a photon's colour never
+//    changes from emission to deposit. The radiance grid then keeps one fluence (the channels' mean)
+//    and the light's colour is applied when shading: one atomic word per deposit and one texture fetch
+//    per eye-ray step fewer.
+//  - RGB: one path carries all three channels, each attenuated by its own extinction.
+//  - Dispersive: the index contrast differs by channel (TransportParams::dispersion), so each channel
+//    takes its own path: every photon sample is traced once per channel, carrying that channel only,
+//    and every pixel's eye ray once per channel.
+#define TRANSPORT_CONSTANT_CHANNELS 0
+#define CHANNELS_RGB 0u
+#define CHANNELS_GREY 1u
+#define CHANNELS_DISPERSIVE 2u
 // Specialization constant of the same passes: some coefficient finds its coverage by a fetch
 // (COVERAGE_FETCH). Without it the coverage texture is never read: lavapipe would fetch it on every
 // step whatever the mode.
@@ -101,7 +108,9 @@ REFRACT_SHADERS_BEGIN
 // per radiance voxel of path, rather than exact per voxel crossed (photon_trace.comp, deposit).
 #define PHOTON_CONSTANT_SAMPLED_DEPOSITS 2
 #ifndef __cplusplus
-layout(constant_id = TRANSPORT_CONSTANT_GREY) const bool kGreyTransport = false;
+layout(constant_id = TRANSPORT_CONSTANT_CHANNELS) const uint kChannels = CHANNELS_RGB;
+const bool kGreyTransport = kChannels == CHANNELS_GREY;
+const bool kDispersive = kChannels == CHANNELS_DISPERSIVE;
 layout(constant_id = TRANSPORT_CONSTANT_COVERAGE_FETCH) const bool kCoverageFetch = true;
 #endif
 
@@ -121,7 +130,7 @@ struct TransportParams {
     vec4 medium_scattering;   // rgb per metre; w: phase g
     vec4 object_extinction;   // rgb per metre; w: object ior (uniform field)
     vec4 object_scattering;   // rgb per metre; w: phase g
-    uvec4 models;             // x: medium phase model, y: object phase model, z: light type, w: channel
+    uvec4 models;             // x: medium phase model, y: object phase model, z: light type, w: unused
     // Light
     vec4 light_position;      // xyz world; w: cos of the spot half-angle
     vec4 light_direction;     // xyz: spot axis / directional travel direction; w: unused
@@ -157,6 +166,8 @@ struct TransportParams {
     uvec4 lit_offsets;        // where each level of the lit pyramid starts in the lit-blocks buffer
     vec4 direct_light;        // x: light-map texels per side; y: near, where direct light may begin (voxels
                               // from a point or spot light); z: unused; w: 1 = direct light in closed form
+    vec4 dispersion;          // rgb: each channel's index contrast against the medium over the field's,
+                              // n_c - n_medium = dispersion[c] (n - n_medium) (1 without dispersion); w: unused
 };
 
 // The unit direction light travels at world point x as if nothing were in its way: the net flux
@@ -249,7 +260,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == 32 * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == 33 * 16);
 static_assert(sizeof(refract::shaders::PhotonStats) == 32);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 64);

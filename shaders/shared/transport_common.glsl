@@ -100,18 +100,25 @@ struct Ray {
 
 Ray start_ray(vec3 p, vec3 d) { return Ray(p, d, index_at(p)); }
 
+// The channel's scale of the index contrast (TransportParams::dispersion) for the ray being traced:
+// under dispersive transport a ray carries one channel, and its steps see n_medium + scale (n - n_medium).
+// The field itself, its coverage and the octree are the reference channel's.
+float ray_contrast = 1.0;
+
 // One step of d/ds (n dx/ds) = grad n with v = n dx/ds (Sun et al. 2008, Ihrke et al. 2007). The
 // paper's Euler update (x += ds/n v, v += ds grad n) is first order; here the position also takes the
 // curvature term ds^2/(2n) (grad n across the ray) and v the trapezoid of grad n at both ends. The
 // field at the far end is fetched anyway (to renormalize |v| = n there), so second order costs no
 // extra fetch, and the octree's long leaf steps stay accurate in smooth fields (Luneburg, Maxwell).
 void ray_step(inout Ray ray, float ds) {
-    float n = ray.field.x;
-    vec3 g = ray.field.yzw;
+    float contrast = kDispersive ? ray_contrast : 1.0;
+    float n_medium = params.medium_extinction.w;
+    float n = kDispersive ? n_medium + contrast * (ray.field.x - n_medium) : ray.field.x;
+    vec3 g = contrast * ray.field.yzw;
     vec3 across = g - dot(g, ray.d) * ray.d;
     ray.p += ds * ray.d + (0.5 * ds * ds / n) * across;
     vec4 next = index_at(ray.p);
-    vec3 v = n * ray.d + (0.5 * ds) * (g + next.yzw);
+    vec3 v = n * ray.d + (0.5 * ds) * (g + contrast * next.yzw);
     ray.field = next;
     float len = length(v);
     if (len > 0.0) ray.d = v / len;
