@@ -4,6 +4,15 @@
 import { PRESETS } from './presets.js';
 import { getAt, hexToLinear, linearToHex, parsePointer, patchAt, round } from './scene.js';
 
+// Sliders whose position is not the value itself: `fromSlider` maps a slider position to the value,
+// `toSlider` back, `numberStep` is the exact-value box's step.
+const LOG2_SLIDER = { fromSlider: (r) => 2 ** r, toSlider: (v) => Math.log2(Math.max(1, v)), numberStep: 1 };
+// Dispersion grows as 1 / Abbe number, so the slider moves along 1/V: 0 is none, the far end V = 5.
+// The box holds the Abbe number itself.
+const INVERSE_SLIDER = {
+  fromSlider: (r) => (r > 0 ? Math.round(10 / r) / 10 : 0), toSlider: (v) => (v > 0 ? 1 / v : 0), numberStep: 1,
+};
+
 export const SECTIONS = [
   {
     id: 'scene', title: 'Scene', controls: [
@@ -29,6 +38,8 @@ export const SECTIONS = [
         showIf: (doc) => (doc.object?.index_field ?? 'uniform') === 'uniform' },
       { kind: 'range', ptr: '/object/maxwell_n0', label: 'Fish-eye central index n₀', min: 1, max: 4, step: 0.01,
         showIf: (doc) => doc.object?.index_field === 'maxwell' },
+      { kind: 'range', ptr: '/object/abbe', label: 'Dispersion: Abbe number (0 = none; glass 30-60)',
+        min: 0, max: 0.2, step: 0.002, ...INVERSE_SLIDER },
       { kind: 'range', ptr: '/object/scale', label: 'Scale', min: 0.1, max: 3, step: 0.01 },
       { kind: 'rgb', ptr: '/object/extinction', label: 'Extinction (per m)', min: 0, max: 10, step: 0.01 },
       { kind: 'rgb', ptr: '/object/scattering', label: 'Scattering (per m)', min: 0, max: 10, step: 0.01 },
@@ -48,7 +59,7 @@ export const SECTIONS = [
   },
   {
     id: 'quality', title: 'Quality', controls: [
-      { kind: 'range', ptr: '/photons/count', label: 'Photons', log2: true, min: 10, max: 22, step: 1 },
+      { kind: 'range', ptr: '/photons/count', label: 'Photons', min: 10, max: 22, step: 1, ...LOG2_SLIDER },
       { kind: 'range', ptr: '/volume/resolution', label: 'Volume resolution (voxels)', min: 32, max: 512, step: 16 },
       { kind: 'range', ptr: '/image/exposure', label: 'Exposure (stops)', min: -4, max: 4, step: 0.1 },
     ],
@@ -125,12 +136,12 @@ class RangeField extends Field {
     super(spec, [spec.ptr], spec.label, id);
     this.range = h('input', { type: 'range', id, min: spec.min, max: spec.max, step: spec.step });
     this.number = h('input', {
-      type: 'number', id: `${id}-num`, class: 'num', step: spec.log2 ? 1 : spec.step, inputmode: 'decimal',
+      type: 'number', id: `${id}-num`, class: 'num', step: this.numberStep(), inputmode: 'decimal',
       'aria-label': `${spec.label}, exact value`,
     });
-    const fromRange = () => (spec.log2 ? 2 ** num(this.range.value) : num(this.range.value));
+    const fromRange = () => (spec.fromSlider ? spec.fromSlider(num(this.range.value)) : num(this.range.value));
     this.range.addEventListener('input', () => {
-      this.number.value = fmt(fromRange(), spec.log2 ? 1 : spec.step);
+      this.number.value = fmt(fromRange(), this.numberStep());
       emit(this, patchAt(spec.ptr, fromRange()), false);
     });
     this.range.addEventListener('change', () => emit(this, patchAt(spec.ptr, fromRange()), true));
@@ -143,12 +154,13 @@ class RangeField extends Field {
     this.describe(this.number, this.range);
     this.el.append(this.label, h('div', { class: 'row' }, this.range, this.number), this.error);
   }
-  setRange(v) { this.range.value = String(this.spec.log2 ? Math.log2(Math.max(1, v)) : v); }
+  numberStep() { return this.spec.numberStep ?? this.spec.step; }
+  setRange(v) { this.range.value = String(this.spec.toSlider ? this.spec.toSlider(v) : v); }
   update(doc) {
     const v = getAt(doc, this.spec.ptr);
     if (typeof v !== 'number') return;
     if (!isEditing(this.range)) this.setRange(v);
-    if (!isEditing(this.number)) this.number.value = fmt(v, this.spec.log2 ? 1 : this.spec.step);
+    if (!isEditing(this.number)) this.number.value = fmt(v, this.numberStep());
   }
 }
 
@@ -386,7 +398,7 @@ export function buildControls(form, onEdit, hooks) {
     setMax(ptr, max) {
       const f = fields.find((x) => x instanceof RangeField && x.spec.ptr === ptr);
       if (!f || !(max > 0)) return;
-      const top = f.spec.log2 ? Math.floor(Math.log2(max)) : max;
+      const top = f.spec.toSlider ? Math.floor(f.spec.toSlider(max)) : max;
       if (top < Number(f.range.max)) f.range.max = String(top);
       f.number.max = String(max);
     },

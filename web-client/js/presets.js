@@ -1,6 +1,6 @@
 // Example scenes, each a JSON merge patch over whatever scene is loaded. Every preset writes all the
 // fields it cares about (object, light, medium, floor, camera) so the result does not depend on the
-// previous scene; quality settings (image, volume, photons) are left as the user set them.
+// previous scene; quality settings (image, volume resolution, photons) are left as the user set them.
 
 import { normalize, roundVec, sub } from './scene.js';
 
@@ -12,7 +12,7 @@ const spot = (position, { target = [0, 0, 0], color = [1, 1, 1], intensity = 30,
 
 const clearPhase = { model: 'isotropic', g: 0 };
 const object = (fields) => ({
-  mesh: 'sphere', position: [0, 0, 0], rotation_deg: [0, 0, 0], scale: 1, index_field: 'uniform', ior: 1.5,
+  mesh: 'sphere', position: [0, 0, 0], rotation_deg: [0, 0, 0], scale: 1, index_field: 'uniform', ior: 1.5, abbe: 0,
   extinction: [0.02, 0.02, 0.02], scattering: [0, 0, 0], phase: clearPhase, ...fields,
 });
 const medium = (density, g = 0.3) => ({
@@ -20,6 +20,8 @@ const medium = (density, g = 0.3) => ({
   phase: { model: 'henyey-greenstein', g },
 });
 const camera = (position, target = [0, -0.2, 0]) => ({ position, target, up: [0, 1, 0], fov_deg: 40 });
+// The volume's framing: metres of fog around the object that photons light (the document's default 0.35).
+const framing = (margin = 0.35) => ({ margin });
 
 export const PRESETS = [
   {
@@ -32,6 +34,20 @@ export const PRESETS = [
       object: object({ mesh: 'sphere', scale: 0.6, position: [0, 0.2, 0], ior: 1.5 }),
       medium: medium(0.25, 0.4),
       floor: { enabled: true, height: -1, albedo: [0.8, 0.8, 0.8], checker: false },
+      volume: framing(),
+    },
+  },
+  {
+    id: 'dispersive-ball',
+    name: 'Dispersive glass ball',
+    description: 'A glass ball with exaggerated dispersion (Abbe number 8; flint glass is about 30) splits a white beam: blue focuses first, and the cone behind the focus is fringed with colour.',
+    patch: {
+      camera: camera([0.4, 0.9, 5.2], [0.4, 0, 0]),
+      light: spot([-2.2, 0, 0], { target: [1, 0, 0], intensity: 110, cone: 9 }),
+      object: object({ mesh: 'sphere', scale: 0.6, ior: 1.6, abbe: 8 }),
+      medium: medium(0.25, 0.2),
+      floor: { enabled: false, height: -1, albedo: [0.8, 0.8, 0.8], checker: false },
+      volume: framing(1.0),  // room for the beam to narrow to its focus and open again
     },
   },
   {
@@ -44,6 +60,7 @@ export const PRESETS = [
       object: object({ mesh: 'sphere', scale: 0.8, index_field: 'luneburg', extinction: [0.01, 0.01, 0.01] }),
       medium: medium(0.18, 0.5),
       floor: { enabled: true, height: -1, albedo: [0.7, 0.7, 0.75], checker: true },
+      volume: framing(),
     },
   },
   {
@@ -56,6 +73,7 @@ export const PRESETS = [
       object: object({ mesh: 'torus', position: [0, -0.2, 0], rotation_deg: [62, 0, 18], scale: 0.65, ior: 1.52 }),
       medium: medium(0.05, 0.3),
       floor: { enabled: true, height: -1, albedo: [0.85, 0.85, 0.85], checker: true },
+      volume: framing(),
     },
   },
   {
@@ -71,6 +89,7 @@ export const PRESETS = [
       }),
       medium: medium(0.12, 0.3),
       floor: { enabled: true, height: -1, albedo: [0.85, 0.85, 0.85], checker: true },
+      volume: framing(),
     },
   },
   {
@@ -83,6 +102,7 @@ export const PRESETS = [
       object: object({ mesh: 'sphere', scale: 0.8, index_field: 'maxwell', extinction: [0.01, 0.01, 0.01] }),
       medium: medium(0.2, 0.5),
       floor: { enabled: true, height: -1, albedo: [0.8, 0.8, 0.8], checker: false },
+      volume: framing(),
     },
   },
 ];
