@@ -167,6 +167,14 @@ async function sceneOnServer(id) {
   return r.json;
 }
 
+// Loads example scene `id` from the preset picker and waits for its still frame.
+async function applyPreset(page, id) {
+  const rev0 = await page.evaluate(() => window.refract.lastRevision);
+  await page.selectOption('#ctl-preset', id);
+  await page.click('#preset-apply');
+  await waitSettled(page, rev0);
+}
+
 // ---- the checks ----------------------------------------------------------------------------------
 
 const results = [];
@@ -455,10 +463,7 @@ async function main() {
   });
 
   await check('a preset applies its example scene', async () => {
-    const rev0 = await page.evaluate(() => window.refract.lastRevision);
-    await page.selectOption('#ctl-preset', 'luneburg-lens');
-    await page.click('#preset-apply');
-    await waitSettled(page, rev0);
+    await applyPreset(page, 'luneburg-lens');
     const after = await sceneOnServer(sceneId);
     assert(after.scene.object.index_field === 'luneburg', `index_field is ${after.scene.object.index_field}`);
     assert(after.scene.object.mesh === 'sphere', `mesh is ${after.scene.object.mesh}`);
@@ -472,10 +477,7 @@ async function main() {
   });
 
   await check('the dispersion preset and its Abbe number control', async () => {
-    const rev0 = await page.evaluate(() => window.refract.lastRevision);
-    await page.selectOption('#ctl-preset', 'dispersive-ball');
-    await page.click('#preset-apply');
-    await waitSettled(page, rev0);
+    await applyPreset(page, 'dispersive-ball');
     const applied = await sceneOnServer(sceneId);
     assert(applied.scene.object.abbe > 0, `abbe is ${applied.scene.object.abbe}`);
     const shown = await page.evaluate(() => Number(document.getElementById('ctl-object-abbe-num').value));
