@@ -189,26 +189,22 @@ void deposit_floor(vec3 x, vec3 weight, int sign) {
     if (sign > 0) atomicAdd(stats.floor_hits, 1u);
 }
 
+// Under dispersive transport (transport.h) a photon sample is one white path until its first step that
+// depends on the channel (channel_free), and from the start of that step one path per channel, each
+// carrying only its channel. What the white path deposited lay on its steps' straight starts, the same
+// in every channel. Without dispersion a photon is one path.
 void main() {
     load_params();
     uint count = params.photon_info.x;
     uint job = take_from_queue(QUEUE_PHOTONS);
-    // Dispersive transport traces every emission sample once per channel, channel by channel, so
-    // neighbouring lanes share a channel as well as a sample cell.
-    uint channel = kDispersive ? job / count : 0u;
-    if (channel >= (kDispersive ? 3u : 1u)) return;
-    uint i = coherent_order(job - channel * count, count);
+    if (job >= count) return;
+    uint i = coherent_order(job, count);
     vec3 origin, direction;
     vec2 sample_point = stratified(i, count, params.photon_info.y);
     if (!emit_ray(sample_point, origin, direction)) return;
-    // A sample's three paths share its random streams, as one photon's channels do without dispersion.
     rng_state = hash(i ^ hash(params.photon_info.y));
     deposit_phase = i * 2654435769u + hash(params.photon_info.y + 1u);  // 2^32 / the golden ratio
     vec3 weight = params.photon_flux.rgb / params.photon_flux.w;  // relative to the reference flux
-    if (kDispersive) {
-        weight *= vec3(equal(uvec3(0u, 1u, 2u), uvec3(channel)));
-        ray_contrast = params.dispersion[channel];
-    }
 
     vec3 p = to_voxel(origin);
     vec2 span = grid_interval(p, direction);
@@ -233,8 +229,7 @@ void main() {
     uint steps = 0u;
     float h = voxel_size();
     float radiance_factor = float(params.radiance_grid.w);
-    float outcome = 0.0;
-    float path = 0.0;  // voxels travelled inside the grid
+    float path_length = 0.0;  // voxels travelled inside the grid
     // Unbent until the photon meets a gradient of n (transport.h).
     bool unbent = true;
     light_in_radiance_voxels = to_voxel(origin) / radiance_factor;
@@ -246,49 +241,103 @@ void main() {
     float direct_to = params.direct_light.w > 0.5 ? light_map[light_map_texel(sample_point)] : 0.0;
     bool jumped = false;   // the last step crossed the direct span
     bool overlap = false;  // it landed where n varies or on the object: the map was wrong for this photon
-    for (; steps < params.photon_info.z; ++steps) {
-        uint level = fixed_step ? 0u : octree_level(ray.p);
-        float ds = safe_step(level, ray.p, ray.d, shell_step);
-        float coverage = coverage_for(params.flags.y, ray.p, ray.field.x);
-        vec3 kappa = extinction_at(coverage) * h;  // per voxel length
-        overlap = overlap || (jumped && !flat_medium(ray.field, coverage));
-        bool in_direct = along >= direct_from && along < direct_to;
-        if (in_direct) ds = direct_to - along;
-        else if (along < direct_from && direct_from < direct_to) ds = min(ds, max(direct_from - along, 1e-3));
-        jumped = in_direct;
-        // Stop at the floor or the grid's far side within this step.
-        float to_exit = grid_interval(ray.p, ray.d).y;
-        bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
-        float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
-        float len = min(ds, min(to_exit, to_floor));
-        unbent = unbent && all(equal(ray.field.yzw, vec3(0.0)));
-        if (deposits && !in_direct) deposit(ray.p / radiance_factor, ray.d, len / radiance_factor, weight, kappa * radiance_factor, unbent);
-        path += len;
-        if (to_floor <= min(ds, to_exit)) {
-            weight *= exp(-kappa * to_floor);
-            ray.p += ray.d * to_floor;
-            outcome = 2.0;
-            break;
+    // Where the channels part: the ray before that step, its length, and the path's state then.
+    Ray split_ray = ray;
+    float split_ds = 0.0, split_along = 0.0, split_length = 0.0;
+    vec3 split_weight = weight;
+    uint split_steps = 0u, split_rng = 0u, split_phase = 0u;
+    bool split_jumped = false, split_overlap = false;
+    // One loop and one floor deposit for all paths: lavapipe runs every line of a loop body on each pass.
+    for (uint path = 0u; path < (kDispersive ? 4u : 1u); ++path) {
+        uint first_step = 0u;
+        if (kDispersive && path > 0u) {
+            uint c = path - 1u;
+            ray_contrast = params.dispersion[c];
+            ray = split_ray;
+            weight = split_weight * channel_mask(c);
+            along = split_along;
+            path_length = split_length;
+            jumped = split_jumped;
+            overlap = split_overlap;
+            rng_state = split_rng;
+            deposit_phase = split_phase;
+            ray_step(ray, split_ds);
+            along += split_ds;
+            steps = split_steps + 1u;
+            first_step = steps;
         }
-        weight *= exp(-kappa * len);
-        if (to_exit <= ds) {
-            ray.p += ray.d * to_exit;
-            outcome = 1.0;
-            break;
+        bool split = false;
+        float outcome = 0.0;
+        for (; steps < params.photon_info.z; ++steps) {
+            uint level = fixed_step ? 0u : octree_level(ray.p);
+            float ds = safe_step(level, ray.p, ray.d, shell_step);
+            float coverage = coverage_for(params.flags.y, ray.p, ray.field.x);
+            vec3 kappa = extinction_at(coverage) * h;  // per voxel length
+            overlap = overlap || (jumped && !flat_medium(ray.field, coverage));
+            bool in_direct = along >= direct_from && along < direct_to;
+            if (in_direct) ds = direct_to - along;
+            else if (along < direct_from && direct_from < direct_to) ds = min(ds, max(direct_from - along, 1e-3));
+            jumped = in_direct;
+            // Stop at the floor or the grid's far side within this step.
+            float to_exit = grid_interval(ray.p, ray.d).y;
+            bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
+            float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
+            float len = min(ds, min(to_exit, to_floor));
+            unbent = unbent && all(equal(ray.field.yzw, vec3(0.0)));
+            if (deposits && !in_direct) deposit(ray.p / radiance_factor, ray.d, len / radiance_factor, weight, kappa * radiance_factor, unbent);
+            path_length += len;
+            if (to_floor <= min(ds, to_exit)) {
+                weight *= exp(-kappa * to_floor);
+                ray.p += ray.d * to_floor;
+                outcome = 2.0;
+                break;
+            }
+            weight *= exp(-kappa * len);
+            if (to_exit <= ds) {
+                ray.p += ray.d * to_exit;
+                outcome = 1.0;
+                break;
+            }
+            Ray before = ray;
+            ray_step(ray, ds);
+            if (kDispersive && path == 0u && !(channel_free(before.field) && channel_free(ray.field))) {
+                split = true;
+                split_ray = before;
+                split_ds = ds;
+                split_along = along;
+                split_length = path_length;
+                split_weight = weight;
+                split_steps = steps;
+                split_jumped = jumped;
+                split_overlap = overlap;
+                break;
+            }
+            along += ds;
+            if (max(weight.r, max(weight.g, weight.b)) < 1e-4) break;
         }
-        ray_step(ray, ds);
-        along += ds;
-        if (max(weight.r, max(weight.g, weight.b)) < 1e-4) break;
+        flush_deposit();
+        if (path == 0u) {
+            // Each channel's path goes on with the same random streams, as one photon's channels would.
+            split_rng = rng_state;
+            split_phase = deposit_phase;
+        }
+        atomicAdd(stats.steps, steps + 1u - first_step);
+        if (split) continue;
+        // A photon that left the grid goes on straight (outside is empty) to the floor.
+        if (outcome == 2.0 || (outcome == 1.0 && floor_on && ray.d.y < 0.0)) {
+            vec3 landing = outcome == 2.0 ? ray.p : ray.p + ray.d * ((ray.p.y - floor_y) / -ray.d.y);
+            deposit_floor(to_world(landing), weight, 1);
+        }
+        if (overlap) atomicAdd(stats.direct_overlaps, 1u);
+        if (params.flags.x == 1u) {
+            // Under dispersive transport exits are kept per channel, channel by channel: a white path's
+            // in all three.
+            PhotonExit exit = PhotonExit(vec4(entry, 1.0), vec4(direction, path_length * h),
+                                         vec4(to_world(ray.p), outcome), vec4(ray.d, float(steps + 1u)));
+            uint first = kDispersive && path > 0u ? path - 1u : 0u;
+            uint last = kDispersive ? (path > 0u ? path : 3u) : 1u;
+            for (uint c = first; c < last; ++c) exits[i + c * count] = exit;
+        }
+        if (path == 0u) break;  // one path served every channel
     }
-    flush_deposit();
-    // The floor deposit sits outside the loop, once: lavapipe runs every line of a loop body on each pass.
-    // A photon that left the grid goes on straight (outside is empty) to the floor.
-    if (outcome == 2.0 || (outcome == 1.0 && floor_on && ray.d.y < 0.0)) {
-        vec3 landing = outcome == 2.0 ? ray.p : ray.p + ray.d * ((ray.p.y - floor_y) / -ray.d.y);
-        deposit_floor(to_world(landing), weight, 1);
-    }
-    atomicAdd(stats.steps, steps + 1u);
-    if (overlap) atomicAdd(stats.direct_overlaps, 1u);
-    if (params.flags.x == 1u) exits[i + channel * count] = PhotonExit(vec4(entry, 1.0), vec4(direction, path * h), vec4(to_world(ray.p), outcome),
-                                                vec4(ray.d, float(steps + 1u)));
 }

@@ -82,28 +82,52 @@ vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
 
 vec3 sky(vec3 d) { return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0)); }
 
-// The radiance an eye ray from world point `position` along d brings back (rgb; under dispersive
-// transport only the channel of ray_contrast counts). Adds its march steps to `march_steps`.
-vec3 eye_radiance(vec3 position, vec3 d, inout uint march_steps) {
-    uint steps = 0u;
-    vec3 radiance_sum = vec3(0.0);
-    vec3 transmittance = vec3(1.0);
-    bool on_floor = false;
+// Traces the eye ray of one pixel and writes its HDR and sRGB values. Under dispersive transport the ray
+// is one path until its first step that depends on the channel (channel_free), and from the start of that
+// step each channel follows its own path, bent by its own index, and brings back its own channel.
+void shade(uvec2 pixel) {
+    uint width = params.image.x, height = params.image.y;
+    float tan_half = params.camera_position.w;
+    float aspect = float(width) / float(height);
+    vec2 ndc = vec2((2.0 * (float(pixel.x) + 0.5) / float(width) - 1.0) * aspect,
+                    1.0 - 2.0 * (float(pixel.y) + 0.5) / float(height)) * tan_half;
+    vec3 d = normalize(params.camera_forward.xyz + ndc.x * params.camera_right.xyz + ndc.y * params.camera_up.xyz);
+    vec3 position = params.camera_position.xyz;  // world, where the straight part of the ray resumes
     bool floor_on = floor_enabled();
     float h = voxel_size();
+    float floor_y = floor_height_voxels();
+    float view_step = params.tone.y;
 
     vec3 p = to_voxel(position);
     vec2 span = grid_interval(p, d);
-    float floor_y = floor_height_voxels();
     float floor_t = (floor_on && d.y < 0.0) ? (p.y - floor_y) / -d.y : 1e30;
-    if (span.x < span.y && span.x < floor_t) {
-        p += d * (span.x + 1e-3);
-        Ray ray = start_ray(p, d);
-        float view_step = params.tone.y;
+    bool marches = span.x < span.y && span.x < floor_t;
+    Ray ray = start_ray(p + d * (marches ? span.x + 1e-3 : 0.0), d);
+    vec3 radiance_sum = vec3(0.0);
+    vec3 transmittance = vec3(1.0);
+    bool on_floor = false;
+    uint march_steps = 0u;
+    // Where the channels part: the ray before that step, the step's length, what the path had gathered.
+    Ray split_ray = ray;
+    float split_run = 0.0;
+    vec3 split_sum = vec3(0.0), split_transmittance = vec3(1.0);
+    vec3 pixel_radiance = vec3(0.0);
+    // One march and one floor_radiance call site for all paths: lavapipe runs every call (and its fetches)
+    // for every pixel.
+    for (uint path = 0u; path < (kDispersive ? 4u : 1u); ++path) {
+        bool split = false;
+        if (kDispersive && path > 0u) {
+            ray_contrast = params.dispersion[path - 1u];
+            ray = split_ray;
+            radiance_sum = split_sum;
+            transmittance = split_transmittance;
+            ray_step(ray, split_run);
+        }
+        uint steps = 0u;
         // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch
         // appears once: the loop below takes one octree leaf (or shell step) per pass, and the inner
         // loop, which holds the only in-scattering fetches, takes that leaf's view steps.
-        while (steps < 8192u) {
+        while (marches && steps < 8192u) {
             float coverage = coverage_for(max(params.flags.y, params.flags.z), ray.p, ray.field.x);
             float scatter_coverage = coverage_as(params.flags.z, coverage);
             vec3 sigma_s = scattering_at(scatter_coverage) * h;
@@ -142,8 +166,8 @@ vec3 eye_radiance(vec3 position, vec3 d, inout uint march_steps) {
                     float len = min(gather_step, run - t);
                     bool whole = len == gather_step;
                     vec3 attenuation = whole ? step_attenuation : exp(-kappa * len);
-                    vec3 path = whole ? step_path : transmitted_path(kappa, len, attenuation);
-                    radiance_sum += transmittance * sigma_s * path *
+                    vec3 path_length = whole ? step_path : transmitted_path(kappa, len, attenuation);
+                    radiance_sum += transmittance * sigma_s * path_length *
                                     in_scattered(ray.p + (t + 0.5 * len) * ray.d, ray.d, model, g);
                     transmittance *= attenuation;
                     t += len;
@@ -159,47 +183,39 @@ vec3 eye_radiance(vec3 position, vec3 d, inout uint march_steps) {
                 on_floor = to_floor <= to_exit;
                 break;
             }
+            Ray before = ray;
             ray_step(ray, run);
+            if (kDispersive && path == 0u && !(channel_free(before.field) && channel_free(ray.field))) {
+                // What this step gathered lay on its straight start, the same in every channel.
+                split = true;
+                split_ray = before;
+                split_run = run;
+                split_sum = radiance_sum;
+                split_transmittance = transmittance;
+                break;
+            }
             if (max(transmittance.r, max(transmittance.g, transmittance.b)) < 1e-3) {
                 transmittance = vec3(0.0);
                 break;
             }
         }
-        p = ray.p;
-        d = ray.d;
-        position = to_world(p);
-    }
-    if (any(greaterThan(transmittance, vec3(0.0)))) {
-        // One floor_radiance call site: lavapipe would run each call (and its fetch) for every pixel.
-        bool sees_floor = on_floor || (floor_on && d.y < 0.0 && position.y > params.floor_plane.x);
-        vec3 floor_point = on_floor ? position : position + d * ((position.y - params.floor_plane.x) / -d.y);
-        radiance_sum += transmittance * (sees_floor ? floor_radiance(floor_point) : sky(d));
-    }
-    march_steps += steps;
-    return radiance_sum;
-}
-
-// Traces the eye ray of one pixel (under dispersive transport one per channel, each bent by its own
-// index) and writes its HDR and sRGB values.
-void shade(uvec2 pixel) {
-    uint width = params.image.x, height = params.image.y;
-    float tan_half = params.camera_position.w;
-    float aspect = float(width) / float(height);
-    vec2 ndc = vec2((2.0 * (float(pixel.x) + 0.5) / float(width) - 1.0) * aspect,
-                    1.0 - 2.0 * (float(pixel.y) + 0.5) / float(height)) * tan_half;
-    vec3 d = normalize(params.camera_forward.xyz + ndc.x * params.camera_right.xyz + ndc.y * params.camera_up.xyz);
-    vec3 radiance_sum = vec3(0.0);
-    uint march_steps = 0u;
-    // One call site: lavapipe would run every call of the march for every pixel.
-    for (uint c = 0u; c < (kDispersive ? 3u : 1u); ++c) {
-        if (kDispersive) ray_contrast = params.dispersion[c];
-        vec3 radiance = eye_radiance(params.camera_position.xyz, d, march_steps);
-        radiance_sum = kDispersive ? radiance_sum + radiance * vec3(equal(uvec3(0u, 1u, 2u), uvec3(c))) : radiance;
+        march_steps += steps;
+        if (split) continue;
+        vec3 end = marches ? to_world(ray.p) : position;
+        vec3 end_d = marches ? ray.d : d;
+        vec3 total = radiance_sum;
+        if (any(greaterThan(transmittance, vec3(0.0)))) {
+            bool sees_floor = on_floor || (floor_on && end_d.y < 0.0 && end.y > params.floor_plane.x);
+            vec3 floor_point = on_floor ? end : end + end_d * ((end.y - params.floor_plane.x) / -end_d.y);
+            total += transmittance * (sees_floor ? floor_radiance(floor_point) : sky(end_d));
+        }
+        pixel_radiance = kDispersive && path > 0u ? pixel_radiance + total * channel_mask(path - 1u) : total;
+        if (path == 0u) break;  // one path served every channel
     }
     atomicAdd(stats.view_steps, march_steps);
     uint index = pixel.y * width + pixel.x;
-    hdr[index] = vec4(radiance_sum, 1.0);
-    ldr[index] = srgb8(radiance_sum, params.tone.x);
+    hdr[index] = vec4(pixel_radiance, 1.0);
+    ldr[index] = srgb8(pixel_radiance, params.tone.x);
 }
 
 // The queue runs through the image (or its coarse pixels) tile by tile (view_tiles.glsl). Listed pixels

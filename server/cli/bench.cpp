@@ -64,6 +64,8 @@ json scene_patch(const std::string& base) {
         return {{"object", {{"mesh", "torus"}, {"rotation_deg", {60, 0, 0}}, {"ior", 1.5}}},
                 {"medium", {{"extinction", {0.02, 0.02, 0.02}}, {"scattering", {0.02, 0.02, 0.02}}}}};
     if (base == "bunny") return {{"object", {{"mesh", "upload:bunny"}}}};
+    // The ball lens in fog dispersing (flint glass): against "volume 128", what dispersion costs.
+    if (base == "dispersion") return {{"object", {{"abbe", 30}}}};
     throw std::runtime_error("unknown bench scene " + base);
 }
 
@@ -109,7 +111,7 @@ std::vector<BenchCase> standard_suite(bool gpu) {
     for (int i : images)
         add("image " + std::to_string(i), "ball_lens_fog",
             {{"photons", {{"count", base_photons}}}, {"image", {{"width", i}, {"height", i}}}}, scene::kView, "camera");
-    for (const std::string base : {"luneburg", "torus_floor", "bunny"})
+    for (const std::string base : {"luneburg", "torus_floor", "bunny", "dispersion"})
         add(base, base, {{"photons", {{"count", base_photons}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
             scene::kAllPasses, "full");
     return cases;

@@ -80,7 +80,7 @@ void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumu
 
 void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
                              const PhotonAccumulators& accum, uint32_t photon_count, bool sampled_deposits) const {
-    const auto groups = vk::linear_groups(photon_paths(photon_count, in.variant.channels), TRANSPORT_GROUP_SIZE);
+    const auto groups = vk::linear_groups(photon_count, TRANSPORT_GROUP_SIZE);
     const vk::ComputePipeline& pipeline = (sampled_deposits ? sampled_ : exact_)(in.variant);
     const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.red_green),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLUX, accum.flux),

@@ -37,9 +37,9 @@ void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumu
 class PhotonTracePass {
 public:
     explicit PhotonTracePass(vk::Context& context);
-    // Traces `photon_count` photons (photon_paths of them: one per channel under dispersive transport)
-    // into the accumulators; `sampled_deposits`: one deposit per radiance voxel of path instead of one
-    // per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS).
+    // Traces `photon_count` photons into the accumulators (under dispersive transport each parts into a
+    // path per channel where it first meets a gradient of n); `sampled_deposits`: one deposit per radiance
+    // voxel of path instead of one per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS).
     void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const PhotonAccumulators& accum,
                 uint32_t photon_count, bool sampled_deposits) const;
 

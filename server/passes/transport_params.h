@@ -29,8 +29,8 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
 // object (photons then keep their colour from emission to deposit); else RGB.
 uint32_t transport_channels(const protocol::SceneDocument& document);
 
-// Photon paths one frame traces for `photons` emission samples: one per sample and channel under
-// dispersive transport, else one per sample.
+// Photon exits a frame records (RunOptions::record_photon_exits) for `photons` emission samples: one per
+// sample and channel under dispersive transport, else one per sample.
 uint32_t photon_paths(uint32_t photons, uint32_t channels);
 
 // Each channel's index contrast against the medium relative to the field's (TransportParams::dispersion)

@@ -94,8 +94,9 @@ REFRACT_SHADERS_BEGIN
 //    per eye-ray step fewer.
 //  - RGB: one path carries all three channels, each attenuated by its own extinction.
 //  - Dispersive: the index contrast differs by channel (TransportParams::dispersion), so each channel
-//    takes its own path: every photon sample is traced once per channel, carrying that channel only,
-//    and every pixel's eye ray once per channel.
+//    takes its own path once light meets a gradient of n: a photon sample, or a pixel's eye ray, is one
+//    path until its first step that depends on the channel (channel_free), and from that step on one
+//    path per channel, a photon's carrying only its channel.
 #define TRANSPORT_CONSTANT_CHANNELS 0
 #define CHANNELS_RGB 0u
 #define CHANNELS_GREY 1u

@@ -105,6 +105,17 @@ Ray start_ray(vec3 p, vec3 d) { return Ray(p, d, index_at(p)); }
 // The field itself, its coverage and the octree are the reference channel's.
 float ray_contrast = 1.0;
 
+// Whether a ray step that starts or ends at this field sample (n, grad n) is the same in every channel
+// under dispersion: ray_step scales grad n (and n where grad n bends the ray) by the channel, so a step
+// with no gradient at either end goes straight in every channel, and one path can serve them all.
+// Gradients up to DIRECT_FLAT count as none: the smoothing Gaussian's tails leave 1e-15 and so far from
+// any object, which would part nearly every path at once, while channels part by at most (s_c - 1)
+// DIRECT_FLAT radians per voxel there (under 1e-4 over a 1000-voxel path).
+bool channel_free(vec4 field) { return all(lessThanEqual(abs(field.yzw), vec3(DIRECT_FLAT))); }
+
+// 1 in channel c, 0 in the others.
+vec3 channel_mask(uint c) { return vec3(equal(uvec3(0u, 1u, 2u), uvec3(c))); }
+
 // One step of d/ds (n dx/ds) = grad n with v = n dx/ds (Sun et al. 2008, Ihrke et al. 2007). The
 // paper's Euler update (x += ds/n v, v += ds grad n) is first order; here the position also takes the
 // curvature term ds^2/(2n) (grad n across the ray) and v the trapezoid of grad n at both ends. The
