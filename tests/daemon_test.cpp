@@ -487,6 +487,17 @@ TEST(Daemon, LightEditChangesTheFrame) {
     auto wide = get_frame(client, id, "?width=48&height=32&quality=interactive");
     ASSERT_TRUE(wide && wide->status == 200);
     EXPECT_EQ(wide->get_header_value("X-Refract-Revision"), "2");
+
+    // Dispersion reruns the octree (its epsilon holds in every channel), photons and the view, and
+    // the frame is a dispersive one (three paths where light meets the sphere).
+    auto dispersive = patch(client, id, {{"object", {{"abbe", 20.0}}}});
+    ASSERT_TRUE(dispersive);
+    ASSERT_EQ(dispersive->status, 200) << dispersive->body;
+    EXPECT_EQ(json::parse(dispersive->body)["invalidated"], json({"octree", "photons", "view"}));
+    auto dispersed = get_frame(client, id);
+    ASSERT_TRUE(dispersed && dispersed->status == 200);
+    EXPECT_EQ(dispersed->get_header_value("X-Refract-Passes"), "octree,photons,view");
+    EXPECT_NE(dispersed->body, after->body);
     expect_no_validation_errors(daemon);
     EXPECT_EQ(daemon.stop(), 0);
 }
