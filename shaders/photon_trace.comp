@@ -246,7 +246,7 @@ void main() {
     float split_ds = 0.0, split_along = 0.0, split_length = 0.0;
     vec3 split_weight = weight;
     uint split_steps = 0u, split_rng = 0u, split_phase = 0u;
-    bool split_jumped = false, split_overlap = false;
+    bool split_jumped = false, split_overlap = false, split_unbent = true;
     // One loop and one floor deposit for all paths: lavapipe runs every line of a loop body on each pass.
     for (uint path = 0u; path < (kDispersive ? 4u : 1u); ++path) {
         uint first_step = 0u;
@@ -259,6 +259,7 @@ void main() {
             path_length = split_length;
             jumped = split_jumped;
             overlap = split_overlap;
+            unbent = split_unbent;
             rng_state = split_rng;
             deposit_phase = split_phase;
             ray_step(ray, split_ds);
@@ -310,6 +311,7 @@ void main() {
                 split_steps = steps;
                 split_jumped = jumped;
                 split_overlap = overlap;
+                split_unbent = unbent;
                 break;
             }
             along += ds;

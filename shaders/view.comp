@@ -121,6 +121,7 @@ void shade(uvec2 pixel) {
             ray = split_ray;
             radiance_sum = split_sum;
             transmittance = split_transmittance;
+            on_floor = false;
             ray_step(ray, split_run);
         }
         uint steps = 0u;

@@ -75,7 +75,7 @@ uint32_t transport_channels(const protocol::SceneDocument& document) {
     return grey(document.medium.extinction) && grey(document.object.extinction) ? CHANNELS_GREY : CHANNELS_RGB;
 }
 
-uint32_t photon_paths(uint32_t photons, uint32_t channels) {
+uint32_t photon_exit_count(uint32_t photons, uint32_t channels) {
     return channels == CHANNELS_DISPERSIVE ? 3 * photons : photons;
 }
 

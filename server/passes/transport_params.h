@@ -31,7 +31,7 @@ uint32_t transport_channels(const protocol::SceneDocument& document);
 
 // Photon exits a frame records (RunOptions::record_photon_exits) for `photons` emission samples: one per
 // sample and channel under dispersive transport, else one per sample.
-uint32_t photon_paths(uint32_t photons, uint32_t channels);
+uint32_t photon_exit_count(uint32_t photons, uint32_t channels);
 
 // Each channel's index contrast against the medium relative to the field's (TransportParams::dispersion)
 // for Abbe number `abbe` (0: none, all 1).

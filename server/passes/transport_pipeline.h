@@ -61,7 +61,7 @@ std::array<vk::Binding, kTransportInputCount + N> transport_bindings(const Trans
 }
 
 // Each variant is compiled the first time a frame needs it: most scenes use one or two of the six, and
-// lavapipe takes tens of milliseconds to compile a large shader. Not thread-safe (one thread records).
+// every pipeline created costs a driver compile (LLVM, on lavapipe). Not thread-safe (one thread records).
 class TransportPipeline {
 public:
     // `spirv` and `name` must outlive the pipeline (the compiled-in shaders and string literals do);

@@ -62,12 +62,12 @@ void SceneGpu::allocate_volume(const GridGeometry& grid) {
     built_ = 0;
 }
 
-void SceneGpu::allocate_transport(uint32_t photon_paths, bool record_exits, uint32_t radiance_factor,
+void SceneGpu::allocate_transport(uint32_t photon_exit_count, bool record_exits, uint32_t radiance_factor,
                                   uint32_t channels) {
     vk::Context& ctx = kit_.context;
     const bool grey = channels == CHANNELS_GREY;
     const uint32_t floor_texels = passes::floor_map_texels(grid_);
-    const uint32_t exits = record_exits ? photon_paths : 1u;
+    const uint32_t exits = record_exits ? photon_exit_count : 1u;
     const uint32_t f = radiance_factor;
     const vk::Extent3 radiance_dims = grid_.coarsened(f);
     if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_ ||
@@ -146,7 +146,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         if (stale & p) stale |= (kAllPasses & ~(p - 1));
     stale &= options.limit;
     if (stale & kPhotons)
-        allocate_transport(passes::photon_paths(document.photons.count, channels), options.record_photon_exits,
+        allocate_transport(passes::photon_exit_count(document.photons.count, channels), options.record_photon_exits,
                            options.radiance_factor, channels);
     allocate_frame(document.image.width, document.image.height);
 

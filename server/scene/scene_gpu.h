@@ -111,7 +111,7 @@ public:
 
 private:
     void allocate_volume(const GridGeometry& grid);
-    void allocate_transport(uint32_t photon_paths, bool record_exits, uint32_t radiance_factor, uint32_t channels);
+    void allocate_transport(uint32_t photon_exit_count, bool record_exits, uint32_t radiance_factor, uint32_t channels);
     void allocate_frame(uint32_t width, uint32_t height);
     template <typename T>
     std::vector<T> read_image(const vk::Image3D& image) const;
