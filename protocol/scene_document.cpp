@@ -399,11 +399,11 @@ private:
                                     {"mesh", "position", "rotation_deg", "scale", "index_field", "ior",
                                      "maxwell_n0", "abbe", "extinction", "scattering", "phase", "grid"})) {
             static constexpr const char* kMeshRule =
-                "must be \"sphere\", \"cube\", \"torus\" or \"upload:NAME\" with NAME 1..64 characters of "
+                "must be \"sphere\", \"cube\", \"torus\", \"prism\" or \"upload:NAME\" with NAME 1..64 characters of "
                 "[A-Za-z0-9_.-]";
             if (const std::string* mesh = string_member(*j, base, "mesh", kMeshRule)) {
                 constexpr std::string_view upload = "upload:";
-                const bool builtin = *mesh == "sphere" || *mesh == "cube" || *mesh == "torus";
+                const bool builtin = *mesh == "sphere" || *mesh == "cube" || *mesh == "torus" || *mesh == "prism";
                 const bool uploaded = mesh->compare(0, upload.size(), upload) == 0 &&
                                       valid_name(std::string_view(*mesh).substr(upload.size()));
                 if (!builtin && !uploaded) fail(child(base, "mesh"), kMeshRule);

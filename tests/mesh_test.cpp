@@ -96,7 +96,7 @@ TEST(Builtins, TorusVolumeAndPlacement) {
 
 TEST(Builtins, AreWatertightAndConsistentlyOriented) {
     for (const auto& [name, mesh] : {std::pair{"sphere", make_sphere(3)}, std::pair{"cube", make_cube()},
-                                     std::pair{"torus", make_torus()}}) {
+                                     std::pair{"torus", make_torus()}, std::pair{"prism", make_prism()}}) {
         SCOPED_TRACE(name);
         const MeshReport r = inspect(mesh);
         EXPECT_EQ(r.boundary_edges, 0u);

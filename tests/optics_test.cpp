@@ -252,6 +252,65 @@ TEST_F(OpticsTest, DispersiveBallLensFocusesEachChannelAtItsOwnIndex) {
     EXPECT_NEAR(focus[2] / focus[0], expected_ratio, 2.0 * h / ball_focus(n_red));
 }
 
+// The dispersing prism (the built-in equilateral prism, 60 degree apex, circumradius R = 1) under a
+// parallel white beam, turned so the beam meets its first face at 48.6 degrees (least deviation for n =
+// 1.5): each channel leaves the second face along Snell's law applied at both faces with its own index
+// (V = 10: n = 1.494, 1.511, 1.546), fanned out over 4.6 degrees, blue deviated most. Planar faces
+// refract the same through a smoothed shell as at a sharp interface (a stratified medium conserves
+// n sin theta), so what separates the median photon from Snell's law is the tracer's step: one voxel of
+// lateral error over the prism's face (its side, sqrt(3) R) bounds the angle by atan(h / sqrt(3)), as
+// for the slab below, with 0.1 degree for the faces' voxelization.
+TEST_F(OpticsTest, PrismFansWhiteLightOutBySnellsLawPerChannel) {
+    const double n = 1.5, abbe = 10.0, turn = -18.6;
+    const json patch = {{"light", {{"direction", {1, 0, 0}}}},
+                        {"object", {{"mesh", "prism"}, {"ior", n}, {"abbe", abbe}, {"rotation_deg", {0, 0, turn}}}},
+                        {"volume", {{"resolution", 128}, {"smoothing", 0.75}, {"octree_epsilon", 0.005},
+                                    {"bounds", {{"min", {-1.3, -1.3, -0.6}}, {"max", {1.7, 1.3, 0.6}}}}}}};
+    const protocol::SceneDocument doc = optics_scene(patch);
+    const Traced t = trace(doc);
+    const double h = t.grid.voxel_size;
+    const glm::dvec3 beam(1, 0, 0);
+    // The faces the beam enters and leaves by, from the world mesh itself (side faces: normals in XY).
+    const mesh::Mesh world = world_mesh(doc);
+    glm::dvec3 entry_normal(0.0), exit_normal(0.0);
+    for (const auto& tri : world.triangles) {
+        const glm::dvec3 a(world.positions[tri.x]), b(world.positions[tri.y]), c(world.positions[tri.z]);
+        const glm::dvec3 normal = glm::normalize(glm::cross(b - a, c - a));
+        if (std::abs(normal.z) > 0.5) continue;
+        if (glm::dot(normal, beam) < glm::dot(entry_normal, beam)) entry_normal = normal;
+        if (glm::dot(normal, beam) > glm::dot(exit_normal, beam)) exit_normal = normal;
+    }
+    EXPECT_NEAR(std::acos(-glm::dot(entry_normal, beam)) * 180.0 / kPi, 48.6, 0.01);
+    const glm::dvec3 scales(passes::dispersion_scales(abbe));
+    const size_t count = doc.photons.count;
+    ASSERT_EQ(t.exits.size(), 3 * count);
+    double expected[3], measured[3];
+    for (int c = 0; c < 3; ++c) {
+        const double n_c = 1.0 + (n - 1.0) * scales[c];
+        glm::dvec3 inside, out;
+        ASSERT_TRUE(refract(beam, entry_normal, 1.0 / n_c, inside));
+        ASSERT_TRUE(refract(inside, -exit_normal, n_c, out));
+        expected[c] = std::atan2(out.y, out.x) * 180.0 / kPi;
+        // The channel's photons that left through the second face: within 8 degrees of its direction
+        // (those that missed the prism keep 0 degrees, 45 away; the fan spans 4.6).
+        std::vector<double> angles;
+        for (const auto& e : std::span(t.exits).subspan(static_cast<size_t>(c) * count, count)) {
+            if (e.entry.w != 1.0f || e.position.w != 1.0f) continue;
+            const double angle = std::atan2(double{e.direction.y}, double{e.direction.x}) * 180.0 / kPi;
+            if (std::abs(angle - expected[c]) < 8.0) angles.push_back(angle);
+        }
+        ASSERT_GT(angles.size(), 200u);
+        measured[c] = percentile(angles, 0.5);
+    }
+    const double tolerance = std::atan(h / std::sqrt(3.0)) * 180.0 / kPi + 0.1;
+    for (int c = 0; c < 3; ++c) {
+        std::printf("prism, channel %d: leaves at %.3f degrees, Snell %.3f, tolerance %.3f (h %.4f)\n", c, measured[c],
+                    expected[c], tolerance, h);
+        EXPECT_NEAR(measured[c], expected[c], tolerance);
+    }
+    std::printf("prism: fan (red - blue) %.3f degrees, Snell %.3f\n", measured[0] - measured[2], expected[0] - expected[2]);
+}
+
 // A tilted slab (the cube, thickness 2, turned 30 degrees): a beam leaves parallel to itself, shifted
 // sideways by t sin(a - b) / cos(b) with sin(a) = n sin(b).
 TEST_F(OpticsTest, TiltedSlabShiftsBeamBySnellsLaw) {

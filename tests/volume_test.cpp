@@ -135,7 +135,9 @@ TEST_F(VolumeTest, BuiltInShapesVoxelizeToTheirVolumeAt128) {
         double analytic;
     };
     const double torus_analytic = 2.0 * std::numbers::pi * std::numbers::pi * 1.0 * 0.35 * 0.35;  // 2 pi^2 R r^2
-    for (const Case& c : {Case{"sphere", 4.0 / 3.0 * std::numbers::pi}, Case{"cube", 8.0}, Case{"torus", torus_analytic}}) {
+    const double prism_analytic = 3.0 * std::sqrt(3.0) / 4.0 * 2.0;  // triangle of circumradius 1, length 2
+    for (const Case& c : {Case{"sphere", 4.0 / 3.0 * std::numbers::pi}, Case{"cube", 8.0}, Case{"torus", torus_analytic},
+                          Case{"prism", prism_analytic}}) {
         SCOPED_TRACE(c.mesh);
         const SceneDocument doc = volume_document(c.mesh, 128, 0.0);
         const mesh::Mesh world = world_mesh(doc);

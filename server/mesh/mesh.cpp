@@ -511,6 +511,24 @@ Mesh make_cube() {
     return mesh;
 }
 
+Mesh make_prism() {
+    Mesh mesh;
+    // Vertex 2 k + s: corner k of the triangle (apex first), on the end face at z = s ? 1 : -1.
+    for (int k = 0; k < 3; ++k) {
+        const float angle = glm::radians(90.0f + 120.0f * static_cast<float>(k));
+        for (float z : {-1.0f, 1.0f}) mesh.positions.emplace_back(std::cos(angle), std::sin(angle), z);
+    }
+    mesh.triangles.emplace_back(0, 2, 4);  // the two end faces
+    mesh.triangles.emplace_back(1, 3, 5);
+    for (uint32_t k = 0; k < 3; ++k) {  // the three sides
+        const uint32_t next = (k + 1) % 3;
+        mesh.triangles.emplace_back(2 * k, 2 * next, 2 * next + 1);
+        mesh.triangles.emplace_back(2 * k, 2 * next + 1, 2 * k + 1);
+    }
+    orient_away_from_origin(mesh);
+    return mesh;
+}
+
 Mesh make_torus(uint32_t major_segments, uint32_t minor_segments) {
     if (major_segments < 3 || minor_segments < 3) {
         throw MeshError("torus needs at least 3 segments around each circle");

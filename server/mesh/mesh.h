@@ -41,9 +41,12 @@ struct MeshReport {
 };
 
 // Built-ins, centred at the origin: sphere of radius 1, cube from -1 to 1, torus of radii 1 and 0.35 in
-// the XZ plane. Closed and consistently oriented.
+// the XZ plane, and an equilateral prism (60 degree apex, the dispersing prism of optics benches) whose
+// cross-section in the XY plane has circumradius 1 with its apex towards +y, from z = -1 to 1. Closed
+// and consistently oriented.
 Mesh make_sphere(uint32_t subdivisions = 5);
 Mesh make_cube();
+Mesh make_prism();
 Mesh make_torus(uint32_t major_segments = 96, uint32_t minor_segments = 48);
 // A closed, watertight "Stanford-bunny-like" test shape (body, haunches, head, two ears, tail, paws):
 // an implicit surface of a few ellipsoidal metaballs polygonized by marching tetrahedra, fitted so its

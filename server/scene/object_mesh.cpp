@@ -19,6 +19,7 @@ std::shared_ptr<const mesh::Mesh> builtin(const std::string& name) {
     if (name == "sphere") m = std::make_shared<mesh::Mesh>(mesh::make_sphere(5));
     else if (name == "cube") m = std::make_shared<mesh::Mesh>(mesh::make_cube());
     else if (name == "torus") m = std::make_shared<mesh::Mesh>(mesh::make_torus());
+    else if (name == "prism") m = std::make_shared<mesh::Mesh>(mesh::make_prism());
     else return nullptr;
     cache.emplace(name, m);
     return m;

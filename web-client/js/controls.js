@@ -66,7 +66,7 @@ export const SECTIONS = [
   },
 ];
 
-const BUILTIN_MESHES = [['sphere', 'Sphere'], ['cube', 'Cube'], ['torus', 'Torus']];
+const BUILTIN_MESHES = [['sphere', 'Sphere'], ['cube', 'Cube'], ['torus', 'Torus'], ['prism', 'Prism']];
 
 function h(tag, attrs = {}, ...children) {
   const el = document.createElement(tag);

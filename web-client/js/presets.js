@@ -51,6 +51,19 @@ export const PRESETS = [
     },
   },
   {
+    id: 'prism',
+    name: 'Dispersing prism',
+    description: 'A glass prism (Abbe number 10, exaggerated) fans a narrow white beam out into a spectrum on the floor.',
+    patch: {
+      camera: camera([0.6, 0.6, 5.0], [0.6, -0.3, 0]),
+      light: spot([-2.6, 0.15, 0], { target: [1, 0.15, 0], intensity: 400, cone: 3 }),
+      object: object({ mesh: 'prism', scale: 0.6, rotation_deg: [0, 0, -18], ior: 1.6, abbe: 10 }),
+      medium: medium(0.15, 0.2),
+      floor: { enabled: true, height: -1, albedo: [0.8, 0.8, 0.8], checker: false },
+      volume: framing(1.2),  // room for the fan to reach the floor
+    },
+  },
+  {
     id: 'luneburg-lens',
     name: 'Luneburg lens',
     description: 'A graded-index sphere (n = √(2 − r²)) bends a light from the side to a focus on its far surface.',
