@@ -7,14 +7,13 @@
 // costs about one evaluation per radiance-voxel corner and carries no photon noise.
 #include "transport_common.glsl"
 #include "emission.glsl"
+#include "radiance_sums.glsl"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
 layout(constant_id = DIRECT_CONSTANT_MODE) const uint kMode = DIRECT_MODE_TRACE;
 
 layout(std430, binding = TRANSPORT_BINDING_LIGHT_MAP_TRACED) buffer Traced { float traced[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIGHT_MAP) buffer LightMap { float light_map[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) buffer AccumRG { uint64_t accum_rg[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLUX) buffer AccumFlux { uint64_t accum_flux[]; };
 layout(std430, binding = TRANSPORT_BINDING_DIRECT_EDGES) buffer Edges {
     WorkListHeader edges;
     uint edge_voxels[];
@@ -132,8 +131,8 @@ void store_sums(uint i, vec3 extent, vec3 fluence) {
     ivec3 q = ivec3(units + 0.5);
     int mean = int((units.r + units.g + units.b) * (1.0 / 3.0) + 0.5);
     // Word 0 holds unbent light's sums.
-    if (!kGreyTransport) accum_rg[i] = pack(q.r, q.g);
-    accum_flux[RADIANCE_FLUX_WORDS * i] = pack(kGreyTransport ? mean : q.b, mean);
+    if (!kGreyTransport) accum_rg.words[i] = pack(q.r, q.g);
+    accum_flux.words[RADIANCE_FLUX_WORDS * i] = pack(kGreyTransport ? mean : q.b, mean);
 }
 
 // A voxel the direct light's edge crosses: the mean over 3^3 points.
@@ -224,6 +223,7 @@ void deposit_run(uint i) {
 
 void main() {
     load_params();
+    reach_radiance_sums(params.radiance_sums);
     uint i = linear_invocation();
     uint side = uint(params.direct_light.x);
     if (kMode == DIRECT_MODE_TRACE) {

@@ -11,11 +11,10 @@
 // device.
 #include "transport_common.glsl"
 #include "emission.glsl"
+#include "radiance_sums.glsl"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 layout(constant_id = PHOTON_CONSTANT_SAMPLED_DEPOSITS) const bool kSampledDeposits = false;
 
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) buffer AccumRG { uint64_t accum_rg[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLUX) buffer AccumFlux { uint64_t accum_flux[]; };
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) buffer AccumFloor { uint accum_floor[]; };
 layout(std430, binding = TRANSPORT_BINDING_PHOTON_EXITS) writeonly buffer Exits { PhotonExit exits[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIGHT_MAP) readonly buffer LightMap { float light_map[]; };
@@ -90,8 +89,8 @@ void flush_deposit() {
     float pick = next_unit() * l1;
     uint axis = pick < along.x ? 0u : (pick < along.x + along.y ? 1u : 2u);
     int direction = pending_unbent ? int(mean + jitter) : int(floor(sign(pending_direction[axis]) * l1 + jitter));
-    if (!kGreyTransport) atomicAdd(accum_rg[pending_voxel], pack(q.r, q.g));
-    atomicAdd(accum_flux[RADIANCE_FLUX_WORDS * pending_voxel + (pending_unbent ? 0u : 1u + axis)],
+    if (!kGreyTransport) atomicAdd(accum_rg.words[pending_voxel], pack(q.r, q.g));
+    atomicAdd(accum_flux.words[RADIANCE_FLUX_WORDS * pending_voxel + (pending_unbent ? 0u : 1u + axis)],
               pack(kGreyTransport ? int(mean + jitter) : q.b, direction));
     pending_voxel = kNoVoxel;
 }
@@ -195,6 +194,7 @@ void deposit_floor(vec3 x, vec3 weight, int sign) {
 // in every channel. Without dispersion a photon is one path.
 void main() {
     load_params();
+    reach_radiance_sums(params.radiance_sums);
     uint count = params.photon_info.x;
     uint job = take_from_queue(QUEUE_PHOTONS);
     if (job >= count) return;

@@ -10,8 +10,7 @@ layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
 
 layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_RG) readonly buffer AccumRG { uint64_t accum_rg[]; };
-layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLUX) readonly buffer AccumFlux { uint64_t accum_flux[]; };
+#include "radiance_sums.glsl"
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) readonly buffer AccumFloor { uint accum_floor[]; };
 layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform writeonly image3D radiance;
 layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform writeonly image3D flux;
@@ -34,19 +33,19 @@ void resolve_voxel(uint i) {
     float to_fluence = reference_flux / (params.stepping.z * h * h * inside_fraction);
     // Unpack (transport.h): the low half of each word is its own sum (unsigned, so the high half is
     // what an arithmetic shift leaves). Unbent photons carry their flux along the light's direction.
-    uint64_t unbent = accum_flux[RADIANCE_FLUX_WORDS * i];
+    uint64_t unbent = accum_flux.words[RADIANCE_FLUX_WORDS * i];
     float blue = float(uint(unbent & 0xffffffffUL));
     vec3 centre = params.grid_origin.xyz + (vec3(v) + 0.5) * h;
     vec3 net = float(uint(unbent >> 32)) *
                unbent_direction(params.models.z, params.light_position.xyz, params.emit_axis.xyz, centre);
     for (uint a = 0u; a < 3u; ++a) {
-        uint64_t word = accum_flux[RADIANCE_FLUX_WORDS * i + 1u + a];
+        uint64_t word = accum_flux.words[RADIANCE_FLUX_WORDS * i + 1u + a];
         blue += float(uint(word & 0xffffffffUL));
         net[a] += float(int(int64_t(word) >> 32));
     }
     float mean = blue;  // grey transport: the blue slot holds the channels' mean
     if (!kGreyTransport) {
-        uint64_t rg = accum_rg[i];
+        uint64_t rg = accum_rg.words[i];
         vec3 colour = vec3(float(uint(rg & 0xffffffffUL)), float(uint(rg >> 32)), blue);
         mean = (colour.r + colour.g + colour.b) * (1.0 / 3.0);
         imageStore(radiance, v, vec4(colour * to_fluence, 0.0));
@@ -68,6 +67,7 @@ void resolve_floor_texel(uint texel) {
 
 // Two dispatches, one per job (kFloorMap): lavapipe would run both jobs' code in every invocation.
 void main() {
+    reach_radiance_sums(params.radiance_sums);
     if (kFloorMap) resolve_floor_texel(linear_invocation());
     else resolve_voxel(linear_invocation());
 }

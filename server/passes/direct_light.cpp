@@ -11,8 +11,6 @@ namespace refract::passes {
 
 namespace {
 constexpr vk::BindingLayout kOwnLayout[] = {
-    {TRANSPORT_BINDING_ACCUM_RG, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-    {TRANSPORT_BINDING_ACCUM_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_LIGHT_MAP_TRACED, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_LIGHT_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_DIRECT_EDGES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -24,9 +22,7 @@ constexpr uint32_t kTrace[] = {DIRECT_MODE_TRACE}, kMargin[] = {DIRECT_MODE_MARG
                    kDeposit[] = {DIRECT_MODE_DEPOSIT}, kEdge[] = {DIRECT_MODE_EDGE};
 
 std::array<vk::Binding, kLayout.size()> bindings(const TransportInputs& in, const PhotonAccumulators& accum) {
-    const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.red_green),
-                               vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLUX, accum.flux),
-                               vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP_TRACED, accum.light_map_traced),
+    const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP_TRACED, accum.light_map_traced),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP, accum.light_map),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_DIRECT_EDGES, accum.direct_edges),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_DIRECT_REACH, accum.direct_reach)};

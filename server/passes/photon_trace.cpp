@@ -19,10 +19,13 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
     const uint64_t voxels = radiance_dims.count();
     const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     PhotonAccumulators accum;
-    accum.red_green = vk::Buffer(context, (grey ? 1 : voxels) * sizeof(uint64_t), usage, vk::MemoryUse::device,
+    // The sums are reached by device address (radiance_sums.glsl): the flux words outgrow a storage-buffer
+    // binding on lavapipe from 162^3 voxels on.
+    const auto addressed = VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    accum.red_green = vk::Buffer(context, (grey ? 1 : voxels) * sizeof(uint64_t), addressed, vk::MemoryUse::device,
                                  "radiance sums red+green");
-    accum.flux = vk::Buffer(context, voxels * RADIANCE_FLUX_WORDS * sizeof(uint64_t), usage, vk::MemoryUse::device,
-                            "radiance sums blue (grey: mean)+net flux");
+    accum.flux = vk::Buffer(context, voxels * RADIANCE_FLUX_WORDS * sizeof(uint64_t), addressed,
+                            vk::MemoryUse::device, "radiance sums blue (grey: mean)+net flux");
     accum.floor = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * 3 * sizeof(uint32_t), usage,
                              vk::MemoryUse::device, "floor flux sum");
     accum.stats = vk::Buffer(context, sizeof(shaders::PhotonStats), usage, vk::MemoryUse::readback, "photon stats");
@@ -52,8 +55,6 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
 
 namespace {
 constexpr vk::BindingLayout kOwnLayout[] = {
-    {TRANSPORT_BINDING_ACCUM_RG, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-    {TRANSPORT_BINDING_ACCUM_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_PHOTON_EXITS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -82,9 +83,7 @@ void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInput
                              const PhotonAccumulators& accum, uint32_t photon_count, bool sampled_deposits) const {
     const auto groups = vk::linear_groups(photon_count, TRANSPORT_GROUP_SIZE);
     const vk::ComputePipeline& pipeline = (sampled_deposits ? sampled_ : exact_)(in.variant);
-    const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.red_green),
-                               vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLUX, accum.flux),
-                               vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
+    const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP, accum.light_map)};

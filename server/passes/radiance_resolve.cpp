@@ -10,8 +10,6 @@ namespace refract::passes {
 namespace {
 constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
-    {TRANSPORT_BINDING_ACCUM_RG, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-    {TRANSPORT_BINDING_ACCUM_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
@@ -36,8 +34,6 @@ void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer
                                  const PhotonAccumulators& accum, bool grey, const vk::Image3D& radiance,
                                  const vk::Image3D& flux, const vk::Image3D& floor_map) const {
     const vk::Binding bindings[] = {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, params),
-                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_RG, accum.red_green),
-                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLUX, accum.flux),
                                     vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),

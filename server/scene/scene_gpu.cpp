@@ -158,6 +158,10 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     transport_options.direct_light = options.direct_light;
     params_ = passes::make_transport_params(document, grid_, transport_options);
     params_.flags.x = options.record_photon_exits ? 1u : 0u;
+    if (accum_) {
+        auto halves = [](VkDeviceAddress a) { return glm::uvec2(static_cast<uint32_t>(a), static_cast<uint32_t>(a >> 32)); };
+        params_.radiance_sums = glm::uvec4(halves(accum_->red_green.address()), halves(accum_->flux.address()));
+    }
     if (!params_buffer_.get())
         params_buffer_ = vk::Buffer(kit_.context, sizeof(params_), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
                                     vk::MemoryUse::upload, "transport params");

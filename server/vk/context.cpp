@@ -139,6 +139,9 @@ uint32_t inspect_device(VkPhysicalDevice device, uint32_t index, DeviceInfo& inf
         vkGetPhysicalDeviceFeatures2(device, &features);
         if (!features.features.shaderInt64) info.missing.push_back("shaderInt64");
         if (!features12.shaderBufferInt64Atomics) info.missing.push_back("shaderBufferInt64Atomics");
+        // The radiance sums outgrow a storage buffer binding (maxStorageBufferRange, 128 MiB on
+        // lavapipe) and are reached by device address instead.
+        if (!features12.bufferDeviceAddress) info.missing.push_back("bufferDeviceAddress");
         // The viewing pass hands out pixels a subgroup at a time (elect + broadcast).
         VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
         VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
@@ -241,6 +244,11 @@ Context::Context(const ContextOptions& options) {
         if (physical_device_ == VK_NULL_HANDLE) throw Error("no suitable Vulkan device:" + report.str());
         vkGetPhysicalDeviceProperties(physical_device_, &properties_);
         vkGetPhysicalDeviceMemoryProperties(physical_device_, &memory_properties_);
+        VkPhysicalDeviceMaintenance3Properties maintenance3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
+        VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+        properties2.pNext = &maintenance3;
+        vkGetPhysicalDeviceProperties2(physical_device_, &properties2);
+        max_memory_allocation_size_ = maintenance3.maxMemoryAllocationSize;
 
         const float priority = 1.0f;
         VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
@@ -273,6 +281,7 @@ Context::Context(const ContextOptions& options) {
         VkPhysicalDeviceVulkan12Features features12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
         features12.pNext = float_atomics_ ? &float_atomics : nullptr;
         features12.shaderBufferInt64Atomics = VK_TRUE;
+        features12.bufferDeviceAddress = VK_TRUE;
         VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
         features.pNext = &features12;
         features.features.shaderInt64 = VK_TRUE;
@@ -325,11 +334,14 @@ Context::~Context() {
 }
 
 UniqueMemory Context::allocate(const VkMemoryRequirements& requirements, VkMemoryPropertyFlags required,
-                               VkMemoryPropertyFlags* chosen_flags) {
+                               VkMemoryPropertyFlags* chosen_flags, VkMemoryAllocateFlags allocate_flags) {
     for (uint32_t i = 0; i < memory_properties_.memoryTypeCount; ++i) {
         const VkMemoryPropertyFlags flags = memory_properties_.memoryTypes[i].propertyFlags;
         if (!(requirements.memoryTypeBits & (1u << i)) || (flags & required) != required) continue;
+        VkMemoryAllocateFlagsInfo flags_info{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO};
+        flags_info.flags = allocate_flags;
         VkMemoryAllocateInfo info{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+        info.pNext = allocate_flags ? &flags_info : nullptr;
         info.allocationSize = requirements.size;
         info.memoryTypeIndex = i;
         VkDeviceMemory memory = VK_NULL_HANDLE;

@@ -54,14 +54,17 @@ public:
     uint32_t queue_family() const { return queue_family_; }
     const DeviceInfo& info() const { return info_; }
     const VkPhysicalDeviceLimits& limits() const { return properties_.limits; }
+    // The largest single allocation the device allows (Vulkan 1.1 maintenance3; lavapipe: 2 GiB).
+    VkDeviceSize max_memory_allocation_size() const { return max_memory_allocation_size_; }
     double timestamp_period_ns() const { return properties_.limits.timestampPeriod; }
     bool is_cpu_device() const { return properties_.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU; }
     // VK_EXT_shader_atomic_float's buffer float add is enabled (optional; only the deposit benchmark uses it).
     bool float_atomics() const { return float_atomics_; }
 
     // Allocates memory of a type allowed by `type_bits` with all of `required` flags; throws when none fits.
+    // `allocate_flags`: VkMemoryAllocateFlags (VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT for addressed buffers).
     UniqueMemory allocate(const VkMemoryRequirements& requirements, VkMemoryPropertyFlags required,
-                          VkMemoryPropertyFlags* chosen_flags = nullptr);
+                          VkMemoryPropertyFlags* chosen_flags = nullptr, VkMemoryAllocateFlags allocate_flags = 0);
     // Device memory currently held by resources of this context (bytes).
     int64_t allocated_bytes() const { return allocated_bytes_.load(); }
     std::atomic<int64_t>& allocated_bytes_counter() { return allocated_bytes_; }
@@ -100,6 +103,7 @@ private:
     VkPhysicalDeviceMemoryProperties memory_properties_{};
     PFN_vkSetDebugUtilsObjectNameEXT set_object_name_ = nullptr;
     bool float_atomics_ = false;
+    VkDeviceSize max_memory_allocation_size_ = 0;
     std::atomic<int64_t> allocated_bytes_{0};
     std::atomic<size_t> validation_errors_{0};
     mutable std::mutex message_mutex_;

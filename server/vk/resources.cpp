@@ -34,8 +34,19 @@ Buffer::Buffer(Context& context, VkDeviceSize size, VkBufferUsageFlags usage, Me
     context.set_name(VK_OBJECT_TYPE_BUFFER, buffer, name);
     VkMemoryRequirements requirements{};
     vkGetBufferMemoryRequirements(device_, buffer, &requirements);
-    memory_ = context.allocate(requirements, required_flags(use));
+    const bool addressed = usage & VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT;
+    if (requirements.size > context.max_memory_allocation_size())
+        throw Error(std::string("buffer '") + name + "' needs " + std::to_string(requirements.size) +
+                    " bytes, more than this device's largest allocation of " +
+                    std::to_string(context.max_memory_allocation_size()));
+    memory_ = context.allocate(requirements, required_flags(use), nullptr,
+                               addressed ? VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT : 0);
     REFRACT_VK_CHECK(vkBindBufferMemory(device_, buffer, memory_.get(), 0));
+    if (addressed) {
+        VkBufferDeviceAddressInfo address_info{VK_STRUCTURE_TYPE_BUFFER_DEVICE_ADDRESS_INFO};
+        address_info.buffer = buffer;
+        address_ = vkGetBufferDeviceAddress(device_, &address_info);
+    }
     allocation_bytes_ = requirements.size;
     account_->fetch_add(static_cast<int64_t>(allocation_bytes_));
     if (use != MemoryUse::device) REFRACT_VK_CHECK(vkMapMemory(device_, memory_.get(), 0, VK_WHOLE_SIZE, 0, &mapped_));
@@ -51,6 +62,7 @@ Buffer& Buffer::operator=(Buffer&& other) noexcept {
         size_ = std::exchange(other.size_, 0);
         allocation_bytes_ = std::exchange(other.allocation_bytes_, 0);
         mapped_ = std::exchange(other.mapped_, nullptr);
+        address_ = std::exchange(other.address_, 0);
         device_ = other.device_;
         account_ = std::exchange(other.account_, nullptr);
     }
@@ -64,6 +76,7 @@ void Buffer::release() {
     mapped_ = nullptr;
     buffer_.reset();
     memory_.reset();
+    address_ = 0;
     if (account_) account_->fetch_sub(static_cast<int64_t>(allocation_bytes_));
     account_ = nullptr;
     allocation_bytes_ = 0;

@@ -26,6 +26,10 @@ public:
 
     VkBuffer get() const { return buffer_.get(); }
     VkDeviceSize size() const { return size_; }
+    // Where shaders reach the buffer through a buffer_reference (GL_EXT_buffer_reference): created with
+    // VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT, for data larger than a storage-buffer binding may span
+    // (maxStorageBufferRange); 0 otherwise.
+    VkDeviceAddress address() const { return address_; }
     // Host pointer for upload/readback buffers (persistently mapped); nullptr for device buffers.
     void* mapped() const { return mapped_; }
     template <typename T>
@@ -42,6 +46,7 @@ private:
     VkDeviceSize size_ = 0;
     VkDeviceSize allocation_bytes_ = 0;
     void* mapped_ = nullptr;
+    VkDeviceAddress address_ = 0;
     VkDevice device_ = VK_NULL_HANDLE;
     std::atomic<int64_t>* account_ = nullptr;
 };

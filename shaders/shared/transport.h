@@ -15,6 +15,7 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_INDEX_FIELD 1     // sampler3D rgba32f (n, grad n per voxel)
 #define TRANSPORT_BINDING_COVERAGE 2        // sampler3D r32f
 #define TRANSPORT_BINDING_LEVELS 3          // uint per level-1 octree node (its voxels' leaf level)
+// The radiance sums (reached by device address, TransportParams::radiance_sums; radiance_sums.glsl).
 // Per voxel, fixed-point sums packed in pairs into 64-bit words, so one 64-bit atomic adds two. Colour
 // sums are flux x path length; the net flux (direction x the channels' mean) is signed. RG holds
 // red | green << 32 (coloured transport only). FLUX holds RADIANCE_FLUX_WORDS words per voxel, and
@@ -27,8 +28,6 @@ REFRACT_SHADERS_BEGIN
 //    with probability |d_a| / |d|_1 and adds d_a's sign x |d|_1: unbiased, and one atomic.
 // Every half-sum stays within 31 bits by the choice of fixed-point scale, so halves never carry into
 // each other beyond what decoding undoes exactly.
-#define TRANSPORT_BINDING_ACCUM_RG 4
-#define TRANSPORT_BINDING_ACCUM_FLUX 5
 #define RADIANCE_FLUX_WORDS 4
 // A point or spot light's photons go in every direction from it: only voxels whose centres are this
 // many radiance-voxel sides from the light or more take unbent deposits. Directions within such a voxel
@@ -169,6 +168,8 @@ struct TransportParams {
                               // from a point or spot light); z: unused; w: 1 = direct light in closed form
     vec4 dispersion;          // rgb: each channel's index contrast against the medium over the field's,
                               // n_c - n_medium = dispersion[c] (n - n_medium) (1 without dispersion); w: unused
+    uvec4 radiance_sums;      // device addresses (low, high 32 bits) of the radiance sums: xy red | green,
+                              // zw the flux words (radiance_sums.glsl)
 };
 
 // The unit direction light travels at world point x as if nothing were in its way: the net flux
@@ -261,7 +262,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == 33 * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == 34 * 16);
 static_assert(sizeof(refract::shaders::PhotonStats) == 32);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 64);

@@ -1,0 +1,14 @@
+// The radiance grid's fixed-point sums (transport.h: red | green, and RADIANCE_FLUX_WORDS flux words per
+// voxel), reached by device address (TransportParams::radiance_sums) rather than bound as storage
+// buffers: at 256^3 the flux words take 512 MiB, more than one storage-buffer binding may span on
+// lavapipe (maxStorageBufferRange, 128 MiB: 161^3 voxels). A pass sets both in main.
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_buffer_reference_uvec2 : require
+layout(buffer_reference, std430, buffer_reference_align = 8) buffer RadianceSums { uint64_t words[]; };
+RadianceSums accum_rg;    // red | green << 32 per voxel; coloured transport only
+RadianceSums accum_flux;  // RADIANCE_FLUX_WORDS words per voxel
+
+void reach_radiance_sums(uvec4 addresses) {
+    accum_rg = RadianceSums(addresses.xy);
+    accum_flux = RadianceSums(addresses.zw);
+}
