@@ -124,6 +124,10 @@ TEST_F(RendererTest, SwitchingBetweenGreyColouredAndDispersiveTransportMatchesFr
     EXPECT_EQ(fresh.render("c", dispersive, no_assets).png, dispersed.png);
     EXPECT_NE(switched.png, first.png);
     EXPECT_NE(dispersed.png, first.png);
+    // Dragging a dispersive scene: sampled deposits into the coarse grid, adaptive pixels, three paths.
+    const FrameResult dragged = fresh.render("c", dispersive, no_assets, Quality::interactive);
+    EXPECT_EQ(dragged.rerun, kPhotons | kView);
+    EXPECT_FALSE(dragged.png.empty());
 }
 
 TEST_F(RendererTest, MemoryBudgetDropsTheLeastRecentlyUsedScene) {
