@@ -970,13 +970,14 @@ TEST_F(ViewTest, GreyAndColouredTransportGiveTheSameFrame) {
 // channel (the same field scaled, the same photon samples, the same eye rays), for every channel, in fog
 // with the floor's caustics. The dispersive octree keeps leaves within epsilon / s_max of the stored
 // field; the object of index n_c takes epsilon s_c / s_max, which gives it the same leaves. What may
-// differ is the float rounding of n (n_medium + s_c (n - n_medium) against the field of n_c), which moves
-// photon paths by a voxel crossing, and so a deposit, only where they graze the object or fall into a
-// caustic's edge, and eye rays where they graze its rim. Direct light is left to the photons: its light
-// map is computed from the stored field, so a voxel at its edge may go to the direct light in one frame
-// and to photons in the other, equal in expectation but not in value. So: the median pixel agrees to
-// 1e-4 and the frame's total to 1e-4; 97% of the pixels (all but those grazing paths; the rim alone is
-// 3% of this frame) within 1e-3.
+// differ: the float rounding of n (n_medium + s_c (n - n_medium) against the field of n_c), and the
+// gradients below DIRECT_FLAT that a path crosses at the stored field's contrast before its channels
+// part (channel_free). Both move photon paths by a voxel crossing, and so a deposit, only where they
+// graze the object or fall into a caustic's edge, and eye rays where they graze its rim. Direct light
+// is left to the photons: its light map is computed from the stored field, so a voxel at its edge may
+// go to the direct light in one frame and to photons in the other, equal in expectation but not in
+// value. So: the median pixel agrees to 1e-4 and the frame's total to 1e-4; 95% of the pixels (all but
+// those grazing paths; the rim alone is 3% of this frame) within 1e-3.
 TEST_F(ViewTest, DispersiveChannelsMatchTheirOwnIndex) {
     const double n = 1.5, abbe = 8.0, epsilon = 0.005;
     const json base = {{"image", {{"width", 48}, {"height", 48}}},
@@ -1011,12 +1012,12 @@ TEST_F(ViewTest, DispersiveChannelsMatchTheirOwnIndex) {
             total_dispersive += b;
         }
         std::sort(difference.begin(), difference.end());
-        const double median = difference[difference.size() / 2], p97 = difference[difference.size() * 97 / 100];
-        std::printf("dispersive channel %d against n = %.4f: pixel difference median %.1e, p97 %.1e, max %.1e; "
-                    "total %.1e\n", c, n_c, median, p97, difference.back(), total_dispersive / total_own - 1.0);
+        const double median = difference[difference.size() / 2], p95 = difference[difference.size() * 95 / 100];
+        std::printf("dispersive channel %d against n = %.4f: pixel difference median %.1e, p95 %.1e, max %.1e; "
+                    "total %.1e\n", c, n_c, median, p95, difference.back(), total_dispersive / total_own - 1.0);
         EXPECT_GT(total_own, 0.0);
         EXPECT_LT(median, 1e-4);
-        EXPECT_LT(p97, 1e-3);
+        EXPECT_LT(p95, 1e-3);
         EXPECT_NEAR(total_dispersive / total_own, 1.0, 1e-4);
     }
 }
