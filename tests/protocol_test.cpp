@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <random>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -560,6 +561,82 @@ TEST(MergePatch, BadPatchesAreAlsoRejectedAsWholeDocuments) {
         doc.merge_patch(c.patch);
         EXPECT_THROW(parse_scene(doc), ValidationError);
     }
+}
+
+}  // namespace
+}  // namespace refract::protocol
+
+namespace refract::protocol {
+namespace {
+
+// Every leaf of the full default document, as JSON pointers.
+void leaf_pointers(const json& j, const std::string& at, std::vector<std::string>& out) {
+    if (j.is_object()) {
+        for (auto it = j.begin(); it != j.end(); ++it) leaf_pointers(it.value(), at + "/" + it.key(), out);
+    } else {
+        out.push_back(at);
+    }
+}
+
+// Random merge patches over the whole document: each sets one to four leaves (or their parents, or an
+// unknown key beside them) to a value of a random kind (in range, out of range, NaN, infinite, huge, of
+// the wrong type or shape, a real enum value or garbage, null) or nudges the value already there. Every
+// patch must either give a document that round-trips through to_json, or be refused with a
+// ValidationError naming a pointer within what the patch touched. A fixed seed keeps it repeatable.
+TEST(SceneDocument, RandomPatchesAreAppliedWholeOrRefusedWithAPointer) {
+    const SceneDocument base = parse_scene(json::object());
+    const json base_json = to_json(base);
+    std::vector<std::string> leaves;
+    leaf_pointers(base_json, "", leaves);
+    std::mt19937 rng(20261125);
+    auto pick = [&](size_t n) { return static_cast<size_t>(std::uniform_int_distribution<size_t>(0, n - 1)(rng)); };
+    const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+    const std::vector<json> values = {
+        0, 1, -1, 0.5, 2.5, 5, 30, 1000, 1001, 1e9, -1e9, 4294967296.0, nan, inf, -inf, 1e-320,
+        true, false, nullptr, "", "sphere", "prism", "upload:x", "luneburg", "spot", "henyey-greenstein",
+        "../etc", json::array(), json::array({1, 2}), json::array({0.1, 0.2, 0.3}), json::array({1, nan, 1}),
+        json::array({1, 2, 3, 4}), json::object(), json{{"model", "isotropic"}}, json{{"unknown", 1}}};
+    size_t accepted = 0, refused = 0;
+    for (int trial = 0; trial < 20000; ++trial) {
+        json patch = json::object();
+        const size_t edits = 1 + pick(4);
+        for (size_t e = 0; e < edits; ++e) {
+            std::string at = leaves[pick(leaves.size())];
+            if (pick(8) == 0) at = at.substr(0, at.rfind('/'));   // the leaf's parent
+            if (pick(12) == 0) at = at.substr(0, at.rfind('/')) + "/not_a_field";
+            if (at.empty()) continue;
+            json value = values[pick(values.size())];
+            // Half the edits nudge the value already there, so that many patches are valid.
+            if (pick(2) == 0 && base_json.contains(json::json_pointer(at))) {
+                value = base_json[json::json_pointer(at)];
+                if (value.is_number_float())
+                    value = value.get<double>() == 0.0 ? static_cast<double>(pick(40))
+                                                        : value.get<double>() * (0.9 + 0.2 * static_cast<double>(pick(1000)) / 1000.0);
+                if (value.is_number_unsigned()) value = value.get<uint64_t>() + pick(3);
+            }
+            try {
+                patch[json::json_pointer(at)] = value;
+            } catch (const json::exception&) {
+                continue;  // a path through a value set earlier in this patch
+            }
+        }
+        try {
+            const SceneDocument edited = apply_merge_patch(base, patch);
+            EXPECT_EQ(parse_scene(to_json(edited)), edited) << patch.dump();
+            ++accepted;
+        } catch (const ValidationError& e) {
+            EXPECT_FALSE(e.rule().empty()) << patch.dump();
+            // The pointer names a value the patch touched, or a document-wide rule's field under it.
+            const std::string top = e.pointer().substr(0, e.pointer().find('/', 1));
+            EXPECT_TRUE(top.empty() || patch.contains(top.substr(1))) << e.what() << " for " << patch.dump();
+            ++refused;
+        } catch (const std::exception& e) {
+            ADD_FAILURE() << "threw something other than ValidationError: " << e.what() << " for " << patch.dump();
+        }
+    }
+    std::printf("random patches: %zu applied, %zu refused\n", accepted, refused);
+    EXPECT_GT(accepted, 200u);
+    EXPECT_GT(refused, 200u);
 }
 
 }  // namespace
