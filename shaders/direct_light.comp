@@ -117,9 +117,6 @@ void voxel_box(uint i, out vec3 lo, out vec3 extent) {
     extent = vec3(min(uvec3(f), params.grid_dims.xyz - f * v));
 }
 
-// Two fixed-point values as one 64-bit addend (transport.h).
-uint64_t pack(int low, int high) { return uint64_t(int64_t(low)) + (uint64_t(int64_t(high)) << 32); }
-
 // Stores mean fluence rate `fluence` over radiance voxel i's part inside the grid as the photons' sums
 // would hold it (flux x length x scale / reference flux), for the resolve pass to read back. The pass
 // runs between the sums' clear and the photons, which add to them.

@@ -60,9 +60,6 @@ uint coherent_order(uint j, uint n) {
 
 uint voxel_index(ivec3 v) { return (uint(v.z) * params.radiance_grid.y + uint(v.y)) * params.radiance_grid.x + uint(v.x); }
 
-// Two fixed-point values as one 64-bit addend: `low` sign-extended plus `high` << 32 (see transport.h).
-uint64_t pack(int low, int high) { return uint64_t(int64_t(low)) + (uint64_t(int64_t(high)) << 32); }
-
 // The photon's deposits into the radiance-grid voxel it is in, summed until it moves on to another:
 // consecutive steps often stay in one voxel (a third of all deposits at the interactive radiance
 // resolution), and one set of atomics then serves them all. Sums are in fixed-point units, unrounded.

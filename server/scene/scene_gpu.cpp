@@ -65,16 +65,16 @@ void SceneGpu::allocate_volume(const GridGeometry& grid) {
 void SceneGpu::allocate_transport(uint32_t photon_exit_count, bool record_exits, uint32_t radiance_factor,
                                   uint32_t channels) {
     vk::Context& ctx = kit_.context;
-    const bool grey = channels == CHANNELS_GREY;
+    const bool to_grey = channels == CHANNELS_GREY;
     const uint32_t floor_texels = passes::floor_map_texels(grid_);
     const uint32_t exits = record_exits ? photon_exit_count : 1u;
     const uint32_t f = radiance_factor;
     const vk::Extent3 radiance_dims = grid_.coarsened(f);
     if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_ ||
-        grey != (channels_ == CHANNELS_GREY)) {
+        to_grey != grey()) {
         accum_.reset();
         accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels,
-                                                        passes::light_map_capacity(grid_), exits, grey));
+                                                        passes::light_map_capacity(grid_), exits, to_grey));
         exit_capacity_ = exits;
     }
     if (!flux_.get() || f != radiance_factor_) {
@@ -83,7 +83,7 @@ void SceneGpu::allocate_transport(uint32_t photon_exit_count, bool record_exits,
         radiance_factor_ = f;
     }
     // Per-channel fluence only for coloured transport; grey transport binds a single texel it never reads.
-    const vk::Extent3 colour_dims = grey ? vk::Extent3{1, 1, 1} : radiance_dims;
+    const vk::Extent3 colour_dims = to_grey ? vk::Extent3{1, 1, 1} : radiance_dims;
     if (!radiance_.get() || !(radiance_.extent() == colour_dims)) {
         radiance_ = {};
         radiance_ = vk::Image3D(ctx, colour_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "radiance grid (per channel)");
@@ -226,7 +226,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                                          {channels_, params_.flags.y == COVERAGE_FETCH || params_.flags.z == COVERAGE_FETCH}};
     if (stale & kPhotons) {
         timer_.begin(cmd, "photons");
-        passes::clear_photon_accumulators(recorder_, *accum_, channels_ == CHANNELS_GREY);
+        passes::clear_photon_accumulators(recorder_, *accum_, grey());
         if (params_.direct_light.w > 0.5f) {
             kit_.direct_light.record(recorder_, inputs, *accum_, static_cast<uint32_t>(params_.direct_light.x),
                                      grid_.coarsened(options.radiance_factor));
@@ -234,7 +234,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         }
         kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count, options.sampled_deposits);
         recorder_.compute_barrier();
-        kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, channels_ == CHANNELS_GREY, radiance_, flux_, floor_map_);
+        kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, grey(), radiance_, flux_, floor_map_);
         recorder_.compute_barrier();
         kit_.lit_pyramid.record(recorder_, params_buffer_, flux_, accum_->lit_blocks, index_field_.extent());
         recorder_.compute_barrier();
@@ -323,7 +323,7 @@ std::vector<glm::vec4> SceneGpu::read_flux() const { return read_image<glm::vec4
 std::vector<uint32_t> SceneGpu::read_lit_pyramid() const { return read_buffer<uint32_t>(accum_->lit_blocks); }
 
 std::vector<glm::vec4> SceneGpu::read_radiance() const {
-    if (channels_ != CHANNELS_GREY) return read_image<glm::vec4>(radiance_);
+    if (!grey()) return read_image<glm::vec4>(radiance_);
     // Grey transport: the light's colour times the channels' mean, as the viewing pass shades it.
     const glm::vec3 colour = shaders::grey_colour(params_.photon_flux);
     std::vector<glm::vec4> out = read_flux();

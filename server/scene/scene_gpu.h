@@ -95,6 +95,7 @@ public:
     std::vector<glm::vec4> read_radiance() const;  // fluence rate rgb (W/m^2)
     std::vector<glm::vec4> read_flux() const;      // net flux vector xyz, fluence rate w (channel mean; W/m^2)
     uint32_t channels() const { return channels_; }  // how the photons last ran carried colour (CHANNELS_*)
+    bool grey() const { return channels_ == CHANNELS_GREY; }  // one fluence for all channels (transport.h)
     // The lit pyramid, levels one after another (passes::lit_pyramid_offsets): 1 per lit cell above
     // level 0, and per level-0 block the number of levels unlit there (transport.h).
     std::vector<uint32_t> read_lit_pyramid() const;

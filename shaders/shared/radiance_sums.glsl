@@ -8,6 +8,9 @@ layout(buffer_reference, std430, buffer_reference_align = 8) buffer RadianceSums
 RadianceSums accum_rg;    // red | green << 32 per voxel; coloured transport only
 RadianceSums accum_flux;  // RADIANCE_FLUX_WORDS words per voxel
 
+// Two fixed-point values as one 64-bit addend: `low` sign-extended plus `high` << 32 (transport.h).
+uint64_t pack(int low, int high) { return uint64_t(int64_t(low)) + (uint64_t(int64_t(high)) << 32); }
+
 void reach_radiance_sums(uvec4 addresses) {
     accum_rg = RadianceSums(addresses.xy);
     accum_flux = RadianceSums(addresses.zw);
