@@ -6,7 +6,6 @@
 // the grid changes: its shadow and caustics) or the sky. Output: linear radiance and a tone-mapped sRGB pixel.
 #include "transport_common.glsl"
 #include "phase.h"
-#include "tone_map.glsl"
 #include "view_tiles.glsl"
 
 layout(local_size_x = VIEW_GROUP_SIZE, local_size_y = VIEW_GROUP_SIZE) in;
@@ -14,7 +13,6 @@ layout(binding = TRANSPORT_BINDING_RADIANCE) uniform sampler3D radiance;
 layout(binding = TRANSPORT_BINDING_FLUX) uniform sampler3D flux;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
 layout(std430, binding = TRANSPORT_BINDING_HDR) writeonly buffer Hdr { vec4 hdr[]; };
-layout(std430, binding = TRANSPORT_BINDING_LDR) writeonly buffer Ldr { uint ldr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
 layout(std430, binding = TRANSPORT_BINDING_REFINE) readonly buffer Refine {
     WorkListHeader refine;
@@ -216,7 +214,6 @@ void shade(uvec2 pixel) {
     atomicAdd(stats.view_steps, march_steps);
     uint index = pixel.y * width + pixel.x;
     hdr[index] = vec4(pixel_radiance, 1.0);
-    ldr[index] = srgb8(pixel_radiance, params.tone.x);
 }
 
 // The queue runs through the image (or its coarse pixels) tile by tile (view_tiles.glsl). Listed pixels

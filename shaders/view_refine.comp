@@ -13,7 +13,6 @@ layout(local_size_x = VIEW_REFINE_GROUP_SIZE) in;
 
 layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
 layout(std430, binding = TRANSPORT_BINDING_HDR) buffer Hdr { vec4 hdr[]; };
-layout(std430, binding = TRANSPORT_BINDING_LDR) buffer Ldr { uint ldr[]; };
 layout(std430, binding = TRANSPORT_BINDING_REFINE) buffer Refine {
     WorkListHeader refine;
     uint refine_pixels[];
@@ -37,16 +36,16 @@ void main() {
     vec3 sum = vec3(0.0);
     for (int k = 0; k < 4; ++k) {
         uint c = inside ? corner[k] : 0u;
-        uvec3 b = bytes_of(ldr[c]);
+        vec3 radiance = hdr[c].rgb;
+        uvec3 b = bytes_of(srgb8(radiance, params.tone.x));
         least = min(least, b);
         most = max(most, b);
-        sum += hdr[c].rgb;
+        sum += radiance;
     }
     bool agree = bounded && all(lessThanEqual(most - least, uvec3(VIEW_REFINE_LEVELS)));
     uint index = pixel.y * width + pixel.x;
     if (inside && !traced && agree) {
         hdr[index] = vec4(0.25 * sum, 1.0);
-        ldr[index] = srgb8(0.25 * sum, params.tone.x);
     }
     bool listed = inside && !traced && !agree;
     uvec4 ballot = subgroupBallot(listed);

@@ -134,7 +134,7 @@ TEST(DaemonSceneStore, EditsPersistAndRejectedEditsChangeNothing) {
         EXPECT_TRUE(edit.changed);
         EXPECT_EQ(edit.after.revision, 2u);
         EXPECT_EQ(scene::passes_invalidated(edit.before, edit.after.document),
-                  scene::kPhotons | scene::kView);
+                  scene::kPhotons | scene::kView | scene::kToneMap);
         EXPECT_THROW(store.patch("one", {{"light", {{"intensity", -1.0}}}}), protocol::ValidationError);
         EXPECT_EQ(store.get("one")->revision, 2u);
         auto noop = store.patch("one", {{"light", {{"intensity", 5.0}}}});
@@ -155,19 +155,21 @@ TEST(DaemonSceneStore, EditsPersistAndRejectedEditsChangeNothing) {
         EXPECT_FALSE(store.remove(random.id));
     }
     // A write that never reached its rename leaves a temp file: ignored and cleaned on load.
-    std::ofstream(dir.path() / "scenes" / "one.json.tmp.1.2") << "{garbage";
+    std::ofstream(dir.path() / "scenes" / "one.json~tmp.1.2") << "{garbage";
     scene::SceneStore reopened(dir.path(), limits, {});
     ASSERT_EQ(reopened.size(), 1u);
     auto one = reopened.get("one");
     ASSERT_TRUE(one);
     EXPECT_EQ(one->revision, 2u);
     EXPECT_EQ(one->document.light.intensity, 5.0);
-    EXPECT_FALSE(fs::exists(dir.path() / "scenes" / "one.json.tmp.1.2"));
+    EXPECT_FALSE(fs::exists(dir.path() / "scenes" / "one.json~tmp.1.2"));
 }
 
 TEST(DaemonSceneStore, MeshesAndGridsAreValidatedStoredAndReplaced) {
     TempDir dir;
-    scene::SceneStore store(dir.path(), {}, {});
+    std::optional<scene::SceneStore> opened;
+    opened.emplace(dir.path(), protocol::Limits{}, mesh::MeshLimits{});
+    scene::SceneStore& store = *opened;
     auto entry = store.put_mesh("tet", kTetrahedronObj);
     EXPECT_EQ(entry.report.triangles, 4u);
     EXPECT_TRUE(entry.report.watertight());
@@ -196,11 +198,140 @@ TEST(DaemonSceneStore, MeshesAndGridsAreValidatedStoredAndReplaced) {
     EXPECT_THROW(store.put_index_grid("g", grid), scene::StoreError);
     EXPECT_EQ(store.get("g")->revision, 2u);
 
+    opened.reset();
     scene::SceneStore reopened(dir.path(), {}, {});
     ASSERT_TRUE(reopened.grid("g"));
     EXPECT_EQ(reopened.grid("g")->nx, 4u);
     ASSERT_TRUE(reopened.mesh("tet"));
     EXPECT_EQ(reopened.mesh("tet")->triangles.size(), 4u);
+}
+
+std::string read_file(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+TEST(DaemonSceneStore, NamesThatLookLikeTempFilesSurviveARestart) {
+    TempDir dir;
+    {
+        scene::SceneStore store(dir.path(), {}, {});
+        store.put_mesh("a.tmp.b", kTetrahedronObj);
+        store.create("tmp", json::object());
+        EXPECT_THROW(store.put_mesh("a~tmp.b", kTetrahedronObj), scene::StoreError);
+    }
+    scene::SceneStore reopened(dir.path(), {}, {});
+    ASSERT_TRUE(reopened.mesh("a.tmp.b"));
+    EXPECT_EQ(reopened.list_meshes().size(), 1u);
+    EXPECT_TRUE(reopened.get("tmp"));
+}
+
+TEST(DaemonSceneStore, ASecondStoreOnTheSameDirectoryIsRefused) {
+    TempDir dir;
+    std::optional<scene::SceneStore> first;
+    first.emplace(dir.path(), protocol::Limits{}, mesh::MeshLimits{});
+    try {
+        scene::SceneStore second(dir.path(), {}, {});
+        FAIL() << "two stores on one directory would hand out the same revisions";
+    } catch (const scene::StoreError& e) {
+        EXPECT_EQ(e.status(), 409);
+        EXPECT_NE(std::string(e.what()).find("pid " + std::to_string(::getpid())), std::string::npos) << e.what();
+    }
+    first.reset();  // the lock goes with its holder
+    EXPECT_NO_THROW(scene::SceneStore(dir.path(), {}, {}));
+}
+
+TEST(DaemonSceneStore, UnreadableScenesAreQuarantinedReportedAndNeverOverwritten) {
+    TempDir dir;
+    {
+        scene::SceneStore store(dir.path(), {}, {});
+        for (const char* id : {"good", "cut", "negative", "huge", "last"}) store.create(id, kSmallScene);
+        store.patch("good", {{"light", {{"intensity", 3.0}}}});
+    }
+    const fs::path scenes = dir.path() / "scenes";
+    std::string cut = read_file(scenes / "cut.json");
+    cut.resize(cut.size() / 2);
+    std::ofstream(scenes / "cut.json", std::ios::trunc) << cut;
+    auto set_revision = [&](const char* id, json revision) {
+        json stored = json::parse(read_file(scenes / (std::string(id) + ".json")));
+        stored["revision"] = revision;
+        std::ofstream(scenes / (std::string(id) + ".json"), std::ios::trunc) << stored.dump();
+    };
+    set_revision("negative", -1);
+    set_revision("huge", json(18446744073709551615ull));
+    set_revision("last", json(scene::kMaxRevision));
+
+    scene::SceneStore store(dir.path(), {}, {});
+    EXPECT_EQ(store.get("good")->revision, 2u);
+    std::set<std::string> quarantined;
+    for (const auto& file : store.quarantined()) {
+        quarantined.insert(file.scene_id);
+        EXPECT_TRUE(fs::exists(file.path)) << file.path;
+        EXPECT_FALSE(file.error.empty());
+    }
+    EXPECT_EQ(quarantined, (std::set<std::string>{"cut", "negative", "huge"}));
+    EXPECT_EQ(read_file(dir.path() / "quarantine" / "cut.json"), cut);  // kept byte for byte
+    for (const char* id : {"cut", "negative", "huge"}) {
+        EXPECT_FALSE(store.get(id));
+        try {
+            store.create(id, json::object());
+            FAIL() << id << ": a new scene must not take the place of an unreadable one";
+        } catch (const scene::StoreError& e) {
+            EXPECT_EQ(e.status(), 409);
+            EXPECT_NE(std::string(e.what()).find("quarantine"), std::string::npos) << e.what();
+        }
+    }
+    // The last revision JSON keeps exact is the last one handed out: no wrap to 0.
+    EXPECT_EQ(store.get("last")->revision, scene::kMaxRevision);
+    try {
+        store.patch("last", {{"light", {{"intensity", 7.0}}}});
+        FAIL() << "an edit past the highest revision must be refused";
+    } catch (const scene::StoreError& e) {
+        EXPECT_EQ(e.status(), 409);
+    }
+    EXPECT_EQ(store.get("last")->revision, scene::kMaxRevision);
+}
+
+TEST(DaemonSceneStore, QuarantinedScenesStayReportedAcrossRestarts) {
+    TempDir dir;
+    { scene::SceneStore(dir.path(), {}, {}).create("cut", kSmallScene); }
+    std::ofstream(dir.path() / "scenes" / "cut.json", std::ios::trunc) << "{";
+    { EXPECT_EQ(scene::SceneStore(dir.path(), {}, {}).quarantined().size(), 1u); }
+    scene::SceneStore store(dir.path(), {}, {});
+    ASSERT_EQ(store.quarantined().size(), 1u);
+    EXPECT_EQ(store.quarantined()[0].scene_id, "cut");
+    EXPECT_THROW(store.create("cut", json::object()), scene::StoreError);
+    EXPECT_EQ(read_file(dir.path() / "quarantine" / "cut.json"), "{");
+}
+
+TEST(DaemonSceneStore, UnreadableStoredAssetsSayWhy) {
+    TempDir dir;
+    {
+        scene::SceneStore store(dir.path(), {}, {});
+        store.put_mesh("tet", kTetrahedronObj);
+        store.create("g", json::object());
+        scene::IndexGrid grid;
+        grid.nx = grid.ny = grid.nz = 4;
+        grid.n.assign(64, 1.33f);
+        store.put_index_grid("g", grid);
+    }
+    std::ofstream(dir.path() / "meshes" / "tet.obj", std::ios::trunc) << "v 0 0 0\nf 1 2 3\n";
+    std::string grid = read_file(dir.path() / "grids" / "g.grid");
+    std::ofstream(dir.path() / "grids" / "g.grid", std::ios::trunc) << grid.substr(0, grid.size() - 4);
+    scene::SceneStore store(dir.path(), {}, {});
+    try {
+        store.mesh("upload:tet");
+        FAIL() << "a corrupt stored mesh must say why";
+    } catch (const scene::RenderError& e) {
+        EXPECT_NE(std::string(e.what()).find("stored mesh 'tet' cannot be read"), std::string::npos) << e.what();
+    }
+    try {
+        store.grid("g");
+        FAIL() << "a corrupt stored grid must say why";
+    } catch (const scene::RenderError& e) {
+        EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(store.mesh("unknown"), nullptr);
+    EXPECT_TRUE(fs::exists(dir.path() / "meshes" / "tet.obj"));
 }
 
 // A render function the test drives: each call blocks until the test allows one more.
@@ -465,7 +596,7 @@ TEST(Daemon, LightEditChangesTheFrame) {
     auto before = get_frame(client, id);
     ASSERT_TRUE(before && before->status == 200);
     EXPECT_EQ(before->get_header_value("X-Refract-Revision"), "1");
-    EXPECT_EQ(before->get_header_value("X-Refract-Passes"), "voxelize,index_field,octree,photons,view");
+    EXPECT_EQ(before->get_header_value("X-Refract-Passes"), "voxelize,index_field,octree,photons,view,tone_map");
     EXPECT_NE(before->get_header_value("Server-Timing").find("view;dur="), std::string::npos);
 
     auto edit = patch(client, id, {{"light", {{"intensity", 80.0}, {"position", {1.0, 3.0, 2.0}}}}});
@@ -473,14 +604,14 @@ TEST(Daemon, LightEditChangesTheFrame) {
     ASSERT_EQ(edit->status, 200) << edit->body;
     json answer = json::parse(edit->body);
     EXPECT_EQ(answer["revision"], 2);
-    EXPECT_EQ(answer["invalidated"], json({"photons", "view"}));
+    EXPECT_EQ(answer["invalidated"], json({"photons", "view", "tone_map"}));
     EXPECT_EQ(answer["scene"]["light"]["intensity"], 80.0);
     EXPECT_EQ(edit->get_header_value("ETag"), "\"2\"");
 
     auto after = get_frame(client, id);
     ASSERT_TRUE(after && after->status == 200);
     EXPECT_EQ(after->get_header_value("X-Refract-Revision"), "2");
-    EXPECT_EQ(after->get_header_value("X-Refract-Passes"), "photons,view");
+    EXPECT_EQ(after->get_header_value("X-Refract-Passes"), "photons,view,tone_map");
     EXPECT_NE(before->body, after->body);
 
     // The image size can be overridden for one frame, within the limits.
@@ -493,10 +624,10 @@ TEST(Daemon, LightEditChangesTheFrame) {
     auto dispersive = patch(client, id, {{"object", {{"abbe", 20.0}}}});
     ASSERT_TRUE(dispersive);
     ASSERT_EQ(dispersive->status, 200) << dispersive->body;
-    EXPECT_EQ(json::parse(dispersive->body)["invalidated"], json({"octree", "photons", "view"}));
+    EXPECT_EQ(json::parse(dispersive->body)["invalidated"], json({"octree", "photons", "view", "tone_map"}));
     auto dispersed = get_frame(client, id);
     ASSERT_TRUE(dispersed && dispersed->status == 200);
-    EXPECT_EQ(dispersed->get_header_value("X-Refract-Passes"), "octree,photons,view");
+    EXPECT_EQ(dispersed->get_header_value("X-Refract-Passes"), "octree,photons,view,tone_map");
     EXPECT_NE(dispersed->body, after->body);
     expect_no_validation_errors(daemon);
     EXPECT_EQ(daemon.stop(), 0);
@@ -515,10 +646,10 @@ TEST(Daemon, CameraEditRerunsOnlyTheViewingPass) {
 
     auto edit = patch(client, id, {{"camera", {{"position", {0.5, 0.6, 3.5}}}}});
     ASSERT_TRUE(edit);
-    EXPECT_EQ(json::parse(edit->body)["invalidated"], json({"view"}));
+    EXPECT_EQ(json::parse(edit->body)["invalidated"], json({"view", "tone_map"}));
     auto frame = get_frame(client, id);
     ASSERT_TRUE(frame && frame->status == 200);
-    EXPECT_EQ(frame->get_header_value("X-Refract-Passes"), "view");
+    EXPECT_EQ(frame->get_header_value("X-Refract-Passes"), "view,tone_map");
     EXPECT_EQ(frame->get_header_value("Server-Timing").find("photons"), std::string::npos);
 
     EXPECT_EQ(metric(client, "refract_pass_runs_total{pass=\"photons\"}"), photons_before);
@@ -894,7 +1025,7 @@ TEST(Daemon, MaxScenesEvictsGpuStateButKeepsDocuments) {
     // "first" was dropped from the GPU: a new size reruns everything, from the same document.
     auto again = get_frame(client, "first", "?width=40");
     ASSERT_TRUE(again && again->status == 200);
-    EXPECT_EQ(again->get_header_value("X-Refract-Passes"), "voxelize,index_field,octree,photons,view");
+    EXPECT_EQ(again->get_header_value("X-Refract-Passes"), "voxelize,index_field,octree,photons,view,tone_map");
     EXPECT_EQ(again->get_header_value("X-Refract-Revision"), "1");
     EXPECT_EQ(get_json(client, "/api/scenes")["scenes"].size(), 3u);
     expect_no_validation_errors(daemon);
@@ -1124,6 +1255,45 @@ TEST(Daemon, RestartRecoversEveryScene) {
     EXPECT_EQ(get_json(client, "/api/meshes")["meshes"].size(), 1u);
     auto frame = get_frame(client, "beta");  // the uploaded mesh is back too
     EXPECT_TRUE(frame && frame->status == 200);
+}
+
+TEST(Daemon, ASecondDaemonOnTheSameDataDirectoryRefusesToStart) {
+    TempDir dir;
+    Daemon first(dir.path() / "data");
+    try {
+        Daemon second(dir.path() / "data");
+        FAIL() << "two daemons on one data directory would hand out the same revisions";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("is in use by another refractd"), std::string::npos) << e.what();
+    }
+    auto client = first.client();
+    EXPECT_EQ(get_json(client, "/api/scenes/default")["revision"], 1);
+}
+
+TEST(Daemon, AnUnreadableSceneFileIsReportedAndKept) {
+    TempDir dir;
+    {
+        Daemon daemon(dir.path() / "data");
+        auto client = daemon.client();
+        ASSERT_EQ(client.Post("/api/scenes?id=x", kSmallScene.dump(), "application/json")->status, 201);
+        EXPECT_EQ(daemon.stop(), 0) << daemon.log();
+    }
+    const fs::path file = dir.path() / "data" / "scenes" / "x.json";
+    std::string text = read_file(file);
+    std::ofstream(file, std::ios::trunc) << text.substr(0, text.size() / 2);
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    json health = get_json(client, "/api/health");
+    EXPECT_EQ(health["status"], "degraded") << health.dump();
+    ASSERT_EQ(health["quarantined"].size(), 1u) << health.dump();
+    EXPECT_EQ(health["quarantined"][0]["scene"], "x");
+    EXPECT_EQ(read_file(health["quarantined"][0]["path"].get<std::string>()), text.substr(0, text.size() / 2));
+    EXPECT_EQ(client.Get("/api/scenes/x")->status, 404);
+    auto res = client.Post("/api/scenes?id=x", kSmallScene.dump(), "application/json");
+    EXPECT_EQ(res->status, 409) << res->body;
+    EXPECT_FALSE(fs::exists(file));  // nothing was written in its place
+    EXPECT_NE(client.Get("/metrics")->body.find("refract_store_quarantined_files 1"), std::string::npos);
+    EXPECT_NE(daemon.log().find("x.json"), std::string::npos);
 }
 
 TEST(Daemon, KillNineLosesNoAcknowledgedRevision) {

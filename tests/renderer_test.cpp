@@ -31,20 +31,20 @@ TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
         json patch;
         PassSet expected;
     } cases[] = {
-        {"camera", {{"camera", {{"position", {1, 1, 4}}}}}, kView},
-        {"image size", {{"image", {{"width", 64}}}}, kView},
-        {"exposure", {{"image", {{"exposure", 1.0}}}}, kView},
-        {"object scattering", {{"object", {{"scattering", {0.01, 0.01, 0.01}}}}}, kView},
-        {"phase", {{"medium", {{"phase", {{"model", "isotropic"}, {"g", 0.0}}}}}}, kView},
-        {"floor look", {{"floor", {{"albedo", {0.5, 0.5, 0.5}}}}}, kView},
-        {"light", {{"light", {{"position", {-2, 3, 1}}}}}, kPhotons | kView},
-        {"photon count", {{"photons", {{"count", 2048}}}}, kPhotons | kView},
-        {"extinction", {{"object", {{"extinction", {0.5, 0.5, 0.5}}}}}, kPhotons | kView},
-        {"floor height", {{"floor", {{"height", -1.2}}}}, kPhotons | kView},
-        {"octree epsilon", {{"volume", {{"octree_epsilon", 0.01}}}}, kOctree | kPhotons | kView},
-        {"dispersion", {{"object", {{"abbe", 30}}}}, kOctree | kPhotons | kView},
-        {"ior", {{"object", {{"ior", 1.33}}}}, kIndexField | kOctree | kPhotons | kView},
-        {"index field kind", {{"object", {{"index_field", "luneburg"}}}}, kIndexField | kOctree | kPhotons | kView},
+        {"camera", {{"camera", {{"position", {1, 1, 4}}}}}, kView | kToneMap},
+        {"image size", {{"image", {{"width", 64}}}}, kView | kToneMap},
+        {"exposure", {{"image", {{"exposure", 1.0}}}}, kToneMap},
+        {"object scattering", {{"object", {{"scattering", {0.01, 0.01, 0.01}}}}}, kView | kToneMap},
+        {"phase", {{"medium", {{"phase", {{"model", "isotropic"}, {"g", 0.0}}}}}}, kView | kToneMap},
+        {"floor look", {{"floor", {{"albedo", {0.5, 0.5, 0.5}}}}}, kView | kToneMap},
+        {"light", {{"light", {{"position", {-2, 3, 1}}}}}, kPhotons | kView | kToneMap},
+        {"photon count", {{"photons", {{"count", 2048}}}}, kPhotons | kView | kToneMap},
+        {"extinction", {{"object", {{"extinction", {0.5, 0.5, 0.5}}}}}, kPhotons | kView | kToneMap},
+        {"floor height", {{"floor", {{"height", -1.2}}}}, kPhotons | kView | kToneMap},
+        {"octree epsilon", {{"volume", {{"octree_epsilon", 0.01}}}}, kOctree | kPhotons | kView | kToneMap},
+        {"dispersion", {{"object", {{"abbe", 30}}}}, kOctree | kPhotons | kView | kToneMap},
+        {"ior", {{"object", {{"ior", 1.33}}}}, kIndexField | kOctree | kPhotons | kView | kToneMap},
+        {"index field kind", {{"object", {{"index_field", "luneburg"}}}}, kIndexField | kOctree | kPhotons | kView | kToneMap},
         {"mesh", {{"object", {{"mesh", "torus"}}}}, kAllPasses},
         {"object position", {{"object", {{"position", {0.1, 0, 0}}}}}, kAllPasses},
         {"resolution", {{"volume", {{"resolution", 48}}}}, kAllPasses},
@@ -59,8 +59,8 @@ TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
     // going, reruns them; changing how much it scatters does not.
     const json clear = {{"medium", {{"scattering", {0, 0, 0}}}}, {"object", {{"scattering", {0, 0, 0}}}}};
     const SceneDocument clear_scene = protocol::apply_merge_patch(before, clear);
-    EXPECT_EQ(pass_names(passes_invalidated(clear_scene, before)), pass_names(kPhotons | kView));
-    EXPECT_EQ(pass_names(passes_invalidated(before, clear_scene)), pass_names(kPhotons | kView));
+    EXPECT_EQ(pass_names(passes_invalidated(clear_scene, before)), pass_names(kPhotons | kView | kToneMap));
+    EXPECT_EQ(pass_names(passes_invalidated(before, clear_scene)), pass_names(kPhotons | kView | kToneMap));
 }
 
 class RendererTest : public ::testing::Test {
@@ -77,12 +77,28 @@ TEST_F(RendererTest, ResidentStateIsReusedAndOnlyStalePassesRun) {
     EXPECT_EQ(renderer.render("a", doc, no_assets).rerun, kAllPasses);
     const auto camera = protocol::apply_merge_patch(doc, {{"camera", {{"position", {1, 1, 4}}}}});
     const FrameResult moved = renderer.render("a", camera, no_assets);
-    EXPECT_EQ(moved.rerun, kView);
-    ASSERT_EQ(moved.timings.size(), 2u);  // view and encode
+    EXPECT_EQ(moved.rerun, kView | kToneMap);
+    ASSERT_EQ(moved.timings.size(), 3u);  // view, tone map and encode
     EXPECT_EQ(moved.timings[0].name, "view");
+    EXPECT_EQ(moved.timings[1].name, "tone_map");
     const auto light = protocol::apply_merge_patch(camera, {{"light", {{"intensity", 5.0}}}});
-    EXPECT_EQ(renderer.render("a", light, no_assets).rerun, kPhotons | kView);
+    EXPECT_EQ(renderer.render("a", light, no_assets).rerun, kPhotons | kView | kToneMap);
     EXPECT_FALSE(renderer.render("a", light, no_assets).png.empty());
+}
+
+// Exposure is display only: the resident linear frame is tone-mapped again, and the bytes are those of
+// a frame rendered at that exposure from the start.
+TEST_F(RendererTest, AnExposureEditOnlyToneMapsTheResidentFrame) {
+    Renderer renderer(*context);
+    const SceneDocument doc = small();
+    renderer.render("a", doc, no_assets);
+    const auto brighter = protocol::apply_merge_patch(doc, {{"image", {{"exposure", 2.0}}}});
+    const FrameResult retoned = renderer.render("a", brighter, no_assets);
+    EXPECT_EQ(retoned.rerun, kToneMap);
+    Renderer fresh(*context);
+    const FrameResult direct = fresh.render("b", brighter, no_assets);
+    EXPECT_EQ(retoned.png, direct.png);
+    EXPECT_NE(retoned.png, renderer.render("a", doc, no_assets).png);
 }
 
 // Interactive frames deposit photons into a coarser radiance grid. With 4096 photons and a 32-pixel
@@ -94,10 +110,10 @@ TEST_F(RendererTest, SwitchingQualityRerunsPhotonsIntoTheRightGrid) {
     const SceneDocument doc = small({{"photons", {{"count", 4096}}}});
     const FrameResult still = renderer.render("a", doc, no_assets, Quality::still);
     const FrameResult interactive = renderer.render("a", doc, no_assets, Quality::interactive);
-    EXPECT_EQ(interactive.rerun, kPhotons | kView);
+    EXPECT_EQ(interactive.rerun, kPhotons | kView | kToneMap);
     EXPECT_NE(interactive.png, still.png);
     const FrameResult again = renderer.render("a", doc, no_assets, Quality::still);
-    EXPECT_EQ(again.rerun, kPhotons | kView);
+    EXPECT_EQ(again.rerun, kPhotons | kView | kToneMap);
     EXPECT_EQ(again.png, still.png);
     EXPECT_EQ(renderer.render("a", doc, no_assets, Quality::still).rerun, 0u);
 }
@@ -114,9 +130,9 @@ TEST_F(RendererTest, SwitchingBetweenGreyColouredAndDispersiveTransportMatchesFr
     Renderer resident(*context);
     const FrameResult first = resident.render("a", grey, no_assets);
     const FrameResult switched = resident.render("a", coloured, no_assets);
-    EXPECT_EQ(switched.rerun, kPhotons | kView);
+    EXPECT_EQ(switched.rerun, kPhotons | kView | kToneMap);
     const FrameResult dispersed = resident.render("a", dispersive, no_assets);
-    EXPECT_EQ(dispersed.rerun, kOctree | kPhotons | kView);
+    EXPECT_EQ(dispersed.rerun, kOctree | kPhotons | kView | kToneMap);
     const FrameResult back = resident.render("a", grey, no_assets);
     EXPECT_EQ(back.png, first.png);
     Renderer fresh(*context);
@@ -126,7 +142,7 @@ TEST_F(RendererTest, SwitchingBetweenGreyColouredAndDispersiveTransportMatchesFr
     EXPECT_NE(dispersed.png, first.png);
     // Dragging a dispersive scene: sampled deposits into the coarse grid, adaptive pixels, three paths.
     const FrameResult dragged = fresh.render("c", dispersive, no_assets, Quality::interactive);
-    EXPECT_EQ(dragged.rerun, kPhotons | kView);
+    EXPECT_EQ(dragged.rerun, kPhotons | kView | kToneMap);
     EXPECT_FALSE(dragged.png.empty());
 }
 
@@ -164,6 +180,80 @@ TEST_F(RendererTest, UnrenderableSceneLeavesOtherScenesResident) {
     EXPECT_EQ(renderer.resident_scenes(), 1u);
     // The resident state is still the good scene's: an unchanged document reruns nothing.
     EXPECT_EQ(renderer.render("good", doc, no_assets).rerun, 0u);
+}
+
+
+// The frame budget's controller against a simulated device whose frame time is a fixed cost plus a
+// cost per pixel and per photon: it must settle within the budget without wasting most of it, keep a
+// camera drag from changing the photon count, and never go below its resolution floor.
+struct SimulatedDevice {
+    double fixed_ms, ms_per_pixel, ms_per_photon;
+    double photons_ms(const InteractiveSettings& s) const { return ms_per_photon * s.photons; }
+    double rest_ms(const InteractiveSettings& s) const {
+        return fixed_ms + ms_per_pixel * double(s.width) * double(s.height);
+    }
+};
+
+InteractiveSettings settle(FrameBudget& budget, const SceneDocument& doc, const SimulatedDevice& device,
+                           double budget_ms, bool photons_rerun) {
+    InteractiveSettings used;
+    std::optional<InteractiveSettings> resident;
+    for (int frame = 0; frame < 30; ++frame) {
+        used = budget.choose(doc, photons_rerun || !resident, true, resident ? &*resident : nullptr);
+        const double photons = photons_rerun || !resident ? device.photons_ms(used) : 0.0;
+        budget.observe(doc, used, photons, device.rest_ms(used), budget_ms);
+        resident = used;
+    }
+    return used;
+}
+
+TEST(FrameBudget, SettlesWithinTheBudgetOnASlowDevice) {
+    SceneDocument doc;
+    doc.image.width = 768;
+    doc.image.height = 608;
+    doc.photons.count = 1u << 18;
+    // About 230 ms for a half-size camera frame (the slow 2-core machine of issue 21) and 1 us per photon.
+    const SimulatedDevice device{5.0, 225.0 / (384.0 * 304.0), 1e-3};
+    for (bool light_drag : {false, true}) {
+        SCOPED_TRACE(light_drag ? "light drag" : "camera drag");
+        FrameBudget budget;
+        const InteractiveSettings s = settle(budget, doc, device, 100.0, light_drag);
+        const double total = device.rest_ms(s) + (light_drag ? device.photons_ms(s) : 0.0);
+        EXPECT_LE(total, 100.0);
+        EXPECT_GE(total, 60.0) << "the budget should be spent on resolution, not left idle";
+        EXPECT_LT(s.width, 384u);
+        EXPECT_NEAR(double(s.width) / s.height, 768.0 / 608.0, 0.02);
+    }
+}
+
+TEST(FrameBudget, AFastDeviceGetsTheFullDocumentAndAHopelessOneTheFloor) {
+    SceneDocument doc;
+    doc.image.width = 512;
+    doc.image.height = 256;
+    doc.photons.count = 1u << 20;
+    FrameBudget fast;
+    const InteractiveSettings full = settle(fast, doc, {1.0, 1e-6, 1e-7}, 100.0, true);
+    EXPECT_EQ(full.width, 512u);
+    EXPECT_EQ(full.height, 256u);
+    EXPECT_EQ(full.photons, doc.photons.count / 4);  // the photon share's ceiling
+    FrameBudget slow;
+    const InteractiveSettings floor = settle(slow, doc, {500.0, 1e-2, 1e-2}, 10.0, true);
+    EXPECT_EQ(floor.width, 64u);   // 512 / 8
+    EXPECT_EQ(floor.height, 32u);  // 256 / 8, and kMinSide
+    EXPECT_EQ(floor.photons, static_cast<uint32_t>(doc.photons.count / 64));
+}
+
+TEST(FrameBudget, KeepsTheResidentSettingsWhereChangingThemWouldRerunAPass) {
+    SceneDocument doc;
+    FrameBudget budget;
+    budget.observe(doc, {256, 256, doc.photons.count / 4}, 0.0, 400.0, 100.0);  // too slow: shrink
+    const InteractiveSettings resident{256, 256, 12345};
+    const InteractiveSettings camera = budget.choose(doc, false, true, &resident);
+    EXPECT_EQ(camera.photons, 12345u);  // a camera drag must not retrace photons
+    EXPECT_LT(camera.width, 256u);
+    const InteractiveSettings exposure = budget.choose(doc, false, false, &resident);
+    EXPECT_EQ(exposure.width, 256u);  // an exposure edit must not retrace eye rays
+    EXPECT_EQ(exposure.photons, 12345u);
 }
 
 }  // namespace

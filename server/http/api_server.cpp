@@ -468,7 +468,8 @@ struct ApiServer::Impl {
             json answer = scene_json(result.after);
             answer["invalidated"] =
                 pass_list(scene::passes_invalidated(result.before, result.after.document) |
-                          scene::kIndexField | scene::kOctree | scene::kPhotons | scene::kView);
+                          scene::kIndexField | scene::kOctree | scene::kPhotons | scene::kView |
+                          scene::kToneMap);
             res.set_header("ETag", etag(result.after.revision));
             send_json(res, 200, answer);
         } catch (const scene::StoreError& e) {

@@ -63,7 +63,7 @@ void Metrics::record_request(const std::string& method, const std::string& route
 void Metrics::record_frame(const scene::FrameResult& frame) {
     std::lock_guard lock(mutex_);
     ++frames_;
-    for (scene::PassSet bit = 1; bit <= scene::kView; bit <<= 1) {
+    for (scene::PassSet bit = 1; bit <= scene::kToneMap; bit <<= 1) {
         if ((frame.rerun & bit) != 0) ++pass_runs_[scene::pass_names(bit)];
     }
     for (const auto& timing : frame.timings) {
@@ -141,6 +141,9 @@ std::string Metrics::prometheus_text(const Gauges& gauges) const {
         << "refract_render_waiting " << gauges.render_waiting << "\n"
         << "# HELP refract_ws_sessions Open WebSocket sessions.\n# TYPE refract_ws_sessions gauge\n"
         << "refract_ws_sessions " << gauges.ws_sessions << "\n"
+        << "# HELP refract_store_quarantined_files Stored scene files found unreadable at start and kept aside.\n"
+        << "# TYPE refract_store_quarantined_files gauge\n"
+        << "refract_store_quarantined_files " << gauges.quarantined_files << "\n"
         << "# HELP refract_uptime_seconds Seconds since the daemon started.\n# TYPE refract_uptime_seconds "
            "gauge\n"
         << "refract_uptime_seconds " << gauges.uptime_s << "\n";

@@ -20,6 +20,7 @@ struct Gauges {
     int64_t device_bytes = 0;
     size_t render_waiting = 0;
     size_t ws_sessions = 0;
+    size_t quarantined_files = 0;
     double uptime_s = 0.0;
 };
 

@@ -42,6 +42,7 @@ Gauges Service::gauges() const {
     g.device_bytes = device_bytes.load();
     g.render_waiting = queue_.waiting();
     g.ws_sessions = ws_sessions.load();
+    g.quarantined_files = store_.quarantined().size();
     g.uptime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
     return g;
 }
@@ -57,7 +58,7 @@ nlohmann::json Service::health() const {
                   {"api_version", device_.api_version}};
     }
     nlohmann::json health = {
-        {"status", device_.error.empty() ? "ok" : "degraded"},
+        {"status", device_.error.empty() && store_.quarantined().empty() ? "ok" : "degraded"},
         {"version", REFRACT_VERSION},
         {"device", device},
         {"uptime_s", g.uptime_s},
@@ -79,6 +80,12 @@ nlohmann::json Service::health() const {
         {"auth", !config_.token.empty()},
     };
     if (!device_.error.empty()) health["device_error"] = device_.error;
+    if (!store_.quarantined().empty()) {
+        nlohmann::json files = nlohmann::json::array();
+        for (const auto& file : store_.quarantined())
+            files.push_back({{"scene", file.scene_id}, {"path", file.path}, {"error", file.error}});
+        health["quarantined"] = files;
+    }
     if (device_.validation) health["validation_errors"] = validation_errors.load();
     return health;
 }
@@ -94,7 +101,7 @@ nlohmann::json parse_json_document(const std::string& text) {
 
 std::vector<std::string> pass_list(scene::PassSet passes) {
     std::vector<std::string> names;
-    for (scene::PassSet bit = 1; bit <= scene::kView; bit <<= 1) {
+    for (scene::PassSet bit = 1; bit <= scene::kToneMap; bit <<= 1) {
         if ((passes & bit) != 0) names.push_back(scene::pass_names(bit));
     }
     return names;

@@ -13,7 +13,6 @@ constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_HDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-    {TRANSPORT_BINDING_LDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_REFINE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -46,7 +45,6 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
                                vk::Binding::sampled_image(TRANSPORT_BINDING_FLUX, flux, in.sampler),
                                vk::Binding::sampled_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map, in.sampler),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, out.hdr),
-                               vk::Binding::storage_buffer(TRANSPORT_BINDING_LDR, out.ldr),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, out.lit_blocks),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_REFINE, out.refine)};
@@ -60,7 +58,7 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
     view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_COARSE},
                   vk::group_count((width + 1) / 2, VIEW_GROUP_SIZE), vk::group_count((height + 1) / 2, VIEW_GROUP_SIZE));
     recorder.compute_barrier();
-    refine_.record(recorder, in.params, out.hdr, out.ldr, out.refine, width, height);
+    refine_.record(recorder, in.params, out.hdr, out.refine, width, height);
     recorder.compute_barrier();
     const shaders::ViewPush listed{VIEW_PIXELS_LISTED};
     view.dispatch_indirect(recorder.get(), bindings, &listed, sizeof(listed), out.refine,

@@ -1,5 +1,5 @@
 // Pass 6 (viewing pass): eye rays through the index field, single scattering from the radiance grid,
-// background, exposure and tone mapping -> linear HDR and sRGB8 pixels.
+// background -> linear radiance per pixel (tone mapping is pass 7, tone_map.h).
 #pragma once
 
 #include "passes/photon_trace.h"
@@ -9,7 +9,6 @@ namespace refract::passes {
 
 struct ViewOutputs {
     const vk::Buffer& hdr;  // vec4 per pixel
-    const vk::Buffer& ldr;  // RGBA8 per pixel
     const vk::Buffer& stats;  // PhotonStats; the view pass counts view_steps
     const vk::Buffer& lit_blocks;
     const vk::Buffer& refine;  // WorkListHeader + a pixel index per pixel (transport.h), for adaptive frames

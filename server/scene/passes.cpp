@@ -7,7 +7,8 @@ namespace refract::scene {
 std::string pass_names(PassSet passes) {
     std::string out;
     const std::pair<Pass, const char*> names[] = {{kVoxelize, "voxelize"}, {kIndexField, "index_field"},
-                                                  {kOctree, "octree"}, {kPhotons, "photons"}, {kView, "view"}};
+                                                  {kOctree, "octree"}, {kPhotons, "photons"}, {kView, "view"},
+                                                  {kToneMap, "tone_map"}};
     for (const auto& [pass, name] : names) {
         if (!(passes & pass)) continue;
         if (!out.empty()) out += ",";
@@ -30,21 +31,24 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     // The index itself: index field onwards (coverage is reused).
     if (a.index_field != b.index_field || a.ior != b.ior || a.maxwell_n0 != b.maxwell_n0 ||
         before.medium.ior != after.medium.ior)
-        stale |= kIndexField | kOctree | kPhotons | kView;
+        stale |= kIndexField | kOctree | kPhotons | kView | kToneMap;
     // The octree's leaves keep n within epsilon in every channel, so dispersion changes them too.
     if (before.volume.octree_epsilon != after.volume.octree_epsilon || a.abbe != b.abbe)
-        stale |= kOctree | kPhotons | kView;
+        stale |= kOctree | kPhotons | kView | kToneMap;
     // What photons see: the light, their number, extinction (Beer-Lambert) and where the floor stops them;
     // and whether they deposit at all (only where something scatters).
     if (!(before.light == after.light) || !(before.photons == after.photons) || a.extinction != b.extinction ||
         before.medium.extinction != after.medium.extinction || before.floor.enabled != after.floor.enabled ||
         before.floor.height != after.floor.height || passes::any_scattering(before) != passes::any_scattering(after))
-        stale |= kPhotons | kView;
-    // Only the viewing pass reads scattering, phase functions, the floor's look, the camera and the image.
-    if (!(before.camera == after.camera) || !(before.image == after.image) || a.scattering != b.scattering ||
+        stale |= kPhotons | kView | kToneMap;
+    // Only the viewing pass reads scattering, phase functions, the floor's look, the camera and the image size.
+    if (!(before.camera == after.camera) || before.image.width != after.image.width ||
+        before.image.height != after.image.height || a.scattering != b.scattering ||
         !(a.phase == b.phase) || before.medium.scattering != after.medium.scattering ||
         !(before.medium.phase == after.medium.phase) || !(before.floor == after.floor))
-        stale |= kView;
+        stale |= kView | kToneMap;
+    // Exposure is display only: the resident linear frame is tone-mapped again.
+    if (before.image.exposure != after.image.exposure) stale |= kToneMap;
     return stale;
 }
 

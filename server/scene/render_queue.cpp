@@ -21,8 +21,14 @@ RenderQueue::~RenderQueue() {
 }
 
 std::string RenderQueue::key_of(const FrameRequest& request) {
-    return request.scene_id + "|" + std::to_string(request.document.image.width) + "x" +
-           std::to_string(request.document.image.height) + "|" + to_string(request.quality);
+    std::string key = request.scene_id + "|" + std::to_string(request.document.image.width) + "x" +
+                      std::to_string(request.document.image.height) + "|" + to_string(request.quality);
+    // Viewers with other budgets get frames of other sizes.
+    if (request.quality == Quality::interactive) {
+        key += '|';  // appended: GCC 12 reports a false -Wrestrict for "|" + std::string (its bug 105329)
+        key += std::to_string(request.budget_ms);
+    }
+    return key;
 }
 
 bool RenderQueue::submit(FrameRequest request, FrameCallback done) {

@@ -28,6 +28,7 @@ struct FrameRequest {
     uint64_t revision = 0;
     protocol::SceneDocument document;  // the document at `revision`, image size already overridden
     Quality quality = Quality::still;
+    double budget_ms = kDefaultBudgetMs;  // interactive frames: the frame-time budget (frame_budget.h)
 };
 
 // What a waiter gets. `frame` is set on success; otherwise `status` says why and `error` in words.

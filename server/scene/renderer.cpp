@@ -21,15 +21,27 @@ double ms_since(Clock::time_point start) {
     return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-// `interactive` frames trade resolution, photons, radiance-grid resolution and eye-ray step (2 voxels)
-// for latency; the volume stays, so switching back to `still` reruns photons and view only.
-protocol::SceneDocument for_quality(protocol::SceneDocument document, Quality quality) {
-    if (quality == Quality::interactive) {
-        document.image.width = std::max(32u, document.image.width / 2);
-        document.image.height = std::max(32u, document.image.height / 2);
-        document.photons.count = std::max(4096u, document.photons.count / 4);
-    }
+// The document an interactive frame renders: the budget's image size and photon count.
+protocol::SceneDocument with_settings(protocol::SceneDocument document, const InteractiveSettings& settings) {
+    document.image.width = settings.width;
+    document.image.height = settings.height;
+    document.photons.count = settings.photons;
     return document;
+}
+
+// The milliseconds of a frame spent in passes whose cost the image size and photon count do not set
+// (a geometry edit while dragging), kept out of the budget's measurements.
+double volume_ms(const FrameResult& frame) {
+    double ms = 0.0;
+    for (const auto& t : frame.timings)
+        if (t.name == "voxelize" || t.name == "index_field" || t.name == "octree") ms += t.gpu_ms;
+    return ms;
+}
+
+double photon_ms(const FrameResult& frame) {
+    for (const auto& t : frame.timings)
+        if (t.name == "photons") return t.gpu_ms;
+    return 0.0;
 }
 
 }  // namespace
@@ -52,6 +64,8 @@ struct Renderer::Impl {
         std::shared_ptr<const mesh::Mesh> mesh;
         std::shared_ptr<const IndexGrid> grid;
         uint64_t last_used = 0;
+        FrameBudget budget;                               // this scene's dynamic resolution
+        std::optional<InteractiveSettings> interactive;  // set while the resident frame is interactive
     };
 
     Impl(vk::Context& ctx, RendererOptions opts) : context(ctx), options(opts), kit(ctx) {}
@@ -81,9 +95,9 @@ Renderer::Renderer(vk::Context& context, RendererOptions options)
 Renderer::~Renderer() = default;
 
 FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneDocument& requested,
-                             const Assets& assets, Quality quality) {
-    const protocol::SceneDocument document = for_quality(requested, quality);
-    const auto& object = document.object;
+                             const Assets& assets, Quality quality, double budget_ms) {
+    const auto start = Clock::now();
+    const auto& object = requested.object;
 
     // Resolve assets first: an unknown name must not touch resident state.
     std::shared_ptr<const mesh::Mesh> mesh;
@@ -98,17 +112,30 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
             if (std::abs(ha - h) > 0.01 * h) throw RenderError("index field grid voxels must be cubic (within 1%)");
         }
     } else {
-        mesh = base_mesh(document, assets.mesh);
+        mesh = base_mesh(requested, assets.mesh);
         if (!mesh) throw RenderError("mesh '" + object.mesh + "' is not a built-in or an uploaded mesh");
     }
 
     std::unique_lock lock(impl_->mutex);
     auto it = impl_->scenes.find(scene_id);
-    PassSet stale = kAllPasses;
-    if (it != impl_->scenes.end() && it->second.gpu->built() == kAllPasses) {
-        stale = passes_invalidated(it->second.document, document);
-        if (it->second.mesh != mesh || it->second.grid != grid) stale |= kAllPasses;
+    const Impl::Resident* held = it != impl_->scenes.end() && it->second.gpu->built() == kAllPasses ? &it->second : nullptr;
+    auto stale_against = [&](const protocol::SceneDocument& next) {
+        if (!held) return kAllPasses;
+        PassSet stale = passes_invalidated(held->document, next);
+        if (held->mesh != mesh || held->grid != grid) stale |= kAllPasses;
+        return stale;
+    };
+    protocol::SceneDocument document = requested;
+    InteractiveSettings settings;
+    if (quality == Quality::interactive) {
+        // What the edit reruns if the resident interactive settings were kept decides which of them may change.
+        const InteractiveSettings* resident = held && held->interactive ? &*held->interactive : nullptr;
+        const PassSet would = resident ? stale_against(with_settings(requested, *resident)) : kAllPasses;
+        const FrameBudget& budget = it != impl_->scenes.end() ? it->second.budget : FrameBudget{};
+        settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0, resident);
+        document = with_settings(requested, settings);
     }
+    const PassSet stale = stale_against(document);
     // The object in world space fits the grid; needed only when the volume is rebuilt.
     const bool rebuild = (stale & kVoxelize) != 0;
     const mesh::Mesh world = mesh && rebuild ? world_mesh(document, *mesh) : mesh::Mesh{};
@@ -166,6 +193,13 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     resident.document = document;
     resident.mesh = mesh;
     resident.grid = grid;
+    if (quality == Quality::interactive) {
+        const double photons = photon_ms(frame);
+        resident.budget.observe(requested, settings, photons, ms_since(start) - photons - volume_ms(frame), budget_ms);
+        resident.interactive = settings;
+    } else {
+        resident.interactive.reset();
+    }
     std::lock_guard relock(impl_->mutex);
     impl_->evict_least_recent(scene_id);
     return frame;

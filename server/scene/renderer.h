@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "protocol/scene_document.h"
+#include "scene/frame_budget.h"
 #include "scene/passes.h"
 #include "scene/scene_gpu.h"
 
@@ -41,8 +42,8 @@ struct Assets {
 enum class Quality { interactive, still };
 
 // How the passes run for a quality: `interactive` takes two-voxel eye-ray steps in fog, a radiance
-// grid of a third of the resolution per axis, sampled photon deposits and adaptive pixels (the
-// document's image and photon count are halved and quartered separately, by the renderer).
+// grid of a third of the resolution per axis, sampled photon deposits and adaptive pixels (the image
+// size and photon count are chosen per frame by the scene's FrameBudget, in the renderer).
 RunOptions run_options_for(Quality quality);
 
 struct PassTiming {
@@ -80,9 +81,11 @@ public:
     Renderer& operator=(const Renderer&) = delete;
 
     // Renders `document` for scene `scene_id`, reusing whatever resident state is still valid for it.
+    // Interactive frames choose their image size and photon count to land within `budget_ms`
+    // (frame_budget.h); still frames render the document as it is.
     // Throws RenderError for an unrenderable scene (resident state untouched), vk::Error for device faults.
     FrameResult render(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
-                       Quality quality = Quality::still);
+                       Quality quality = Quality::still, double budget_ms = kDefaultBudgetMs);
     // Drops a scene's GPU state (its document lives elsewhere).
     void evict(const std::string& scene_id);
     size_t resident_scenes() const;

@@ -17,6 +17,7 @@ PassKit::PassKit(vk::Context& ctx)
       radiance_resolve(ctx),
       lit_pyramid(ctx),
       view(ctx),
+      tone_map(ctx),
       linear_sampler(vk::make_linear_sampler(ctx)) {}
 
 int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t height) {
@@ -138,11 +139,11 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     const uint32_t channels = passes::transport_channels(document);
     if (options.radiance_factor != radiance_factor_ || options.sampled_deposits != sampled_deposits_ ||
         channels != channels_)
-        built_ &= ~(kPhotons | kView);
+        built_ &= ~(kPhotons | kView | kToneMap);
     sampled_deposits_ = options.sampled_deposits;
     stale |= kAllPasses & ~built_;
     // Each pass depends on all before it.
-    for (PassSet p : {kVoxelize, kIndexField, kOctree, kPhotons})
+    for (PassSet p : {kVoxelize, kIndexField, kOctree, kPhotons, kView})
         if (stale & p) stale |= (kAllPasses & ~(p - 1));
     stale &= options.limit;
     if (stale & kPhotons)
@@ -243,7 +244,13 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     if (stale & kView) {
         timer_.begin(cmd, "view");
         kit_.view.record(recorder_, inputs, radiance_, flux_, floor_map_,
-                         {hdr_, ldr_, accum_->stats, accum_->lit_blocks, refine_}, width_, height_, options.adaptive_view);
+                         {hdr_, accum_->stats, accum_->lit_blocks, refine_}, width_, height_, options.adaptive_view);
+        recorder_.compute_barrier();
+        timer_.end(cmd);
+    }
+    if (stale & kToneMap) {
+        timer_.begin(cmd, "tone_map");
+        kit_.tone_map.record(recorder_, params_buffer_, hdr_, ldr_, width_, height_);
         timer_.end(cmd);
     }
     recorder_.to_host_barrier();

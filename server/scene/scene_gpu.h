@@ -15,6 +15,7 @@
 #include "passes/octree.h"
 #include "passes/photon_trace.h"
 #include "passes/radiance_resolve.h"
+#include "passes/tone_map.h"
 #include "passes/transport_params.h"
 #include "passes/view.h"
 #include "passes/voxelize.h"
@@ -39,6 +40,7 @@ struct PassKit {
     passes::RadianceResolvePass radiance_resolve;
     passes::LitPyramidPass lit_pyramid;
     passes::ViewPass view;
+    passes::ToneMapPass tone_map;
     vk::UniqueSampler linear_sampler;
 };
 

@@ -1,6 +1,7 @@
 #include "scene/scene_store.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -21,6 +22,13 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr char kGridMagic[8] = {'R', 'F', 'G', 'R', 'I', 'D', '1', '\0'};
+// Marks a write that has not reached its rename. '~' is in no valid scene id or mesh name, so the start-up
+// sweep can never take a stored file for a temp file.
+constexpr std::string_view kTempMarker = "~tmp.";
+
+bool is_temp_file(const fs::path& path) {
+    return path.filename().string().find(kTempMarker) != std::string::npos;
+}
 constexpr uint32_t kMinGridSide = 2;
 constexpr uint32_t kMaxGridSide = 512;
 
@@ -107,12 +115,17 @@ IndexGrid decode_grid(const std::string& bytes) {
     return grid;
 }
 
+uint64_t next_revision(uint64_t revision) {
+    if (revision >= kMaxRevision) throw StoreError(409, "the scene is at the highest revision, 2^53 - 1");
+    return revision + 1;
+}
+
 }  // namespace
 
 void write_file_atomically(const fs::path& path, const void* bytes, size_t size) {
     static std::atomic<uint64_t> counter{0};
     fs::path temp = path;
-    temp += ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter.fetch_add(1));
+    temp += std::string(kTempMarker) + std::to_string(::getpid()) + "." + std::to_string(counter.fetch_add(1));
     {
         Fd f{::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)};
         if (f.fd < 0) throw StoreError(500, "cannot create " + temp.string() + ": " + errno_text());
@@ -227,7 +240,38 @@ SceneStore::SceneStore(fs::path data_dir, protocol::Limits limits, mesh::MeshLim
         fs::create_directories(data_dir_ / sub, ec);
         if (ec) throw StoreError(500, "cannot create " + (data_dir_ / sub).string() + ": " + ec.message());
     }
-    load_scenes();
+    lock_data_dir();
+    try {
+        load_scenes();
+    } catch (...) {
+        ::close(lock_fd_);
+        throw;
+    }
+}
+
+SceneStore::~SceneStore() {
+    ::close(lock_fd_);
+}
+
+void SceneStore::lock_data_dir() {
+    // Two daemons on one directory would hand out the same revisions. flock, like PostgreSQL's
+    // postmaster.pid, names the holder and is released by the kernel however the holder dies.
+    fs::path path = data_dir_ / "refractd.pid";
+    lock_fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (lock_fd_ < 0) throw StoreError(500, "cannot open " + path.string() + ": " + errno_text());
+    if (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
+        std::string why = errno == EWOULDBLOCK ? "" : ": " + errno_text();
+        char holder[32] = {};
+        ssize_t got = ::pread(lock_fd_, holder, sizeof holder - 1, 0);
+        std::string pid = got > 0 ? std::string(holder, static_cast<size_t>(got)) : "";
+        while (!pid.empty() && (pid.back() == '\n' || pid.back() == ' ')) pid.pop_back();
+        ::close(lock_fd_);
+        throw StoreError(409, "data directory " + data_dir_.string() + " is in use by another refractd" +
+                                  (pid.empty() ? "" : " (pid " + pid + ")") + why);
+    }
+    std::string pid = std::to_string(::getpid()) + "\n";
+    if (::ftruncate(lock_fd_, 0) != 0 || ::pwrite(lock_fd_, pid.data(), pid.size(), 0) < 0)
+        std::cerr << "refractd: cannot write " << path << ": " << errno_text() << "\n";
 }
 
 fs::path SceneStore::scene_path(const std::string& id) const {
@@ -244,22 +288,36 @@ void SceneStore::load_scenes() {
     for (const char* sub : {"scenes", "meshes", "grids"}) {
         for (const auto& item : fs::directory_iterator(data_dir_ / sub)) {
             // A temp file is a write that never reached its rename: the previous version stands.
-            if (item.path().filename().string().find(".tmp.") != std::string::npos) {
+            if (is_temp_file(item.path())) {
                 std::error_code ec;
                 fs::remove(item.path(), ec);
             }
         }
     }
+    // Files quarantined by an earlier start stay reported, and their ids stay taken, until removed.
+    std::error_code ec;
+    for (const auto& item : fs::directory_iterator(data_dir_ / "quarantine", ec)) {
+        std::string name = item.path().filename().string();
+        quarantined_.push_back({name.substr(0, name.find(".json")), item.path().string(),
+                                "found unreadable by an earlier start"});
+    }
     for (const auto& item : fs::directory_iterator(data_dir_ / "scenes")) {
         const fs::path& path = item.path();
         if (path.extension() != ".json") continue;
         std::string id = path.stem().string();
-        if (!valid_scene_id(id)) continue;
+        if (!valid_scene_id(id)) {
+            std::cerr << "refractd: ignoring " << path << ": not a scene id\n";
+            continue;
+        }
         try {
             nlohmann::json stored = nlohmann::json::parse(read_text_file(path));
+            const nlohmann::json& revision = stored.at("revision");
+            if (!revision.is_number_unsigned() || revision.get<uint64_t>() < 1 ||
+                revision.get<uint64_t>() > kMaxRevision)
+                throw std::invalid_argument("revision must be an integer in [1, 2^53 - 1]");
             auto entry = std::make_shared<Entry>();
             entry->current.id = id;
-            entry->current.revision = stored.at("revision").get<uint64_t>();
+            entry->current.revision = revision.get<uint64_t>();
             try {
                 entry->current.document = protocol::parse_scene(stored.at("scene"), limits_);
             } catch (const protocol::ValidationError&) {
@@ -268,9 +326,25 @@ void SceneStore::load_scenes() {
             }
             scenes_[id] = std::move(entry);
         } catch (const std::exception& e) {
-            std::cerr << "refractd: skipping unreadable scene " << path << ": " << e.what() << "\n";
+            quarantine(path, id, e.what());
         }
     }
+}
+
+void SceneStore::quarantine(const fs::path& path, const std::string& id, const std::string& error) {
+    // Moved, not deleted: what the store cannot read may still be what a user needs. The id stays taken,
+    // so nothing is ever written in its place.
+    fs::path dir = data_dir_ / "quarantine";
+    fs::path target = dir / path.filename();
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    for (int n = 1; !ec && fs::exists(target); ++n) target = dir / (path.filename().string() + "." + std::to_string(n));
+    if (!ec) fs::rename(path, target, ec);
+    if (ec) target = path;  // could not move it: it stays where it is, still never overwritten
+    else fsync_directory(data_dir_ / "scenes");
+    std::cerr << "refractd: scene file " << path << " is unreadable (" << error << "); kept at " << target
+              << ", scene '" << id << "' unavailable until it is repaired or removed\n";
+    quarantined_.push_back({id, target.string(), error});
 }
 
 void SceneStore::persist_scene(const SceneSnapshot& snapshot) const {
@@ -300,6 +374,10 @@ SceneSnapshot SceneStore::create(const std::string& id, const nlohmann::json& do
         } while (scenes_.count(entry->current.id) != 0);
     } else {
         if (scenes_.count(id) != 0) throw StoreError(409, "scene '" + id + "' already exists");
+        for (const auto& file : quarantined_)
+            if (file.scene_id == id)
+                throw StoreError(409, "scene '" + id + "' has a stored file that could not be read (kept at " +
+                                          file.path + "); repair or remove it and restart");
         entry->current.id = id;
     }
     persist_scene(entry->current);
@@ -361,7 +439,7 @@ EditResult SceneStore::apply(const std::shared_ptr<Entry>& entry, const nlohmann
     result.after.document = protocol::apply_merge_patch(current.document, merge_patch, limits_);
     result.changed = !(result.after.document == current.document);
     if (!result.changed) return result;
-    result.after.revision = current.revision + 1;
+    result.after.revision = next_revision(current.revision);
     persist_scene(result.after);
     std::lock_guard lock(mutex_);
     entry->current = result.after;
@@ -395,8 +473,7 @@ std::vector<MeshEntry> SceneStore::list_meshes() const {
     std::vector<MeshEntry> all;
     for (const auto& item : fs::directory_iterator(data_dir_ / "meshes")) {
         const fs::path& path = item.path();
-        if (path.extension() != ".json" || path.filename().string().find(".tmp.") != std::string::npos)
-            continue;
+        if (path.extension() != ".json" || is_temp_file(path)) continue;
         std::string name = path.stem().string();
         if (!valid_mesh_name(name) || !fs::exists(mesh_path(name))) continue;
         try {
@@ -423,7 +500,7 @@ std::shared_ptr<const mesh::Mesh> SceneStore::mesh(const std::string& name_or_re
         return loaded;
     } catch (const std::exception& e) {
         std::cerr << "refractd: cannot load stored mesh " << path << ": " << e.what() << "\n";
-        return nullptr;
+        throw RenderError("stored mesh '" + name + "' cannot be read: " + e.what());
     }
 }
 
@@ -444,7 +521,7 @@ EditResult SceneStore::put_index_grid(const std::string& scene_id, IndexGrid gri
     EditResult result = apply(entry, patch, std::nullopt);
     if (!result.changed) {
         // Same document, new grid contents: still a new revision, so clients see the change.
-        result.after.revision = entry->current.revision + 1;
+        result.after.revision = next_revision(entry->current.revision);
         persist_scene(result.after);
         std::lock_guard lock(mutex_);
         entry->current = result.after;
@@ -466,7 +543,7 @@ std::shared_ptr<const IndexGrid> SceneStore::grid(const std::string& name) const
         return loaded;
     } catch (const std::exception& e) {
         std::cerr << "refractd: cannot load stored index grid " << path << ": " << e.what() << "\n";
-        return nullptr;
+        throw RenderError("stored index grid '" + name + "' cannot be read: " + e.what());
     }
 }
 

@@ -44,6 +44,17 @@ private:
     int status_;
 };
 
+// A stored file the store could not read at start: moved aside (never deleted or overwritten) and
+// reported by health and metrics until an operator repairs or removes it.
+struct QuarantinedFile {
+    std::string scene_id;  // the scene whose file it was; its id stays taken
+    std::string path;      // where the file is now
+    std::string error;     // why it could not be read
+};
+
+// The highest revision the store hands out: JSON numbers stay exact in every client up to 2^53 - 1.
+constexpr uint64_t kMaxRevision = (uint64_t{1} << 53) - 1;
+
 struct MeshEntry {
     std::string name;
     mesh::MeshReport report;
@@ -62,8 +73,10 @@ nlohmann::json to_json(const mesh::MeshReport& report);
 
 class SceneStore {
 public:
-    // Opens (creating if needed) the data directory and loads every persisted scene.
+    // Opens (creating if needed) the data directory, locks it against a second daemon (StoreError(409)
+    // naming the holder's pid) and loads every persisted scene, quarantining those it cannot read.
     SceneStore(std::filesystem::path data_dir, protocol::Limits limits, mesh::MeshLimits mesh_limits);
+    ~SceneStore();
     SceneStore(const SceneStore&) = delete;
     SceneStore& operator=(const SceneStore&) = delete;
 
@@ -85,12 +98,17 @@ public:
     // StoreError(400) for a bad name.
     MeshEntry put_mesh(const std::string& name, const std::string& obj_text);
     std::vector<MeshEntry> list_meshes() const;
-    // The mesh named `name` (with or without the "upload:" prefix); nullptr when unknown.
+    // The mesh named `name` (with or without the "upload:" prefix); nullptr when unknown; RenderError
+    // saying why when it is stored but cannot be read.
     std::shared_ptr<const mesh::Mesh> mesh(const std::string& name) const;
 
     // Stores `grid` under the scene's id and points the scene at it (a new revision). Throws StoreError.
     EditResult put_index_grid(const std::string& scene_id, IndexGrid grid);
+    // The grid stored for scene `name`; nullptr when unknown, RenderError when it cannot be read.
     std::shared_ptr<const IndexGrid> grid(const std::string& name) const;
+
+    // The scene files found unreadable at start, moved to <data dir>/quarantine.
+    const std::vector<QuarantinedFile>& quarantined() const { return quarantined_; }
 
     // Lookups for the renderer (called on the render thread).
     Assets assets() const;
@@ -110,6 +128,8 @@ private:
                      std::optional<uint64_t> if_match);
     void persist_scene(const SceneSnapshot& snapshot) const;
     void load_scenes();
+    void quarantine(const std::filesystem::path& path, const std::string& id, const std::string& error);
+    void lock_data_dir();
     std::filesystem::path scene_path(const std::string& id) const;
     std::filesystem::path mesh_path(const std::string& name) const;
     std::filesystem::path grid_path(const std::string& name) const;
@@ -117,6 +137,8 @@ private:
     std::filesystem::path data_dir_;
     protocol::Limits limits_;
     mesh::MeshLimits mesh_limits_;
+    int lock_fd_ = -1;                         // holds the data directory's lock for the store's life
+    std::vector<QuarantinedFile> quarantined_;  // written only while loading
 
     mutable std::mutex mutex_;  // guards scenes_ and every Entry::current
     std::map<std::string, std::shared_ptr<Entry>> scenes_;

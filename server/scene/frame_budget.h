@@ -1,0 +1,55 @@
+// Dynamic resolution for interactive frames: while a user drags, each frame's image size (and, when its
+// photons rerun anyway, their count) is chosen from what the scene's last interactive frames cost on
+// this device, so that a frame lands within a budget (frame_ms). A feedback controller, as game engines
+// run dynamic resolution: the model is only "time scales with pixels and photons", and each frame's
+// measurement corrects the next choice.
+#pragma once
+
+#include <cstdint>
+
+#include "protocol/scene_document.h"
+
+namespace refract::scene {
+
+constexpr double kDefaultBudgetMs = 100.0;
+constexpr double kMinBudgetMs = 10.0;
+constexpr double kMaxBudgetMs = 10000.0;
+
+// What an interactive frame renders, against the document's own still frame.
+struct InteractiveSettings {
+    uint32_t width = 0, height = 0;  // image size
+    uint32_t photons = 0;            // photon count
+};
+
+class FrameBudget {
+public:
+    // The floor on resolution: an image side never shrinks below this fraction of the document's (nor
+    // below kMinSide pixels, nor above the document's own), so the budget never starves the image.
+    static constexpr double kMinScale = 0.125;
+    static constexpr uint32_t kMinSide = 32;
+    // Photons per interactive frame, as a fraction of the document's count: at most a quarter (the
+    // pre-budget interactive setting), at least 1/64 and never fewer than kMinPhotons.
+    static constexpr double kMaxPhotonShare = 0.25;
+    static constexpr double kMinPhotonShare = 1.0 / 64.0;
+    static constexpr uint32_t kMinPhotons = 4096;
+
+    // The settings for the next interactive frame of `document`. `photons_rerun`: the edit reruns the
+    // photon pass anyway, so its count may change (otherwise the resident count must be kept, or a
+    // camera drag would retrace photons). `resident`: the settings the resident state was rendered
+    // with, kept where changing them would rerun a pass the edit does not need.
+    InteractiveSettings choose(const protocol::SceneDocument& document, bool photons_rerun, bool view_rerun,
+                               const InteractiveSettings* resident) const;
+
+    // Feeds back what a frame rendered with `used` cost: milliseconds in the photon pass (0 when it did
+    // not run) and everything else (view, tone map, read-back, encode).
+    void observe(const protocol::SceneDocument& document, const InteractiveSettings& used, double photon_ms,
+                 double rest_ms, double budget_ms);
+
+    double scale() const { return scale_; }
+
+private:
+    double scale_ = 0.5;                     // image side relative to the document's
+    double photon_share_ = kMaxPhotonShare;  // photons relative to the document's count
+};
+
+}  // namespace refract::scene
