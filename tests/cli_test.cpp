@@ -1,6 +1,7 @@
 // The refract binary's command line: each bad argument is refused in one line that names it (exit 2)
 // before a scene is rendered or a device started; help and --version answer without a device.
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -11,8 +12,6 @@
 #include <iterator>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 extern char** environ;
 
@@ -58,8 +57,10 @@ Outcome run_refract(const std::vector<std::string>& args) {
 
     posix_spawn_file_actions_t actions;
     posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                     0644);
+    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                     0644);
     pid_t pid = 0;
     const int error = posix_spawn(&pid, REFRACT_PATH, &actions, nullptr, argv.data(), envp.data());
     posix_spawn_file_actions_destroy(&actions);
@@ -103,51 +104,94 @@ const BadLine kBadLines[] = {
     {"RunsFraction", {"bench", "--runs", "2.5"}, "refract: --runs: '2.5' is not a whole number"},
     {"RunsNegative", {"bench", "--runs", "-3"}, "refract: --runs: '-3' must be between 1 and 1000"},
     {"RunsZero", {"bench", "--runs=0"}, "refract: --runs: '0' must be between 1 and 1000"},
-    {"RunsHuge", {"bench", "--runs", "99999999999999999999"},
+    {"RunsHuge",
+     {"bench", "--runs", "99999999999999999999"},
      "refract: --runs: '99999999999999999999' must be between 1 and 1000"},
-    {"DaemonPortNotANumber", {"bench", "--daemon", "localhost:http"}, "refract: --daemon port: 'http' is not a whole number"},
-    {"DaemonPortOutOfRange", {"bench", "--daemon", "localhost:70000"},
+    {"DaemonPortNotANumber",
+     {"bench", "--daemon", "localhost:http"},
+     "refract: --daemon port: 'http' is not a whole number"},
+    {"DaemonPortOutOfRange",
+     {"bench", "--daemon", "localhost:70000"},
      "refract: --daemon port: '70000' must be between 1 and 65535"},
-    {"DaemonWithoutPort", {"bench", "--daemon", "localhost"}, "refract: --daemon: 'localhost' must be HOST:PORT"},
+    {"DaemonWithoutPort",
+     {"bench", "--daemon", "localhost"},
+     "refract: --daemon: 'localhost' must be HOST:PORT"},
     // Files read
-    {"SceneIsADirectory", {"render", kExamples, "-o", "x.png"}, "refract: SCENE.json '" + kExamples + "' is a directory"},
-    {"SceneMissing", {"voxelize", "no-such-scene.json", "--out", "slices"},
+    {"SceneIsADirectory",
+     {"render", kExamples, "-o", "x.png"},
+     "refract: SCENE.json '" + kExamples + "' is a directory"},
+    {"SceneMissing",
+     {"voxelize", "no-such-scene.json", "--out", "slices"},
      "refract: SCENE.json 'no-such-scene.json' does not exist"},
-    {"SceneNotGiven", {"render", "-o", "x.png"}, "refract: render needs SCENE.json (- for the default scene)"},
-    {"BenchSceneIsADirectory", {"bench", "--scene", kExamples}, "refract: --scene: '" + kExamples + "' is a directory"},
-    {"MeshMissing", {"render", "-", "-o", "x.png", "--mesh", "bunny=no-such.obj"}, "refract: --mesh: 'no-such.obj' does not exist"},
-    {"MeshWithoutName", {"render", "-", "-o", "x.png", "--mesh", "bunny.obj"}, "refract: --mesh: 'bunny.obj' must be NAME=FILE.obj"},
+    {"SceneNotGiven",
+     {"render", "-o", "x.png"},
+     "refract: render needs SCENE.json (- for the default scene)"},
+    {"BenchSceneIsADirectory",
+     {"bench", "--scene", kExamples},
+     "refract: --scene: '" + kExamples + "' is a directory"},
+    {"MeshMissing",
+     {"render", "-", "-o", "x.png", "--mesh", "bunny=no-such.obj"},
+     "refract: --mesh: 'no-such.obj' does not exist"},
+    {"MeshWithoutName",
+     {"render", "-", "-o", "x.png", "--mesh", "bunny.obj"},
+     "refract: --mesh: 'bunny.obj' must be NAME=FILE.obj"},
     // Files written
     {"FrameNotPng", {"render", kScene, "-o", "x.jpg"}, "refract: -o: 'x.jpg' must end in .png"},
     {"FrameNotPngLong", {"render", kScene, "--out=x.jpg"}, "refract: --out: 'x.jpg' must end in .png"},
-    {"HdrNotPfm", {"render", kScene, "-o", "x.png", "--hdr", "x.exr"}, "refract: --hdr: 'x.exr' must end in .pfm"},
-    {"StatsNotJson", {"render", kScene, "-o", "x.png", "--stats", "stats.txt"}, "refract: --stats: 'stats.txt' must end in .json"},
-    {"FrameDirectoryMissing", {"render", kScene, "-o", "/nonexistent-refract-dir/x.png"},
+    {"HdrNotPfm",
+     {"render", kScene, "-o", "x.png", "--hdr", "x.exr"},
+     "refract: --hdr: 'x.exr' must end in .pfm"},
+    {"StatsNotJson",
+     {"render", kScene, "-o", "x.png", "--stats", "stats.txt"},
+     "refract: --stats: 'stats.txt' must end in .json"},
+    {"FrameDirectoryMissing",
+     {"render", kScene, "-o", "/nonexistent-refract-dir/x.png"},
      "refract: -o: directory '/nonexistent-refract-dir' does not exist"},
-    {"StatsDirectoryMissing", {"render", kScene, "-o", "x.png", "--stats", "/nonexistent-refract-dir/s.json"},
+    {"StatsDirectoryMissing",
+     {"render", kScene, "-o", "x.png", "--stats", "/nonexistent-refract-dir/s.json"},
      "refract: --stats: directory '/nonexistent-refract-dir' does not exist"},
-    {"OutDirThroughAFile", {"trace", kScene, "--out", kScene + "/slices"}, "refract: --out: '" + kScene + "' is not a directory"},
+    {"OutDirThroughAFile",
+     {"trace", kScene, "--out", kScene + "/slices"},
+     "refract: --out: '" + kScene + "' is not a directory"},
     {"FrameNotGiven", {"render", kScene}, "refract: render needs -o FRAME.png"},
     {"OutDirNotGiven", {"voxelize", kScene}, "refract: voxelize needs --out DIR"},
     // Positionals and options
-    {"StrayPositional", {"render", kScene, "other.json", "-o", "x.png"},
+    {"StrayPositional",
+     {"render", kScene, "other.json", "-o", "x.png"},
      "refract: unexpected argument 'other.json' (render takes one SCENE.json)"},
-    {"StrayPositionalBench", {"bench", "standard"}, "refract: unexpected argument 'standard' (bench takes only options)"},
-    {"StrayPositionalDevices", {"devices", "all"}, "refract: unexpected argument 'all' (devices takes only options)"},
-    {"UnknownOption", {"render", kScene, "-o", "x.png", "--fast"}, "refract: unknown option '--fast' for render (see refract help render)"},
-    {"OptionOfAnotherCommand", {"render", kScene, "-o", "x.png", "--runs", "3"},
+    {"StrayPositionalBench",
+     {"bench", "standard"},
+     "refract: unexpected argument 'standard' (bench takes only options)"},
+    {"StrayPositionalDevices",
+     {"devices", "all"},
+     "refract: unexpected argument 'all' (devices takes only options)"},
+    {"UnknownOption",
+     {"render", kScene, "-o", "x.png", "--fast"},
+     "refract: unknown option '--fast' for render (see refract help render)"},
+    {"OptionOfAnotherCommand",
+     {"render", kScene, "-o", "x.png", "--runs", "3"},
      "refract: unknown option '--runs' for render (see refract help render)"},
-    {"OptionBeforeCommand", {"--runs", "3", "bench"}, "refract: unknown option '--runs' (options follow the command; see refract help)"},
+    {"OptionBeforeCommand",
+     {"--runs", "3", "bench"},
+     "refract: unknown option '--runs' (options follow the command; see refract help)"},
     {"ValueMissingAtEnd", {"render", kScene, "-o"}, "refract: -o needs a value (FRAME.png)"},
     {"ValueMissingBeforeOption", {"bench", "--runs", "--json"}, "refract: --runs needs a value (N)"},
     {"SwitchWithValue", {"bench", "--json=yes"}, "refract: --json takes no value"},
-    {"QualityUnknown", {"render", "-", "-o", "x.png", "--quality", "fast"}, "refract: --quality: 'fast' must be still or interactive"},
+    {"QualityUnknown",
+     {"render", "-", "-o", "x.png", "--quality", "fast"},
+     "refract: --quality: 'fast' must be still or interactive"},
     {"SuiteUnknown", {"bench", "--suite", "big"}, "refract: --suite: 'big' must be standard"},
-    {"CaseWithScene", {"bench", "--scene", kScene, "--case", "target"}, "refract: --case: not with --scene (one scene has no suite)"},
-    {"SceneWithDaemon", {"bench", "--scene", kScene, "--daemon", "localhost:8080"}, "refract: --scene: not with --daemon"},
+    {"CaseWithScene",
+     {"bench", "--scene", kScene, "--case", "target"},
+     "refract: --case: not with --scene (one scene has no suite)"},
+    {"SceneWithDaemon",
+     {"bench", "--scene", kScene, "--daemon", "localhost:8080"},
+     "refract: --scene: not with --daemon"},
     {"UnknownCommand", {"draw"}, "refract: unknown command 'draw' (see refract help)"},
     {"HelpForUnknownCommand", {"help", "draw"}, "refract: unknown command 'draw' (see refract help)"},
-    {"HelpWithTwoCommands", {"help", "render", "bench"}, "refract: unexpected argument 'bench' after help render"},
+    {"HelpWithTwoCommands",
+     {"help", "render", "bench"},
+     "refract: unexpected argument 'bench' after help render"},
     {"VersionWithMore", {"--version", "render"}, "refract: unexpected argument 'render' after --version"},
 };
 
@@ -182,8 +226,8 @@ TEST(Cli, RenderHelpListsItsOptions) {
     const Outcome run = run_refract({"help", "render"});
     EXPECT_EQ(run.status, 0);
     EXPECT_TRUE(run.out.starts_with("usage: refract render SCENE.json -o FRAME.png")) << run.out;
-    for (const std::string option : {"-o, --out FRAME.png", "--hdr FRAME.pfm", "--stats STATS.json", "--quality still|interactive",
-                                     "--mesh NAME=FILE.obj", "--device NAME"})
+    for (const std::string option : {"-o, --out FRAME.png", "--hdr FRAME.pfm", "--stats STATS.json",
+                                     "--quality still|interactive", "--mesh NAME=FILE.obj", "--device NAME"})
         EXPECT_NE(run.out.find("\n  " + option + " "), std::string::npos) << option << " in\n" << run.out;
     EXPECT_EQ(run.out.find("--runs"), std::string::npos) << run.out;
 }
@@ -214,8 +258,8 @@ TEST(Cli, GoodArgumentsReachTheDevice) {
     fs::create_directories(dir);
     const std::string frame = (dir / "frame.PNG").string(), slices = (dir / "new" / "slices").string();
     const std::vector<std::vector<std::string>> lines = {
-        {"render", kScene, "-o", frame, "--hdr", (dir / "frame.pfm").string(), "--stats", (dir / "s.json").string(),
-         "--quality", "interactive", "--device", "none"},
+        {"render", kScene, "-o", frame, "--hdr", (dir / "frame.pfm").string(), "--stats",
+         (dir / "s.json").string(), "--quality", "interactive", "--device", "none"},
         {"render", "-", "--out=" + frame, "--mesh", "bunny=" REFRACT_SOURCE_DIR "/examples/meshes/bunny.obj"},
         {"voxelize", kScene, "--out", slices},
         {"trace", "-", "-o", slices},

@@ -56,7 +56,10 @@ struct Command {
 bool ends_with_ignoring_case(const std::string& text, const std::string& suffix) {
     return text.size() >= suffix.size() &&
            std::equal(suffix.begin(), suffix.end(), text.end() - static_cast<std::ptrdiff_t>(suffix.size()),
-                      [](char a, char b) { return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b)); });
+                      [](char a, char b) {
+                          return std::tolower(static_cast<unsigned char>(a)) ==
+                                 std::tolower(static_cast<unsigned char>(b));
+                      });
 }
 
 int parse_whole_number(const std::string& flag, const std::string& text, int min, int max) {
@@ -66,7 +69,8 @@ int parse_whole_number(const std::string& flag, const std::string& text, int min
     const bool number = (error == std::errc() || error == std::errc::result_out_of_range) && rest == end;
     if (!number) throw UsageError(flag + ": '" + text + "' is not a whole number");
     if (error != std::errc() || value < min || value > max)
-        throw UsageError(flag + ": '" + text + "' must be between " + std::to_string(min) + " and " + std::to_string(max));
+        throw UsageError(flag + ": '" + text + "' must be between " + std::to_string(min) + " and " +
+                         std::to_string(max));
     return static_cast<int>(value);
 }
 
@@ -81,12 +85,14 @@ void check_input_file(const std::string& label, const std::string& path) {
 
 // A file the command writes: the format its extension names, in a directory that exists.
 void check_output_file(const std::string& flag, const std::string& path, const std::string& extension) {
-    if (!ends_with_ignoring_case(path, extension)) throw UsageError(flag + ": '" + path + "' must end in " + extension);
+    if (!ends_with_ignoring_case(path, extension))
+        throw UsageError(flag + ": '" + path + "' must end in " + extension);
     const fs::path file(path);
     const fs::path dir = file.has_parent_path() ? file.parent_path() : fs::path(".");
     std::error_code ignored;
     if (!fs::is_directory(dir, ignored))
-        throw UsageError(flag + ": directory '" + dir.string() + (fs::exists(dir, ignored) ? "' is not a directory" : "' does not exist"));
+        throw UsageError(flag + ": directory '" + dir.string() +
+                         (fs::exists(dir, ignored) ? "' is not a directory" : "' does not exist"));
     if (fs::is_directory(file, ignored)) throw UsageError(flag + ": '" + path + "' is a directory");
 }
 
@@ -100,117 +106,137 @@ void check_output_dir(const std::string& flag, const std::string& path) {
 }
 
 std::vector<Option> with_common_options(std::vector<Option> options) {
-    options.push_back({"--mesh", "", "NAME=FILE.obj", "make FILE.obj available to the scene as \"upload:NAME\"",
+    options.push_back({"--mesh", "", "NAME=FILE.obj",
+                       "make FILE.obj available to the scene as \"upload:NAME\"",
                        [](Arguments& a, const std::string& flag, const std::string& spec) {
                            const auto eq = spec.find('=');
-                           if (eq == std::string::npos || eq == 0) throw UsageError(flag + ": '" + spec + "' must be NAME=FILE.obj");
+                           if (eq == std::string::npos || eq == 0)
+                               throw UsageError(flag + ": '" + spec + "' must be NAME=FILE.obj");
                            check_input_file(flag + ":", spec.substr(eq + 1));
                            a.meshes.emplace_back(spec.substr(0, eq), spec.substr(eq + 1));
                        }});
-    options.push_back({"--device", "", "NAME", "use the device whose name contains NAME (also REFRACT_DEVICE)",
+    options.push_back({"--device", "", "NAME",
+                       "use the device whose name contains NAME (also REFRACT_DEVICE)",
                        [](Arguments& a, const std::string&, const std::string& name) { a.device = name; }});
     return options;
-}
-
-Option out_dir_option() {
-    return {"--out", "-o", "DIR", "where the slice PNGs and summary.json go (created if missing); required",
-            [](Arguments& a, const std::string& flag, const std::string& dir) {
-                check_output_dir(flag, dir);
-                a.out = dir;
-            }};
 }
 
 void require_out(const Arguments& a, const std::string& command, const std::string& what) {
     if (a.out.empty()) throw UsageError(command + " needs " + what);
 }
 
+// voxelize and trace: SCENE.json in; slice PNGs and summary.json out, into a directory.
+Command slices_command(const std::string& name, const std::string& description) {
+    Option out = {"--out", "-o", "DIR",
+                  "where the slice PNGs and summary.json go (created if missing); required",
+                  [](Arguments& a, const std::string& flag, const std::string& dir) {
+                      check_output_dir(flag, dir);
+                      a.out = dir;
+                  }};
+    Command command{name, "SCENE.json --out DIR", description, true, with_common_options({out})};
+    command.check = [name](const Arguments& a) { require_out(a, name, "--out DIR"); };
+    return command;
+}
+
 const std::vector<Command>& commands() {
     static const std::vector<Command> table = [] {
         std::vector<Command> t;
-        t.push_back({"devices", "", "Lists the Vulkan devices, each with its driver and memory, and whether it is usable\n"
-                                    "(if not, what it misses).", false, with_common_options({})});
-        t.push_back({"voxelize", "SCENE.json --out DIR",
-                     "Voxelizes the scene's object, then builds the index field and the octree; writes index-field\n"
-                     "and octree-level slices (PNG) and summary.json into DIR and prints the summary.",
-                     true, with_common_options({out_dir_option()}),
-                     [](const Arguments& a) { require_out(a, "voxelize", "--out DIR"); }});
-        t.push_back({"trace", "SCENE.json --out DIR",
-                     "As voxelize, then traces the photons; also writes radiance slices and the floor's caustic map\n"
-                     "(PNG), and photon statistics in summary.json.",
-                     true, with_common_options({out_dir_option()}),
-                     [](const Arguments& a) { require_out(a, "trace", "--out DIR"); }});
-        t.push_back({"render", "SCENE.json -o FRAME.png [--hdr FRAME.pfm] [--stats STATS.json] [--quality still|interactive]",
-                     "Runs the whole pipeline once and writes the frame; prints a summary (device, size, photons,\n"
-                     "per-pass GPU milliseconds) as JSON.",
-                     true,
-                     with_common_options({
-                         {"--out", "-o", "FRAME.png", "the frame, 8-bit sRGB; required",
-                          [](Arguments& a, const std::string& flag, const std::string& file) {
-                              check_output_file(flag, file, ".png");
-                              a.out = file;
-                          }},
-                         {"--hdr", "", "FRAME.pfm", "also the linear frame, 32-bit float RGB",
-                          [](Arguments& a, const std::string& flag, const std::string& file) {
-                              check_output_file(flag, file, ".pfm");
-                              a.hdr = file;
-                          }},
-                         {"--stats", "", "STATS.json", "also the printed summary, as a file",
-                          [](Arguments& a, const std::string& flag, const std::string& file) {
-                              check_output_file(flag, file, ".json");
-                              a.stats = file;
-                          }},
-                         {"--quality", "", "still|interactive",
-                          "interactive: the passes as refractd runs them during a drag, at the\n"
-                          "document's own image size and photon count (default still)",
-                          [](Arguments& a, const std::string& flag, const std::string& quality) {
-                              if (quality != "still" && quality != "interactive")
-                                  throw UsageError(flag + ": '" + quality + "' must be still or interactive");
-                              a.interactive = quality == "interactive";
-                          }},
-                     }),
-                     [](const Arguments& a) { require_out(a, "render", "-o FRAME.png"); }});
-        t.push_back({"bench", "[--scene FILE | --suite standard] [--case PREFIX] [--runs N] [--json]\n"
-                              "       refract bench --daemon HOST:PORT [--runs N] [--json]",
-                     "Per-pass GPU milliseconds (timestamp queries) for fixed scenes and edits, median and spread\n"
-                     "of N runs after a warm-up; or, with --daemon, a running refractd end to end: edit + frame\n"
-                     "round trips against the pass times it reports (service overhead). See docs/benchmarks.md.",
-                     false,
-                     with_common_options({
-                         {"--scene", "", "FILE", "one scene document instead of the suite: its full rebuild, light\n"
-                                                 "and camera edits",
-                          [](Arguments& a, const std::string& flag, const std::string& file) {
-                              check_input_file(flag + ":", file);
-                              a.scene_file = file;
-                          }},
-                         {"--suite", "", "standard", "the fixed suite of docs/benchmarks.md (the default)",
-                          [](Arguments& a, const std::string& flag, const std::string& suite) {
-                              if (suite != "standard") throw UsageError(flag + ": '" + suite + "' must be standard");
-                              a.suite = suite;
-                          }},
-                         {"--case", "", "PREFIX", "only the suite's cases whose names start with PREFIX",
-                          [](Arguments& a, const std::string&, const std::string& prefix) { a.only = prefix; }},
-                         {"--runs", "", "N", "timed runs per case, 1 to 1000 (default 10 on a GPU, 3 on a CPU;\n"
-                                             "5 with --daemon)",
-                          [](Arguments& a, const std::string& flag, const std::string& n) { a.runs = parse_whole_number(flag, n, 1, 1000); }},
-                         {"--json", "", "", "the report as JSON instead of a table",
-                          [](Arguments& a, const std::string&, const std::string&) { a.json = true; }},
-                         {"--daemon", "", "HOST:PORT", "measure the refractd listening there",
-                          [](Arguments& a, const std::string& flag, const std::string& address) {
-                              const auto colon = address.rfind(':');
-                              if (colon == std::string::npos || colon == 0)
-                                  throw UsageError(flag + ": '" + address + "' must be HOST:PORT");
-                              parse_whole_number(flag + " port", address.substr(colon + 1), 1, 65535);
-                              a.daemon = address;
-                          }},
-                     }),
-                     [](const Arguments& a) {
-                         const std::pair<bool, const char*> scene_only[] = {{!a.suite.empty(), "--suite"}, {!a.only.empty(), "--case"}};
-                         for (const auto& [given, flag] : scene_only) {
-                             if (given && !a.scene_file.empty()) throw UsageError(std::string(flag) + ": not with --scene (one scene has no suite)");
-                             if (given && !a.daemon.empty()) throw UsageError(std::string(flag) + ": not with --daemon");
-                         }
-                         if (!a.scene_file.empty() && !a.daemon.empty()) throw UsageError("--scene: not with --daemon");
-                     }});
+        t.push_back({"devices", "",
+                     "Lists the Vulkan devices, each with its driver and memory, and whether it is usable\n"
+                     "(if not, what it misses).",
+                     false, with_common_options({})});
+        t.push_back(slices_command(
+            "voxelize",
+            "Voxelizes the scene's object, then builds the index field and the octree; writes index-field\n"
+            "and octree-level slices (PNG) and summary.json into DIR and prints the summary."));
+        t.push_back(slices_command(
+            "trace",
+            "As voxelize, then traces the photons; also writes radiance slices and the floor's caustic map\n"
+            "(PNG), and photon statistics in summary.json."));
+        t.push_back(
+            {"render",
+             "SCENE.json -o FRAME.png [--hdr FRAME.pfm] [--stats STATS.json] [--quality still|interactive]",
+             "Runs the whole pipeline once and writes the frame; prints a summary (device, size, photons,\n"
+             "per-pass GPU milliseconds) as JSON.",
+             true,
+             with_common_options({
+                 {"--out", "-o", "FRAME.png", "the frame, 8-bit sRGB; required",
+                  [](Arguments& a, const std::string& flag, const std::string& file) {
+                      check_output_file(flag, file, ".png");
+                      a.out = file;
+                  }},
+                 {"--hdr", "", "FRAME.pfm", "also the linear frame, 32-bit float RGB",
+                  [](Arguments& a, const std::string& flag, const std::string& file) {
+                      check_output_file(flag, file, ".pfm");
+                      a.hdr = file;
+                  }},
+                 {"--stats", "", "STATS.json", "also the printed summary, as a file",
+                  [](Arguments& a, const std::string& flag, const std::string& file) {
+                      check_output_file(flag, file, ".json");
+                      a.stats = file;
+                  }},
+                 {"--quality", "", "still|interactive",
+                  "interactive: the passes as refractd runs them during a drag, at the\n"
+                  "document's own image size and photon count (default still)",
+                  [](Arguments& a, const std::string& flag, const std::string& quality) {
+                      if (quality != "still" && quality != "interactive")
+                          throw UsageError(flag + ": '" + quality + "' must be still or interactive");
+                      a.interactive = quality == "interactive";
+                  }},
+             }),
+             [](const Arguments& a) { require_out(a, "render", "-o FRAME.png"); }});
+        t.push_back(
+            {"bench",
+             "[--scene FILE | --suite standard] [--case PREFIX] [--runs N] [--json]\n"
+             "       refract bench --daemon HOST:PORT [--runs N] [--json]",
+             "Per-pass GPU milliseconds (timestamp queries) for fixed scenes and edits, median and spread\n"
+             "of N runs after a warm-up; or, with --daemon, a running refractd end to end: edit + frame\n"
+             "round trips against the pass times it reports (service overhead). See docs/benchmarks.md.",
+             false,
+             with_common_options({
+                 {"--scene", "", "FILE",
+                  "one scene document instead of the suite: its full rebuild, light\n"
+                  "and camera edits",
+                  [](Arguments& a, const std::string& flag, const std::string& file) {
+                      check_input_file(flag + ":", file);
+                      a.scene_file = file;
+                  }},
+                 {"--suite", "", "standard", "the fixed suite of docs/benchmarks.md (the default)",
+                  [](Arguments& a, const std::string& flag, const std::string& suite) {
+                      if (suite != "standard") throw UsageError(flag + ": '" + suite + "' must be standard");
+                      a.suite = suite;
+                  }},
+                 {"--case", "", "PREFIX", "only the suite's cases whose names start with PREFIX",
+                  [](Arguments& a, const std::string&, const std::string& prefix) { a.only = prefix; }},
+                 {"--runs", "", "N",
+                  "timed runs per case, 1 to 1000 (default 10 on a GPU, 3 on a CPU;\n"
+                  "5 with --daemon)",
+                  [](Arguments& a, const std::string& flag, const std::string& n) {
+                      a.runs = parse_whole_number(flag, n, 1, 1000);
+                  }},
+                 {"--json", "", "", "the report as JSON instead of a table",
+                  [](Arguments& a, const std::string&, const std::string&) { a.json = true; }},
+                 {"--daemon", "", "HOST:PORT", "measure the refractd listening there",
+                  [](Arguments& a, const std::string& flag, const std::string& address) {
+                      const auto colon = address.rfind(':');
+                      if (colon == std::string::npos || colon == 0)
+                          throw UsageError(flag + ": '" + address + "' must be HOST:PORT");
+                      parse_whole_number(flag + " port", address.substr(colon + 1), 1, 65535);
+                      a.daemon = address;
+                  }},
+             }),
+             [](const Arguments& a) {
+                 const std::pair<bool, const char*> suite_only[] = {{!a.suite.empty(), "--suite"},
+                                                                    {!a.only.empty(), "--case"}};
+                 for (const auto& [given, flag] : suite_only) {
+                     if (given && !a.scene_file.empty())
+                         throw UsageError(std::string(flag) + ": not with --scene (one scene has no suite)");
+                     if (given && !a.daemon.empty())
+                         throw UsageError(std::string(flag) + ": not with --daemon");
+                 }
+                 if (!a.scene_file.empty() && !a.daemon.empty())
+                     throw UsageError("--scene: not with --daemon");
+             }});
         return t;
     }();
     return table;
@@ -219,7 +245,8 @@ const std::vector<Command>& commands() {
 const Command& find_command(const std::string& name) {
     for (const Command& c : commands())
         if (c.name == name) return c;
-    if (name.starts_with("-")) throw UsageError("unknown option '" + name + "' (options follow the command; see refract help)");
+    if (name.starts_with("-"))
+        throw UsageError("unknown option '" + name + "' (options follow the command; see refract help)");
     throw UsageError("unknown command '" + name + "' (see refract help)");
 }
 
@@ -227,7 +254,9 @@ void no_more_arguments(const std::vector<std::string>& args, size_t from, const 
     if (args.size() > from) throw UsageError("unexpected argument '" + args[from] + "' after " + after);
 }
 
-bool is_help(const std::string& arg) { return arg == "--help" || arg == "-h"; }
+bool is_help(const std::string& arg) {
+    return arg == "--help" || arg == "-h";
+}
 
 }  // namespace
 
@@ -277,13 +306,16 @@ Invocation parse_command_line(const std::vector<std::string>& args) {
             flag = arg.substr(0, eq);
             value = arg.substr(eq + 1);
         }
-        const auto option = std::find_if(command.options.begin(), command.options.end(),
-                                         [&](const Option& o) { return o.name == flag || (!o.alias.empty() && o.alias == flag); });
+        const auto option = std::find_if(
+            command.options.begin(), command.options.end(),
+            [&](const Option& o) { return o.name == flag || (!o.alias.empty() && o.alias == flag); });
         if (option == command.options.end())
-            throw UsageError("unknown option '" + flag + "' for " + command.name + " (see refract help " + command.name + ")");
+            throw UsageError("unknown option '" + flag + "' for " + command.name + " (see refract help " +
+                             command.name + ")");
         if (option->value.empty() && inline_value) throw UsageError(flag + " takes no value");
         if (!option->value.empty() && !inline_value) {
-            if (i + 1 >= args.size() || args[i + 1].starts_with("--")) throw UsageError(flag + " needs a value (" + option->value + ")");
+            if (i + 1 >= args.size() || args[i + 1].starts_with("--"))
+                throw UsageError(flag + " needs a value (" + option->value + ")");
             value = args[++i];
         }
         given.push_back({&*option, flag, value});
@@ -295,7 +327,8 @@ Invocation parse_command_line(const std::vector<std::string>& args) {
 
     for (const Given& g : given) g.option->store(parsed, g.flag, g.value);
     if (command.takes_scene) {
-        if (parsed.positional.empty()) throw UsageError(command.name + " needs SCENE.json (- for the default scene)");
+        if (parsed.positional.empty())
+            throw UsageError(command.name + " needs SCENE.json (- for the default scene)");
         if (parsed.positional[0] != "-") check_input_file("SCENE.json", parsed.positional[0]);
     }
     command.check(parsed);
@@ -306,7 +339,8 @@ std::string usage_text(const std::string& name) {
     if (name.empty()) return kOverview;
     const Command& command = find_command(name);
     std::ostringstream out;
-    out << "usage: refract " << command.name << (command.synopsis.empty() ? "" : " ") << command.synopsis << "\n\n"
+    out << "usage: refract " << command.name << (command.synopsis.empty() ? "" : " ") << command.synopsis
+        << "\n\n"
         << command.description << "\n\nOptions:\n";
     constexpr size_t kColumn = 32;  // where the options' descriptions start
     auto line = [&](const std::string& left, const std::string& help) {
@@ -318,7 +352,8 @@ std::string usage_text(const std::string& name) {
         out << "\n";
     };
     for (const Option& o : command.options)
-        line((o.alias.empty() ? "" : o.alias + ", ") + o.name + (o.value.empty() ? "" : " " + o.value), o.help);
+        line((o.alias.empty() ? "" : o.alias + ", ") + o.name + (o.value.empty() ? "" : " " + o.value),
+             o.help);
     line("-h, --help", "this text");
     if (command.takes_scene) out << "\nSCENE.json may be - for the default scene {}.\n";
     return out.str();

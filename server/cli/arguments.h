@@ -11,7 +11,7 @@ namespace refract::cli {
 // A command's arguments, each already checked (files exist, numbers in range, outputs writable).
 struct Arguments {
     std::vector<std::string> positional;
-    std::vector<std::pair<std::string, std::string>> meshes;  // --mesh NAME=FILE.obj
+    std::vector<std::pair<std::string, std::string>> meshes;               // --mesh NAME=FILE.obj
     std::string out, hdr, stats, device, scene_file, suite, daemon, only;  // only: --case prefix
     bool json = false;
     bool interactive = false;  // --quality interactive

@@ -14,14 +14,14 @@ int main(int argc, char** argv) {
         // Every argument is checked here, before a command reads a scene or starts a device.
         const Invocation invocation = refract::cli::parse_command_line(args);
         switch (invocation.action) {
-        case Invocation::Action::help:
-            std::cout << refract::cli::usage_text(invocation.command);
-            return args.empty() ? 2 : 0;
-        case Invocation::Action::version:
-            std::cout << "refract " << REFRACT_VERSION << "\n";
-            return 0;
-        case Invocation::Action::run:
-            break;
+            case Invocation::Action::help:
+                std::cout << refract::cli::usage_text(invocation.command);
+                return args.empty() ? 2 : 0;
+            case Invocation::Action::version:
+                std::cout << "refract " << REFRACT_VERSION << "\n";
+                return 0;
+            case Invocation::Action::run:
+                break;
         }
         const auto& command = invocation.command;
         const auto& parsed = invocation.arguments;
