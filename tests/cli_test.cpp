@@ -135,6 +135,7 @@ const BadLine kBadLines[] = {
     {"MeshWithoutName",
      {"render", "-", "-o", "x.png", "--mesh", "bunny.obj"},
      "refract: --mesh: 'bunny.obj' must be NAME=FILE.obj"},
+    {"MeshWithoutFile", {"bench", "--mesh", "bunny="}, "refract: --mesh: 'bunny=' must be NAME=FILE.obj"},
     // Files written
     {"FrameNotPng", {"render", kScene, "-o", "x.jpg"}, "refract: -o: 'x.jpg' must end in .png"},
     {"FrameNotPngLong", {"render", kScene, "--out=x.jpg"}, "refract: --out: 'x.jpg' must end in .png"},
@@ -246,6 +247,7 @@ TEST(Cli, OverviewListsEveryCommand) {
     for (const std::string command : {"devices", "voxelize", "trace", "render", "bench", "help"})
         EXPECT_NE(help.out.find("\n  " + command + " "), std::string::npos) << command;
     EXPECT_EQ(run_refract({"--help"}).out, help.out);
+    EXPECT_EQ(run_refract({"help", "help"}).out, help.out);
     const Outcome bare = run_refract({});
     EXPECT_EQ(bare.status, 2);  // a command is missing
     EXPECT_EQ(bare.out, help.out);

@@ -110,7 +110,7 @@ std::vector<Option> with_common_options(std::vector<Option> options) {
                        "make FILE.obj available to the scene as \"upload:NAME\"",
                        [](Arguments& a, const std::string& flag, const std::string& spec) {
                            const auto eq = spec.find('=');
-                           if (eq == std::string::npos || eq == 0)
+                           if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
                                throw UsageError(flag + ": '" + spec + "' must be NAME=FILE.obj");
                            check_input_file(flag + ":", spec.substr(eq + 1));
                            a.meshes.emplace_back(spec.substr(0, eq), spec.substr(eq + 1));
@@ -273,7 +273,7 @@ Invocation parse_command_line(const std::vector<std::string>& args) {
     }
     if (args[0] == "help" || is_help(args[0])) {
         invocation.action = Invocation::Action::help;
-        if (args.size() > 1) invocation.command = find_command(args[1]).name;
+        if (args.size() > 1 && args[1] != "help") invocation.command = find_command(args[1]).name;
         no_more_arguments(args, 2, args[0] + (args.size() > 1 ? " " + args[1] : std::string()));
         return invocation;
     }
