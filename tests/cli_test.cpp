@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -87,6 +88,12 @@ struct BadLine {
     std::vector<std::string> args;
     std::string message;
 };
+
+// How ctest and failures show a case: its command line.
+void PrintTo(const BadLine& line, std::ostream* out) {
+    *out << "refract";
+    for (const auto& arg : line.args) *out << " " << arg;
+}
 
 class BadArguments : public testing::TestWithParam<BadLine> {};
 
