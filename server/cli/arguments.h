@@ -8,7 +8,8 @@
 
 namespace refract::cli {
 
-// A command's arguments, each already checked (files exist, numbers in range, outputs writable).
+// A command's arguments, each already checked: input files exist, numbers are in range, outputs have
+// their format's extension and lie in directories that exist.
 struct Arguments {
     std::vector<std::string> positional;
     std::vector<std::pair<std::string, std::string>> meshes;               // --mesh NAME=FILE.obj
