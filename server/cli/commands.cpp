@@ -31,7 +31,6 @@ struct Loaded {
 };
 
 Loaded load(const Arguments& args) {
-    if (args.positional.empty()) throw std::runtime_error("missing SCENE.json (use - for an empty scene {})");
     Loaded loaded;
     json j = json::object();
     if (args.positional[0] != "-") {
@@ -61,7 +60,6 @@ mesh::Mesh world_mesh(const Loaded& loaded) {
 }
 
 std::filesystem::path output_dir(const Arguments& args) {
-    if (args.out.empty()) throw std::runtime_error("missing --out DIR");
     std::filesystem::create_directories(args.out);
     return args.out;
 }
@@ -104,40 +102,6 @@ void write_index_slices(const std::filesystem::path& dir, const scene::SceneGpu&
 }
 
 }  // namespace
-
-Arguments parse_arguments(const std::vector<std::string>& args) {
-    Arguments out;
-    for (size_t i = 0; i < args.size(); ++i) {
-        const std::string& a = args[i];
-        auto value = [&]() -> std::string {
-            if (i + 1 >= args.size()) throw std::runtime_error(a + " needs a value");
-            return args[++i];
-        };
-        if (a == "--out" || a == "-o") out.out = value();
-        else if (a == "--hdr") out.hdr = value();
-        else if (a == "--quality") {
-            const std::string q = value();
-            if (q != "still" && q != "interactive") throw std::runtime_error("--quality is still or interactive, not " + q);
-            out.interactive = q == "interactive";
-        }
-        else if (a == "--stats") out.stats = value();
-        else if (a == "--device") out.device = value();
-        else if (a == "--scene") out.scene_file = value();
-        else if (a == "--suite") out.suite = value();
-        else if (a == "--case") out.only = value();
-        else if (a == "--daemon") out.daemon = value();
-        else if (a == "--runs") out.runs = std::stoi(value());
-        else if (a == "--json") out.json = true;
-        else if (a == "--mesh") {
-            const std::string spec = value();
-            const auto eq = spec.find('=');
-            if (eq == std::string::npos || eq == 0) throw std::runtime_error("--mesh takes NAME=FILE.obj");
-            out.meshes.emplace_back(spec.substr(0, eq), spec.substr(eq + 1));
-        } else if (!a.empty() && a[0] == '-' && a != "-") throw std::runtime_error("unknown option " + a);
-        else out.positional.push_back(a);
-    }
-    return out;
-}
 
 int devices_command() {
     const auto devices = vk::list_devices();
@@ -225,7 +189,6 @@ int trace_command(const Arguments& args) {
 
 int render_command(const Arguments& args) {
     const Loaded loaded = load(args);
-    if (args.out.empty()) throw std::runtime_error("missing -o frame.png");
     vk::Context context = make_context_for(args);
     scene::PassKit kit(context);
     scene::SceneGpu gpu(kit);

@@ -1,21 +1,10 @@
-// The refract CLI's commands. Each returns a process exit code; errors are thrown as exceptions.
+// The refract CLI's commands, given checked arguments. Each returns a process exit code; errors are
+// thrown as exceptions.
 #pragma once
 
-#include <string>
-#include <vector>
+#include "cli/arguments.h"
 
 namespace refract::cli {
-
-struct Arguments {
-    std::vector<std::string> positional;
-    std::vector<std::pair<std::string, std::string>> meshes;  // --mesh NAME=FILE.obj
-    std::string out, hdr, stats, device, scene_file, suite, daemon, only;  // only: --case prefix
-    bool json = false;
-    bool interactive = false;  // --quality interactive
-    int runs = 0;
-};
-
-Arguments parse_arguments(const std::vector<std::string>& args);
 
 int devices_command();
 int voxelize_command(const Arguments& args);
