@@ -383,7 +383,7 @@ function updateProgress() {
     text = 'Waiting for the first frame…';
   }
   el.textContent = text;
-  el.dataset.busy = String(Boolean(inf || state.replacing));
+  el.dataset.state = !hooks.connected ? 'offline' : inf || state.replacing ? 'busy' : 'idle';
   const dim = Boolean((inf && !state.drag && now - inf.sentAt > DIM_AFTER_MS) || state.replacing || state.newScene);
   const dimmed = dim && Boolean(state.frame);
   if (dimmed && !stage.classList.contains('pending')) hooks.dims++;
