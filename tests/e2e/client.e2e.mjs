@@ -412,6 +412,7 @@ async function main() {
     for (let i = 1; i <= 10; ++i) {
       await page.mouse.move(box.x + box.width * (0.1 + i * 0.05), y);
       await sleep(40);
+      if (i === 8) await shot(page, '05c-dragging-slider.png');  // previews streaming: fps in the progress line
     }
     await page.mouse.up();
     await waitSettled(page, before.rev);

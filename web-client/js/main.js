@@ -587,8 +587,8 @@ async function uploadMesh(file, field) {
     else if (info?.watertight === true) facts.push('watertight');
     if (info?.bounds) {
       state.meshBounds[name] = info.bounds;
-      const size = Math.max(...[0, 1, 2].map((i) => info.bounds.max[i] - info.bounds.min[i]));
-      facts.push(`${Number(size.toPrecision(3))} units across`);
+      const size = Number(Math.max(...[0, 1, 2].map((i) => info.bounds.max[i] - info.bounds.min[i])).toPrecision(3));
+      facts.push(`${size} unit${size === 1 ? '' : 's'} across`);
     }
     hooks.meshUploads++;
     hooks.lastUpload = { name, info };
