@@ -24,6 +24,7 @@
 
 #include "daemon/harness.h"
 #include "http/daemon_config.h"
+#include "http/examples.h"
 #include "http/metrics.h"
 #include "http/service.h"
 #include "http/static_files.h"
@@ -86,6 +87,7 @@ TEST(DaemonHttp, RoutesKeepMetricLabelsFew) {
     EXPECT_EQ(http::route_of("/api/scenes/abc/frame.png"), "/api/scenes/{id}/frame.png");
     EXPECT_EQ(http::route_of("/api/scenes/abc"), "/api/scenes/{id}");
     EXPECT_EQ(http::route_of("/api/meshes/bunny.obj"), "/api/meshes/{name}");
+    EXPECT_EQ(http::route_of("/api/examples/prism"), "/api/examples/{name}");
     EXPECT_EQ(http::route_of("/index.html"), "static");
     EXPECT_EQ(http::route_of("/api/what/ever/x/y"), "other");
 }
@@ -121,6 +123,41 @@ TEST(DaemonStaticFiles, ServesInsideTheRootOnly) {
     EXPECT_EQ(http::content_type_for("a.PNG"), "image/png");
     EXPECT_EQ(http::content_type_for("a.json"), "application/json");
     EXPECT_EQ(http::content_type_for("a.css"), "text/css; charset=utf-8");
+}
+
+TEST(DaemonStaticFiles, ExamplesAreReadByValidNamesFromTheirDirectoryOnly) {
+    TempDir dir;
+    fs::path examples = dir.path() / "examples";
+    fs::create_directories(examples / "sub");
+    std::ofstream(examples / "ball_lens.json") << R"({"object": {"ior": 1.6}})";
+    std::ofstream(examples / "broken.json") << "{ not json";
+    std::ofstream(examples / "Upper.json") << "{}";  // not a valid name: never listed
+    std::ofstream(examples / "notes.txt") << "{}";
+    std::ofstream(examples / "sub" / "inner.json") << "{}";
+    std::ofstream(dir.path() / "secret.json") << R"({"secret": 1})";
+    fs::create_symlink(dir.path() / "secret.json", examples / "leak.json");
+
+    EXPECT_EQ(http::list_examples(examples), (std::vector<std::string>{"ball_lens", "broken"}));
+    EXPECT_EQ(http::example_title("ball_lens"), "Ball lens");
+    EXPECT_EQ(http::examples_index(examples)["examples"][0],
+              (nlohmann::json{{"name", "ball_lens"}, {"title", "Ball lens"}}));
+    auto good = http::read_example(examples, "ball_lens");
+    EXPECT_EQ(good.status, 200);
+    EXPECT_EQ(good.document["object"]["ior"], 1.6);
+    EXPECT_EQ(http::read_example(examples, "broken").status, 500);
+    EXPECT_EQ(http::read_example(examples, "missing").status, 404);
+    EXPECT_EQ(http::read_example(examples, "leak").status, 404);  // symlink out of the directory
+    for (const std::string& bad : std::vector<std::string>{"", "..", "../secret", "sub/inner", "Upper", "ball_lens.json", "a b", "x%2f..",
+                            std::string(65, 'a'), std::string("a\0b", 3)}) {
+        EXPECT_FALSE(http::valid_example_name(bad)) << bad;
+        EXPECT_EQ(http::read_example(examples, bad).status, 400) << bad;
+    }
+    EXPECT_TRUE(http::valid_example_name(std::string(64, 'a')));
+    EXPECT_EQ(http::read_example(examples, std::string(64, 'a')).status, 404);
+    // A directory that does not exist lists nothing and finds nothing.
+    EXPECT_TRUE(http::list_examples(dir.path() / "none").empty());
+    EXPECT_EQ(http::examples_index(dir.path() / "none"), (nlohmann::json{{"examples", nlohmann::json::array()}}));
+    EXPECT_EQ(http::read_example(dir.path() / "none", "ball_lens").status, 404);
 }
 
 TEST(DaemonSceneStore, EditsPersistAndRejectedEditsChangeNothing) {

@@ -129,6 +129,7 @@ int run(const http::DaemonConfig& config) {
 int main(int argc, char** argv) {
     http::DaemonConfig defaults;
     defaults.web_root = REFRACT_WEB_ROOT;
+    defaults.examples_dir = REFRACT_EXAMPLES_DIR;
     try {
         http::CommandLine command_line =
             http::parse_command_line(std::vector<std::string>(argv + 1, argv + argc), defaults);

@@ -13,6 +13,7 @@
 #include <optional>
 #include <sstream>
 
+#include "http/examples.h"
 #include "http/static_files.h"
 #include "scene/passes.h"
 
@@ -421,6 +422,17 @@ struct ApiServer::Impl {
                       send_error(res, e.status(), e.what());
                   }
               });
+
+        // Example scenes (logic in http/examples.cpp).
+        s.Get("/api/examples", [this](const Request& req, Response& res) {
+            if (authorize(req, res)) send_json(res, 200, examples_index(config().examples_dir));
+        });
+        s.Get(R"(/api/examples/([^/]+))", [this](const Request& req, Response& res) {
+            if (!authorize(req, res)) return;
+            ExampleFile example = read_example(config().examples_dir, req.matches[1].str());
+            if (example.status == 200) send_json(res, 200, example.document);
+            else send_error(res, example.status, example.error);
+        });
 
         s.Get(R"(/api/.*)", [](const Request& req, Response& res) {
             send_error(res, 404, "no such endpoint: " + req.path);

@@ -69,6 +69,8 @@ CommandLine parse_command_line(const std::vector<std::string>& args, DaemonConfi
             c.token = next();
         } else if (flag == "--web-root") {
             c.web_root = next();
+        } else if (flag == "--examples-dir") {
+            c.examples_dir = next();
         } else if (flag == "--max-scenes") {
             c.max_scenes = parse_unsigned(flag, next(), 1, 1024);
         } else if (flag == "--max-device-memory") {
@@ -110,6 +112,8 @@ std::string usage_text(const DaemonConfig& d) {
         << "  --token T              require 'Authorization: Bearer T' (or ?token=T) on everything but\n"
         << "                         /api/health and static files\n"
         << "  --web-root DIR         static files served at / (default " << d.web_root << ")\n"
+        << "  --examples-dir DIR     example scenes (NAME.json) served at /api/examples (default "
+        << d.examples_dir << ")\n"
         << "  --max-scenes N         scenes kept resident on the GPU, least recently used dropped (default "
         << d.max_scenes << ")\n"
         << "  --max-device-memory BYTES  device memory for resident scenes, K/M/G suffixes allowed; least\n"

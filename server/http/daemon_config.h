@@ -17,6 +17,7 @@ struct DaemonConfig {
     std::string data_dir = "./refract-data";
     std::string token;      // non-empty: Bearer token required by everything but /api/health and static files
     std::string web_root;   // static files served at /
+    std::string examples_dir;  // example scene documents served at /api/examples
     size_t max_scenes = 8;  // scenes whose GPU state stays resident (LRU)
     uint64_t max_device_memory = uint64_t{4} << 30;  // bytes of device memory for resident scenes (LRU)
     size_t max_body = size_t{64} << 20;  // bytes of one request body

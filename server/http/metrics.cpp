@@ -42,9 +42,10 @@ std::string route_of(const std::string& path) {
     if (path.rfind("/api/", 0) != 0) return "static";
     std::vector<std::string> p = split_path(path);
     // p[0] == "api"
-    if (p.size() == 2 && (p[1] == "health" || p[1] == "scenes" || p[1] == "meshes")) return "/api/" + p[1];
+    if (p.size() == 2 && (p[1] == "health" || p[1] == "scenes" || p[1] == "meshes" || p[1] == "examples"))
+        return "/api/" + p[1];
     if (p.size() == 3 && p[1] == "scenes") return "/api/scenes/{id}";
-    if (p.size() == 3 && p[1] == "meshes") return "/api/meshes/{name}";
+    if (p.size() == 3 && (p[1] == "meshes" || p[1] == "examples")) return "/api/" + p[1] + "/{name}";
     if (p.size() == 4 && p[1] == "scenes" && (p[3] == "frame.png" || p[3] == "index-field" || p[3] == "ws"))
         return "/api/scenes/{id}/" + p[3];
     return "other";

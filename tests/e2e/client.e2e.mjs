@@ -5,8 +5,10 @@
 //
 // Starts refractd on free loopback ports with a temporary data directory, drives Debian's Chromium
 // (headless, through playwright-core; no browser download) and checks what a user would: the first
-// frame, moving the light, orbiting with the keyboard, an invalid value reported next to its control,
-// an OBJ upload, reload, presets, dispersion, a narrow window and a daemon restart. Screenshots go to
+// frame and its progress line, moving the light, orbiting with the keyboard, an invalid value reported
+// next to its control, an OBJ upload (fitted, or in its own units and framed), reload, example scenes
+// from the daemon, export and import of the document, saving the frame, dispersion, a narrow window and
+// a daemon restart. Screenshots go to
 // $REFRACT_E2E_OUT (default build/e2e-screenshots); $REFRACT_CHROMIUM overrides /usr/bin/chromium.
 // Ends with "browser_e2e: N passed, M failed".
 
@@ -40,9 +42,17 @@ const CHROMIUM = process.env.REFRACT_CHROMIUM || '/usr/bin/chromium';
 const WAIT_MS = 60_000;
 const MAX_PX = 320;  // the client's image cap for this test (?maxpx=): lavapipe on 2 cores
 const SMALL_SCENE = { image: { width: 256, height: 256 }, volume: { resolution: 48 }, photons: { count: 16384 } };
+const QUICK = { volume: { resolution: 48 }, photons: { count: 16384 } };  // what the test's examples render at
 
 const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'refract-e2e-'));
 const dataDir = path.join(tmp, 'data');
+// The daemon serves copies of examples/*.json made cheap to render (--examples-dir).
+const examplesDir = path.join(tmp, 'examples');
+fs.mkdirSync(examplesDir);
+for (const f of fs.readdirSync(path.join(REPO, 'examples')).filter((n) => n.endsWith('.json'))) {
+  const doc = JSON.parse(fs.readFileSync(path.join(REPO, 'examples', f), 'utf8'));
+  fs.writeFileSync(path.join(examplesDir, f), JSON.stringify({ ...doc, volume: { ...doc.volume, ...QUICK.volume }, photons: QUICK.photons }));
+}
 fs.mkdirSync(OUT, { recursive: true });
 const daemonLogPath = path.join(OUT, 'refractd.log');
 const daemonLog = fs.createWriteStream(daemonLogPath);
@@ -73,7 +83,7 @@ function freePort() {
 
 function startDaemon() {
   const args = ['--bind', '127.0.0.1', '--port', String(httpPort), '--ws-port', String(wsPort),
-    '--data-dir', dataDir, '--web-root', WEB_ROOT];
+    '--data-dir', dataDir, '--web-root', WEB_ROOT, '--examples-dir', examplesDir];
   log('starting', REFRACTD, args.join(' '));
   const child = spawn(REFRACTD, args, {
     stdio: ['ignore', 'pipe', 'pipe'],
@@ -167,13 +177,26 @@ async function sceneOnServer(id) {
   return r.json;
 }
 
-// Loads example scene `id` from the preset picker and waits for its still frame.
-async function applyPreset(page, id) {
+// Loads example scene `name` from the example picker and waits for its still frame.
+async function applyExample(page, name) {
   const rev0 = await page.evaluate(() => window.refract.lastRevision);
-  await page.selectOption('#ctl-preset', id);
-  await page.click('#preset-apply');
+  await page.selectOption('#ctl-example', name);
+  await page.click('#example-load');
   await waitSettled(page, rev0);
 }
+
+// Clicks `selector` and returns the path of the file it downloads.
+async function downloadFrom(page, selector) {
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click(selector)]);
+  const file = path.join(tmp, download.suggestedFilename());
+  await download.saveAs(file);
+  return file;
+}
+
+// The scene document without the image size (which follows the browser window).
+const canonical = (v) => (Array.isArray(v) ? v.map(canonical) : v && typeof v === 'object'
+  ? Object.fromEntries(Object.keys(v).sort().map((k) => [k, canonical(v[k])])) : v);
+const sceneOnly = (doc) => JSON.stringify(canonical({ ...doc, image: { ...doc.image, width: 0, height: 0 } }));
 
 // ---- the checks ----------------------------------------------------------------------------------
 
@@ -229,10 +252,13 @@ async function main() {
         if (l < min) min = l;
         if (l > max) max = l;
       }
+      const meta = window.refract.lastMeta;
       return {
-        w: c.width, h: c.height, min, max,
+        w: meta.width, h: meta.height, min, max, draw: window.refract.lastDraw,
+        hud: document.getElementById('hud-status').textContent,
+        summary: document.getElementById('frame-summary').textContent,
         device: document.getElementById('device-name').textContent,
-        rows: document.querySelectorAll('#timings tbody tr').length,
+        rows: document.querySelectorAll('#timings li').length,
         sceneId: window.refract.sceneId,
         conn: document.getElementById('conn').dataset.state,
       };
@@ -242,6 +268,12 @@ async function main() {
     assert(info.device && info.device !== '—' && info.device === info.device.trim(), `device name not shown: "${info.device}"`);
     assert(health.device === null || info.device.includes(health.device.name), `device "${info.device}" is not ${health.device?.name}`);
     assert(info.rows > 0, 'no per-pass timings shown');
+    // The progress line says what it shows: a still and how long it took (not a "- fps" label).
+    assert(/^Still frame, \d+(\.\d)? (ms|s)$/.test(info.hud), `progress line "${info.hud}"`);
+    assert(info.summary.includes(`${info.w}×${info.h}`), `frame summary "${info.summary}" lacks the size`);
+    // The canvas keeps its own (CSS) size; the frame is drawn into it with smooth filtering.
+    assert(info.draw.smoothing === 'high', `frames drawn with smoothing ${info.draw.smoothing}`);
+    assert(info.draw.frame[0] === info.w && info.draw.canvas[0] >= info.w, `draw ${JSON.stringify(info.draw)}`);
     assert(info.sceneId === sceneId, `client uses scene ${info.sceneId}, expected ${sceneId}`);
     assert(info.conn === 'live', `connection state ${info.conn}`);
     await shot(page, '01-first-frame.png');
@@ -380,6 +412,7 @@ async function main() {
     for (let i = 1; i <= 10; ++i) {
       await page.mouse.move(box.x + box.width * (0.1 + i * 0.05), y);
       await sleep(40);
+      if (i === 8) await shot(page, '05c-dragging-slider.png');  // previews streaming: fps in the progress line
     }
     await page.mouse.up();
     await waitSettled(page, before.rev);
@@ -391,6 +424,10 @@ async function main() {
     assert(after.sent.interactive > before.sent.interactive, 'no interactive request while dragging');
     assert(after.sent.still > before.sent.still, 'no still request after releasing');
     assert(after.quality === 'still', `last frame is ${after.quality}`);
+    // Interactive frames come at half the side and are scaled up smoothly to the canvas, not pixelated.
+    const draw = await page.evaluate(() => window.refract.lastInteractiveDraw);
+    assert(draw && draw.frame[0] < draw.drawn[0] && draw.smoothing === 'high',
+      `interactive frame drawn as ${JSON.stringify(draw)}`);
     assert(Math.abs(server.scene.light.intensity - after.shown) < 1e-6,
       `server intensity ${server.scene.light.intensity} != shown ${after.shown}`);
     log(`sent ${after.sent.interactive - before.sent.interactive} interactive +`,
@@ -434,10 +471,13 @@ async function main() {
     assert(server.scene.object.mesh === 'upload:e2e-cube', 'a failed upload changed the mesh');
     assert(JSON.stringify(server.scene.object.scattering) === '[0,0.02,0.02]',
       `scattering is ${JSON.stringify(server.scene.object.scattering)}`);
-    // Picking the same mesh again clears the message.
-    await page.selectOption('#ctl-object-mesh', 'sphere');
-    await page.selectOption('#ctl-object-mesh', 'upload:e2e-cube');
-    await waitSettled(page);
+    // The next accepted edit clears the stale upload message.
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await page.fill('#ctl-light-intensity-num', '31.5');
+    await page.press('#ctl-light-intensity-num', 'Enter');
+    await waitSettled(page, rev0);
+    const stale = await page.evaluate(() => document.getElementById('ctl-object-mesh').hasAttribute('aria-invalid'));
+    assert(!stale, 'the upload error stayed after a successful edit');
   });
 
   await check('reload shows the same scene id and revision', async () => {
@@ -462,27 +502,172 @@ async function main() {
     await shot(page, '06-after-reload.png');
   });
 
-  await check('a preset applies its example scene', async () => {
-    await applyPreset(page, 'luneburg-lens');
-    const after = await sceneOnServer(sceneId);
-    assert(after.scene.object.index_field === 'luneburg', `index_field is ${after.scene.object.index_field}`);
-    assert(after.scene.object.mesh === 'sphere', `mesh is ${after.scene.object.mesh}`);
+  await check('an OBJ 190 units wide is fitted and centred; in its own units, "Frame object" frames it', async () => {
+    // A box 190 x 80 x 150 units, far from the origin (as CAD files are).
+    const lo = [400, -30, 20];
+    const hi = [590, 50, 170];
+    const corner = (k) => [0, 1, 2].map((i) => ((k >> i) & 1 ? hi[i] : lo[i])).join(' ');
+    const faces = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    const obj = ['# 190 units wide', ...[0, 1, 2, 3, 4, 5, 6, 7].map((k) => `v ${corner(k)}`),
+      ...faces.map((f) => `f ${f.map((i) => i + 1).join(' ')}`), ''].join('\n');
+    const objPath = path.join(tmp, 'wide-box.obj');
+    fs.writeFileSync(objPath, obj);
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    const uploads0 = await page.evaluate(() => window.refract.meshUploads);
+    await page.setInputFiles('#mesh-file', objPath);
+    await waitFor(page, (n) => window.refract.meshUploads > n, uploads0);
+    await waitSettled(page, rev0);
+    const fitted = (await sceneOnServer(sceneId)).scene.object;
+    const s = 2 / 190;
+    assert(fitted.mesh === 'upload:wide-box', `mesh ${fitted.mesh}`);
+    assert(Math.abs(fitted.scale - s) < 1e-4, `scale ${fitted.scale}, expected ${s}`);
+    const centre = [0, 1, 2].map((i) => fitted.position[i] + fitted.scale * (lo[i] + hi[i]) / 2);
+    assert(centre.every((c) => Math.abs(c) < 1e-3), `fitted centre at ${centre}`);
     const ui = await page.evaluate(() => ({
-      field: document.getElementById('ctl-object-index-field').value,
-      iorHidden: document.getElementById('ctl-object-ior').closest('.field').hidden,
+      scale: Number(document.getElementById('ctl-object-scale-num').value),
+      status: document.getElementById('mesh-status').textContent,
     }));
-    assert(ui.field === 'luneburg', `index field control shows ${ui.field}`);
-    assert(ui.iorHidden, 'the IOR control is still shown for a Luneburg lens');
-    await shot(page, '07-preset-luneburg.png');
+    assert(Math.abs(ui.scale - s) < 1e-4, `the scale box shows ${ui.scale}`);
+    assert(/190 units across/.test(ui.status) && /scaled by/.test(ui.status), `upload status "${ui.status}"`);
+    await shot(page, '06b-obj-fitted.png');
+
+    // Keeping its own units: the upload changes only the mesh; then the view is framed on it.
+    await page.check('#mesh-keep-units');
+    await page.fill('#ctl-object-scale-num', '0.02');
+    await page.press('#ctl-object-scale-num', 'Enter');
+    await waitSettled(page, rev0);
+    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    const uploads1 = await page.evaluate(() => window.refract.meshUploads);
+    await page.setInputFiles('#mesh-file', { name: 'wide-box-2.obj', mimeType: 'text/plain', buffer: Buffer.from(obj) });
+    await waitFor(page, (n) => window.refract.meshUploads > n, uploads1);
+    await waitSettled(page, rev1);
+    const own = (await sceneOnServer(sceneId)).scene.object;
+    assert(own.mesh === 'upload:wide-box-2' && own.scale === 0.02, `kept units: ${JSON.stringify(own)}`);
+    const rev2 = await page.evaluate(() => window.refract.lastRevision);
+    await page.click('#frame-object');
+    await waitSettled(page, rev2);
+    const cam = (await sceneOnServer(sceneId)).scene.camera;
+    const placed = [0, 1, 2].map((i) => own.position[i] + own.scale * (lo[i] + hi[i]) / 2);
+    assert(cam.target.every((t, i) => Math.abs(t - placed[i]) < 1e-3), `camera aims at ${cam.target}, object at ${placed}`);
+    // Every corner of the box is inside the view.
+    const sub = (a, b) => a.map((x, i) => x - b[i]);
+    const dot = (a, b) => a.reduce((t, x, i) => t + x * b[i], 0);
+    const norm = (a) => a.map((x) => x / Math.hypot(...a));
+    const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+    const fwd = norm(sub(cam.target, cam.position));
+    const right = norm(cross(fwd, cam.up));
+    const up = cross(right, fwd);
+    const img = (await sceneOnServer(sceneId)).scene.image;
+    const t = Math.tan((cam.fov_deg * Math.PI) / 360);
+    for (let k = 0; k < 8; ++k) {
+      const p = [0, 1, 2].map((i) => own.position[i] + own.scale * ((k >> i) & 1 ? hi[i] : lo[i]));
+      const rel = sub(p, cam.position);
+      const z = dot(rel, fwd);
+      const x = dot(rel, right) / (z * t * (img.width / img.height));
+      const y = dot(rel, up) / (z * t);
+      assert(z > 0 && Math.abs(x) <= 1 && Math.abs(y) <= 1, `corner ${k} outside the view (${x}, ${y})`);
+    }
+    await shot(page, '06c-obj-own-units-framed.png');
+    await page.uncheck('#mesh-keep-units');
   });
 
-  await check('the dispersion preset and its Abbe number control', async () => {
-    await applyPreset(page, 'dispersive-ball');
+  await check('examples come from the daemon; the name shown clears once the scene is edited', async () => {
+    const list = await api('GET', '/api/examples');
+    const names = list.json.examples.map((e) => e.name);
+    for (const n of ['ball_lens_fog', 'luneburg', 'maxwell_fisheye', 'prism']) assert(names.includes(n), `examples: ${names}`);
+    assert(list.json.examples.find((e) => e.name === 'ball_lens_fog').title === 'Ball lens fog', 'title of ball_lens_fog');
+    assert((await api('GET', '/api/examples/..')).status !== 200, 'GET /api/examples/.. answered');
+    assert((await api('GET', '/api/examples/Luneburg')).status === 400, 'a bad name is not a 400');
+    assert((await api('GET', '/api/examples/nope')).status === 404, 'a missing example is not a 404');
+    const options = await page.evaluate(() => [...document.querySelectorAll('#ctl-example option')].map((o) => o.value));
+    assert(names.every((n) => options.includes(n)), `picker lists ${options}`);
+
+    const example = (await api('GET', '/api/examples/luneburg')).json;
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    const dims0 = await page.evaluate(() => window.refract.dims);
+    await page.selectOption('#ctl-example', 'luneburg');
+    await page.click('#example-load');
+    // While the new scene loads and renders, the old frame is dimmed and the progress line says so.
+    await waitFor(page, (n) => window.refract.dims > n, dims0);
+    await sleep(200);  // the dimming's transition (on a fast device the new frame may be there already)
+    await shot(page, '07-example-pending.png');
+    await waitSettled(page, rev0);
+    const after = (await sceneOnServer(sceneId)).scene;
+    assert(after.object.index_field === 'luneburg' && after.object.mesh === 'sphere', `object ${JSON.stringify(after.object)}`);
+    assert(after.light.intensity === example.light.intensity, `light ${after.light.intensity}`);
+    assert(JSON.stringify(after.volume.bounds) === JSON.stringify(example.volume.bounds), 'volume bounds differ');
+    assert(after.object.scale === example.object.scale && after.object.position.every((x) => x === 0), 'object placement');
+    // Members the example leaves out take their defaults, whatever the scene had before.
+    assert(after.object.rotation_deg.every((x) => x === 0) && after.medium.ior === 1, 'defaults not restored');
+    const ui = await page.evaluate(() => ({
+      picked: document.getElementById('ctl-example').value, name: window.refract.example,
+      field: document.getElementById('ctl-object-index-field').value,
+      iorHidden: document.getElementById('ctl-object-ior').closest('.field').hidden,
+      meshNote: document.getElementById('mesh-status').textContent,
+    }));
+    assert(ui.picked === 'luneburg' && ui.name === 'luneburg', `picker shows "${ui.picked}"`);
+    assert(ui.meshNote === '', `the mesh note still says "${ui.meshNote}"`);
+    assert(ui.field === 'luneburg', `index field control shows ${ui.field}`);
+    assert(ui.iorHidden, 'the IOR control is still shown for a Luneburg lens');
+    await shot(page, '07b-example-luneburg.png');
+
+    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    await page.fill('#ctl-light-intensity-num', '1200');
+    await page.press('#ctl-light-intensity-num', 'Enter');
+    await waitSettled(page, rev1);
+    const edited = await page.evaluate(() => ({ picked: document.getElementById('ctl-example').value, name: window.refract.example }));
+    assert(edited.picked === '' && edited.name === null, `still named after an edit: ${JSON.stringify(edited)}`);
+  });
+
+  await check('export and import the scene document; save the frame as PNG', async () => {
+    await waitSettled(page);
+    const exported = await downloadFrom(page, '#scene-export');
+    const doc = JSON.parse(fs.readFileSync(exported, 'utf8'));
+    const server0 = await sceneOnServer(sceneId);
+    assert(sceneOnly(doc) === sceneOnly(server0.scene), 'the exported document is not the scene');
+
+    const png = fs.readFileSync(await downloadFrom(page, '#save-png'));
+    const meta = await page.evaluate(() => window.refract.lastMeta);
+    assert(png.subarray(1, 4).toString() === 'PNG', 'the saved frame is not a PNG');
+    assert(png.readUInt32BE(16) === meta.width && png.readUInt32BE(20) === meta.height,
+      `saved PNG ${png.readUInt32BE(16)}x${png.readUInt32BE(20)}, frame ${meta.width}x${meta.height}`);
+
+    // A partial document: what it leaves out takes the defaults.
+    const partial = path.join(tmp, 'partial.json');
+    fs.writeFileSync(partial, JSON.stringify({ object: { mesh: 'torus', rotation_deg: [60, 0, 20] }, ...QUICK }));
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await page.setInputFiles('#scene-file', partial);
+    await waitSettled(page, rev0);
+    const torus = (await sceneOnServer(sceneId)).scene;
+    assert(torus.object.mesh === 'torus' && torus.light.intensity === 20 && torus.camera.fov_deg === 35,
+      `partial import: ${JSON.stringify(torus.object)} ${torus.light.intensity}`);
+    await shot(page, '07c-imported-partial.png');
+
+    // The exported file brings the scene back as it was.
+    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    await page.setInputFiles('#scene-file', exported);
+    await waitSettled(page, rev1);
+    const back = await sceneOnServer(sceneId);
+    assert(sceneOnly(back.scene) === sceneOnly(server0.scene), 'import did not restore the exported scene');
+    const shown = await page.evaluate(() => Number(document.getElementById('ctl-light-intensity-num').value));
+    assert(shown === server0.scene.light.intensity, `controls show intensity ${shown}`);
+
+    // A file that is not JSON is reported at the import control and changes nothing.
+    const errors0 = await page.evaluate(() => window.refract.errors);
+    await page.setInputFiles('#scene-file', { name: 'junk.json', mimeType: 'application/json', buffer: Buffer.from('{ nope') });
+    await waitFor(page, (n) => window.refract.errors > n, errors0);
+    const err = await page.evaluate(() => document.getElementById('scene-file').closest('.field').querySelector('.field-error').textContent);
+    assert(/junk\.json/.test(err), `import error "${err}"`);
+    assert((await sceneOnServer(sceneId)).revision === back.revision, 'a broken import changed the scene');
+  });
+
+  await check('the dispersion example and its Abbe number control', async () => {
+    await applyExample(page, 'dispersion');
     const applied = await sceneOnServer(sceneId);
     assert(applied.scene.object.abbe > 0, `abbe is ${applied.scene.object.abbe}`);
     const shown = await page.evaluate(() => Number(document.getElementById('ctl-object-abbe-num').value));
     assert(shown === applied.scene.object.abbe, `the Abbe control shows ${shown}, the scene has ${applied.scene.object.abbe}`);
-    await shot(page, '07b-preset-dispersion.png');
+    await shot(page, '07d-example-dispersion.png');
     // An Abbe number no glass has is refused next to the control; 0 turns dispersion off.
     const errors0 = await page.evaluate(() => window.refract.errors);
     await page.fill('#ctl-object-abbe-num', '2');
@@ -517,14 +702,15 @@ async function main() {
       return {
         scrollWidth: document.documentElement.scrollWidth, inner: window.innerWidth,
         stageBottom: stage.bottom, panelTop: panel.top, stageWidth: stage.width, offenders, w: c.width, h: c.height,
+        image: window.refract.lastMeta.width,
       };
     });
     assert(layout.scrollWidth <= layout.inner, `page scrolls sideways (${layout.scrollWidth} > ${layout.inner})`);
     assert(layout.offenders.length === 0, `controls overflow the window: ${layout.offenders.join(', ')}`);
     assert(layout.panelTop >= layout.stageBottom - 1, 'controls are not below the viewport');
-    assert(layout.w <= 390 && layout.w >= 200, `image width ${layout.w} does not follow the canvas`);
+    assert(layout.image <= 390 && layout.image >= 200, `image width ${layout.image} does not follow the canvas`);
     const server = await sceneOnServer(sceneId);
-    assert(server.scene.image.width === layout.w, `scene image ${server.scene.image.width} != drawn ${layout.w}`);
+    assert(server.scene.image.width === layout.image, `scene image ${server.scene.image.width} != drawn ${layout.image}`);
     await shot(page, '08-narrow.png');
     await shot(page, '08-narrow-full.png', { fullPage: true });
     const rev1 = await page.evaluate(() => window.refract.lastRevision);

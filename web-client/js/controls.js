@@ -1,7 +1,6 @@
 // The control panel: built from one declarative table. Every control knows the JSON pointers it
 // writes, so a validation error from the daemon (which names a pointer) lands next to its control.
 
-import { PRESETS } from './presets.js';
 import { getAt, hexToLinear, linearToHex, parsePointer, patchAt, round } from './scene.js';
 
 // Sliders whose position is not the value itself: `fromSlider` maps a slider position to the value,
@@ -12,12 +11,19 @@ const LOG2_SLIDER = { fromSlider: (r) => 2 ** r, toSlider: (v) => Math.log2(Math
 const INVERSE_SLIDER = {
   fromSlider: (r) => (r > 0 ? Math.round(10 / r) / 10 : 0), toSlider: (v) => (v > 0 ? 1 / v : 0), numberStep: 1,
 };
+// Scale spans five decades (an OBJ in millimetres wants 0.001, a small one 100): the slider moves along
+// log10; the box shows three significant digits.
+const LOG10_SLIDER = {
+  fromSlider: (r) => Number((10 ** r).toPrecision(3)), toSlider: (v) => Math.log10(Math.max(1e-3, v)),
+  numberStep: 'any', format: (v) => String(Number(v.toPrecision(4))),
+};
 
 export const SECTIONS = [
   {
     id: 'scene', title: 'Scene', controls: [
-      { kind: 'preset' },
+      { kind: 'example' },
       { kind: 'mesh' },
+      { kind: 'file' },
     ],
   },
   {
@@ -40,7 +46,9 @@ export const SECTIONS = [
         showIf: (doc) => doc.object?.index_field === 'maxwell' },
       { kind: 'range', ptr: '/object/abbe', label: 'Dispersion: Abbe number (0 = none; glass 30-60)',
         min: 0, max: 0.2, step: 0.002, ...INVERSE_SLIDER },
-      { kind: 'range', ptr: '/object/scale', label: 'Scale', min: 0.1, max: 3, step: 0.01 },
+      { kind: 'range', ptr: '/object/scale', label: 'Scale', min: -3, max: 2, step: 0.01, ...LOG10_SLIDER },
+      { kind: 'vec3', ptr: '/object/position', label: 'Position (m)', step: 0.05 },
+      { kind: 'vec3', ptr: '/object/rotation_deg', label: 'Rotation (°, about x, then y, then z)', step: 5 },
       { kind: 'rgb', ptr: '/object/extinction', label: 'Extinction (per m)', min: 0, max: 10, step: 0.01 },
       { kind: 'rgb', ptr: '/object/scattering', label: 'Scattering (per m)', min: 0, max: 10, step: 0.01 },
       { kind: 'select', ptr: '/object/phase/model', label: 'Phase function',
@@ -55,6 +63,11 @@ export const SECTIONS = [
       { kind: 'range', ptr: '/medium/phase/g', label: 'Fog anisotropy g', min: -0.95, max: 0.95, step: 0.01 },
       { kind: 'checkbox', ptr: '/floor/enabled', label: 'Floor' },
       { kind: 'checkbox', ptr: '/floor/checker', label: 'Checkered floor' },
+    ],
+  },
+  {
+    id: 'camera', title: 'Camera', controls: [
+      { kind: 'range', ptr: '/camera/fov_deg', label: 'Field of view (vertical, °)', min: 10, max: 120, step: 1 },
     ],
   },
   {
@@ -85,8 +98,9 @@ const idFor = (ptr) => 'ctl' + ptr.replace(/[^a-z0-9]+/gi, '-');
 const num = (value) => (value === '' || value === null || value === undefined ? NaN : Number(value));
 const isEditing = (el) => el && document.activeElement === el;
 
-function fmt(value, step) {
+function fmt(value, step, format) {
   if (typeof value !== 'number' || !Number.isFinite(value)) return '';
+  if (format) return format(value);
   const digits = step >= 1 ? 0 : Math.min(4, Math.max(1, Math.ceil(-Math.log10(step))));
   return String(round(value, digits));
 }
@@ -141,7 +155,7 @@ class RangeField extends Field {
     });
     const fromRange = () => (spec.fromSlider ? spec.fromSlider(num(this.range.value)) : num(this.range.value));
     this.range.addEventListener('input', () => {
-      this.number.value = fmt(fromRange(), this.numberStep());
+      this.number.value = fmt(fromRange(), this.numberStep(), spec.format);
       emit(this, patchAt(spec.ptr, fromRange()), false);
     });
     this.range.addEventListener('change', () => emit(this, patchAt(spec.ptr, fromRange()), true));
@@ -160,7 +174,7 @@ class RangeField extends Field {
     const v = getAt(doc, this.spec.ptr);
     if (typeof v !== 'number') return;
     if (!isEditing(this.range)) this.setRange(v);
-    if (!isEditing(this.number)) this.number.value = fmt(v, this.numberStep());
+    if (!isEditing(this.number)) this.number.value = fmt(v, this.numberStep(), this.spec.format);
   }
 }
 
@@ -251,6 +265,34 @@ class RgbField extends Field {
   }
 }
 
+// A vec3 (position, rotation): one number box per axis.
+class Vec3Field extends Field {
+  constructor(spec, emit) {
+    const id = idFor(spec.ptr);
+    super(spec, [spec.ptr], spec.label, `${id}-x`);
+    this.axes = ['x', 'y', 'z'].map((axis) => h('input', {
+      type: 'number', id: `${id}-${axis}`, class: `num axis axis-${axis}`, step: spec.step, inputmode: 'decimal',
+      'aria-label': `${spec.label}, ${axis}`, title: axis,
+    }));
+    for (const input of this.axes) {
+      input.addEventListener('change', () => {
+        const v = this.axes.map((a) => num(a.value));
+        if (!v.every(Number.isFinite)) { this.setError('Enter a number for each axis.'); return; }
+        emit(this, patchAt(spec.ptr, v), true);
+      });
+    }
+    this.describe(...this.axes);
+    const cells = this.axes.map((input, i) => h('span', { class: 'axis-cell' },
+      h('span', { class: 'axis-name', 'aria-hidden': 'true', text: 'xyz'[i] }), input));
+    this.el.append(this.label, h('div', { class: 'row axes', role: 'group', 'aria-label': spec.label }, cells), this.error);
+  }
+  update(doc) {
+    const v = getAt(doc, this.spec.ptr);
+    if (!Array.isArray(v) || v.length !== 3) return;
+    this.axes.forEach((a, i) => { if (!isEditing(a)) a.value = String(round(v[i], 5)); });
+  }
+}
+
 // Fog density: writes equal extinction and scattering (a purely scattering fog).
 class FogField extends Field {
   constructor(spec, emit) {
@@ -283,29 +325,55 @@ class FogField extends Field {
   }
 }
 
-class PresetField extends Field {
-  constructor(spec, emit) {
-    const id = 'ctl-preset';
+// Example scenes, listed by the daemon (GET /api/examples); "Load" replaces the scene with one.
+class ExampleField extends Field {
+  constructor(spec, emit, hooks) {
+    const id = 'ctl-example';
     super(spec, [], 'Example scene', id);
-    this.select = h('select', { id },
-      h('option', { value: '', text: 'Choose an example…' }),
-      PRESETS.map((p) => h('option', { value: p.id, text: p.name, title: p.description })));
-    this.button = h('button', { type: 'button', id: 'preset-apply', text: 'Load' });
+    this.select = h('select', { id }, h('option', { value: '', text: 'Choose an example…' }));
+    this.button = h('button', { type: 'button', id: 'example-load', text: 'Load' });
     this.note = h('p', { class: 'note', id: `${id}-note`, 'aria-live': 'polite' });
-    const apply = () => {
-      const preset = PRESETS.find((p) => p.id === this.select.value);
-      if (!preset) return;
-      this.note.textContent = preset.description;
-      emit(this, preset.patch, true);
-    };
-    this.button.addEventListener('click', apply);
-    this.select.addEventListener('keydown', (e) => { if (e.key === 'Enter') { e.preventDefault(); apply(); } });
-    this.select.addEventListener('change', () => {
-      const preset = PRESETS.find((p) => p.id === this.select.value);
-      this.note.textContent = preset ? preset.description : '';
-    });
+    const load = () => { if (this.select.value) hooks.loadExample(this.select.value, this); };
+    this.button.addEventListener('click', load);
+    this.select.addEventListener('keydown', (e) => { if (e.key === 'Enter') { e.preventDefault(); load(); } });
     this.describe(this.select);
     this.el.append(this.label, h('div', { class: 'row' }, this.select, this.button), this.note, this.error);
+  }
+  setExamples(list) {
+    const current = this.select.value;
+    this.select.replaceChildren(h('option', { value: '', text: 'Choose an example…' }),
+      ...list.map((e) => h('option', { value: e.name, text: e.title || e.name })));
+    this.select.value = current;
+  }
+  // Shows which example the scene is (null: none, or edited away from it).
+  showLoaded(name) {
+    if (!isEditing(this.select)) this.select.value = name || '';
+  }
+}
+
+// A hidden file input with a button-like label; `onFile(file)` gets the file picked.
+function filePicker(id, accept, text, onFile) {
+  const input = h('input', { type: 'file', id, accept, class: 'file-input' });
+  input.addEventListener('change', () => {
+    const f = input.files && input.files[0];
+    if (f) onFile(f);
+    input.value = '';
+  });
+  return { input, label: h('label', { for: id, class: 'button-like', text }) };
+}
+
+// Importing and exporting the scene document as a JSON file.
+class SceneFileField extends Field {
+  constructor(spec, emit, hooks) {
+    const id = 'scene-file';
+    super(spec, [], 'Scene document', id);
+    const picker = filePicker(id, '.json,application/json', 'Import JSON…', (f) => hooks.importScene(f, this));
+    this.file = picker.input;
+    this.exportButton = h('button', { type: 'button', id: 'scene-export', text: 'Export JSON' });
+    this.status = h('p', { class: 'note', id: 'scene-file-status', 'aria-live': 'polite' });
+    this.exportButton.addEventListener('click', () => hooks.exportScene(this));
+    this.describe(this.file);
+    this.el.append(this.label, h('div', { class: 'row' }, this.file, picker.label, this.exportButton), this.status, this.error);
   }
 }
 
@@ -318,17 +386,16 @@ class MeshField extends Field {
     this.builtin = h('optgroup', { label: 'Built-in' }, BUILTIN_MESHES.map(([v, t]) => h('option', { value: v, text: t })));
     this.uploaded = h('optgroup', { label: 'Uploaded', hidden: true });
     this.select.append(this.builtin, this.uploaded);
-    this.select.addEventListener('change', () => emit(this, patchAt('/object/mesh', this.select.value), true));
-    this.file = h('input', { type: 'file', id: 'mesh-file', accept: '.obj,model/obj,text/plain', class: 'file-input' });
-    this.fileLabel = h('label', { for: 'mesh-file', class: 'button-like', text: 'Upload OBJ…' });
+    this.select.addEventListener('change', () => emit(this, hooks.meshPatch(this.select.value), true));
+    const picker = filePicker('mesh-file', '.obj,model/obj,text/plain', 'Upload OBJ…', (f) => hooks.upload(f, this));
+    this.file = picker.input;
+    this.keepUnits = h('input', { type: 'checkbox', id: 'mesh-keep-units' });
+    const keepLabel = h('label', { for: 'mesh-keep-units', class: 'check small' }, this.keepUnits,
+      h('span', { text: 'Keep the mesh’s own units (otherwise it is fitted to 2 m and centred)' }));
     this.status = h('p', { class: 'note', id: 'mesh-status', 'aria-live': 'polite' });
-    this.file.addEventListener('change', () => {
-      const f = this.file.files && this.file.files[0];
-      if (f) hooks.upload(f, this);
-      this.file.value = '';
-    });
     this.describe(this.select, this.file);
-    this.el.append(this.label, h('div', { class: 'row' }, this.select, this.file, this.fileLabel), this.status, this.error);
+    this.el.append(this.label, h('div', { class: 'row' }, this.select, this.file, picker.label), keepLabel, this.status,
+      this.error);
   }
   setMeshes(names) {
     const current = this.select.value;
@@ -336,9 +403,15 @@ class MeshField extends Field {
     this.uploaded.hidden = names.length === 0;
     if (current) this.select.value = current;
   }
+  // Upload news stays only while the scene uses that mesh.
+  setStatus(text, mesh = null) {
+    this.status.textContent = text;
+    this.statusMesh = mesh;
+  }
   update(doc) {
     const v = getAt(doc, '/object/mesh');
     if (typeof v !== 'string' || isEditing(this.select)) return;
+    if (this.statusMesh && this.statusMesh !== v) this.setStatus('');
     if (v.startsWith('upload:') && ![...this.uploaded.children].some((o) => o.value === v)) {
       this.uploaded.append(h('option', { value: v, text: v.slice(7) }));
       this.uploaded.hidden = false;
@@ -349,7 +422,7 @@ class MeshField extends Field {
 
 const KINDS = {
   range: RangeField, select: SelectField, checkbox: CheckboxField, color: ColorField, rgb: RgbField,
-  fog: FogField, preset: PresetField, mesh: MeshField,
+  fog: FogField, example: ExampleField, mesh: MeshField, file: SceneFileField, vec3: Vec3Field,
 };
 
 // Builds the panel into `form`. `onEdit(patch, final, field)` is called for every user edit.
@@ -373,6 +446,8 @@ export function buildControls(form, onEdit, hooks) {
   return {
     fields,
     mesh: fields.find((f) => f instanceof MeshField),
+    example: fields.find((f) => f instanceof ExampleField),
+    file: fields.find((f) => f instanceof SceneFileField),
     // Shows `doc` in every control, except those holding a rejected value the user has not fixed yet.
     update(doc, { force = false } = {}) {
       for (const f of fields) {

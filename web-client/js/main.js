@@ -3,6 +3,7 @@
 // Flow control: at most one request is in flight on the WebSocket. Edits made meanwhile are
 // coalesced into one pending merge patch, sent when the answer (a frame, or an error) arrives.
 // Dragging sends "interactive" requests; releasing asks for a "still" (full quality) frame.
+// Frames are drawn scaled to the canvas with smooth filtering: interactive ones arrive smaller.
 
 import { buildControls } from './controls.js';
 import * as S from './scene.js';
@@ -15,10 +16,20 @@ const REQUEST_TIMEOUT_MS = 180_000;  // a lost answer: give up on it and reconne
 const QUALITY_RANK = { interactive: 0, still: 1 };
 const ORBIT_STEP = 5 * Math.PI / 180;  // arrow keys
 const ZOOM_STEP = 1.1;
+const MAX_CANVAS = 2048;  // canvas backing store, per side
+const DIM_AFTER_MS = 300;  // a frame pending this long (not while dragging) dims the one shown
+const OBJECT_SIZE = 2;  // metres: the built-in meshes span [-1, 1]; uploads are fitted to this
+// Bounds of the built-in meshes in their own units (server/mesh/mesh.cpp); uploads report theirs.
+const BUILTIN_BOUNDS = {
+  sphere: { min: [-1, -1, -1], max: [1, 1, 1] },
+  cube: { min: [-1, -1, -1], max: [1, 1, 1] },
+  torus: { min: [-1.35, -0.35, -1.35], max: [1.35, 0.35, 1.35] },
+  prism: { min: [-0.866, -0.5, -1], max: [0.866, 1, 1] },
+};
 
 const $ = (id) => document.getElementById(id);
 const canvas = $('view');
-const ctx = canvas.getContext('2d', { willReadFrequently: true });
+const ctx = canvas.getContext('2d', { willReadFrequently: true, alpha: false });
 const stage = $('stage');
 
 const state = {
@@ -45,6 +56,13 @@ const state = {
   lightMode: false,
   drag: null,
   pointers: new Map(),
+  replacing: false,       // the scene is being replaced over HTTP (example, import): hold the WebSocket
+  newScene: false,        // the scene was replaced and its first frame is not drawn yet
+  frame: null,            // { bitmap, width, height }: the frame shown, kept to redraw on resize
+  lastPng: null,          // the PNG of the frame shown, for "Save PNG"
+  example: null,          // { name, doc }: the example the scene still is
+  meshBounds: {},         // uploaded mesh name -> bounds in its own units
+  ticker: null,
 };
 
 // Named one-shot timers (debounces); `settled` below waits for all of them.
@@ -74,10 +92,15 @@ const hooks = {
   maxInFlight: 0,
   doc: () => view(),
   lastQuality: null,
-  busy: () => Boolean(state.inflight || state.pendingQuality),
+  example: null,       // name of the example the scene still is
+  lastDraw: null,      // how the last frame was drawn: source and canvas sizes, smoothing
+  lastInteractiveDraw: null,
+  dims: 0,             // times the frame shown was dimmed for a pending one
+  downloads: 0,
+  busy: () => Boolean(state.inflight || state.pendingQuality || state.replacing),
   // Connected, nothing in flight or queued or about to be, and the last frame is a decoded still.
-  settled: () => hooks.connected && !state.inflight && !state.pendingQuality && timers.size === 0 &&
-    state.drawnToken === state.drawToken && hooks.lastQuality === 'still',
+  settled: () => hooks.connected && !state.inflight && !state.pendingQuality && !state.replacing &&
+    timers.size === 0 && state.drawnToken === state.drawToken && hooks.lastQuality === 'still',
 };
 window.refract = hooks;
 
@@ -90,7 +113,9 @@ function view() {
   return doc;
 }
 
-const controls = buildControls($('controls'), (patch, final) => edit(patch, final), { upload: uploadMesh });
+const controls = buildControls($('controls'), (patch, final) => edit(patch, final), {
+  upload: uploadMesh, meshPatch, loadExample, importScene, exportScene,
+});
 
 // Queues an edit (or, with a null patch, just a frame) and sends it when the link is free.
 function edit(patch, final) {
@@ -109,7 +134,16 @@ function scheduleViewUpdate() {
     viewUpdateQueued = false;
     controls.update(view());
     updateLightMarker();
+    checkExample();
   });
+}
+
+// The example's name stays shown while the scene is that example (the image size aside).
+const withoutImageSize = (doc) => S.applyMergePatch(doc, { image: { width: null, height: null } });
+function checkExample() {
+  if (state.example && !S.deepEqual(withoutImageSize(view()), state.example.doc)) state.example = null;
+  hooks.example = state.example?.name ?? null;
+  controls.example.showLoaded(hooks.example);
 }
 
 function requestFrame(quality = 'still') {
@@ -120,7 +154,8 @@ function requestFrame(quality = 'still') {
 
 function pump() {
   const ws = state.ws;
-  if (!ws || ws.readyState !== WebSocket.OPEN || state.inflight || !state.pendingQuality || !state.confirmed) return;
+  if (!ws || ws.readyState !== WebSocket.OPEN || state.inflight || state.replacing || !state.pendingQuality ||
+      !state.confirmed) return;
   const patch = state.pending ? S.prunePatch(state.confirmed, state.pending) : null;
   const quality = state.pendingQuality;
   const force = state.forceFrame;
@@ -147,7 +182,7 @@ function pump() {
     // No answer: assume the connection is wedged; reconnecting re-sends the edit.
     if (state.inflight?.seq === seq && state.ws === ws) ws.close(4000, 'request timed out');
   }, REQUEST_TIMEOUT_MS);
-  $('hud-quality').textContent = quality === 'interactive' ? 'rendering (interactive)…' : 'rendering…';
+  updateProgress();
 }
 
 // ---- WebSocket messages --------------------------------------------------------------------------
@@ -170,7 +205,13 @@ function onBinary(blob) {
     state.inflight = null;
     clearTimeout(state.watchdog);
     hooks.latencyMs = Math.round(performance.now() - inf.sentAt);
-    $('perf-latency').textContent = `${hooks.latencyMs} ms round trip`;
+    // An accepted edit makes earlier complaints stale: a failed upload, a frame that could not render.
+    if (inf.patch && !inf.retry) {
+      controls.mesh.clearError();
+      controls.file.clearError();
+      controls.file.status.textContent = '';
+      $('global-error').hidden = true;
+    }
   }
   if (typeof meta.revision === 'number') {
     const expected = state.confirmedRevision;
@@ -180,6 +221,8 @@ function onBinary(blob) {
     if (!consistent && expected !== null) resync();  // someone else edited the scene
   }
   state.lastFrame = { revision: state.confirmedRevision, quality };
+  state.lastPng = blob;
+  $('save-png').disabled = false;
   const token = ++state.drawToken;
   drawFrame(blob, meta, token, quality).catch((e) => console.warn('frame decode failed', e));
   pump();
@@ -189,12 +232,13 @@ async function drawFrame(blob, meta, token, quality) {
   const bitmap = await createImageBitmap(blob.type ? blob : new Blob([blob], { type: 'image/png' }));
   if (token < state.drawnToken) { bitmap.close(); return; }
   state.drawnToken = token;
-  if (canvas.width !== bitmap.width || canvas.height !== bitmap.height) {
-    canvas.width = bitmap.width;
-    canvas.height = bitmap.height;
-  }
-  ctx.drawImage(bitmap, 0, 0);
-  bitmap.close();
+  if (state.newScene && meta.revision >= state.confirmedRevision) state.newScene = false;
+  state.frame?.bitmap.close();
+  // The header says what this frame is; interactive frames (and, later, frames the daemon scales to
+  // meet its time budget) are smaller than the image the canvas shows.
+  state.frame = { bitmap, width: meta.width || bitmap.width, height: meta.height || bitmap.height };
+  paintFrame();
+  if (quality === 'interactive') hooks.lastInteractiveDraw = hooks.lastDraw;
   stage.classList.add('has-frame');
   const now = performance.now();
   // fps of a stream of frames: a pause of a second starts a new measurement.
@@ -207,7 +251,40 @@ async function drawFrame(blob, meta, token, quality) {
   hooks.lastMeta = meta;
   hooks.lastQuality = quality;
   showStats(meta, quality);
+  updateProgress();
   updateLightMarker();
+}
+
+// The canvas backing store follows its CSS size (times devicePixelRatio), whatever size frames come in.
+function sizeCanvas() {
+  const r = canvas.getBoundingClientRect();
+  const dpr = window.devicePixelRatio || 1;
+  const k = Math.min(dpr, MAX_CANVAS / Math.max(1, r.width, r.height));
+  const w = Math.max(1, Math.round(r.width * k));
+  const h = Math.max(1, Math.round(r.height * k));
+  if (canvas.width === w && canvas.height === h) return false;
+  canvas.width = w;
+  canvas.height = h;
+  return true;
+}
+
+// Draws the frame shown, scaled to fit the canvas (letterboxed) with smooth filtering.
+function paintFrame() {
+  sizeCanvas();
+  ctx.fillStyle = '#07090d';
+  ctx.fillRect(0, 0, canvas.width, canvas.height);
+  const f = state.frame;
+  if (!f) return;
+  const k = Math.min(canvas.width / f.width, canvas.height / f.height);
+  const w = f.width * k;
+  const h = f.height * k;
+  ctx.imageSmoothingEnabled = true;
+  ctx.imageSmoothingQuality = 'high';
+  ctx.drawImage(f.bitmap, 0, 0, f.bitmap.width, f.bitmap.height, (canvas.width - w) / 2, (canvas.height - h) / 2, w, h);
+  hooks.lastDraw = {
+    frame: [f.width, f.height], bitmap: [f.bitmap.width, f.bitmap.height], canvas: [canvas.width, canvas.height],
+    drawn: [Math.round(w), Math.round(h)], smoothing: ctx.imageSmoothingEnabled ? ctx.imageSmoothingQuality : 'off',
+  };
 }
 
 function onServerError(msg) {
@@ -233,7 +310,7 @@ function onServerError(msg) {
   if (msg.pointer === undefined || msg.pointer === null) resync();
   controls.update(view());
   updateLightMarker();
-  $('hud-quality').textContent = '';
+  updateProgress();
   pump();
 }
 
@@ -270,7 +347,7 @@ function announce(text) {
   requestAnimationFrame(() => { el.textContent = text; });
 }
 
-// ---- stats ---------------------------------------------------------------------------------------
+// ---- progress and stats ------------------------------------------------------------------------
 
 function fps() {
   const t = state.frameTimes;
@@ -279,46 +356,83 @@ function fps() {
   return span > 0 ? ((t.length - 1) * 1000) / span : null;
 }
 
-function showStats(meta, quality) {
-  const f = fps();
-  const took = state.frameTimes.length < 2 && hooks.latencyMs ? `${hooks.latencyMs} ms/frame` : null;
-  const fpsText = f === null ? (took || '— fps') : `${f.toFixed(f < 10 ? 1 : 0)} fps`;
-  $('hud-fps').textContent = fpsText;
-  $('perf-fps').textContent = fpsText;
-  $('hud-quality').textContent = quality === 'interactive' ? 'interactive' : '';
-  $('perf-rev').textContent = meta.revision ?? '—';
-  $('perf-size').textContent = meta.width && meta.height ? `${meta.width}×${meta.height}` : `${canvas.width}×${canvas.height}`;
+const duration = (ms) => (ms >= 1000 ? `${(ms / 1000).toFixed(ms < 10_000 ? 1 : 0)} s` : `${Math.round(ms)} ms`);
 
+// The line over the image: what the client is waiting for, or what the last frame was. Runs on events
+// and, while a frame is pending, a few times a second (elapsed time, dimming).
+function updateProgress() {
+  const el = $('hud-status');
+  const inf = state.inflight;
+  const now = performance.now();
+  const f = fps();
+  const streaming = f !== null && now - state.frameTimes[state.frameTimes.length - 1] < 1000;
+  let text;
+  if (!hooks.connected) {
+    text = $('conn').textContent;
+  } else if (state.replacing) {
+    text = 'Loading the scene…';
+  } else if (inf) {
+    const waited = now - inf.sentAt;
+    text = inf.quality === 'still' ? `Rendering still… ${duration(waited)}` : `Rendering preview… ${duration(waited)}`;
+    // A stream of previews (dragging, wheel, keys): how many arrive per second.
+    if (streaming && inf.quality === 'interactive') text = `${f.toFixed(f < 10 ? 1 : 0)} fps · ${text}`;
+  } else if (hooks.lastQuality) {
+    const took = hooks.latencyMs ? `, ${duration(hooks.latencyMs)}` : '';
+    text = hooks.lastQuality === 'still' ? `Still frame${took}` : `Preview frame${took}`;
+  } else {
+    text = 'Waiting for the first frame…';
+  }
+  el.textContent = text;
+  el.dataset.state = !hooks.connected ? 'offline' : inf || state.replacing ? 'busy' : 'idle';
+  const dim = Boolean((inf && !state.drag && now - inf.sentAt > DIM_AFTER_MS) || state.replacing || state.newScene);
+  const dimmed = dim && Boolean(state.frame);
+  if (dimmed && !stage.classList.contains('pending')) hooks.dims++;
+  stage.classList.toggle('pending', dimmed);
+  if ((inf || state.replacing) && !state.ticker) {
+    state.ticker = setInterval(updateProgress, 200);
+  } else if (!inf && !state.replacing && state.ticker) {
+    clearInterval(state.ticker);
+    state.ticker = null;
+  }
+}
+
+const passClass = (name) => `pass pass-${String(name).replace(/[^a-z_]/g, '')}`;
+
+// The strip under the image: the last frame, and the time each pass took (the last frame that ran any).
+function showStats(meta, quality) {
+  const size = meta.width && meta.height ? `${meta.width}×${meta.height}` : '';
+  const what = quality === 'interactive' ? 'Preview' : 'Still';
+  const parts = [`${what} ${size}`.trim(), `revision ${meta.revision ?? '—'}`];
+  if (meta.cached) parts.push('already rendered: timings of its render');
   const timings = meta.timings && typeof meta.timings === 'object' ? meta.timings : {};
-  $('perf-cached').hidden = !meta.cached;
-  // A cached frame ran no pass: keep showing the timings of the frame that did.
-  if (meta.cached && Object.keys(timings).length === 0) return;
+  if (meta.cached && Object.keys(timings).length === 0) {
+    $('frame-summary').textContent = `${parts.join(' · ')}`;
+    return;
+  }
   let names = [];
   if (Array.isArray(meta.passes)) names = meta.passes.map((p) => (typeof p === 'string' ? p : p?.name)).filter(Boolean);
   for (const k of Object.keys(timings)) if (!names.includes(k)) names.push(k);
-  const ms = (name) => {
-    const v = timings[name] ?? meta.passes?.find?.((p) => p?.name === name)?.ms;
-    return typeof v === 'number' ? v : null;
-  };
+  const ms = (name) => (typeof timings[name] === 'number' ? timings[name] : null);
   const total = names.reduce((sum, n) => sum + (ms(n) || 0), 0);
-  const rows = names.map((name) => {
+  if (names.length) parts.push(`passes ${duration(total)}`);
+  $('frame-summary').textContent = parts.join(' · ');
+  const segments = [];
+  const items = names.map((name) => {
     const v = ms(name);
-    const tr = document.createElement('tr');
-    const th = document.createElement('th');
-    th.scope = 'row';
-    th.textContent = name;
-    const td = document.createElement('td');
-    td.textContent = v === null ? '—' : v.toFixed(v < 10 ? 2 : 1);
-    const bar = document.createElement('td');
-    bar.className = 'bar';
-    const fill = document.createElement('span');
-    fill.style.width = `${total > 0 && v ? Math.max(1, (100 * v) / total) : 0}%`;
-    bar.append(fill);
-    tr.append(th, td, bar);
-    return tr;
+    const share = total > 0 && v ? (100 * v) / total : 0;
+    const seg = document.createElement('span');
+    seg.className = passClass(name);
+    seg.style.width = `${share}%`;
+    seg.title = `${name}: ${v === null ? '—' : duration(v)}`;
+    segments.push(seg);
+    const li = document.createElement('li');
+    li.className = passClass(name);
+    li.dataset.pass = name;
+    li.textContent = `${name} ${v === null ? '—' : duration(v)}`;
+    return li;
   });
-  $('timings').tBodies[0].replaceChildren(...rows);
-  $('timings-total').textContent = names.length ? total.toFixed(1) : '—';
+  $('passbar').replaceChildren(...segments);
+  $('timings').replaceChildren(...items);
 }
 
 // ---- HTTP ----------------------------------------------------------------------------------------
@@ -433,6 +547,7 @@ async function refreshMeshes() {
     const list = await api('GET', '/api/meshes');
     const items = Array.isArray(list) ? list : (list?.meshes || []);
     const names = items.map((m) => (typeof m === 'string' ? m : m?.name)).filter(Boolean).sort();
+    for (const m of items) if (m?.name && m.bounds) state.meshBounds[m.name] = m.bounds;
     controls.mesh.setMeshes(names);
     controls.mesh.update(view());
   } catch { /* the built-in meshes still work */ }
@@ -443,10 +558,25 @@ function meshNameFor(fileName) {
   return (base || 'mesh').slice(0, 48);
 }
 
+// Bounds of a mesh reference in its own units, when known.
+function boundsOf(mesh) {
+  if (typeof mesh !== 'string') return null;
+  return mesh.startsWith('upload:') ? state.meshBounds[mesh.slice(7)] || null : BUILTIN_BOUNDS[mesh] || null;
+}
+
+// The edit that picks `mesh`: unless the user keeps its own units, it is fitted to the default object
+// size with its centre where the object's origin is (object.position [0, 0, 0]).
+function meshPatch(mesh) {
+  const bounds = boundsOf(mesh);
+  if (controls.mesh.keepUnits.checked || !bounds) return { object: { mesh } };
+  const { scale, position } = S.fitObject(bounds, OBJECT_SIZE, view().object?.rotation_deg);
+  return { object: { mesh, scale, position } };
+}
+
 async function uploadMesh(file, field) {
   const name = meshNameFor(file.name);
   field.clearError();
-  field.status.textContent = `Uploading ${file.name}…`;
+  field.setStatus(`Uploading ${file.name}…`);
   try {
     const text = await file.text();
     const info = await api('PUT', `/api/meshes/${encodeURIComponent(name)}`, text, 'model/obj');
@@ -455,14 +585,23 @@ async function uploadMesh(file, field) {
     if (typeof info?.vertices === 'number') facts.push(`${info.vertices} vertices`);
     if (info?.watertight === false) facts.push(`not watertight: ${info.boundary_edges ?? 'some'} open edges`);
     else if (info?.watertight === true) facts.push('watertight');
-    field.status.textContent = `Uploaded “${name}”${facts.length ? ` (${facts.join(', ')})` : ''}.`;
+    if (info?.bounds) {
+      state.meshBounds[name] = info.bounds;
+      const size = Number(Math.max(...[0, 1, 2].map((i) => info.bounds.max[i] - info.bounds.min[i])).toPrecision(3));
+      facts.push(`${size} unit${size === 1 ? '' : 's'} across`);
+    }
     hooks.meshUploads++;
     hooks.lastUpload = { name, info };
     await refreshMeshes();
-    edit({ object: { mesh: `upload:${name}` } }, true);
+    const patch = meshPatch(`upload:${name}`);
+    const fitted = patch.object.scale !== undefined;
+    field.setStatus(`Uploaded “${name}”${facts.length ? ` (${facts.join(', ')})` : ''}` +
+      (fitted ? `; scaled by ${patch.object.scale} to fit ${OBJECT_SIZE} m and centred.` : '; in its own units.'),
+    patch.object.mesh);
+    edit(patch, true);
     controls.mesh.update(view());
   } catch (e) {
-    field.status.textContent = '';
+    field.setStatus('');
     const message = `${file.name}: ${e.message}`;
     field.setError(message);
     field.el.scrollIntoView({ block: 'nearest' });
@@ -472,7 +611,116 @@ async function uploadMesh(file, field) {
   }
 }
 
-// ---- connection ----------------------------------------------------------------------------------
+// ---- whole scenes: examples, import, export, the frame as PNG ------------------------------------
+
+async function refreshExamples() {
+  try {
+    const list = await api('GET', '/api/examples');
+    controls.example.setExamples(Array.isArray(list?.examples) ? list.examples : []);
+    checkExample();
+  } catch { /* an older daemon: no examples */ }
+}
+
+const untilIdle = async () => {
+  const deadline = performance.now() + REQUEST_TIMEOUT_MS;
+  while (state.inflight && performance.now() < deadline) await new Promise((r) => setTimeout(r, 30));
+};
+
+// Makes the scene the document `getDoc()` gives (a whole document; members it leaves out take their
+// defaults), keeping the image size the canvas asks for. Goes over HTTP (PATCH), which answers the full
+// document; the WebSocket is held meanwhile, and edits not yet sent are dropped (the new scene replaces
+// them). Throws what `getDoc` throws, or HttpError.
+async function replaceScene(getDoc) {
+  state.replacing = true;
+  updateProgress();
+  try {
+    const doc = await getDoc();
+    await untilIdle();
+    const wanted = S.applyMergePatch(doc, { image: desiredImageSize() });
+    const patch = S.replacementPatch(state.confirmed, wanted) || {};
+    const got = await api('PATCH', `/api/scenes/${encodeURIComponent(state.sceneId)}`, patch,
+      'application/merge-patch+json');
+    state.pending = null;
+    state.newScene = true;
+    state.confirmed = got.scene;
+    state.confirmedRevision = got.revision;
+    controls.clearErrors();
+    controls.update(view(), { force: true });
+    updateLightMarker();
+    return got;
+  } finally {
+    state.replacing = false;
+    requestFrame('still');
+    updateProgress();
+  }
+}
+
+// A scene-level failure (a file that is not JSON, a document the daemon refuses) is shown at `field`.
+function sceneError(field, what, e) {
+  const where = e?.pointer ? ` (${e.pointer})` : '';
+  const message = `${what}: ${e?.message || e}${where}`;
+  field.setError(message);
+  hooks.lastError = { error: message, pointer: e?.pointer ?? null, seq: null };
+  hooks.errors++;
+  announce(message);
+}
+
+async function loadExample(name, field) {
+  field.clearError();
+  try {
+    const got = await replaceScene(() => api('GET', `/api/examples/${encodeURIComponent(name)}`));
+    state.example = { name, doc: withoutImageSize(got.scene) };
+    checkExample();
+    announce(`Loaded the example ${name}`);
+  } catch (e) {
+    sceneError(field, `Example “${name}”`, e);
+  }
+}
+
+async function importScene(file, field) {
+  field.clearError();
+  field.status.textContent = `Reading ${file.name}…`;
+  try {
+    await replaceScene(async () => {
+      let doc;
+      try { doc = JSON.parse(await file.text()); } catch (e) { throw new Error(`not JSON (${e.message})`); }
+      if (!S.isObject(doc)) throw new Error('not a scene document (a JSON object)');
+      return doc;
+    });
+    field.status.textContent = `Imported ${file.name}.`;
+    hooks.imports = (hooks.imports || 0) + 1;
+    checkExample();
+  } catch (e) {
+    field.status.textContent = '';
+    sceneError(field, file.name, e);
+  }
+}
+
+function download(blob, fileName) {
+  const url = URL.createObjectURL(blob);
+  const a = document.createElement('a');
+  a.href = url;
+  a.download = fileName;
+  document.body.append(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 1000);
+  hooks.downloads++;
+}
+
+function exportScene(field) {
+  const doc = view();
+  download(new Blob([JSON.stringify(doc, null, 2) + '\n'], { type: 'application/json' }), `refract-${state.sceneId}.json`);
+  field.status.textContent = `Exported revision ${state.confirmedRevision} as refract-${state.sceneId}.json.`;
+}
+
+function savePng() {
+  if (!state.lastPng) return;
+  const blob = state.lastPng.type ? state.lastPng : new Blob([state.lastPng], { type: 'image/png' });
+  download(blob, `refract-${state.sceneId}-r${hooks.lastRevision ?? 0}.png`);
+}
+
+// ---- connection ----// ---- connection ----------------------------------------------------------------------------------
 
 function setConn(kind, text) {
   const el = $('conn');
@@ -480,6 +728,7 @@ function setConn(kind, text) {
   el.textContent = text;
   hooks.connected = kind === 'live';
   stage.classList.toggle('offline', kind !== 'live');
+  updateProgress();
 }
 
 function stageMessage(text) {
@@ -513,6 +762,7 @@ async function connect() {
     return;
   }
   refreshMeshes();
+  refreshExamples();
   const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
   const url = `${proto}//${location.hostname}:${state.wsPort}/api/scenes/${encodeURIComponent(state.sceneId)}/ws` +
     (TOKEN ? `?token=${encodeURIComponent(TOKEN)}` : '');
@@ -578,6 +828,7 @@ function checkImageSize(silent = false) {
 }
 
 new ResizeObserver(() => {
+  if (sizeCanvas()) paintFrame();
   updateLightMarker();
   later('resize', () => checkImageSize(), 250);
 }).observe(stage);
@@ -602,6 +853,19 @@ function zoomCamera(factor, final) {
   edit({ camera: { position: S.roundVec(S.dolly(cam.position, cam.target, factor)) } }, final);
 }
 
+// Aims the camera at the object and sets its distance so the whole object fits the view.
+function frameObject() {
+  const doc = view();
+  const object = doc.object || {};
+  const bounds = boundsOf(object.mesh) || BUILTIN_BOUNDS.sphere;
+  const { center, radius } = S.placedBounds(bounds, object);
+  const image = doc.image || {};
+  const cam = cameraOf(doc);
+  const target = S.roundVec(center, 5);
+  const position = S.roundVec(S.framePosition(cam, center, radius, (image.width || 1) / (image.height || 1)), 5);
+  edit({ camera: { target, position } }, true);
+}
+
 function moveLight(dAz, dEl, final) {
   const doc = view();
   const target = cameraOf(doc).target;
@@ -622,10 +886,11 @@ function setLightMode(on) {
   updateLightMarker();
 }
 
-// Where the image sits inside the canvas element (object-fit: contain).
+// Where the image sits inside the canvas element (CSS pixels; letterboxed as paintFrame draws it).
 function imageRect() {
   const r = canvas.getBoundingClientRect();
-  const aspect = canvas.width / canvas.height;
+  const image = view().image || {};
+  const aspect = state.frame ? state.frame.width / state.frame.height : (image.width || 1) / (image.height || 1);
   let w = r.width;
   let h = r.height;
   if (w / h > aspect) w = h * aspect; else h = w / aspect;
@@ -724,6 +989,9 @@ canvas.addEventListener('keydown', (e) => {
     zoomCamera(1 / ZOOM_STEP, false);
   } else if (e.key === '-' || e.key === '_' || e.key === 'PageDown') {
     zoomCamera(ZOOM_STEP, false);
+  } else if ((e.key === 'f' || e.key === 'F') && !e.ctrlKey && !e.metaKey && !e.altKey) {
+    frameObject();
+    return void e.preventDefault();
   } else if ((e.key === 'l' || e.key === 'L') && !e.ctrlKey && !e.metaKey && !e.altKey) {
     setLightMode(!state.lightMode);
     announce(state.lightMode ? 'Light mode on' : 'Light mode off');
@@ -740,6 +1008,8 @@ $('mode-light').addEventListener('click', () => setLightMode(!state.lightMode));
 $('zoom-in').addEventListener('click', () => zoomCamera(1 / ZOOM_STEP, true));
 $('zoom-out').addEventListener('click', () => zoomCamera(ZOOM_STEP, true));
 $('still-btn').addEventListener('click', () => requestFrame('still'));
+$('frame-object').addEventListener('click', frameObject);
+$('save-png').addEventListener('click', savePng);
 
 window.addEventListener('keydown', (e) => {
   if (e.key === 'Shift') stage.classList.add('shift');
@@ -751,7 +1021,6 @@ window.addEventListener('keyup', (e) => {
 // ---- start ---------------------------------------------------------------------------------------
 
 setLightMode(false);
-ctx.fillStyle = '#07090d';
-ctx.fillRect(0, 0, canvas.width, canvas.height);
+paintFrame();
 stageMessage('Connecting to refractd…');
 connect();

@@ -102,6 +102,25 @@ export function removeFromPatch(patch, pointer) {
   return walk(deepClone(patch), 0);
 }
 
+// A merge patch that turns `current` into `target`: members `target` lacks are deleted (null: the daemon
+// restores their defaults), the rest set where they differ. Null when nothing differs.
+export function replacementPatch(current, target) {
+  if (!isObject(current) || !isObject(target)) return deepEqual(current, target) ? null : deepClone(target);
+  const out = {};
+  for (const key of Object.keys(current)) {
+    if (!(key in target)) out[key] = null;
+  }
+  for (const [key, value] of Object.entries(target)) {
+    if (value === null) {
+      if (key in current) out[key] = null;
+      continue;
+    }
+    const kept = replacementPatch(current[key], value);
+    if (kept !== null) out[key] = kept;
+  }
+  return Object.keys(out).length ? out : null;
+}
+
 // Every leaf pointer of a patch (arrays count as leaves).
 export function patchPointers(patch, prefix = '') {
   if (!isObject(patch)) return [prefix];
@@ -147,10 +166,51 @@ export function orbit(point, center, dAzimuth, dElevation, fallbackRadius = 3) {
 }
 
 // Moves `point` towards/away from `center` by `factor`, clamped to [minR, maxR].
-export function dolly(point, center, factor, minR = 0.3, maxR = 60) {
+export function dolly(point, center, factor, minR = 0.05, maxR = 5000) {
   const s = toSpherical(point, center);
   s.radius = Math.max(minR, Math.min(maxR, (s.radius || 1) * factor));
   return fromSpherical(center, s);
+}
+
+// `v` turned by XYZ Euler angles in degrees, X first, then Y, then Z (as object.rotation_deg is applied).
+export function rotateXYZ(v, deg) {
+  const [x, y, z] = (deg || [0, 0, 0]).map((d) => d * DEG);
+  let [a, b, c] = v;
+  [b, c] = [b * Math.cos(x) - c * Math.sin(x), b * Math.sin(x) + c * Math.cos(x)];
+  [a, c] = [a * Math.cos(y) + c * Math.sin(y), -a * Math.sin(y) + c * Math.cos(y)];
+  [a, b] = [a * Math.cos(z) - b * Math.sin(z), a * Math.sin(z) + b * Math.cos(z)];
+  return [a, b, c];
+}
+
+// Where an object's mesh, with bounds `{min, max}` in its own units, lies in the world: the centre and
+// radius of a sphere around its placed bounding box (object.position, rotation_deg, scale applied).
+export function placedBounds(bounds, object) {
+  const s = object.scale ?? 1;
+  const corners = [0, 1, 2, 3, 4, 5, 6, 7].map((k) => [0, 1, 2].map((i) => ((k >> i) & 1 ? bounds.max[i] : bounds.min[i])));
+  const placed = corners.map((p) => add(object.position || [0, 0, 0], rotateXYZ(scale(p, s), object.rotation_deg)));
+  const lo = [0, 1, 2].map((i) => Math.min(...placed.map((p) => p[i])));
+  const hi = [0, 1, 2].map((i) => Math.max(...placed.map((p) => p[i])));
+  const center = scale(add(lo, hi), 0.5);
+  return { center, radius: Math.max(1e-6, ...placed.map((p) => length(sub(p, center)))) };
+}
+
+// Scale and position that fit a mesh with bounds `{min, max}` to `size` (its longest side) with its
+// centre at the origin, for the given rotation.
+export function fitObject(bounds, size, rotationDeg) {
+  const extent = Math.max(...[0, 1, 2].map((i) => bounds.max[i] - bounds.min[i]));
+  const s = extent > 0 ? Number((size / extent).toPrecision(4)) : 1;
+  const center = scale(add(bounds.min, bounds.max), 0.5);
+  return { scale: s, position: roundVec(scale(rotateXYZ(scale(center, s), rotationDeg), -1), 5) };
+}
+
+// The camera position that keeps the viewing direction, aims at `center` and fits a sphere of `radius`
+// in a view of vertical field `fovDeg` and aspect `aspect` (width / height), with `margin` to spare.
+export function framePosition(camera, center, radius, aspect, margin = 1.15) {
+  const half = (camera.fov_deg || 35) * DEG / 2;
+  const narrowest = Math.min(half, Math.atan(Math.tan(half) * Math.min(1, aspect || 1)));
+  const direction = normalize(sub(camera.position, camera.target));
+  const d = direction[0] || direction[1] || direction[2] ? direction : [0, 0, 1];
+  return add(center, scale(d, (radius * margin) / Math.sin(narrowest)));
 }
 
 // Projects a world point into normalised device coordinates for a camera as in the scene document.
