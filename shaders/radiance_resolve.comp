@@ -12,9 +12,16 @@ layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
 #include "radiance_sums.glsl"
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) readonly buffer AccumFloor { uint accum_floor[]; };
-layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform writeonly image3D radiance;
-layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform writeonly image3D flux;
-layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D floor_map;
+layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform image3D radiance;
+layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform image3D flux;
+layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform image3D floor_map;
+
+// A refinement batch joins the running mean of the batches before it (refinement.x = 1/batches); the
+// first replaces whatever the images held.
+vec4 batch_mean(vec4 before, vec4 batch) {
+    float weight = params.refinement.x;
+    return weight < 1.0 ? mix(before, batch, weight) : batch;
+}
 
 layout(constant_id = RESOLVE_CONSTANT_FLOOR) const bool kFloorMap = false;
 
@@ -48,9 +55,9 @@ void resolve_voxel(uint i) {
         uint64_t rg = accum_rg.words[i];
         vec3 colour = vec3(float(uint(rg & 0xffffffffUL)), float(uint(rg >> 32)), blue);
         mean = (colour.r + colour.g + colour.b) * (1.0 / 3.0);
-        imageStore(radiance, v, vec4(colour * to_fluence, 0.0));
+        imageStore(radiance, v, batch_mean(imageLoad(radiance, v), vec4(colour * to_fluence, 0.0)));
     }
-    imageStore(flux, v, vec4(net * to_fluence, mean * to_fluence));
+    imageStore(flux, v, batch_mean(imageLoad(flux, v), vec4(net * to_fluence, mean * to_fluence)));
 }
 
 void resolve_floor_texel(uint texel) {
@@ -62,7 +69,8 @@ void resolve_floor_texel(uint texel) {
     // Signed sums (two's complement in uint): the grid both removes and adds floor light.
     vec3 irradiance = vec3(float(int(accum_floor[3u * texel])), float(int(accum_floor[3u * texel + 1u])),
                            float(int(accum_floor[3u * texel + 2u]))) * to_irradiance;
-    imageStore(floor_map, ivec3(texel % side, texel / side, 0), vec4(irradiance, 0.0));
+    ivec3 t = ivec3(texel % side, texel / side, 0);
+    imageStore(floor_map, t, batch_mean(imageLoad(floor_map, t), vec4(irradiance, 0.0)));
 }
 
 // Two dispatches, one per job (kFloorMap): lavapipe would run both jobs' code in every invocation.

@@ -12,7 +12,7 @@ layout(local_size_x = VIEW_GROUP_SIZE, local_size_y = VIEW_GROUP_SIZE) in;
 layout(binding = TRANSPORT_BINDING_RADIANCE) uniform sampler3D radiance;
 layout(binding = TRANSPORT_BINDING_FLUX) uniform sampler3D flux;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
-layout(std430, binding = TRANSPORT_BINDING_HDR) writeonly buffer Hdr { vec4 hdr[]; };
+layout(std430, binding = TRANSPORT_BINDING_HDR) buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
 layout(std430, binding = TRANSPORT_BINDING_REFINE) readonly buffer Refine {
     WorkListHeader refine;
@@ -87,8 +87,8 @@ void shade(uvec2 pixel) {
     uint width = params.image.x, height = params.image.y;
     float tan_half = params.camera_position.w;
     float aspect = float(width) / float(height);
-    vec2 ndc = vec2((2.0 * (float(pixel.x) + 0.5) / float(width) - 1.0) * aspect,
-                    1.0 - 2.0 * (float(pixel.y) + 0.5) / float(height)) * tan_half;
+    vec2 at = vec2(pixel) + 0.5 + params.refinement.zw;  // the sample's point in the pixel
+    vec2 ndc = vec2((2.0 * at.x / float(width) - 1.0) * aspect, 1.0 - 2.0 * at.y / float(height)) * tan_half;
     vec3 d = normalize(params.camera_forward.xyz + ndc.x * params.camera_right.xyz + ndc.y * params.camera_up.xyz);
     vec3 position = params.camera_position.xyz;  // world, where the straight part of the ray resumes
     bool floor_on = floor_enabled();
@@ -213,7 +213,9 @@ void shade(uvec2 pixel) {
     }
     atomicAdd(stats.view_steps, march_steps);
     uint index = pixel.y * width + pixel.x;
-    hdr[index] = vec4(pixel_radiance, 1.0);
+    // Refinement samples keep the frame the running mean of every sample so far (a box filter).
+    float weight = params.refinement.y;
+    hdr[index] = vec4(weight < 1.0 ? mix(hdr[index].rgb, pixel_radiance, weight) : pixel_radiance, 1.0);
 }
 
 // The queue runs through the image (or its coarse pixels) tile by tile (view_tiles.glsl). Listed pixels

@@ -101,21 +101,46 @@ TEST_F(RendererTest, AnExposureEditOnlyToneMapsTheResidentFrame) {
     EXPECT_NE(retoned.png, renderer.render("a", doc, no_assets).png);
 }
 
-// Interactive frames deposit photons into a coarser radiance grid. With 4096 photons and a 32-pixel
+// A refinement level is the same bytes however it was reached: step by step, straight from nothing, or
+// after a lower level was asked for again; and each level past the first changes the frame.
+TEST_F(RendererTest, RefinementLevelsAreDeterministicHoweverTheyAreReached) {
+    const SceneDocument doc = small();
+    Renderer stepped(*context);
+    std::vector<std::vector<uint8_t>> frames;
+    for (uint32_t level = 1; level <= kMaxPhotonBatches + 2; ++level) {
+        const FrameResult frame = stepped.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level});
+        EXPECT_EQ(frame.level, level);
+        EXPECT_EQ(frame.refinement.photon_batches, std::min(level, kMaxPhotonBatches));
+        EXPECT_EQ(frame.refinement.samples_per_pixel, level > kMaxPhotonBatches ? level - kMaxPhotonBatches + 1 : 1u);
+        EXPECT_EQ(frame.rerun, level == 1 ? kAllPasses : level <= kMaxPhotonBatches ? kPhotons | kView | kToneMap
+                                                                                     : kView | kToneMap);
+        if (!frames.empty()) {
+            EXPECT_NE(frame.png, frames.back()) << "level " << level;
+        }
+        frames.push_back(frame.png);
+    }
+    Renderer direct(*context);
+    EXPECT_EQ(direct.render("b", doc, no_assets, {Quality::still, kDefaultBudgetMs, kMaxPhotonBatches + 2}).png,
+              frames.back());
+    EXPECT_EQ(direct.render("b", doc, no_assets, {Quality::still, kDefaultBudgetMs, 3}).png, frames[2]);
+    EXPECT_EQ(direct.render("b", doc, no_assets).png, frames[0]);
+}
+
+// Interactive frames deposit photons into a coarser radiance grid.// Interactive frames deposit photons into a coarser radiance grid. With 4096 photons and a 32-pixel
 // image the interactive document is the still one (nothing to halve or quarter), so only the grid's
 // resolution differs: switching quality must still rerun photons and view, and the still frame after
 // an interactive one must be the first still frame to the byte.
 TEST_F(RendererTest, SwitchingQualityRerunsPhotonsIntoTheRightGrid) {
     Renderer renderer(*context);
     const SceneDocument doc = small({{"photons", {{"count", 4096}}}});
-    const FrameResult still = renderer.render("a", doc, no_assets, Quality::still);
-    const FrameResult interactive = renderer.render("a", doc, no_assets, Quality::interactive);
+    const FrameResult still = renderer.render("a", doc, no_assets, {Quality::still});
+    const FrameResult interactive = renderer.render("a", doc, no_assets, {Quality::interactive});
     EXPECT_EQ(interactive.rerun, kPhotons | kView | kToneMap);
     EXPECT_NE(interactive.png, still.png);
-    const FrameResult again = renderer.render("a", doc, no_assets, Quality::still);
+    const FrameResult again = renderer.render("a", doc, no_assets, {Quality::still});
     EXPECT_EQ(again.rerun, kPhotons | kView | kToneMap);
     EXPECT_EQ(again.png, still.png);
-    EXPECT_EQ(renderer.render("a", doc, no_assets, Quality::still).rerun, 0u);
+    EXPECT_EQ(renderer.render("a", doc, no_assets, {Quality::still}).rerun, 0u);
 }
 
 // Extinction that differs by channel switches the resident scene from grey to coloured transport (a
@@ -141,7 +166,7 @@ TEST_F(RendererTest, SwitchingBetweenGreyColouredAndDispersiveTransportMatchesFr
     EXPECT_NE(switched.png, first.png);
     EXPECT_NE(dispersed.png, first.png);
     // Dragging a dispersive scene: sampled deposits into the coarse grid, adaptive pixels, three paths.
-    const FrameResult dragged = fresh.render("c", dispersive, no_assets, Quality::interactive);
+    const FrameResult dragged = fresh.render("c", dispersive, no_assets, {Quality::interactive});
     EXPECT_EQ(dragged.rerun, kPhotons | kView | kToneMap);
     EXPECT_FALSE(dragged.png.empty());
 }

@@ -1022,5 +1022,86 @@ TEST_F(ViewTest, DispersiveChannelsMatchTheirOwnIndex) {
     }
 }
 
+// Progressive refinement (renderer.h): photon batches with new seeds join the radiance grid's running
+// mean, so the photon noise of the linear frame falls as 1/sqrt(batches). The reference is the same
+// frame refined on to 64 batches (its first 16 are the 16 under test): with batch noise s, frame 16
+// differs from it by 3/4 (mean of 16 - mean of the other 48), s sqrt(0.5625 (1/16 + 1/48)) = 0.217 s,
+// and frame 1 by 63/64 (batch 0 - mean of the other 63), 0.992 s: a ratio of 0.218. The bound, 0.3, is
+// the (1/sqrt(16) plus slack); it leaves room for the noise of the RMS estimates themselves
+// (the error fields are smooth, so a frame holds few independent samples of them).
+TEST_F(ViewTest, PhotonBatchesConvergeAsOneOverTheSquareRootOfTheirCount) {
+    const SceneDocument doc = example("ball_lens_fog.json", {{"image", {{"width", 96}, {"height", 96}}},
+                                                             {"volume", {{"resolution", 64}}},
+                                                             {"photons", {{"count", 16384}}}});
+    auto linear_after = [&](const SceneDocument& d, uint32_t batches) {
+        scene::SceneGpu gpu(kit());
+        gpu.run(scene::kAllPasses, d, world_mesh(d), nullptr);
+        for (uint32_t b = 1; b < batches; ++b) {
+            scene::RunOptions options;
+            options.photon_batch = b;
+            gpu.run(scene::kPhotons, d, world_mesh(d), nullptr, options);
+        }
+        return gpu.read_hdr();
+    };
+    const auto reference = linear_after(doc, 64);
+    const auto rms_against_reference = [&](const std::vector<glm::vec4>& frame) {
+        double sum = 0.0;
+        for (size_t i = 0; i < frame.size(); ++i) {
+            const double d = grey(frame[i]) - grey(reference[i]);
+            sum += d * d;
+        }
+        return std::sqrt(sum / static_cast<double>(frame.size()));
+    };
+    const double first = rms_against_reference(linear_after(doc, 1));
+    const double sixteen = rms_against_reference(linear_after(doc, 16));
+    ASSERT_GT(first, 0.0);
+    EXPECT_LE(sixteen, 0.3 * first) << "first batch " << first << ", sixteen " << sixteen;
+    RecordProperty("rms_ratio_16_batches", std::to_string(sixteen / first));
+}
+
+// Jittered eye-ray samples average over each pixel's square: a silhouette's pixels take the fraction of
+// their area each side covers. Against a reference that traces a 4 x 4 grid of points per pixel (an
+// image four times the size, box-filtered), 16 Halton samples leave any pixel off by at most the
+// points' discrepancy over an edge, about 1/4 of the contrast for 16 points, where one sample at the
+// centre is off by up to the whole contrast (1/2 on average at edge pixels).
+TEST_F(ViewTest, JitteredSamplesAntiAliasSilhouettes) {
+    json scene = {{"camera", {{"position", {0.3, 0.4, 3.0}}, {"target", {0, 0, 0}}, {"fov_deg", 30}}},
+                  {"image", {{"width", 64}, {"height", 64}, {"exposure", 0}}},
+                  {"object", {{"mesh", "cube"}, {"scale", 0.5}, {"extinction", {4, 4, 4}}, {"rotation_deg", {0, 20, 10}}}},
+                  {"medium", {{"scattering", {0, 0, 0}}, {"extinction", {0, 0, 0}}}},
+                  {"volume", {{"resolution", 48}}},
+                  {"photons", {{"count", 4096}}},
+                  {"floor", {{"enabled", false}}}};
+    const SceneDocument doc = document(scene);
+    scene::SceneGpu gpu(kit());
+    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+    const auto single = gpu.read_hdr();
+    for (uint32_t s = 1; s < 16; ++s) {
+        scene::RunOptions options;
+        options.view_sample = s;
+        gpu.run(scene::kView, doc, world_mesh(doc), nullptr, options);
+    }
+    const auto averaged = gpu.read_hdr();
+    scene["image"]["width"] = scene["image"]["height"] = 256;
+    const SceneDocument fine = document(scene);
+    scene::SceneGpu fine_gpu(kit());
+    fine_gpu.run(scene::kAllPasses, fine, world_mesh(fine), nullptr);
+    const auto fine_frame = fine_gpu.read_hdr();
+    double contrast = 0.0, worst_single = 0.0, worst_averaged = 0.0;
+    for (uint32_t y = 0; y < 64; ++y)
+        for (uint32_t x = 0; x < 64; ++x) {
+            double box = 0.0;
+            for (uint32_t j = 0; j < 4; ++j)
+                for (uint32_t i = 0; i < 4; ++i) box += grey(fine_frame[(4 * y + j) * 256 + 4 * x + i]) / 16.0;
+            const size_t p = y * 64 + x;
+            contrast = std::max(contrast, grey(fine_frame[4 * y * 256 + 4 * x]));
+            worst_single = std::max(worst_single, std::abs(grey(single[p]) - box));
+            worst_averaged = std::max(worst_averaged, std::abs(grey(averaged[p]) - box));
+        }
+    ASSERT_GT(contrast, 0.0);
+    EXPECT_GT(worst_single, 0.3 * contrast) << "the scene must have silhouettes to smooth";
+    EXPECT_LE(worst_averaged, 0.25 * contrast) << "one sample: " << worst_single / contrast;
+}
+
 }  // namespace
 }  // namespace refract

@@ -75,7 +75,7 @@ int run(const http::DaemonConfig& config) {
     queue_options.max_waiters = config.max_queue;
     if (renderer) {
         render = [&](const scene::FrameRequest& request) {
-            return renderer->render(request.scene_id, request.document, assets, request.quality, request.budget_ms);
+            return renderer->render(request.scene_id, request.document, assets, request.options);
         };
         queue_options.evict = [&](const std::string& scene_id) { renderer->evict(scene_id); };
         queue_options.on_rendered = [&](const scene::FrameRequest&, const scene::FrameResult& frame) {

@@ -107,6 +107,16 @@ float octree_epsilon(const protocol::SceneDocument& document) {
     return static_cast<float>(document.volume.octree_epsilon) / std::max({scales.r, scales.g, scales.b, 1.0f});
 }
 
+glm::vec2 view_sample_offset(uint32_t index) {
+    if (index == 0) return glm::vec2(0.0f);
+    auto radical_inverse = [](uint32_t i, uint32_t base) {
+        float inverse = 1.0f / static_cast<float>(base), f = inverse, r = 0.0f;
+        for (; i > 0; i /= base, f *= inverse) r += f * static_cast<float>(i % base);
+        return r;
+    };
+    return glm::vec2(radical_inverse(index, 2), radical_inverse(index, 3)) - 0.5f;
+}
+
 shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
                                                const scene::GridGeometry& grid, const TransportOptions& options) {
     shaders::TransportParams p{};
@@ -187,7 +197,9 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     const float reference = std::max({flux.r, flux.g, flux.b, 1e-30f});
     p.photon_flux = glm::vec4(flux, reference);
     const uint32_t max_steps = 4 * (grid.dims.x + grid.dims.y + grid.dims.z);
-    p.photon_info = glm::uvec4(photons, document.photons.seed, max_steps, options.fixed_step ? 1u : 0u);
+    // Each refinement batch draws its own photons: another seed (a Weyl step, so batches never repeat one).
+    const uint32_t seed = document.photons.seed + options.photon_batch * 0x9e3779b9u;
+    p.photon_info = glm::uvec4(photons, seed, max_steps, options.fixed_step ? 1u : 0u);
     // Fixed-point scales chosen so no voxel or texel sum can overflow 2^31 even if every photon
     // deposited its full weight into it: a voxel crossing is at most sqrt(3) voxel lengths, and a net
     // flux deposit is |d|_1 <= sqrt(3) times that (transport.h), so 3 x scale per photon at most.
@@ -246,6 +258,8 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     p.camera_up = glm::vec4(up, 0.0f);
     p.image = glm::uvec4(document.image.width, document.image.height, 0u, 0u);
     p.tone = glm::vec4(std::exp2(static_cast<float>(document.image.exposure)), options.view_step, 0.0f, 0.0f);
+    p.refinement = glm::vec4(1.0f / static_cast<float>(options.photon_batch + 1),
+                             1.0f / static_cast<float>(options.view_sample + 1), view_sample_offset(options.view_sample));
     // How passes find coverage for each coefficient, and whether photons need to deposit at all.
     const bool uniform_index = object.index_field == protocol::IndexFieldKind::uniform &&
                                std::abs(object.ior - medium.ior) > 1e-4;

@@ -19,7 +19,13 @@ struct TransportOptions {
     uint32_t max_level = 0;    // octree levels present
     uint32_t radiance_factor = 1;  // index-field voxels per radiance voxel along each axis (1 or 2)
     bool direct_light = true;  // unbent light in closed form (DirectLightPass) rather than by photons
+    uint32_t photon_batch = 0;  // progressive refinement: which batch of photons (0: the document's seed)
+    uint32_t view_sample = 0;   // progressive refinement: which eye-ray sample per pixel (0: the centre)
 };
+
+// The sub-pixel offset of eye-ray sample `index` (0: the pixel centre; then a Halton (2, 3) sequence
+// over the pixel's square, so any number of samples covers it evenly).
+glm::vec2 view_sample_offset(uint32_t index);
 
 shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
                                                const scene::GridGeometry& grid, const TransportOptions& options);

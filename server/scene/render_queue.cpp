@@ -22,12 +22,11 @@ RenderQueue::~RenderQueue() {
 
 std::string RenderQueue::key_of(const FrameRequest& request) {
     std::string key = request.scene_id + "|" + std::to_string(request.document.image.width) + "x" +
-                      std::to_string(request.document.image.height) + "|" + to_string(request.quality);
-    // Viewers with other budgets get frames of other sizes.
-    if (request.quality == Quality::interactive) {
-        key += '|';  // appended: GCC 12 reports a false -Wrestrict for "|" + std::string (its bug 105329)
-        key += std::to_string(request.budget_ms);
-    }
+                      std::to_string(request.document.image.height) + "|" + to_string(request.options.quality);
+    // Viewers with other budgets get frames of other sizes; refinement levels are frames of their own.
+    key += '|';  // appended: GCC 12 reports a false -Wrestrict for "|" + std::string (its bug 105329)
+    key += request.options.quality == Quality::interactive ? std::to_string(request.options.budget_ms)
+                                                           : std::to_string(request.options.level);
     return key;
 }
 

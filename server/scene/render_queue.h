@@ -27,8 +27,7 @@ struct FrameRequest {
     std::string scene_id;
     uint64_t revision = 0;
     protocol::SceneDocument document;  // the document at `revision`, image size already overridden
-    Quality quality = Quality::still;
-    double budget_ms = kDefaultBudgetMs;  // interactive frames: the frame-time budget (frame_budget.h)
+    FrameOptions options;  // quality, frame-time budget, refinement level
 };
 
 // What a waiter gets. `frame` is set on success; otherwise `status` says why and `error` in words.

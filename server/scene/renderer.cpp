@@ -38,6 +38,16 @@ double volume_ms(const FrameResult& frame) {
     return ms;
 }
 
+// The timings of a frame that ran refinement steps: one entry per pass, summed over the steps.
+void add_timing(std::vector<PassTiming>& timings, const std::string& name, double gpu_ms) {
+    for (auto& t : timings)
+        if (t.name == name) {
+            t.gpu_ms += gpu_ms;
+            return;
+        }
+    timings.push_back({name, gpu_ms, 0.0});
+}
+
 double photon_ms(const FrameResult& frame) {
     for (const auto& t : frame.timings)
         if (t.name == "photons") return t.gpu_ms;
@@ -64,6 +74,7 @@ struct Renderer::Impl {
         std::shared_ptr<const mesh::Mesh> mesh;
         std::shared_ptr<const IndexGrid> grid;
         uint64_t last_used = 0;
+        uint32_t level = 0;                               // refinement level of the resident frame
         FrameBudget budget;                               // this scene's dynamic resolution
         std::optional<InteractiveSettings> interactive;  // set while the resident frame is interactive
     };
@@ -94,9 +105,15 @@ Renderer::Renderer(vk::Context& context, RendererOptions options)
 
 Renderer::~Renderer() = default;
 
+Refinement refinement_at(uint32_t level) {
+    level = std::clamp(level, 1u, kMaxRefinementLevel);
+    return {std::min(level, kMaxPhotonBatches), level > kMaxPhotonBatches ? level - kMaxPhotonBatches + 1 : 1u};
+}
+
 FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneDocument& requested,
-                             const Assets& assets, Quality quality, double budget_ms) {
+                             const Assets& assets, const FrameOptions& options) {
     const auto start = Clock::now();
+    const Quality quality = options.quality;
     const auto& object = requested.object;
 
     // Resolve assets first: an unknown name must not touch resident state.
@@ -135,7 +152,15 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0, resident);
         document = with_settings(requested, settings);
     }
-    const PassSet stale = stale_against(document);
+    PassSet stale = stale_against(document);
+    // Still frames refine in order from level 1 (refinement_at): an unchanged document continues from
+    // the resident level; a lower level than the resident one starts again from new photons.
+    const uint32_t level = quality == Quality::still ? std::clamp(options.level, 1u, kMaxRefinementLevel) : 1u;
+    uint32_t resident_level = 0;  // levels the resident frame already holds of this very frame
+    if (quality == Quality::still && stale == 0 && held && !held->interactive) {
+        if (held->level > level) stale = kPhotons | kView | kToneMap;
+        else resident_level = held->level;
+    }
     // The object in world space fits the grid; needed only when the volume is rebuilt.
     const bool rebuild = (stale & kVoxelize) != 0;
     const mesh::Mesh world = mesh && rebuild ? world_mesh(document, *mesh) : mesh::Mesh{};
@@ -172,12 +197,32 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
 
     FrameResult frame;
     try {
-        const RunOptions run_options = run_options_for(quality);
-        const RunStats stats = resident.gpu->run(stale, document, world, grid.get(), run_options);
-        frame.rerun = stats.ran;
-        for (const auto& [name, ms] : stats.gpu_ms) frame.timings.push_back({name, ms, 0.0});
-        frame.photons_traced = stats.photons_entered;
-        frame.mean_steps_per_photon = stats.mean_steps_per_photon();
+        uint64_t photon_steps = 0;
+        for (uint32_t step = resident_level + 1; step <= level; ++step) {
+            // Level 1 is the frame itself; each level after it adds one photon batch (rerunning the view
+            // at pixel centres) until the batches are all in, then one jittered eye-ray sample per pixel.
+            RunOptions run_options = run_options_for(quality);
+            PassSet passes = stale;
+            if (step > 1) {
+                const Refinement now = refinement_at(step), before = refinement_at(step - 1);
+                if (now.photon_batches > before.photon_batches) {
+                    run_options.photon_batch = now.photon_batches - 1;
+                    passes = kPhotons;
+                } else {
+                    run_options.view_sample = now.samples_per_pixel - 1;
+                    passes = kView;
+                }
+            }
+            const RunStats stats = resident.gpu->run(passes, document, world, grid.get(), run_options);
+            frame.rerun |= stats.ran;
+            for (const auto& [name, ms] : stats.gpu_ms) add_timing(frame.timings, name, ms);
+            frame.photons_traced += stats.photons_entered;
+            photon_steps += stats.photon_steps;
+        }
+        frame.mean_steps_per_photon =
+            frame.photons_traced ? static_cast<double>(photon_steps) / static_cast<double>(frame.photons_traced) : 0.0;
+        frame.level = level;
+        frame.refinement = refinement_at(level);
         const auto encode_start = Clock::now();
         const auto pixels = resident.gpu->read_ldr();
         frame.png = image::encode_png(pixels, resident.gpu->width(), resident.gpu->height());
@@ -193,9 +238,11 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     resident.document = document;
     resident.mesh = mesh;
     resident.grid = grid;
+    resident.level = level;
     if (quality == Quality::interactive) {
         const double photons = photon_ms(frame);
-        resident.budget.observe(requested, settings, photons, ms_since(start) - photons - volume_ms(frame), budget_ms);
+        resident.budget.observe(requested, settings, photons, ms_since(start) - photons - volume_ms(frame),
+                                options.budget_ms);
         resident.interactive = settings;
     } else {
         resident.interactive.reset();

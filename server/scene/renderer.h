@@ -52,13 +52,37 @@ struct PassTiming {
     double host_ms = 0.0;
 };
 
+// Progressive refinement of still frames: level 1 is the document's frame; each level after it adds a
+// batch of the document's photon count with a new seed to the radiance grid's running mean, until
+// kMaxPhotonBatches are in, then an eye-ray sample per pixel at a new sub-pixel offset (anti-aliasing),
+// until kMaxViewSamples. The same scene, seed and level give the same bytes however the level was reached.
+constexpr uint32_t kMaxPhotonBatches = 16;
+constexpr uint32_t kMaxViewSamples = 16;
+constexpr uint32_t kMaxRefinementLevel = kMaxPhotonBatches + kMaxViewSamples - 1;
+
+struct Refinement {
+    uint32_t photon_batches = 1;
+    uint32_t samples_per_pixel = 1;
+};
+// What a refinement level holds (levels past kMaxRefinementLevel hold what it does).
+Refinement refinement_at(uint32_t level);
+
+// How a frame is rendered, beyond its document.
+struct FrameOptions {
+    Quality quality = Quality::still;
+    double budget_ms = kDefaultBudgetMs;  // interactive frames: the frame-time budget (frame_budget.h)
+    uint32_t level = 1;                   // still frames: the refinement level, 1 to kMaxRefinementLevel
+};
+
 struct FrameResult {
     std::vector<uint8_t> png;
     uint32_t width = 0, height = 0;
     PassSet rerun = 0;                // passes that ran for this frame
     std::vector<PassTiming> timings;  // one entry per pass that ran, plus "encode"
-    uint64_t photons_traced = 0;
+    uint64_t photons_traced = 0;  // by the photon runs of this frame
     double mean_steps_per_photon = 0.0;
+    uint32_t level = 1;           // the refinement level the frame holds (1 for interactive frames)
+    Refinement refinement;        // photon batches and samples per pixel in the frame
 };
 
 // Raised for a scene that is valid JSON but cannot be rendered (unknown mesh name, over the memory
@@ -81,11 +105,11 @@ public:
     Renderer& operator=(const Renderer&) = delete;
 
     // Renders `document` for scene `scene_id`, reusing whatever resident state is still valid for it.
-    // Interactive frames choose their image size and photon count to land within `budget_ms`
-    // (frame_budget.h); still frames render the document as it is.
+    // Interactive frames choose their image size and photon count to land within `options.budget_ms`
+    // (frame_budget.h); still frames render the document as it is, refined to `options.level`.
     // Throws RenderError for an unrenderable scene (resident state untouched), vk::Error for device faults.
     FrameResult render(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
-                       Quality quality = Quality::still, double budget_ms = kDefaultBudgetMs);
+                       const FrameOptions& options = {});
     // Drops a scene's GPU state (its document lives elsewhere).
     void evict(const std::string& scene_id);
     size_t resident_scenes() const;

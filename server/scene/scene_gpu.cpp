@@ -157,6 +157,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     transport_options.max_level = passes::octree_layout(grid_.dims).max_level;
     transport_options.radiance_factor = options.radiance_factor;
     transport_options.direct_light = options.direct_light;
+    transport_options.photon_batch = options.photon_batch;
+    transport_options.view_sample = options.view_sample;
     params_ = passes::make_transport_params(document, grid_, transport_options);
     params_.flags.x = options.record_photon_exits ? 1u : 0u;
     if (accum_) {

@@ -68,6 +68,11 @@ struct RunOptions {
                                    // voxel crossed (photon_trace.comp); interactive
     bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
     bool direct_light = true;     // unbent light in closed form; false: photons carry all light (tests)
+    // Progressive refinement (still frames): a photon run with photon_batch k > 0 draws new photons and
+    // joins the radiance grid's running mean of k + 1 batches; a view run with view_sample s > 0 traces
+    // a jittered sample into the frame's running mean of s + 1 samples. Runs must come in order.
+    uint32_t photon_batch = 0;
+    uint32_t view_sample = 0;
 };
 
 // Device memory a scene of this size holds (bytes), for budgets before allocating.

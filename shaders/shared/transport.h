@@ -170,6 +170,10 @@ struct TransportParams {
                               // n_c - n_medium = dispersion[c] (n - n_medium) (1 without dispersion); w: unused
     uvec4 radiance_sums;      // device addresses (low, high 32 bits) of the radiance sums: xy red | green,
                               // zw the flux words (radiance_sums.glsl)
+    vec4 refinement;          // progressive refinement of still frames: x: this photon batch's weight in
+                              // the radiance grid's and floor map's running mean (1/batches; 1 replaces),
+                              // y: this eye-ray sample's weight in the frame's running mean (1/samples; 1
+                              // replaces), zw: the sample's offset from the pixel centre (pixels)
 };
 
 // The unit direction light travels at world point x as if nothing were in its way: the net flux
@@ -262,7 +266,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == 34 * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == 35 * 16);
 static_assert(sizeof(refract::shaders::PhotonStats) == 32);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 64);
