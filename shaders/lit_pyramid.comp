@@ -11,7 +11,7 @@ layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
 
 layout(constant_id = LIT_CONSTANT_MODE) const uint kMode = LIT_MODE_BASE;
-layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
+layout(std140, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams params; };
 layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform readonly image3D flux;
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) buffer LitBlocks { uint lit_blocks[]; };
 layout(push_constant) uniform Push { LitPyramidPush push; };

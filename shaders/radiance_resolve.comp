@@ -9,7 +9,7 @@
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
 
-layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
+layout(std140, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams params; };
 #include "radiance_sums.glsl"
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) readonly buffer AccumFloor { uint accum_floor[]; };
 layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform image3D radiance;

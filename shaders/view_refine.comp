@@ -11,7 +11,7 @@
 #include "view_tiles.glsl"
 layout(local_size_x = VIEW_REFINE_GROUP_SIZE) in;
 
-layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
+layout(std140, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams params; };
 layout(std430, binding = TRANSPORT_BINDING_HDR) buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_REFINE) buffer Refine {
     WorkListHeader refine;

@@ -8,7 +8,7 @@ namespace refract::passes {
 
 namespace {
 constexpr vk::BindingLayout kLayout[] = {
-    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
+    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
@@ -22,7 +22,7 @@ LitPyramidPass::LitPyramidPass(vk::Context& context)
 
 void LitPyramidPass::record(vk::CommandRecorder& recorder, const vk::Buffer& params, const vk::Image3D& flux,
                             const vk::Buffer& lit_blocks, vk::Extent3 grid_dims) const {
-    const vk::Binding bindings[] = {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, params),
+    const vk::Binding bindings[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
                                     vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, lit_blocks)};
     const auto offsets = lit_pyramid_offsets(grid_dims);

@@ -9,7 +9,7 @@ namespace refract::passes {
 
 namespace {
 constexpr vk::BindingLayout kLayout[] = {
-    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
+    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
@@ -33,7 +33,7 @@ RadianceResolvePass::RadianceResolvePass(vk::Context& context) {
 void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer& params,
                                  const PhotonAccumulators& accum, bool grey, const vk::Image3D& radiance,
                                  const vk::Image3D& flux, const vk::Image3D& floor_map) const {
-    const vk::Binding bindings[] = {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, params),
+    const vk::Binding bindings[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
                                     vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),

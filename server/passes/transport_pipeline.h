@@ -32,7 +32,7 @@ struct TransportInputs {
 };
 
 inline constexpr vk::BindingLayout kTransportInputLayout[] = {
-    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
+    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -52,7 +52,7 @@ constexpr std::array<vk::BindingLayout, kTransportInputCount + N> transport_layo
 template <size_t N>
 std::array<vk::Binding, kTransportInputCount + N> transport_bindings(const TransportInputs& in, const vk::Binding (&own)[N]) {
     std::array<vk::Binding, kTransportInputCount + N> bindings{
-        vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, in.params),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, in.params),
         vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
         vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
         vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels)};

@@ -166,7 +166,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         params_.radiance_sums = glm::uvec4(halves(accum_->red_green.address()), halves(accum_->flux.address()));
     }
     if (!params_buffer_.get())
-        params_buffer_ = vk::Buffer(kit_.context, sizeof(params_), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
+        params_buffer_ = vk::Buffer(kit_.context, sizeof(params_), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                                     vk::MemoryUse::upload, "transport params");
     params_buffer_.write(&params_, sizeof(params_));
 

@@ -11,6 +11,11 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_GROUP_SIZE 64
 #define VIEW_GROUP_SIZE 8  // 8x8 pixel tiles
 
+// TransportParams, std140, in a read-only storage buffer, not a uniform buffer: lavapipe (Mesa 22.3)
+// folds uniform-buffer values that decide a branch or loop into a copy of the shader that it compiles
+// with LLVM each time the pipeline is bound for a dispatch, and every copy stays resident: a new
+// executable mapping and 0.5 MiB of resident memory per camera frame, 1.5 MiB per frame that reruns
+// photons (issue 20). Storage-buffer loads are never folded.
 #define TRANSPORT_BINDING_PARAMS 0
 #define TRANSPORT_BINDING_INDEX_FIELD 1     // sampler3D rgba32f (n, grad n per voxel)
 #define TRANSPORT_BINDING_COVERAGE 2        // sampler3D r32f

@@ -4,11 +4,12 @@
 #extension GL_KHR_shader_subgroup_ballot : require
 #include "transport.h"
 
-// The frame parameters, read through a private copy: lavapipe loads a uniform-buffer field inside
-// divergent control flow (the passes' loops) lane by lane, a bounds-checked gather per field, while a
-// copy taken once, at the start of main where every invocation is active, reads like a local variable
-// (the viewing pass 10-25% faster; docs/benchmarks.md). Every main() begins with load_params().
-layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams frame_params; };
+// The frame parameters (a storage buffer: transport.h says why), read through a private copy: lavapipe
+// loads a buffer field inside divergent control flow (the passes' loops) lane by lane, a bounds-checked
+// gather per field, while a copy taken once, at the start of main where every invocation is active,
+// reads like a local variable (the viewing pass 10-25% faster; docs/benchmarks.md). Every main() begins
+// with load_params().
+layout(std140, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams frame_params; };
 TransportParams params;
 void load_params() { params = frame_params; }
 layout(binding = TRANSPORT_BINDING_INDEX_FIELD) uniform sampler3D index_field;
