@@ -8,7 +8,7 @@
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
 
-layout(std140, binding = TRANSPORT_BINDING_PARAMS) uniform Params { TransportParams params; };
+layout(std140, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams params; };
 layout(std430, binding = TRANSPORT_BINDING_HDR) readonly buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LDR) writeonly buffer Ldr { uint ldr[]; };
 

@@ -7,7 +7,7 @@ namespace refract::passes {
 
 namespace {
 constexpr vk::BindingLayout kLayout[] = {
-    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER},
+    {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_HDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_LDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
@@ -17,7 +17,7 @@ ToneMapPass::ToneMapPass(vk::Context& context) : pipeline_(context, tone_map_spv
 
 void ToneMapPass::record(vk::CommandRecorder& recorder, const vk::Buffer& params, const vk::Buffer& hdr,
                          const vk::Buffer& ldr, uint32_t width, uint32_t height) const {
-    const vk::Binding bindings[] = {vk::Binding::uniform_buffer(TRANSPORT_BINDING_PARAMS, params),
+    const vk::Binding bindings[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
                                     vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, hdr),
                                     vk::Binding::storage_buffer(TRANSPORT_BINDING_LDR, ldr)};
     const auto groups = vk::linear_groups(uint64_t{width} * height, TRANSPORT_GROUP_SIZE);
