@@ -1,6 +1,7 @@
 // refractd: the long-running Refract render daemon. Wires the scene store, the render thread (the only
 // Vulkan user), the HTTP API and the WebSocket endpoint together, and stops cleanly on SIGINT/SIGTERM.
 #include <pthread.h>
+#include <sys/resource.h>
 
 #include <csignal>
 #include <cstdio>
@@ -33,6 +34,12 @@ int run(const http::DaemonConfig& config) {
     sigaddset(&stop_signals, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
     std::signal(SIGPIPE, SIG_IGN);  // a client gone mid-write is an error code, not a death
+    // Every connection holds a descriptor: allow as many as the hard limit does (the soft one is often 1024).
+    rlimit files{};
+    if (getrlimit(RLIMIT_NOFILE, &files) == 0 && files.rlim_cur < files.rlim_max) {
+        files.rlim_cur = files.rlim_max;
+        setrlimit(RLIMIT_NOFILE, &files);
+    }
 
     protocol::Limits limits{config.max_resolution, config.max_photons, config.max_image};
     mesh::MeshLimits mesh_limits;

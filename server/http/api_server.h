@@ -1,4 +1,4 @@
-// The HTTP API (cpp-httplib): scenes, edits, frames, meshes, index grids, health, metrics, static files.
+// The HTTP API (served by HttpServer): scenes, edits, frames, meshes, index grids, health, metrics, static files.
 // Handlers validate through protocol, change state through the scene store and get frames from the render
 // queue; none of them touches Vulkan.
 #pragma once

@@ -16,6 +16,8 @@
 #include <thread>
 #include <vector>
 
+#include "http/http_server.h"
+
 namespace refract::http {
 
 namespace {
@@ -30,27 +32,7 @@ using json = nlohmann::json;
 constexpr size_t kMaxMessageBytes = size_t{4} << 20;  // one edit message; scenes are small documents
 constexpr size_t kMaxSessions = 256;                  // open connections, handshakes included
 constexpr size_t kMaxQueuedErrors = 64;               // unsent error messages per session
-
-int hex_value(char c) {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    return -1;
-}
-
-std::string percent_decode(std::string_view text) {
-    std::string out;
-    for (size_t i = 0; i < text.size(); ++i) {
-        if (text[i] == '%' && i + 2 < text.size() && hex_value(text[i + 1]) >= 0 &&
-            hex_value(text[i + 2]) >= 0) {
-            out += static_cast<char>(hex_value(text[i + 1]) * 16 + hex_value(text[i + 2]));
-            i += 2;
-        } else {
-            out += text[i] == '+' ? ' ' : text[i];
-        }
-    }
-    return out;
-}
+constexpr size_t kMaxSeqBytes = 256;                  // a string `seq`; it is echoed in every answer
 
 // The value of `name` in a query string ("a=1&token=x"), decoded; empty when absent.
 std::string query_value(std::string_view query, std::string_view name) {
@@ -59,7 +41,7 @@ std::string query_value(std::string_view query, std::string_view name) {
         std::string_view pair = query.substr(0, amp);
         size_t eq = pair.find('=');
         if (pair.substr(0, eq) == name && eq != std::string_view::npos)
-            return percent_decode(pair.substr(eq + 1));
+            return percent_decode(pair.substr(eq + 1), true);
         if (amp == std::string_view::npos) break;
         query.remove_prefix(amp + 1);
     }
@@ -130,7 +112,7 @@ private:
         auto res = std::make_shared<bhttp::response<bhttp::string_body>>(status, 11);
         res->set(bhttp::field::content_type, "application/json");
         res->set(bhttp::field::connection, "close");
-        res->body() = json{{"error", message}}.dump();
+        res->body() = dump_json({{"error", message}});
         res->prepare_payload();
         log(static_cast<int>(status));
         bhttp::async_write(
@@ -194,7 +176,7 @@ private:
         if (pointer) error["pointer"] = *pointer;
         // A client that sends and never reads must not grow the queue: past the bound, the oldest go.
         if (outbox_.size() >= kMaxQueuedErrors) outbox_.pop_front();
-        outbox_.push_back({false, std::make_shared<const std::string>(error.dump()), nullptr});
+        outbox_.push_back({false, std::make_shared<const std::string>(dump_json(error)), nullptr});
         write_next();
     }
 
@@ -209,7 +191,16 @@ private:
             service_.metrics().record_ws_message(true);
             return send_error(seq, std::string("malformed message: ") + e.what());
         }
-        if (message.contains("seq")) seq = message["seq"];
+        if (message.contains("seq")) {
+            const json& given = message["seq"];
+            if (!given.is_null() && !given.is_number() &&
+                !(given.is_string() && given.get_ref<const std::string&>().size() <= kMaxSeqBytes)) {
+                service_.metrics().record_ws_message(true);
+                return send_error(nullptr, "seq must be a number or a string of at most " +
+                                               std::to_string(kMaxSeqBytes) + " bytes");
+            }
+            seq = given;
+        }
         scene::Quality quality = scene::Quality::interactive;
         if (message.contains("quality")) {
             const json& q = message["quality"];
@@ -284,7 +275,7 @@ private:
                            {"quality", scene::to_string(quality)},
                            {"cached", outcome.cached}};
             // A slow reader gets the newest frame only: an unsent older one is dropped, never queued.
-            pending_frame_ = {std::make_shared<const std::string>(header.dump()), outcome.frame};
+            pending_frame_ = {std::make_shared<const std::string>(dump_json(header)), outcome.frame};
             write_next();
         }
         submit_frame();
@@ -375,6 +366,8 @@ struct WsServer::Impl {
                 accept();
                 return;
             }
+            beast::error_code ignored;
+            socket.set_option(tcp::no_delay(true), ignored);
             auto session = std::make_shared<WsSession>(std::move(socket), service,
                                                        [registry = registry](WsSession* gone) {
                                                            std::lock_guard lock(registry->mutex);

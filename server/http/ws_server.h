@@ -1,5 +1,4 @@
-// The WebSocket endpoint ws://host:ws_port/api/scenes/{id}/ws (Boost.Beast, on a port of its own because
-// cpp-httplib has no WebSocket): each text message may carry a merge patch; frames come back as a JSON
+// The WebSocket endpoint ws://host:ws_port/api/scenes/{id}/ws (Boost.Beast, on a port of its own): each text message may carry a merge patch; frames come back as a JSON
 // header followed by the PNG. Latest wins: one frame in flight per session, newer edits coalesce.
 #pragma once
 
