@@ -701,6 +701,7 @@ TEST(Daemon, WebSocketRefusesUnknownScenesAndBadTokens) {
     EXPECT_THROW(WsClient(daemon.ws_port(), "/api/scenes/guarded/ws"), boost::system::system_error);
     EXPECT_THROW(WsClient(daemon.ws_port(), "/api/scenes/guarded/ws?token=wrong"),
                  boost::system::system_error);
+    EXPECT_THROW(WsClient(daemon.port(), "/api/scenes/guarded/ws"), boost::system::system_error);
     WsClient ws(daemon.ws_port(), "/api/scenes/guarded/ws?token=s3cret");
     ws.send({{"seq", 1}});
     EXPECT_EQ(ws.read_frame().first["seq"], 1);
@@ -1153,6 +1154,12 @@ TEST(Daemon, SigintStopsCleanlyWhileAWebSocketIsOpen) {
     WsClient ws(daemon->ws_port(), "/api/scenes/bye/ws");
     ws.send({{"seq", 1}});
     ws.read_frame();
+    WsClient on_http_port(daemon->port(), "/api/scenes/bye/ws");  // the same endpoint on the HTTP port
+    on_http_port.send({{"seq", 2}, {"patch", {{"light", {{"intensity", 4.0}}}}}});
+    auto [header, png] = on_http_port.read_frame();
+    EXPECT_EQ(header["seq"], 2);
+    EXPECT_EQ(header["revision"], 2);
+    EXPECT_TRUE(is_png(png));
     EXPECT_EQ(daemon->stop(SIGINT), 0) << daemon->log();
     EXPECT_NE(daemon->log().find("SIGINT received"), std::string::npos);
     EXPECT_NE(daemon->log().find("refractd: stopped"), std::string::npos);
@@ -1355,7 +1362,8 @@ TEST(DaemonHostile, SlowAndGreedyClientsCostOthersNothing) {
         << "VmHWM " << peak_before << " -> " << peak_after << " KiB";
     RecordProperty("rss_growth_kib", static_cast<int>(rss_after - rss_before));
 
-    // 50 slow-header connections on each port, one byte every 100 ms: others are answered at once.
+    // 50 slow-header connections on each port, one byte every 100 ms: others (a health request, a WebSocket
+    // handshake on each port) are answered at once.
     std::vector<int> slow;
     for (uint16_t port : {daemon.port(), daemon.ws_port()}) {
         for (int i = 0; i < 50; ++i) {
@@ -1380,6 +1388,7 @@ TEST(DaemonHostile, SlowAndGreedyClientsCostOthersNothing) {
         auto res = client.Get("/api/health");
         EXPECT_TRUE(res && res->status == 200);
         WsClient ws(daemon.ws_port(), "/api/scenes/default/ws?token=s3cret");
+        WsClient on_http_port(daemon.port(), "/api/scenes/default/ws?token=s3cret");
         worst_ms = std::max(
             worst_ms,
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
@@ -1391,6 +1400,19 @@ TEST(DaemonHostile, SlowAndGreedyClientsCostOthersNothing) {
     EXPECT_LT(worst_ms, 1000.0);
     RecordProperty("worst_health_and_handshake_ms", static_cast<int>(worst_ms));
     expect_alive(daemon);
+
+    // Keep-alive requests do not wait for delayed acknowledgements (about 40 ms each with Nagle's algorithm).
+    auto keep_alive = daemon.client();
+    keep_alive.set_keep_alive(true);
+    constexpr int kRequests = 20;
+    auto start = std::chrono::steady_clock::now();
+    for (int i = 0; i < kRequests; ++i) {
+        auto res = keep_alive.Get("/api/health");
+        EXPECT_TRUE(res && res->status == 200);
+    }
+    const double keep_alive_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_LT(keep_alive_ms, 20.0 * kRequests);
 
     // A second daemon on a port in use refuses to start and says why.
     TempDir other;
@@ -1427,14 +1449,16 @@ TEST(DaemonHostile, AnEditWithoutItsFrameIsAnsweredAsApplied) {
     json slow_scene = kSmallScene;
     slow_scene["volume"]["resolution"] = 96;
     slow_scene["photons"]["count"] = 1 << 18;
-    std::string id = create_scene(client, "queued", slow_scene);
+    create_scene(client, "slow", slow_scene);
+    std::string id = create_scene(client, "queued");
     const std::string frame = "/api/scenes/" + id + "/frame.png";
     bool saw_applied = false;
     for (int attempt = 0; attempt < 6 && !saw_applied; ++attempt) {
         const int revision = get_json(client, "/api/scenes/" + id)["revision"];
-        // A still frame of a new size holds the queue's only slot while the edit arrives.
-        std::thread busy(
-            [&] { daemon.client().Get(frame + "?quality=still&width=" + std::to_string(100 + attempt)); });
+        // A slow scene's frame of a new size holds the queue's only slot while the edit arrives.
+        std::thread busy([&] {
+            daemon.client().Get("/api/scenes/slow/frame.png?width=" + std::to_string(100 + attempt));
+        });
         std::this_thread::sleep_for(std::chrono::milliseconds(200));
         const std::string if_match = etag_of(revision);
         auto res = client.Post(frame, {{"If-Match", if_match}},

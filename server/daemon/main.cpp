@@ -105,8 +105,9 @@ int run(const http::DaemonConfig& config) {
     } stop_queue{queue};
     if (context) service.device_bytes.store(context->allocated_bytes());
 
-    http::ApiServer api(service);
     http::WsServer ws(service);
+    // WebSocket upgrades on the HTTP port go to the same endpoint (one port suffices behind a proxy).
+    http::ApiServer api(service, [&ws](http::UpgradePtr upgrade) { ws.adopt(std::move(upgrade)); });
     api.bind();
     ws.start();
     std::thread http_thread([&] { api.serve(); });
@@ -119,10 +120,11 @@ int run(const http::DaemonConfig& config) {
     sigwait(&stop_signals, &signal_number);
     std::fprintf(stderr, "refractd: %s received, stopping\n", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
 
-    // Listeners first (no new work); then the render thread finishes the frame it is on and answers every
-    // other waiter "shutting down"; then the HTTP workers, which no longer wait on anything, are joined.
-    api.stop();
+    // Listeners first (no new work; WebSocket first, as its sessions on the HTTP port close on that port's
+    // threads); then the render thread finishes the frame it is on and answers every other waiter "shutting
+    // down"; then the HTTP workers, which no longer wait on anything, are joined.
     ws.stop();
+    api.stop();
     queue.stop();
     http_thread.join();
     renderer.reset();

@@ -103,13 +103,14 @@ bool authorized(Service& service, const Request& req, Response& res) {
 }
 
 // The server's limits from the daemon's flags; every answer is logged and counted.
-HttpServerOptions server_options(Service& service) {
+HttpServerOptions server_options(Service& service, std::function<void(UpgradePtr)> upgrades) {
     const DaemonConfig& c = service.config();
     HttpServerOptions o;
     o.bind = c.bind;
     o.port = c.port;
     o.workers = c.threads;
     o.max_body = c.max_body;
+    o.on_upgrade = std::move(upgrades);
     // A body is read only from a client that may send it: refusing from the header costs no memory.
     o.before_body = [&service](const Request& req, Response& res) { return authorized(service, req, res); };
     o.error_body = [](const std::string& message) { return dump_json({{"error", message}}); };
@@ -129,7 +130,8 @@ struct ApiServer::Impl {
     HttpServer server;
     std::atomic<unsigned> frame_waiters{0};  // worker threads blocked waiting for a frame
 
-    explicit Impl(Service& s) : service(s), server(server_options(s)) {}
+    Impl(Service& s, std::function<void(UpgradePtr)> upgrades)
+        : service(s), server(server_options(s, std::move(upgrades))) {}
 
     const DaemonConfig& config() const { return service.config(); }
 
@@ -495,7 +497,8 @@ struct ApiServer::Impl {
     }
 };
 
-ApiServer::ApiServer(Service& service) : impl_(std::make_unique<Impl>(service)) {
+ApiServer::ApiServer(Service& service, std::function<void(UpgradePtr)> upgrades)
+    : impl_(std::make_unique<Impl>(service, std::move(upgrades))) {
     impl_->routes();
 }
 

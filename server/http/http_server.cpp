@@ -9,12 +9,15 @@
 #include <boost/asio/strand.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/websocket/rfc6455.hpp>
 #include <condition_variable>
 #include <deque>
 #include <mutex>
 #include <regex>
 #include <stdexcept>
 #include <thread>
+
+#include "http/upgrade.h"
 
 namespace refract::http {
 
@@ -210,6 +213,13 @@ private:
         if (fields > options().max_header_fields)
             return refuse(431, "the request has more than " + std::to_string(options().max_header_fields) +
                                    " header fields");
+        if (options().on_upgrade && beast::websocket::is_upgrade(header)) {
+            // The connection leaves this server: the WebSocket endpoint answers the upgrade itself.
+            stream_.expires_never();
+            UpgradePtr upgrade(new UpgradeRequest{stream_.release_socket(), parser_->release()},
+                               [](UpgradeRequest* gone) { delete gone; });
+            return options().on_upgrade(std::move(upgrade));
+        }
         if (request_.method == "HEAD") {
             request_.method = "GET";
             head_ = true;

@@ -52,6 +52,11 @@ struct Response {
 
 using Handler = std::function<void(const Request&, Response&)>;
 
+// A WebSocket upgrade with its connection (defined in http/upgrade.h); the deleter is a function so that
+// code which only passes one on needs no Beast.
+struct UpgradeRequest;
+using UpgradePtr = std::unique_ptr<UpgradeRequest, void (*)(UpgradeRequest*)>;
+
 struct HttpServerOptions {
     std::string bind = "127.0.0.1";
     uint16_t port = 0;
@@ -70,6 +75,8 @@ struct HttpServerOptions {
     std::function<bool(const Request&, Response&)> before_body;
     // Called once per answer, with the time from the first byte of the header to the answer's write.
     std::function<void(const Request&, int status, double ms)> on_answer;
+    // Takes over a connection whose request is a WebSocket upgrade; unset: upgrades are routed like any GET.
+    std::function<void(UpgradePtr)> on_upgrade;
     // The JSON body of an error the server answers itself (bad request, too large, not found).
     std::function<std::string(const std::string& message)> error_body;
 };

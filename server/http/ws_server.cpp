@@ -1,6 +1,7 @@
 // The only translation unit that includes Boost.Beast (it compiles slowly).
 #include "http/ws_server.h"
 
+#include <atomic>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
@@ -16,7 +17,7 @@
 #include <thread>
 #include <vector>
 
-#include "http/http_server.h"
+#include "http/upgrade.h"
 
 namespace refract::http {
 
@@ -80,6 +81,15 @@ public:
         net::dispatch(ws_.get_executor(), [self = shared_from_this()] { self->read_upgrade(); });
     }
 
+    // Answers an upgrade the HTTP server has read already.
+    void start_upgraded(bhttp::request<bhttp::string_body> request) {
+        net::dispatch(ws_.get_executor(),
+                      [self = shared_from_this(), request = std::move(request)]() mutable {
+                          self->upgrade_request_ = std::move(request);
+                          self->answer_upgrade();
+                      });
+    }
+
     // Drops the connection (daemon shutdown); safe from any thread.
     void close() {
         net::post(ws_.get_executor(), [self = shared_from_this()] {
@@ -129,7 +139,12 @@ private:
 
     void on_upgrade(beast::error_code ec) {
         if (ec) return;  // the client went away or sent garbage; nothing to answer
-        const auto& req = parser_->get();
+        upgrade_request_ = parser_->release();
+        answer_upgrade();
+    }
+
+    void answer_upgrade() {
+        const auto& req = upgrade_request_;
         std::string_view target(req.target().data(), req.target().size());
         size_t question = target.find('?');
         path_ = std::string(target.substr(0, question));
@@ -323,6 +338,7 @@ private:
     beast::flat_buffer buffer_;
     beast::flat_buffer incoming_;
     std::optional<bhttp::request_parser<bhttp::string_body>> parser_;
+    bhttp::request<bhttp::string_body> upgrade_request_;  // kept until the handshake's answer is written
     std::string path_;
     std::string scene_id_;
 
@@ -354,32 +370,40 @@ struct WsServer::Impl {
     tcp::acceptor acceptor{ioc};
     std::vector<std::thread> threads;
     std::shared_ptr<SessionRegistry> registry = std::make_shared<SessionRegistry>();
+    net::steady_timer accept_retry{ioc};
     bool started = false;
-    bool stopped = false;
+    std::atomic<bool> stopped{false};
 
     explicit Impl(Service& s) : service(s) {}
+
+    // A session for `socket`, known to the registry so that stop() can close it.
+    std::shared_ptr<WsSession> open_session(tcp::socket socket) {
+        beast::error_code ignored;
+        socket.set_option(tcp::no_delay(true), ignored);
+        auto session =
+            std::make_shared<WsSession>(std::move(socket), service, [registry = registry](WsSession* gone) {
+                std::lock_guard lock(registry->mutex);
+                registry->live.erase(gone);
+            });
+        std::lock_guard lock(registry->mutex);
+        registry->live.insert(session.get());
+        std::erase_if(registry->refs, [](const auto& ref) { return ref.expired(); });
+        registry->refs.push_back(session);
+        return session;
+    }
 
     void accept() {
         acceptor.async_accept(net::make_strand(ioc), [this](beast::error_code ec, tcp::socket socket) {
             if (ec) {
                 if (ec == net::error::operation_aborted || !acceptor.is_open()) return;
-                accept();
+                // Out of descriptors (or another passing failure): wait a little rather than spin.
+                accept_retry.expires_after(std::chrono::milliseconds(50));
+                accept_retry.async_wait([this](beast::error_code wait_ec) {
+                    if (!wait_ec) accept();
+                });
                 return;
             }
-            beast::error_code ignored;
-            socket.set_option(tcp::no_delay(true), ignored);
-            auto session = std::make_shared<WsSession>(std::move(socket), service,
-                                                       [registry = registry](WsSession* gone) {
-                                                           std::lock_guard lock(registry->mutex);
-                                                           registry->live.erase(gone);
-                                                       });
-            {
-                std::lock_guard lock(registry->mutex);
-                registry->live.insert(session.get());
-                std::erase_if(registry->refs, [](const auto& ref) { return ref.expired(); });
-                registry->refs.push_back(session);
-            }
-            session->start();
+            open_session(std::move(socket))->start();
             accept();
         });
     }
@@ -409,6 +433,11 @@ void WsServer::start() {
     impl_->started = true;
     impl_->accept();
     for (int i = 0; i < 2; ++i) impl_->threads.emplace_back([this] { impl_->ioc.run(); });
+}
+
+void WsServer::adopt(UpgradePtr upgrade) {
+    if (impl_->stopped || !impl_->started) return;  // the connection closes with `upgrade`
+    impl_->open_session(std::move(upgrade->socket))->start_upgraded(std::move(upgrade->request));
 }
 
 void WsServer::stop() {
