@@ -291,13 +291,18 @@ private:
         auto self = shared_from_this();
         bool queued = server_.pool.submit([self] {
             Response res;
+            std::optional<std::string> failure;
             try {
                 self->route_->handler(self->request_, res);
             } catch (const std::exception& e) {
+                failure = std::string("internal error: ") + e.what();
+            } catch (...) {
+                failure = "internal error";
+            }
+            if (failure) {
                 res = {};
                 res.status = 500;
-                res.set_content(self->options().error_body(std::string("internal error: ") + e.what()),
-                                "application/json");
+                res.set_content(self->options().error_body(*failure), "application/json");
             }
             net::post(self->stream_.get_executor(),
                       [self, res = std::move(res)]() mutable { self->write(std::move(res), false); });
@@ -353,18 +358,14 @@ private:
         beast::error_code ignored;
         stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
         stream_.expires_after(std::chrono::seconds(1));
-        stream_.async_read_some(net::buffer(discard_),
-                                [self = shared_from_this()](beast::error_code ec, size_t) {
-                                    if (ec) return self->drop();
-                                    self->linger_more();
-                                });
+        discard();
     }
 
-    void linger_more() {
+    void discard() {
         stream_.async_read_some(net::buffer(discard_),
                                 [self = shared_from_this()](beast::error_code ec, size_t) {
                                     if (ec) return self->drop();
-                                    self->linger_more();
+                                    self->discard();
                                 });
     }
 

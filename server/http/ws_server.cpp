@@ -1,4 +1,4 @@
-// The only translation unit that includes Boost.Beast (it compiles slowly).
+// One of the two translation units that include Boost.Beast (it compiles slowly).
 #include "http/ws_server.h"
 
 #include <atomic>
