@@ -1412,7 +1412,7 @@ TEST(DaemonHostile, SlowAndGreedyClientsCostOthersNothing) {
     }
     const double keep_alive_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    EXPECT_LT(keep_alive_ms, 20.0 * kRequests);
+    EXPECT_LT(keep_alive_ms, 30.0 * kRequests);
 
     // A second daemon on a port in use refuses to start and says why.
     TempDir other;
