@@ -763,9 +763,11 @@ public:
         ::setsockopt(ws_.next_layer().native_handle(), SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
         ws_.handshake("127.0.0.1:" + std::to_string(port), target);
     }
-    void send(const json& message) {
+    void send(const json& message) { send_raw(message.dump()); }
+    // A text message as given, valid UTF-8 or not.
+    void send_raw(const std::string& text) {
         ws_.text(true);
-        ws_.write(boost::asio::buffer(message.dump()));
+        ws_.write(boost::asio::buffer(text));
     }
     // (is_text, payload)
     std::pair<bool, std::string> read() {
@@ -867,6 +869,7 @@ TEST(Daemon, WebSocketRefusesUnknownScenesAndBadTokens) {
     EXPECT_THROW(WsClient(daemon.ws_port(), "/api/scenes/guarded/ws"), boost::system::system_error);
     EXPECT_THROW(WsClient(daemon.ws_port(), "/api/scenes/guarded/ws?token=wrong"),
                  boost::system::system_error);
+    EXPECT_THROW(WsClient(daemon.port(), "/api/scenes/guarded/ws"), boost::system::system_error);
     WsClient ws(daemon.ws_port(), "/api/scenes/guarded/ws?token=s3cret");
     ws.send({{"seq", 1}});
     EXPECT_EQ(ws.read_frame().first["seq"], 1);
@@ -1188,12 +1191,8 @@ TEST(Daemon, ClientThatDisconnectsMidFrameHarmsNobody) {
     std::string id = create_scene(client, "fickle");
     for (int i = 0; i < 3; ++i) {
         // Ask for a frame and hang up at once, hard (RST), while it renders.
-        int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-        sockaddr_in address{};
-        address.sin_family = AF_INET;
-        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-        address.sin_port = htons(daemon.port());
-        ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+        int fd = connect_loopback(daemon.port());
+        ASSERT_GE(fd, 0);
         std::string request = "GET /api/scenes/" + id + "/frame.png?width=" + std::to_string(100 + i) +
                               " HTTP/1.1\r\nHost: x\r\n\r\n";
         ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
@@ -1362,9 +1361,348 @@ TEST(Daemon, SigintStopsCleanlyWhileAWebSocketIsOpen) {
     WsClient ws(daemon->ws_port(), "/api/scenes/bye/ws");
     ws.send({{"seq", 1}});
     ws.read_frame();
+    WsClient on_http_port(daemon->port(), "/api/scenes/bye/ws");  // the same endpoint on the HTTP port
+    on_http_port.send({{"seq", 2}, {"patch", {{"light", {{"intensity", 4.0}}}}}});
+    auto [header, png] = on_http_port.read_frame();
+    EXPECT_EQ(header["seq"], 2);
+    EXPECT_EQ(header["revision"], 2);
+    EXPECT_TRUE(is_png(png));
     EXPECT_EQ(daemon->stop(SIGINT), 0) << daemon->log();
     EXPECT_NE(daemon->log().find("SIGINT received"), std::string::npos);
     EXPECT_NE(daemon->log().find("refractd: stopped"), std::string::npos);
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Hostile clients: every case gets its exact status, the daemon lives on, and stored data stays as it was.
+
+// The status of a raw HTTP answer ("HTTP/1.1 404 ..."); 0 when there is none.
+int status_of(const std::string& answer) {
+    if (answer.size() < 12 || answer.compare(0, 9, "HTTP/1.1 ") != 0) return 0;
+    return std::atoi(answer.substr(9, 3).c_str());
+}
+
+std::string body_of(const std::string& answer) {
+    size_t end = answer.find("\r\n\r\n");
+    return end == std::string::npos ? std::string() : answer.substr(end + 4);
+}
+
+// Sends `request` on a fresh connection and reads one answer: its header and Content-Length bytes of body
+// (or until the server closes, or `timeout`).
+std::string one_answer(uint16_t port, const std::string& request,
+                       std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
+    int fd = connect_loopback(port);
+    if (fd < 0) return {};
+    timeval tick{0, 100000};
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tick, sizeof tick);
+    ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+    std::string answer;
+    auto deadline = std::chrono::steady_clock::now() + timeout;
+    char buffer[4096];
+    while (std::chrono::steady_clock::now() < deadline) {
+        size_t end = answer.find("\r\n\r\n");
+        if (end != std::string::npos) {
+            std::smatch length;
+            std::string head = answer.substr(0, end);
+            if (std::regex_search(head, length, std::regex("\r\n[Cc]ontent-[Ll]ength: *([0-9]+)")) &&
+                answer.size() >= end + 4 + std::stoul(length[1]))
+                break;
+        }
+        ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+        if (n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK)) break;
+        if (n > 0) answer.append(buffer, static_cast<size_t>(n));
+    }
+    ::close(fd);
+    return answer;
+}
+
+// A memory figure of a process in KiB from /proc/PID/status ("VmRSS" resident now, "VmHWM" its peak),
+// -1 when unknown.
+long memory_kib(pid_t pid, const std::string& field) {
+    std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+    std::string line;
+    while (std::getline(status, line))
+        if (line.compare(0, field.size() + 1, field + ":") == 0)
+            return std::stol(line.substr(field.size() + 1));
+    return -1;
+}
+
+const char kWsUpgrade[] =
+    "Host: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+    "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
+
+TEST(DaemonHostile, EveryMalformedRequestIsAnsweredExactlyAndChangesNothing) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--token", "s3cret", "--max-body", "1M", "--max-image", "4096"});
+    auto client = daemon.client();
+    client.set_bearer_token_auth("s3cret");
+    std::string id = create_scene(client, "hostile");
+    const std::string scene = "/api/scenes/" + id;
+    const std::string auth = "Host: x\r\nAuthorization: Bearer s3cret\r\nConnection: close\r\n";
+    auto with_body = [&](const std::string& start, const std::string& headers, const std::string& body) {
+        return start + " HTTP/1.1\r\n" + auth + headers + "Content-Length: " + std::to_string(body.size()) +
+               "\r\n\r\n" + body;
+    };
+    const std::string patch_type = "Content-Type: application/merge-patch+json\r\n";
+    std::string many_fields;
+    for (int i = 0; i < 1000; ++i) many_fields += "X-F" + std::to_string(i) + ": 1\r\n";
+
+    struct Case {
+        std::string name;
+        uint16_t port;
+        std::string request;
+        int status;
+    };
+    const uint16_t http = daemon.port();
+    std::vector<Case> cases = {
+        {"0xFF in an HTTP path", http, "GET /api/scenes/\xff HTTP/1.1\r\n" + auth + "\r\n", 404},
+        {"%FF in a scene path", http, "GET /api/scenes/%FF HTTP/1.1\r\n" + auth + "\r\n", 404},
+        {"%FF as a static path", http, "GET /%FF HTTP/1.1\r\n" + auth + "\r\n", 404},
+        {"%FF in an unknown endpoint", http, "GET /api/%FF%FE HTTP/1.1\r\n" + auth + "\r\n", 404},
+        {"0xFF in a WebSocket upgrade path", daemon.ws_port(),
+         std::string("GET /api/scenes/\xff/ws?token=s3cret HTTP/1.1\r\n") + kWsUpgrade, 404},
+        {"0xFF in a JSON string", http,
+         with_body("PATCH " + scene, patch_type, "{\"light\":{\"type\":\"\xff\"}}"), 400},
+        {"0xFF in a scene id", http,
+         with_body("POST /api/scenes?id=%FF", "Content-Type: application/json\r\n", "{}"), 400},
+        {"0xFF in an OBJ", http,
+         with_body("PUT /api/meshes/bad", "Content-Type: text/plain\r\n",
+                   "v 0 0 0\nv \xff\xfe 0 0\nf 1 2 3\n"),
+         400},
+        {"conflicting Content-Length", http,
+         "PATCH " + scene + " HTTP/1.1\r\n" + auth + patch_type +
+             "Content-Length: 2\r\nContent-Length: 3\r\n\r\n{}",
+         400},
+        {"negative Content-Length", http,
+         "PATCH " + scene + " HTTP/1.1\r\n" + auth + patch_type + "Content-Length: -1\r\n\r\n{}", 400},
+        {"Content-Length past --max-body", http,
+         "PUT /api/meshes/big HTTP/1.1\r\n" + auth + "Content-Length: 2000000\r\n\r\n", 413},
+        {"too many header fields", http, "GET /api/health HTTP/1.1\r\n" + auth + many_fields + "\r\n", 431},
+        {"header past its byte limit", http,
+         "GET /api/health HTTP/1.1\r\n" + auth + "X-Big: " + std::string(20000, 'a') + "\r\n\r\n", 431},
+        {"garbage If-Match", http,
+         with_body("PATCH " + scene, patch_type + "If-Match: abc\r\n", R"({"light":{"intensity":3}})"), 400},
+        {"not HTTP", http, "HELLO\r\n\r\n", 400},
+    };
+    for (const auto& c : cases) {
+        SCOPED_TRACE(c.name);
+        std::string answer = one_answer(c.port, c.request);
+        EXPECT_EQ(status_of(answer), c.status) << answer.substr(0, 300);
+        json body = json::parse(body_of(answer), nullptr, false);
+        EXPECT_TRUE(body.is_object() && body["error"].is_string()) << answer.substr(0, 300);
+        expect_alive(daemon);
+        EXPECT_EQ(get_json(client, scene)["revision"], 1);
+    }
+    std::string answer =
+        one_answer(http, with_body("PATCH " + scene, patch_type, "{\"light\":{\"type\":\"\xff\"}}"));
+    EXPECT_NE(body_of(answer).find("UTF-8"), std::string::npos) << answer;
+
+    // A frame whose buffers exceed what the device can bind is the request's fault (lavapipe binds 128 MiB
+    // of storage at most); a device that binds more renders it.
+    auto huge = client.Get(scene + "/frame.png?width=4096&height=4096");
+    ASSERT_TRUE(huge);
+    json health = get_json(client, "/api/health");
+    if (health["device"]["type"] == "cpu") {
+        EXPECT_EQ(huge->status, 422) << huge->body;
+        EXPECT_NE(huge->body.find("storage buffer limit"), std::string::npos) << huge->body;
+    } else {
+        EXPECT_TRUE(huge->status == 200 || huge->status == 422) << huge->body;
+    }
+    expect_alive(daemon);
+
+    // WebSocket messages: invalid UTF-8 in a text message ends that session (close code 1007), a huge seq
+    // is refused without being echoed, and the session goes on.
+    {
+        WsClient ws(daemon.ws_port(), scene + "/ws?token=s3cret");
+        ws.send_raw("{\"seq\":1,\"patch\":{\"light\":{\"type\":\"\xff\"}}}");
+        EXPECT_THROW(ws.read(), boost::system::system_error);
+    }
+    WsClient ws(daemon.ws_port(), scene + "/ws?token=s3cret");
+    ws.send({{"seq", std::string(size_t{3} << 20, '7')}});
+    auto [is_text, refusal] = ws.read();
+    EXPECT_TRUE(is_text);
+    EXPECT_LT(refusal.size(), 1000u);
+    json error = json::parse(refusal);
+    EXPECT_EQ(error["type"], "error");
+    EXPECT_TRUE(error["seq"].is_null());
+    ws.send({{"seq", 2}});
+    EXPECT_EQ(ws.read_frame().first["seq"], 2);
+    expect_alive(daemon);
+    EXPECT_EQ(get_json(client, scene)["revision"], 1);
+}
+
+TEST(DaemonHostile, SlowAndGreedyClientsCostOthersNothing) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--token", "s3cret"});
+
+    // 16 unauthenticated 60 MiB uploads: refused from their headers, their bodies never held.
+    const long rss_before = memory_kib(daemon.pid(), "VmRSS");
+    const long peak_before = memory_kib(daemon.pid(), "VmHWM");
+    std::vector<std::thread> uploads;
+    std::vector<int> upload_status(16, 0);
+    for (size_t i = 0; i < upload_status.size(); ++i) {
+        uploads.emplace_back([&, i] {
+            int fd = connect_loopback(daemon.port());
+            if (fd < 0) return;
+            std::string head = "PUT /api/meshes/m" + std::to_string(i) +
+                               " HTTP/1.1\r\nHost: x\r\nContent-Type: text/plain\r\nContent-Length: " +
+                               std::to_string(60 << 20) + "\r\n\r\n";
+            ::send(fd, head.data(), head.size(), MSG_NOSIGNAL);
+            char answer[512] = {};
+            ssize_t n = ::recv(fd, answer, sizeof answer - 1, 0);
+            if (n > 0) upload_status[i] = status_of(std::string(answer, static_cast<size_t>(n)));
+            // Keep sending anyway, as a careless client would, until the daemon hangs up.
+            timeval timeout{2, 0};
+            ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof timeout);
+            std::string chunk(1 << 20, 'v');
+            for (int sent = 0; sent < 16; ++sent)
+                if (::send(fd, chunk.data(), chunk.size(), MSG_NOSIGNAL) <= 0) break;
+            ::close(fd);
+        });
+    }
+    for (auto& thread : uploads) thread.join();
+    for (int status : upload_status) EXPECT_EQ(status, 401);
+    const long rss_after = memory_kib(daemon.pid(), "VmRSS");
+    const long peak_after = memory_kib(daemon.pid(), "VmHWM");
+    EXPECT_LT(rss_after - rss_before, 8 * 1024) << "VmRSS " << rss_before << " -> " << rss_after << " KiB";
+    // The peak too: a body read and then freed would have raised it while the uploads lasted.
+    EXPECT_LT(peak_after - peak_before, 8 * 1024)
+        << "VmHWM " << peak_before << " -> " << peak_after << " KiB";
+    RecordProperty("rss_growth_kib", static_cast<int>(rss_after - rss_before));
+
+    // 50 slow-header connections on each port, one byte every 100 ms: others (a health request, a WebSocket
+    // handshake on each port) are answered at once.
+    std::vector<int> slow;
+    for (uint16_t port : {daemon.port(), daemon.ws_port()}) {
+        for (int i = 0; i < 50; ++i) {
+            int fd = connect_loopback(port);
+            ASSERT_GE(fd, 0);
+            const std::string start = "GET /api/scenes/default/ws HTTP/1.1\r\nX-Slow: ";
+            ::send(fd, start.data(), start.size(), MSG_NOSIGNAL);
+            slow.push_back(fd);
+        }
+    }
+    std::atomic<bool> done{false};
+    std::thread dripper([&] {
+        while (!done) {
+            for (int fd : slow) ::send(fd, "a", 1, MSG_NOSIGNAL);
+            std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        }
+    });
+    double worst_ms = 0;
+    for (int i = 0; i < 8; ++i) {
+        auto start = std::chrono::steady_clock::now();
+        auto client = daemon.client();
+        auto res = client.Get("/api/health");
+        EXPECT_TRUE(res && res->status == 200);
+        WsClient ws(daemon.ws_port(), "/api/scenes/default/ws?token=s3cret");
+        WsClient on_http_port(daemon.port(), "/api/scenes/default/ws?token=s3cret");
+        worst_ms = std::max(
+            worst_ms,
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+        std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    }
+    done = true;
+    dripper.join();
+    for (int fd : slow) ::close(fd);
+    EXPECT_LT(worst_ms, 1000.0);
+    RecordProperty("worst_health_and_handshake_ms", static_cast<int>(worst_ms));
+    expect_alive(daemon);
+
+    // Keep-alive requests do not wait for delayed acknowledgements (about 40 ms each with Nagle's algorithm).
+    auto keep_alive = daemon.client();
+    keep_alive.set_keep_alive(true);
+    constexpr int kRequests = 20;
+    auto start = std::chrono::steady_clock::now();
+    for (int i = 0; i < kRequests; ++i) {
+        auto res = keep_alive.Get("/api/health");
+        EXPECT_TRUE(res && res->status == 200);
+    }
+    const double keep_alive_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_LT(keep_alive_ms, 30.0 * kRequests);
+
+    // A second daemon on a port in use refuses to start and says why.
+    TempDir other;
+    const std::string port = std::to_string(daemon.port());
+    const std::string ws_port = std::to_string(daemon.ws_port());
+    for (const auto& [args, message] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+             {{"--port", port, "--ws-port", std::to_string(free_port())},
+              "cannot listen on 127.0.0.1:" + port},
+             {{"--port", std::to_string(free_port()), "--ws-port", ws_port},
+              "cannot listen for WebSocket on 127.0.0.1:" + ws_port}}) {
+        std::vector<std::string> all = args;
+        all.insert(all.end(), {"--data-dir", (other.path() / "data").string(), "--device", "no-such-gpu"});
+        auto [status, log] = run_refractd(all, std::chrono::seconds(60));
+        EXPECT_EQ(status, 1) << log;
+        EXPECT_NE(log.find(message), std::string::npos) << log;
+        EXPECT_NE(log.find("in use"), std::string::npos) << log;
+    }
+    expect_alive(daemon);
+}
+
+// "\"7\"" for revision 7 (appended: GCC 12 reports a false -Wrestrict for "\"" + std::string, its bug
+// 105329).
+std::string etag_of(int revision) {
+    std::string tag = "\"";
+    tag += std::to_string(revision);
+    tag += '"';
+    return tag;
+}
+
+TEST(DaemonHostile, AnEditWithoutItsFrameIsAnsweredAsApplied) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--max-queue", "1"});
+    auto client = daemon.client();
+    json slow_scene = kSmallScene;
+    slow_scene["volume"]["resolution"] = 96;
+    slow_scene["photons"]["count"] = 1 << 18;
+    create_scene(client, "slow", slow_scene);
+    std::string id = create_scene(client, "queued");
+    const std::string frame = "/api/scenes/" + id + "/frame.png";
+    bool saw_applied = false;
+    for (int attempt = 0; attempt < 6 && !saw_applied; ++attempt) {
+        const int revision = get_json(client, "/api/scenes/" + id)["revision"];
+        // A slow scene's frame of a new size holds the queue's only slot while the edit arrives.
+        std::thread busy([&] {
+            daemon.client().Get("/api/scenes/slow/frame.png?width=" + std::to_string(100 + attempt));
+        });
+        std::this_thread::sleep_for(std::chrono::milliseconds(200));
+        const std::string if_match = etag_of(revision);
+        auto res = client.Post(frame, {{"If-Match", if_match}},
+                               json{{"light", {{"intensity", 2.0 + attempt}}}}.dump(), kMergePatch);
+        busy.join();
+        ASSERT_TRUE(res);
+        const std::string next = std::to_string(revision + 1);
+        EXPECT_EQ(res->get_header_value("ETag"), etag_of(revision + 1));
+        EXPECT_EQ(get_json(client, "/api/scenes/" + id)["revision"], revision + 1);
+        if (res->status == 200) {  // the slot was free after all: the frame of the edit
+            EXPECT_TRUE(is_png(res->body));
+            EXPECT_EQ(res->get_header_value("X-Refract-Revision"), next);
+            continue;
+        }
+        ASSERT_EQ(res->status, 202) << res->body;
+        saw_applied = true;
+        json answer = json::parse(res->body);
+        EXPECT_EQ(answer["revision"], revision + 1);
+        EXPECT_EQ(answer["scene"]["light"]["intensity"], 2.0 + attempt);
+        EXPECT_TRUE(answer["frame_error"].is_string());
+        EXPECT_FALSE(res->get_header_value("Retry-After").empty());
+        // The client knows its edit is in: repeating it with the old tag is a conflict, fetching works.
+        auto repeated = client.Post(frame, {{"If-Match", if_match}},
+                                    json{{"light", {{"intensity", 1.0}}}}.dump(), kMergePatch);
+        ASSERT_TRUE(repeated);
+        EXPECT_EQ(repeated->status, 412);
+        auto fetched = get_frame(client, id);
+        ASSERT_TRUE(fetched);
+        EXPECT_EQ(fetched->get_header_value("X-Refract-Revision"), next);
+    }
+    EXPECT_TRUE(saw_applied) << "the render queue was never full while an edit arrived";
+    // Without a competing frame, the edit and its frame come back together.
+    auto normal = client.Post(frame, json{{"light", {{"intensity", 9.0}}}}.dump(), kMergePatch);
+    ASSERT_TRUE(normal);
+    EXPECT_EQ(normal->status, 200);
+    EXPECT_TRUE(is_png(normal->body));
+    expect_alive(daemon);
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // refractd: the long-running Refract render daemon. Wires the scene store, the render thread (the only
 // Vulkan user), the HTTP API and the WebSocket endpoint together, and stops cleanly on SIGINT/SIGTERM.
 #include <pthread.h>
+#include <sys/resource.h>
 
 #include <csignal>
 #include <cstdio>
@@ -33,6 +34,12 @@ int run(const http::DaemonConfig& config) {
     sigaddset(&stop_signals, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
     std::signal(SIGPIPE, SIG_IGN);  // a client gone mid-write is an error code, not a death
+    // Every connection holds a descriptor: allow as many as the hard limit does (the soft one is often 1024).
+    rlimit files{};
+    if (getrlimit(RLIMIT_NOFILE, &files) == 0 && files.rlim_cur < files.rlim_max) {
+        files.rlim_cur = files.rlim_max;
+        setrlimit(RLIMIT_NOFILE, &files);
+    }
 
     protocol::Limits limits{config.max_resolution, config.max_photons, config.max_image};
     mesh::MeshLimits mesh_limits;
@@ -98,8 +105,9 @@ int run(const http::DaemonConfig& config) {
     } stop_queue{queue};
     if (context) service.device_bytes.store(context->allocated_bytes());
 
-    http::ApiServer api(service);
     http::WsServer ws(service);
+    // WebSocket upgrades on the HTTP port go to the same endpoint (one port suffices behind a proxy).
+    http::ApiServer api(service, [&ws](http::UpgradePtr upgrade) { ws.adopt(std::move(upgrade)); });
     api.bind();
     ws.start();
     std::thread http_thread([&] { api.serve(); });
@@ -112,10 +120,11 @@ int run(const http::DaemonConfig& config) {
     sigwait(&stop_signals, &signal_number);
     std::fprintf(stderr, "refractd: %s received, stopping\n", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
 
-    // Listeners first (no new work); then the render thread finishes the frame it is on and answers every
-    // other waiter "shutting down"; then the HTTP workers, which no longer wait on anything, are joined.
-    api.stop();
+    // Listeners first (no new work; WebSocket first, as its sessions on the HTTP port close on that port's
+    // threads); then the render thread finishes the frame it is on and answers every other waiter "shutting
+    // down"; then the HTTP workers, which no longer wait on anything, are joined.
     ws.stop();
+    api.stop();
     queue.stop();
     http_thread.join();
     renderer.reset();

@@ -1,7 +1,5 @@
 #include "http/api_server.h"
 
-#include <httplib.h>
-
 #include <atomic>
 #include <cctype>
 #include <charconv>
@@ -14,6 +12,7 @@
 #include <sstream>
 
 #include "http/examples.h"
+#include "http/http_server.h"
 #include "http/static_files.h"
 #include "scene/passes.h"
 
@@ -21,18 +20,11 @@ namespace refract::http {
 
 namespace {
 
-using httplib::ContentReader;
-using httplib::Request;
-using httplib::Response;
 using json = nlohmann::json;
-using Clock = std::chrono::steady_clock;
-
-// When the request on this worker thread started (set by the pre-routing handler, read by the logger).
-thread_local std::optional<Clock::time_point> t_request_start;
 
 void send_json(Response& res, int status, const json& body) {
     res.status = status;
-    res.set_content(body.dump(), "application/json");
+    res.set_content(dump_json(body), "application/json");
 }
 
 void send_error(Response& res, int status, const std::string& message) {
@@ -103,52 +95,48 @@ std::string etag(uint64_t revision) {
     return tag;
 }
 
+// True when the request carries the token (or none is needed); else 401 is answered.
+bool authorized(Service& service, const Request& req, Response& res) {
+    if (service.authorized(req.get_header_value("Authorization"), req.get_param_value("token"))) return true;
+    res.set_header("WWW-Authenticate", "Bearer");
+    send_error(res, 401, "missing or wrong bearer token");
+    return false;
+}
+
+// The server's limits from the daemon's flags; every answer is logged and counted.
+HttpServerOptions server_options(Service& service, std::function<void(UpgradePtr)> upgrades) {
+    const DaemonConfig& c = service.config();
+    HttpServerOptions o;
+    o.bind = c.bind;
+    o.port = c.port;
+    o.workers = c.threads;
+    o.max_body = c.max_body;
+    o.on_upgrade = std::move(upgrades);
+    // A body is read only from a client that may send it: refusing from the header costs no memory.
+    o.before_body = [&service](const Request& req, Response& res) { return authorized(service, req, res); };
+    o.error_body = [](const std::string& message) { return dump_json({{"error", message}}); };
+    o.on_answer = [&service](const Request& req, int status, double ms) {
+        std::string method = req.method.empty() ? std::string("-") : req.method;
+        std::string path = req.path.empty() ? std::string("-") : req.path;
+        service.metrics().record_request(method, route_of(req.path), status);
+        std::fprintf(stderr, "refractd: %s %s %d %.1f ms\n", method.c_str(), path.c_str(), status, ms);
+    };
+    return o;
+}
+
 }  // namespace
 
 struct ApiServer::Impl {
     Service& service;
-    httplib::Server server;
+    HttpServer server;
     std::atomic<unsigned> frame_waiters{0};  // worker threads blocked waiting for a frame
 
-    explicit Impl(Service& s) : service(s) {}
+    Impl(Service& s, std::function<void(UpgradePtr)> upgrades)
+        : service(s), server(server_options(s, std::move(upgrades))) {}
 
     const DaemonConfig& config() const { return service.config(); }
 
-    bool authorize(const Request& req, Response& res) {
-        if (service.authorized(req.get_header_value("Authorization"), req.get_param_value("token")))
-            return true;
-        res.set_header("WWW-Authenticate", "Bearer");
-        send_error(res, 401, "missing or wrong bearer token");
-        return false;
-    }
-
-    // Reads the body through `reader`, at most --max-body bytes. False (and the answer sent) on failure.
-    bool read_body(const Request& req, Response& res, const ContentReader& reader, std::string& body) {
-        bool chunked = req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos;
-        if (!req.has_header("Content-Length") && !chunked) return true;  // no body at all
-        // A chunked body over the limit is drained (up to a bound) rather than cut off, so that its rest is
-        // not read as the next request on the connection. (cpp-httplib skips a too-long Content-Length
-        // itself.)
-        const size_t limit = config().max_body;
-        const size_t drain_limit = limit * 4;
-        size_t received = 0;
-        bool ok = reader([&](const char* data, size_t length) {
-            received += length;
-            if (received <= limit) body.append(data, length);
-            return received <= drain_limit;
-        });
-        if (received > limit || res.status == 413) {
-            body.clear();
-            send_error(res, 413,
-                       "request body is larger than " + std::to_string(limit) + " bytes (--max-body)");
-            return false;
-        }
-        if (!ok) {
-            send_error(res, 400, "could not read the request body");
-            return false;
-        }
-        return true;
-    }
+    bool authorize(const Request& req, Response& res) { return authorized(service, req, res); }
 
     // Parses a JSON body; false (and 400 sent) when it is not JSON. JSON has no NaN: such a body is
     // malformed.
@@ -181,7 +169,7 @@ struct ApiServer::Impl {
         try {
             if_match = parse_if_match(req.get_header_value("If-Match"));
         } catch (const std::invalid_argument& e) {
-            send_error(res, 412, e.what());
+            send_error(res, 400, e.what());
             return std::nullopt;
         }
         json patch;
@@ -222,7 +210,10 @@ struct ApiServer::Impl {
     }
 
     // Renders `snapshot` at the requested size and quality through the render queue and answers the PNG.
-    void answer_frame(Response& res, const scene::SceneSnapshot& snapshot, const FrameOptions& options) {
+    // `edited`: the request's edit made this revision; an answer without a frame then still says so.
+    void answer_frame(Response& res, const scene::SceneSnapshot& snapshot, const FrameOptions& options,
+                      bool edited = false) {
+        if (edited) res.set_header("ETag", etag(snapshot.revision));
         scene::Quality quality = options.quality;
         const auto& width = options.width;
         const auto& height = options.height;
@@ -242,6 +233,7 @@ struct ApiServer::Impl {
                                                       std::chrono::seconds(config().request_timeout_s));
         if (!outcome) {
             res.set_header("Retry-After", "1");
+            if (edited) return answer_edit_without_frame(res, snapshot, "the render queue is full");
             send_error(res, 503, "the render queue is full; retry shortly");
             return;
         }
@@ -262,10 +254,12 @@ struct ApiServer::Impl {
             case Status::timed_out:
             case Status::shutting_down:
                 res.set_header("Retry-After", "5");
+                if (edited) return answer_edit_without_frame(res, snapshot, outcome->error);
                 send_error(res, 503, outcome->error);
                 return;
         }
         const scene::FrameResult& frame = *outcome->frame;
+        res.headers.clear();
         res.status = 200;
         res.set_header("X-Refract-Revision", std::to_string(outcome->revision));
         res.set_header("X-Refract-Passes", outcome->cached ? "" : scene::pass_names(frame.rerun));
@@ -279,18 +273,29 @@ struct ApiServer::Impl {
         res.set_content(reinterpret_cast<const char*>(frame.png.data()), frame.png.size(), "image/png");
     }
 
-    void routes() {
-        auto& s = server;
+    void route(const char* method, const std::string& pattern, Handler handler) {
+        server.route(method, pattern, std::move(handler));
+    }
 
-        s.Get("/api/health",
+    // 202: the edit is committed (its revision and ETag say which) but no frame comes with it; the client
+    // fetches the frame later rather than repeating the edit.
+    static void answer_edit_without_frame(Response& res, const scene::SceneSnapshot& snapshot,
+                                          const std::string& why) {
+        json answer = scene_json(snapshot);
+        answer["frame_error"] = why + "; the edit is applied, GET the frame later";
+        send_json(res, 202, answer);
+    }
+
+    void routes() {
+        route("GET", "/api/health",
               [this](const Request&, Response& res) { send_json(res, 200, service.health()); });
 
-        s.Get("/metrics", [this](const Request& req, Response& res) {
+        route("GET", "/metrics", [this](const Request& req, Response& res) {
             if (!authorize(req, res)) return;
             res.set_content(service.metrics().prometheus_text(service.gauges()), "text/plain; version=0.0.4");
         });
 
-        s.Get("/api/scenes", [this](const Request& req, Response& res) {
+        route("GET", "/api/scenes", [this](const Request& req, Response& res) {
             if (!authorize(req, res)) return;
             json list = json::array();
             for (const auto& scene : service.store().list())
@@ -298,9 +303,9 @@ struct ApiServer::Impl {
             send_json(res, 200, {{"scenes", list}});
         });
 
-        s.Post("/api/scenes", [this](const Request& req, Response& res, const ContentReader& reader) {
-            std::string body;
-            if (!read_body(req, res, reader, body) || !authorize(req, res)) return;
+        route("POST", "/api/scenes", [this](const Request& req, Response& res) {
+            if (!authorize(req, res)) return;
+            const std::string& body = req.body;
             if (!body.empty() && !is_json_type(media_type(req))) {
                 send_error(res, 415, "a scene document needs Content-Type: application/json");
                 return;
@@ -319,7 +324,7 @@ struct ApiServer::Impl {
             }
         });
 
-        s.Get(R"(/api/scenes/([^/]+))", [this](const Request& req, Response& res) {
+        route("GET", R"(/api/scenes/([^/]+))", [this](const Request& req, Response& res) {
             if (!authorize(req, res)) return;
             auto snapshot = find_scene(req.matches[1], res);
             if (!snapshot) return;
@@ -327,23 +332,21 @@ struct ApiServer::Impl {
             send_json(res, 200, scene_json(*snapshot));
         });
 
-        s.Patch(
-            R"(/api/scenes/([^/]+))", [this](const Request& req, Response& res, const ContentReader& reader) {
-                std::string body;
-                if (!read_body(req, res, reader, body) || !authorize(req, res)) return;
-                std::string id = req.matches[1];
-                if (!find_scene(id, res)) return;
-                auto result = edit(req, res, id, body);
-                if (!result) return;
-                json invalidated = pass_list(
-                    result->changed ? scene::passes_invalidated(result->before, result->after.document) : 0);
-                json answer = scene_json(result->after);
-                answer["invalidated"] = invalidated;
-                res.set_header("ETag", etag(result->after.revision));
-                send_json(res, 200, answer);
-            });
+        route("PATCH", R"(/api/scenes/([^/]+))", [this](const Request& req, Response& res) {
+            if (!authorize(req, res)) return;
+            std::string id = req.matches[1];
+            if (!find_scene(id, res)) return;
+            auto result = edit(req, res, id, req.body);
+            if (!result) return;
+            json invalidated = pass_list(
+                result->changed ? scene::passes_invalidated(result->before, result->after.document) : 0);
+            json answer = scene_json(result->after);
+            answer["invalidated"] = invalidated;
+            res.set_header("ETag", etag(result->after.revision));
+            send_json(res, 200, answer);
+        });
 
-        s.Delete(R"(/api/scenes/([^/]+))", [this](const Request& req, Response& res) {
+        route("DELETE", R"(/api/scenes/([^/]+))", [this](const Request& req, Response& res) {
             if (!authorize(req, res)) return;
             std::string id = req.matches[1];
             try {
@@ -359,7 +362,7 @@ struct ApiServer::Impl {
             res.status = 204;
         });
 
-        s.Get(R"(/api/scenes/([^/]+)/frame\.png)", [this](const Request& req, Response& res) {
+        route("GET", R"(/api/scenes/([^/]+)/frame\.png)", [this](const Request& req, Response& res) {
             if (!authorize(req, res)) return;
             auto snapshot = find_scene(req.matches[1], res);
             if (!snapshot) return;
@@ -368,31 +371,27 @@ struct ApiServer::Impl {
             answer_frame(res, *snapshot, *options);
         });
 
-        s.Post(R"(/api/scenes/([^/]+)/frame\.png)",
-               [this](const Request& req, Response& res, const ContentReader& reader) {
-                   std::string body;
-                   if (!read_body(req, res, reader, body) || !authorize(req, res)) return;
-                   std::string id = req.matches[1];
-                   auto snapshot = find_scene(id, res);
-                   if (!snapshot) return;
-                   auto options = frame_options(req, res);  // before the edit: a bad query changes nothing
-                   if (!options) return;
-                   if (!body.empty()) {
-                       auto result = edit(req, res, id, body);
-                       if (!result) return;
-                       snapshot = result->after;
-                   }
-                   answer_frame(res, *snapshot, *options);
-               });
+        route("POST", R"(/api/scenes/([^/]+)/frame\.png)", [this](const Request& req, Response& res) {
+            if (!authorize(req, res)) return;
+            std::string id = req.matches[1];
+            auto snapshot = find_scene(id, res);
+            if (!snapshot) return;
+            auto options = frame_options(req, res);  // before the edit: a bad query changes nothing
+            if (!options) return;
+            if (!req.body.empty()) {
+                auto result = edit(req, res, id, req.body);
+                if (!result) return;
+                snapshot = result->after;
+            }
+            answer_frame(res, *snapshot, *options, !req.body.empty());
+        });
 
-        s.Put(R"(/api/scenes/([^/]+)/index-field)",
-              [this](const Request& req, Response& res, const ContentReader& reader) {
-                  std::string body;
-                  if (!read_body(req, res, reader, body) || !authorize(req, res)) return;
-                  put_index_field(req, res, req.matches[1], body);
-              });
+        route("PUT", R"(/api/scenes/([^/]+)/index-field)", [this](const Request& req, Response& res) {
+            if (!authorize(req, res)) return;
+            put_index_field(req, res, req.matches[1], req.body);
+        });
 
-        s.Get("/api/meshes", [this](const Request& req, Response& res) {
+        route("GET", "/api/meshes", [this](const Request& req, Response& res) {
             if (!authorize(req, res)) return;
             json list = json::array();
             for (const auto& entry : service.store().list_meshes()) {
@@ -404,41 +403,39 @@ struct ApiServer::Impl {
             send_json(res, 200, {{"meshes", list}});
         });
 
-        s.Put(R"(/api/meshes/([^/]+))",
-              [this](const Request& req, Response& res, const ContentReader& reader) {
-                  std::string body;
-                  if (!read_body(req, res, reader, body) || !authorize(req, res)) return;
-                  std::string name = req.matches[1];
-                  try {
-                      scene::MeshEntry entry = service.store().put_mesh(name, body);
-                      service.queue().forget_cached_frames();
-                      json answer = scene::to_json(entry.report);
-                      answer["name"] = entry.name;
-                      answer["reference"] = "upload:" + entry.name;
-                      send_json(res, 201, answer);
-                  } catch (const mesh::MeshError& e) {
-                      send_error(res, 400, std::string("unusable OBJ: ") + e.what());
-                  } catch (const scene::StoreError& e) {
-                      send_error(res, e.status(), e.what());
-                  }
-              });
+        route("PUT", R"(/api/meshes/([^/]+))", [this](const Request& req, Response& res) {
+            if (!authorize(req, res)) return;
+            std::string name = req.matches[1];
+            try {
+                scene::MeshEntry entry = service.store().put_mesh(name, req.body);
+                service.queue().forget_cached_frames();
+                json answer = scene::to_json(entry.report);
+                answer["name"] = entry.name;
+                answer["reference"] = "upload:" + entry.name;
+                send_json(res, 201, answer);
+            } catch (const mesh::MeshError& e) {
+                send_error(res, 400, std::string("unusable OBJ: ") + e.what());
+            } catch (const scene::StoreError& e) {
+                send_error(res, e.status(), e.what());
+            }
+        });
 
         // Example scenes (logic in http/examples.cpp).
-        s.Get("/api/examples", [this](const Request& req, Response& res) {
+        route("GET", "/api/examples", [this](const Request& req, Response& res) {
             if (authorize(req, res)) send_json(res, 200, examples_index(config().examples_dir));
         });
-        s.Get(R"(/api/examples/([^/]+))", [this](const Request& req, Response& res) {
+        route("GET", R"(/api/examples/([^/]+))", [this](const Request& req, Response& res) {
             if (!authorize(req, res)) return;
-            ExampleFile example = read_example(config().examples_dir, req.matches[1].str());
+            ExampleFile example = read_example(config().examples_dir, req.matches[1]);
             if (example.status == 200) send_json(res, 200, example.document);
             else send_error(res, example.status, example.error);
         });
 
-        s.Get(R"(/api/.*)", [](const Request& req, Response& res) {
+        route("GET", R"(/api/.*)", [](const Request& req, Response& res) {
             send_error(res, 404, "no such endpoint: " + req.path);
         });
 
-        s.Get(R"(/.*)", [this](const Request& req, Response& res) { serve_static(req, res); });
+        route("GET", R"(/.*)", [this](const Request& req, Response& res) { serve_static(req, res); });
     }
 
     void put_index_field(const Request& req, Response& res, const std::string& id, const std::string& body) {
@@ -511,70 +508,21 @@ struct ApiServer::Impl {
         res.status = 200;
         res.set_content(content.str(), file.content_type);
     }
-
-    void install_hooks() {
-        server.set_pre_routing_handler([](const Request&, Response&) {
-            t_request_start = Clock::now();
-            return httplib::Server::HandlerResponse::Unhandled;
-        });
-        // Every error gets a JSON body, including those cpp-httplib answers itself (404, 413, 400).
-        server.set_error_handler(httplib::Server::HandlerWithResponse([](const Request&, Response& res) {
-            if (res.body.empty()) {
-                std::string reason = res.status == 413   ? "request body is too large (--max-body)"
-                                     : res.status == 404 ? "not found"
-                                     : res.status == 400 ? "bad request"
-                                                         : "error " + std::to_string(res.status);
-                send_json(res, res.status, {{"error", reason}});
-            }
-            return httplib::Server::HandlerResponse::Handled;
-        }));
-        server.set_exception_handler([](const Request&, Response& res, std::exception_ptr ep) {
-            std::string what = "internal error";
-            try {
-                if (ep) std::rethrow_exception(ep);
-            } catch (const std::exception& e) {
-                what = std::string("internal error: ") + e.what();
-            } catch (...) {
-            }
-            send_error(res, 500, what);
-        });
-        server.set_logger([this](const Request& req, const Response& res) {
-            // Requests refused before routing (unparseable, too long) have no start time.
-            char ms[32] = "-";
-            if (t_request_start)
-                std::snprintf(
-                    ms, sizeof ms, "%.1f",
-                    std::chrono::duration<double, std::milli>(Clock::now() - *t_request_start).count());
-            t_request_start.reset();
-            std::string method = req.method.empty() ? std::string("-") : req.method;
-            std::string path = req.path.empty() ? std::string("-") : req.path;
-            service.metrics().record_request(method, route_of(req.path), res.status);
-            std::fprintf(stderr, "refractd: %s %s %d %s ms\n", method.c_str(), path.c_str(), res.status, ms);
-        });
-    }
 };
 
-ApiServer::ApiServer(Service& service) : impl_(std::make_unique<Impl>(service)) {
-    unsigned threads = service.config().threads;
-    impl_->server.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
-    impl_->server.set_payload_max_length(service.config().max_body);
-    impl_->server.set_keep_alive_timeout(5);
-    impl_->server.set_read_timeout(10, 0);
-    impl_->server.set_write_timeout(10, 0);
-    impl_->install_hooks();
+ApiServer::ApiServer(Service& service, std::function<void(UpgradePtr)> upgrades)
+    : impl_(std::make_unique<Impl>(service, std::move(upgrades))) {
     impl_->routes();
 }
 
 ApiServer::~ApiServer() = default;
 
 void ApiServer::bind() {
-    const DaemonConfig& c = impl_->config();
-    if (!impl_->server.bind_to_port(c.bind, c.port))
-        throw std::runtime_error("cannot listen on " + c.bind + ":" + std::to_string(c.port));
+    impl_->server.bind();
 }
 
 void ApiServer::serve() {
-    impl_->server.listen_after_bind();
+    impl_->server.serve();
 }
 
 void ApiServer::stop() {

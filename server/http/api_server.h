@@ -1,17 +1,20 @@
-// The HTTP API (cpp-httplib): scenes, edits, frames, meshes, index grids, health, metrics, static files.
-// Handlers validate through protocol, change state through the scene store and get frames from the render
-// queue; none of them touches Vulkan.
+// The HTTP API (served by HttpServer): scenes, edits, frames, meshes, index grids, health, metrics, static
+// files. Handlers validate through protocol, change state through the scene store and get frames from the
+// render queue; none of them touches Vulkan.
 #pragma once
 
+#include <functional>
 #include <memory>
 
+#include "http/http_server.h"
 #include "http/service.h"
 
 namespace refract::http {
 
 class ApiServer {
 public:
-    explicit ApiServer(Service& service);
+    // `upgrades` takes the WebSocket upgrades that arrive on the HTTP port (unset: they get 404).
+    explicit ApiServer(Service& service, std::function<void(UpgradePtr)> upgrades = {});
     ~ApiServer();
     ApiServer(const ApiServer&) = delete;
     ApiServer& operator=(const ApiServer&) = delete;

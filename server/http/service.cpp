@@ -99,6 +99,10 @@ nlohmann::json parse_json_document(const std::string& text) {
     });
 }
 
+std::string dump_json(const nlohmann::json& value) {
+    return value.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
 std::vector<std::string> pass_list(scene::PassSet passes) {
     std::vector<std::string> names;
     for (scene::PassSet bit = 1; bit <= scene::kToneMap; bit <<= 1) {
@@ -134,7 +138,7 @@ std::optional<uint64_t> parse_if_match(const std::string& value) {
     uint64_t revision = 0;
     auto [rest, error] = std::from_chars(v.data(), v.data() + v.size(), revision);
     if (error != std::errc() || rest != v.data() + v.size() || v.empty())
-        throw std::invalid_argument("If-Match must be a revision number");
+        throw std::invalid_argument("If-Match must be a scene revision ETag such as \"3\" (or *)");
     return revision;
 }
 

@@ -63,6 +63,9 @@ private:
 // otherwise cost stack in every recursive consumer). Throws nlohmann::json::exception or
 // std::invalid_argument.
 nlohmann::json parse_json_document(const std::string& text);
+// The text of a JSON body or message. Never throws: bytes that are not UTF-8 (a raw path, a token quoted
+// from a bad OBJ or from a parser's error) become U+FFFD. Every JSON the daemon writes goes through here.
+std::string dump_json(const nlohmann::json& value);
 
 // Pass names of a set, in pipeline order ("voxelize", "index_field", ...).
 std::vector<std::string> pass_list(scene::PassSet passes);

@@ -1,6 +1,7 @@
-// The only translation unit that includes Boost.Beast (it compiles slowly).
+// One of the two translation units that include Boost.Beast (it compiles slowly).
 #include "http/ws_server.h"
 
+#include <atomic>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
@@ -16,6 +17,8 @@
 #include <thread>
 #include <vector>
 
+#include "http/upgrade.h"
+
 namespace refract::http {
 
 namespace {
@@ -30,27 +33,7 @@ using json = nlohmann::json;
 constexpr size_t kMaxMessageBytes = size_t{4} << 20;  // one edit message; scenes are small documents
 constexpr size_t kMaxSessions = 256;                  // open connections, handshakes included
 constexpr size_t kMaxQueuedErrors = 64;               // unsent error messages per session
-
-int hex_value(char c) {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    return -1;
-}
-
-std::string percent_decode(std::string_view text) {
-    std::string out;
-    for (size_t i = 0; i < text.size(); ++i) {
-        if (text[i] == '%' && i + 2 < text.size() && hex_value(text[i + 1]) >= 0 &&
-            hex_value(text[i + 2]) >= 0) {
-            out += static_cast<char>(hex_value(text[i + 1]) * 16 + hex_value(text[i + 2]));
-            i += 2;
-        } else {
-            out += text[i] == '+' ? ' ' : text[i];
-        }
-    }
-    return out;
-}
+constexpr size_t kMaxSeqBytes = 256;                  // a string `seq`; it is echoed in every answer
 
 // The value of `name` in a query string ("a=1&token=x"), decoded; empty when absent.
 std::string query_value(std::string_view query, std::string_view name) {
@@ -59,7 +42,7 @@ std::string query_value(std::string_view query, std::string_view name) {
         std::string_view pair = query.substr(0, amp);
         size_t eq = pair.find('=');
         if (pair.substr(0, eq) == name && eq != std::string_view::npos)
-            return percent_decode(pair.substr(eq + 1));
+            return percent_decode(pair.substr(eq + 1), true);
         if (amp == std::string_view::npos) break;
         query.remove_prefix(amp + 1);
     }
@@ -98,6 +81,15 @@ public:
         net::dispatch(ws_.get_executor(), [self = shared_from_this()] { self->read_upgrade(); });
     }
 
+    // Answers an upgrade the HTTP server has read already.
+    void start_upgraded(bhttp::request<bhttp::string_body> request) {
+        net::dispatch(ws_.get_executor(),
+                      [self = shared_from_this(), request = std::move(request)]() mutable {
+                          self->upgrade_request_ = std::move(request);
+                          self->answer_upgrade();
+                      });
+    }
+
     // Drops the connection (daemon shutdown); safe from any thread.
     void close() {
         net::post(ws_.get_executor(), [self = shared_from_this()] {
@@ -130,7 +122,7 @@ private:
         auto res = std::make_shared<bhttp::response<bhttp::string_body>>(status, 11);
         res->set(bhttp::field::content_type, "application/json");
         res->set(bhttp::field::connection, "close");
-        res->body() = json{{"error", message}}.dump();
+        res->body() = dump_json({{"error", message}});
         res->prepare_payload();
         log(static_cast<int>(status));
         bhttp::async_write(
@@ -147,7 +139,12 @@ private:
 
     void on_upgrade(beast::error_code ec) {
         if (ec) return;  // the client went away or sent garbage; nothing to answer
-        const auto& req = parser_->get();
+        upgrade_request_ = parser_->release();
+        answer_upgrade();
+    }
+
+    void answer_upgrade() {
+        const auto& req = upgrade_request_;
         std::string_view target(req.target().data(), req.target().size());
         size_t question = target.find('?');
         path_ = std::string(target.substr(0, question));
@@ -194,7 +191,7 @@ private:
         if (pointer) error["pointer"] = *pointer;
         // A client that sends and never reads must not grow the queue: past the bound, the oldest go.
         if (outbox_.size() >= kMaxQueuedErrors) outbox_.pop_front();
-        outbox_.push_back({false, std::make_shared<const std::string>(error.dump()), nullptr});
+        outbox_.push_back({false, std::make_shared<const std::string>(dump_json(error)), nullptr});
         write_next();
     }
 
@@ -209,7 +206,16 @@ private:
             service_.metrics().record_ws_message(true);
             return send_error(seq, std::string("malformed message: ") + e.what());
         }
-        if (message.contains("seq")) seq = message["seq"];
+        if (message.contains("seq")) {
+            const json& given = message["seq"];
+            if (!given.is_null() && !given.is_number() &&
+                !(given.is_string() && given.get_ref<const std::string&>().size() <= kMaxSeqBytes)) {
+                service_.metrics().record_ws_message(true);
+                return send_error(nullptr, "seq must be a number or a string of at most " +
+                                               std::to_string(kMaxSeqBytes) + " bytes");
+            }
+            seq = given;
+        }
         scene::Quality quality = scene::Quality::interactive;
         if (message.contains("quality")) {
             const json& q = message["quality"];
@@ -284,7 +290,7 @@ private:
                            {"quality", scene::to_string(quality)},
                            {"cached", outcome.cached}};
             // A slow reader gets the newest frame only: an unsent older one is dropped, never queued.
-            pending_frame_ = {std::make_shared<const std::string>(header.dump()), outcome.frame};
+            pending_frame_ = {std::make_shared<const std::string>(dump_json(header)), outcome.frame};
             write_next();
         }
         submit_frame();
@@ -332,6 +338,7 @@ private:
     beast::flat_buffer buffer_;
     beast::flat_buffer incoming_;
     std::optional<bhttp::request_parser<bhttp::string_body>> parser_;
+    bhttp::request<bhttp::string_body> upgrade_request_;  // kept until the handshake's answer is written
     std::string path_;
     std::string scene_id_;
 
@@ -363,30 +370,40 @@ struct WsServer::Impl {
     tcp::acceptor acceptor{ioc};
     std::vector<std::thread> threads;
     std::shared_ptr<SessionRegistry> registry = std::make_shared<SessionRegistry>();
+    net::steady_timer accept_retry{ioc};
     bool started = false;
-    bool stopped = false;
+    std::atomic<bool> stopped{false};
 
     explicit Impl(Service& s) : service(s) {}
+
+    // A session for `socket`, known to the registry so that stop() can close it.
+    std::shared_ptr<WsSession> open_session(tcp::socket socket) {
+        beast::error_code ignored;
+        socket.set_option(tcp::no_delay(true), ignored);
+        auto session =
+            std::make_shared<WsSession>(std::move(socket), service, [registry = registry](WsSession* gone) {
+                std::lock_guard lock(registry->mutex);
+                registry->live.erase(gone);
+            });
+        std::lock_guard lock(registry->mutex);
+        registry->live.insert(session.get());
+        std::erase_if(registry->refs, [](const auto& ref) { return ref.expired(); });
+        registry->refs.push_back(session);
+        return session;
+    }
 
     void accept() {
         acceptor.async_accept(net::make_strand(ioc), [this](beast::error_code ec, tcp::socket socket) {
             if (ec) {
                 if (ec == net::error::operation_aborted || !acceptor.is_open()) return;
-                accept();
+                // Out of descriptors (or another passing failure): wait a little rather than spin.
+                accept_retry.expires_after(std::chrono::milliseconds(50));
+                accept_retry.async_wait([this](beast::error_code wait_ec) {
+                    if (!wait_ec) accept();
+                });
                 return;
             }
-            auto session = std::make_shared<WsSession>(std::move(socket), service,
-                                                       [registry = registry](WsSession* gone) {
-                                                           std::lock_guard lock(registry->mutex);
-                                                           registry->live.erase(gone);
-                                                       });
-            {
-                std::lock_guard lock(registry->mutex);
-                registry->live.insert(session.get());
-                std::erase_if(registry->refs, [](const auto& ref) { return ref.expired(); });
-                registry->refs.push_back(session);
-            }
-            session->start();
+            open_session(std::move(socket))->start();
             accept();
         });
     }
@@ -416,6 +433,11 @@ void WsServer::start() {
     impl_->started = true;
     impl_->accept();
     for (int i = 0; i < 2; ++i) impl_->threads.emplace_back([this] { impl_->ioc.run(); });
+}
+
+void WsServer::adopt(UpgradePtr upgrade) {
+    if (impl_->stopped || !impl_->started) return;  // the connection closes with `upgrade`
+    impl_->open_session(std::move(upgrade->socket))->start_upgraded(std::move(upgrade->request));
 }
 
 void WsServer::stop() {

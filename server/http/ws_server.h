@@ -1,10 +1,12 @@
-// The WebSocket endpoint ws://host:ws_port/api/scenes/{id}/ws (Boost.Beast, on a port of its own because
-// cpp-httplib has no WebSocket): each text message may carry a merge patch; frames come back as a JSON
-// header followed by the PNG. Latest wins: one frame in flight per session, newer edits coalesce.
+// The WebSocket endpoint ws://host:ws_port/api/scenes/{id}/ws (Boost.Beast, on a port of its own, and on
+// the HTTP port too, where HttpServer hands upgrades over): each text message may carry a merge patch;
+// frames come back as a JSON header followed by the PNG. Latest wins: one frame in flight per session,
+// newer edits coalesce.
 #pragma once
 
 #include <memory>
 
+#include "http/http_server.h"
 #include "http/service.h"
 
 namespace refract::http {
@@ -18,6 +20,9 @@ public:
 
     // Binds the configured address and WebSocket port and starts serving. Throws std::runtime_error.
     void start();
+    // Serves an upgrade that arrived on the HTTP port (same path, same answers); its session stays on the
+    // HTTP server's I/O threads. Safe from any thread; after stop() the connection is just closed.
+    void adopt(UpgradePtr upgrade);
     // Stops accepting, drops every session and joins the I/O threads. Idempotent.
     void stop();
 

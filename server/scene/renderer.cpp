@@ -231,9 +231,19 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         frame.height = resident.gpu->height();
     } catch (...) {
         // Partially rebuilt state is not trusted: drop it, the next render rebuilds from the document.
-        std::lock_guard relock(impl_->mutex);
-        impl_->scenes.erase(scene_id);
-        throw;
+        {
+            std::lock_guard relock(impl_->mutex);
+            impl_->scenes.erase(scene_id);
+        }
+        // A scene past this device's limits or memory is unrenderable as asked, not a device fault.
+        try {
+            throw;
+        } catch (const vk::LimitError& e) {
+            throw RenderError(std::string("the scene cannot be rendered on this device: ") + e.what());
+        } catch (const vk::Error& e) {
+            if (e.result() != VK_ERROR_OUT_OF_DEVICE_MEMORY) throw;
+            throw RenderError(std::string("the scene does not fit in this device's memory: ") + e.what());
+        }
     }
     resident.document = document;
     resident.mesh = mesh;

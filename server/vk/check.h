@@ -18,6 +18,13 @@ private:
     VkResult result_;
 };
 
+// A request beyond what this device can do or hold (a buffer past its storage binding range, an image past
+// its dimension limit, a dispatch past its workgroup count): the request's fault, not the device's.
+class LimitError : public Error {
+public:
+    using Error::Error;
+};
+
 const char* result_name(VkResult result);
 
 void throw_result(VkResult result, const char* expression, const char* file, int line);

@@ -78,7 +78,7 @@ void ComputePipeline::dispatch(VkCommandBuffer cmd, std::span<const Binding> bin
     const auto& limits = context_.limits();
     if (groups_x > limits.maxComputeWorkGroupCount[0] || groups_y > limits.maxComputeWorkGroupCount[1] ||
         groups_z > limits.maxComputeWorkGroupCount[2])
-        throw Error(std::string(name_) + ": dispatch exceeds the device's workgroup count limit");
+        throw LimitError(std::string(name_) + ": dispatch exceeds the device's workgroup count limit");
     bind(cmd, bindings, push_constants, push_bytes);
     vkCmdDispatch(cmd, groups_x, groups_y, groups_z);
 }

@@ -21,7 +21,7 @@ Buffer::Buffer(Context& context, VkDeviceSize size, VkBufferUsageFlags usage, Me
     : size_(size), device_(context.device()), account_(&context.allocated_bytes_counter()) {
     if (size == 0) throw Error(std::string("buffer '") + name + "' has size 0");
     if ((usage & VK_BUFFER_USAGE_STORAGE_BUFFER_BIT) && size > context.limits().maxStorageBufferRange)
-        throw Error(std::string("buffer '") + name + "' needs " + std::to_string(size) +
+        throw LimitError(std::string("buffer '") + name + "' needs " + std::to_string(size) +
                     " bytes, more than this device's storage buffer limit of " +
                     std::to_string(context.limits().maxStorageBufferRange));
     VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
@@ -36,7 +36,7 @@ Buffer::Buffer(Context& context, VkDeviceSize size, VkBufferUsageFlags usage, Me
     vkGetBufferMemoryRequirements(device_, buffer, &requirements);
     const bool addressed = usage & VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT;
     if (requirements.size > context.max_memory_allocation_size())
-        throw Error(std::string("buffer '") + name + "' needs " + std::to_string(requirements.size) +
+        throw LimitError(std::string("buffer '") + name + "' needs " + std::to_string(requirements.size) +
                     " bytes, more than this device's largest allocation of " +
                     std::to_string(context.max_memory_allocation_size()));
     memory_ = context.allocate(requirements, required_flags(use), nullptr,
@@ -98,7 +98,7 @@ Image3D::Image3D(Context& context, Extent3 extent, VkFormat format, const char* 
     : extent_(extent), format_(format), account_(&context.allocated_bytes_counter()) {
     const uint32_t limit = context.limits().maxImageDimension3D;
     if (extent.x == 0 || extent.y == 0 || extent.z == 0 || extent.x > limit || extent.y > limit || extent.z > limit)
-        throw Error(std::string("image '") + name + "' extent " + std::to_string(extent.x) + "x" +
+        throw LimitError(std::string("image '") + name + "' extent " + std::to_string(extent.x) + "x" +
                     std::to_string(extent.y) + "x" + std::to_string(extent.z) +
                     " is empty or exceeds this device's 3D image limit of " + std::to_string(limit));
     const VkDevice device = context.device();

@@ -22,6 +22,29 @@ namespace refract::test {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+// Starts refractd with `args`, its stdout and stderr appended to `log`; its pid.
+pid_t spawn_refractd(const std::vector<std::string>& args, const fs::path& log) {
+    std::vector<std::string> all = {REFRACTD_PATH};
+    all.insert(all.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (auto& arg : all) argv.push_back(arg.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_APPEND,
+                                     0644);
+    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+    pid_t pid = -1;
+    int error = posix_spawn(&pid, REFRACTD_PATH, &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (error != 0) throw std::runtime_error("cannot spawn " + std::string(REFRACTD_PATH));
+    return pid;
+}
+
+}  // namespace
+
 TempDir::TempDir() {
     std::string pattern = (fs::temp_directory_path() / "refractd-test-XXXXXX").string();
     if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
@@ -71,23 +94,10 @@ void Daemon::start() {
         ws_port_ = free_port();
     } while (ws_port_ == port_);
     std::vector<std::string> args = {
-        REFRACTD_PATH, "--port",           std::to_string(port_), "--ws-port", std::to_string(ws_port_),
-        "--data-dir",  data_dir_.string(), "--request-timeout",   "120"};
+        "--port",     std::to_string(port_), "--ws-port",         std::to_string(ws_port_),
+        "--data-dir", data_dir_.string(),    "--request-timeout", "120"};
     args.insert(args.end(), extra_args_.begin(), extra_args_.end());
-    std::vector<char*> argv;
-    for (auto& arg : args) argv.push_back(arg.data());
-    argv.push_back(nullptr);
-
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log_path_.c_str(),
-                                     O_WRONLY | O_CREAT | O_APPEND, 0644);
-    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
-    pid_t pid = -1;
-    int error = posix_spawn(&pid, REFRACTD_PATH, &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    if (error != 0) throw std::runtime_error("cannot spawn " + std::string(REFRACTD_PATH));
-    pid_ = pid;
+    pid_ = spawn_refractd(args, log_path_);
 
     // Ready when /api/health answers; Vulkan start-up with validation on lavapipe takes a few seconds.
     auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
@@ -155,7 +165,7 @@ std::string Daemon::log() const {
     return text.str();
 }
 
-std::string raw_http(uint16_t port, const std::string& request) {
+int connect_loopback(uint16_t port) {
     int fd = ::socket(AF_INET, SOCK_STREAM, 0);
     sockaddr_in address{};
     address.sin_family = AF_INET;
@@ -163,10 +173,16 @@ std::string raw_http(uint16_t port, const std::string& request) {
     address.sin_port = htons(port);
     if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) {
         ::close(fd);
-        return {};
+        return -1;
     }
     timeval timeout{30, 0};
     ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+    return fd;
+}
+
+std::string raw_http(uint16_t port, const std::string& request) {
+    int fd = connect_loopback(port);
+    if (fd < 0) return {};
     ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
     std::string answer;
     char buffer[4096];
@@ -177,6 +193,31 @@ std::string raw_http(uint16_t port, const std::string& request) {
     }
     ::close(fd);
     return answer;
+}
+
+std::pair<int, std::string> run_refractd(const std::vector<std::string>& args, std::chrono::seconds timeout) {
+    TempDir dir;
+    fs::path log_path = dir.path() / "refractd.log";
+    pid_t pid = spawn_refractd(args, log_path);
+    int status = 0;
+    int exit_status = -1;
+    auto deadline = std::chrono::steady_clock::now() + timeout;
+    for (;;) {
+        if (::waitpid(pid, &status, WNOHANG) == pid) {
+            exit_status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+            break;
+        }
+        if (std::chrono::steady_clock::now() > deadline) {
+            ::kill(pid, SIGKILL);
+            ::waitpid(pid, &status, 0);
+            break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    std::ifstream in(log_path);
+    std::ostringstream text;
+    text << in.rdbuf();
+    return {exit_status, text.str()};
 }
 
 }  // namespace refract::test

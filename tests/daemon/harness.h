@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace refract::test {
@@ -47,6 +48,7 @@ public:
     httplib::Client client() const;
     uint16_t port() const { return port_; }
     uint16_t ws_port() const { return ws_port_; }
+    pid_t pid() const { return pid_; }
     std::string log() const;
 
 private:
@@ -60,7 +62,14 @@ private:
     uint16_t ws_port_ = 0;
 };
 
+// A TCP connection to 127.0.0.1:port (a blocking socket with a 30 s receive timeout); -1 when refused.
+int connect_loopback(uint16_t port);
+
 // Sends `request` verbatim over a fresh connection and returns everything the server answered.
 std::string raw_http(uint16_t port, const std::string& request);
+
+// Runs refractd with `args` until it exits (killed after `timeout`); its exit status (-1 when killed or
+// signalled) and everything it printed.
+std::pair<int, std::string> run_refractd(const std::vector<std::string>& args, std::chrono::seconds timeout);
 
 }  // namespace refract::test
