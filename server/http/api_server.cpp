@@ -184,14 +184,15 @@ struct ApiServer::Impl {
         return std::nullopt;
     }
 
-    struct FrameOptions {
+    struct FrameQuery {
         std::optional<uint64_t> width, height;
-        scene::Quality quality = scene::Quality::still;
+        scene::FrameOptions render;  // quality, budget, refinement level
     };
 
-    // The frame's query parameters (width, height, quality); nullopt with 400 sent when invalid.
-    std::optional<FrameOptions> frame_options(const Request& req, Response& res) {
-        FrameOptions options;
+    // The frame's query parameters (width, height, quality, budget_ms, level); nullopt with 400 sent
+    // when invalid.
+    std::optional<FrameQuery> frame_options(const Request& req, Response& res) {
+        FrameQuery options;
         bool bad = false;
         options.width = query_uint(req, "width", 1, config().max_image, res, bad);
         if (bad) return std::nullopt;
@@ -200,24 +201,30 @@ struct ApiServer::Impl {
         if (req.has_param("quality")) {
             std::string q = req.get_param_value("quality");
             if (q == "interactive") {
-                options.quality = scene::Quality::interactive;
+                options.render.quality = scene::Quality::interactive;
             } else if (q != "still") {
                 send_error(res, 400, "query parameter 'quality' must be 'interactive' or 'still'");
                 return std::nullopt;
             }
         }
+        auto budget = query_uint(req, "budget_ms", static_cast<uint64_t>(scene::kMinBudgetMs),
+                                 static_cast<uint64_t>(scene::kMaxBudgetMs), res, bad);
+        if (bad) return std::nullopt;
+        if (budget) options.render.budget_ms = static_cast<double>(*budget);
+        auto level = query_uint(req, "level", 1, scene::kMaxRefinementLevel, res, bad);
+        if (bad) return std::nullopt;
+        if (level) options.render.level = static_cast<uint32_t>(*level);
         return options;
     }
 
     // Renders `snapshot` at the requested size and quality through the render queue and answers the PNG.
     // `edited`: the request's edit made this revision; an answer without a frame then still says so.
-    void answer_frame(Response& res, const scene::SceneSnapshot& snapshot, const FrameOptions& options,
+    void answer_frame(Response& res, const scene::SceneSnapshot& snapshot, const FrameQuery& options,
                       bool edited = false) {
         if (edited) res.set_header("ETag", etag(snapshot.revision));
-        scene::Quality quality = options.quality;
         const auto& width = options.width;
         const auto& height = options.height;
-        scene::FrameRequest request{snapshot.id, snapshot.revision, snapshot.document, quality};
+        scene::FrameRequest request{snapshot.id, snapshot.revision, snapshot.document, options.render};
         if (width) request.document.image.width = static_cast<uint32_t>(*width);
         if (height) request.document.image.height = static_cast<uint32_t>(*height);
 
@@ -266,6 +273,9 @@ struct ApiServer::Impl {
         res.set_header("X-Refract-Cached", outcome->cached ? "1" : "0");
         res.set_header("ETag", etag(outcome->revision));
         res.set_header("Cache-Control", "no-store");
+        res.set_header("X-Refract-Level", std::to_string(frame.level));
+        res.set_header("X-Refract-Samples", std::to_string(frame.refinement.samples_per_pixel));
+        res.set_header("X-Refract-Photons", std::to_string(frame.photons));
         if (!outcome->cached) {
             std::string timing = server_timing(frame);
             if (!timing.empty()) res.set_header("Server-Timing", timing);

@@ -33,6 +33,7 @@ using json = nlohmann::json;
 constexpr size_t kMaxMessageBytes = size_t{4} << 20;  // one edit message; scenes are small documents
 constexpr size_t kMaxSessions = 256;                  // open connections, handshakes included
 constexpr size_t kMaxQueuedErrors = 64;               // unsent error messages per session
+constexpr auto kIdleBeforeStill = std::chrono::milliseconds(250);
 constexpr size_t kMaxSeqBytes = 256;                  // a string `seq`; it is echoed in every answer
 
 // The value of `name` in a query string ("a=1&token=x"), decoded; empty when absent.
@@ -68,6 +69,7 @@ public:
     WsSession(tcp::socket socket, Service& service, std::function<void(WsSession*)> on_close)
         : ws_(std::move(socket)),
           timer_(ws_.get_executor()),
+          idle_timer_(ws_.get_executor()),
           service_(service),
           on_close_(std::move(on_close)) {
         service_.ws_sessions.fetch_add(1);
@@ -95,6 +97,7 @@ public:
         net::post(ws_.get_executor(), [self = shared_from_this()] {
             self->closing_ = true;
             self->timer_.cancel();
+            self->idle_timer_.cancel();
             beast::error_code ignored;
             beast::get_lowest_layer(self->ws_).socket().shutdown(tcp::socket::shutdown_both, ignored);
             beast::get_lowest_layer(self->ws_).close();
@@ -177,6 +180,8 @@ private:
             if (ec) {
                 self->closing_ = true;
                 self->timer_.cancel();
+                self->idle_timer_.cancel();
+            self->idle_timer_.cancel();
                 return;
             }
             std::string text = beast::buffers_to_string(self->incoming_.data());
@@ -226,6 +231,26 @@ private:
                 return send_error(seq, "quality must be \"interactive\" or \"still\"");
             }
         }
+        // Session settings: checked whole before anything (the patch included) is applied.
+        double budget_ms = budget_ms_;
+        uint32_t refine_to = refine_to_;
+        if (message.contains("budget_ms")) {
+            const json& b = message["budget_ms"];
+            if (!b.is_number() || !(b.get<double>() >= scene::kMinBudgetMs && b.get<double>() <= scene::kMaxBudgetMs)) {
+                service_.metrics().record_ws_message(true);
+                return send_error(seq, "budget_ms must be a number of milliseconds in [10, 10000]");
+            }
+            budget_ms = b.get<double>();
+        }
+        if (message.contains("refine")) {
+            const json& r = message["refine"];
+            if (!r.is_number_unsigned() || r.get<uint64_t>() < 1 || r.get<uint64_t>() > scene::kMaxRefinementLevel) {
+                service_.metrics().record_ws_message(true);
+                return send_error(seq, "refine must be the highest refinement level to push, an integer in [1, " +
+                                           std::to_string(scene::kMaxRefinementLevel) + "]");
+            }
+            refine_to = static_cast<uint32_t>(r.get<uint64_t>());
+        }
         if (message.contains("patch")) {
             try {
                 service_.store().patch(scene_id_, message["patch"]);
@@ -238,11 +263,39 @@ private:
             }
         }
         service_.metrics().record_ws_message(false);
+        budget_ms_ = budget_ms;
+        refine_to_ = refine_to;
         // Latest wins: remember only the newest request; the frame after the one in flight renders it.
+        // Any message stops refinement: the frame it asks for comes next.
+        idle_timer_.cancel();
         wanted_seq_ = seq;
-        wanted_quality_ = quality;
+        wanted_options_ = {quality, budget_ms_, 1};
         want_frame_ = true;
         submit_frame();
+    }
+
+    // After a frame, with nothing newer asked for: keep improving it. A still frame is followed by its
+    // next refinement level (renderer.h) up to the session's `refine`; an interactive frame, after
+    // kIdleBeforeStill without another message, by the still frame (the user has let go).
+    void refine_after(const json& seq, const scene::FrameOptions& rendered, uint64_t revision) {
+        if (want_frame_ || closing_) return;
+        auto current = service_.store().get(scene_id_);
+        if (!current || current->revision != revision) return;
+        if (rendered.quality == scene::Quality::still) {
+            if (rendered.level >= refine_to_) return;
+            wanted_seq_ = seq;
+            wanted_options_ = {scene::Quality::still, budget_ms_, rendered.level + 1};
+            want_frame_ = true;
+            return submit_frame();
+        }
+        idle_timer_.expires_after(kIdleBeforeStill);
+        idle_timer_.async_wait([self = shared_from_this(), seq](beast::error_code ec) {
+            if (ec || self->want_frame_ || self->in_flight_ || self->closing_) return;
+            self->wanted_seq_ = seq;
+            self->wanted_options_ = {scene::Quality::still, self->budget_ms_, 1};
+            self->want_frame_ = true;
+            self->submit_frame();
+        });
     }
 
     void submit_frame() {
@@ -252,14 +305,14 @@ private:
             want_frame_ = false;
             return send_error(wanted_seq_, "the scene was deleted");
         }
-        scene::FrameRequest request{snapshot->id, snapshot->revision, snapshot->document, wanted_quality_};
+        scene::FrameRequest request{snapshot->id, snapshot->revision, snapshot->document, wanted_options_};
         json seq = wanted_seq_;
-        scene::Quality quality = wanted_quality_;
+        scene::FrameOptions options = wanted_options_;
         auto self = shared_from_this();
         bool accepted = service_.queue().submit(
-            std::move(request), [self, seq, quality](const scene::FrameOutcome& outcome) {
+            std::move(request), [self, seq, options](const scene::FrameOutcome& outcome) {
                 net::post(self->ws_.get_executor(),
-                          [self, seq, quality, outcome] { self->on_frame(seq, quality, outcome); });
+                          [self, seq, options, outcome] { self->on_frame(seq, options, outcome); });
             });
         if (!accepted) {
             // Queue full: try again shortly rather than dropping the newest state.
@@ -273,9 +326,10 @@ private:
         want_frame_ = false;
     }
 
-    void on_frame(const json& seq, scene::Quality quality, const scene::FrameOutcome& outcome) {
+    void on_frame(const json& seq, const scene::FrameOptions& options, const scene::FrameOutcome& outcome) {
         in_flight_ = false;
         if (closing_) return;
+        const scene::Quality quality = options.quality;
         if (outcome.status != scene::FrameOutcome::Status::ok) {
             send_error(seq, outcome.error);
         } else {
@@ -288,10 +342,17 @@ private:
                            {"width", frame.width},
                            {"height", frame.height},
                            {"quality", scene::to_string(quality)},
-                           {"cached", outcome.cached}};
+                           {"cached", outcome.cached},
+                           {"level", frame.level},
+                           {"photon_batches", frame.refinement.photon_batches},
+                           {"samples_per_pixel", frame.refinement.samples_per_pixel},
+                           {"photons", frame.photons},
+                           {"refine", refine_to_}};
+            if (quality == scene::Quality::interactive) header["budget_ms"] = options.budget_ms;
             // A slow reader gets the newest frame only: an unsent older one is dropped, never queued.
             pending_frame_ = {std::make_shared<const std::string>(dump_json(header)), outcome.frame};
             write_next();
+            refine_after(seq, options, outcome.revision);
         }
         submit_frame();
     }
@@ -333,6 +394,7 @@ private:
 
     websocket::stream<beast::tcp_stream> ws_;
     net::steady_timer timer_;
+    net::steady_timer idle_timer_;  // from an interactive frame to the still one (refine_after)
     Service& service_;
     std::function<void(WsSession*)> on_close_;
     beast::flat_buffer buffer_;
@@ -346,7 +408,9 @@ private:
     bool in_flight_ = false;
     bool want_frame_ = false;
     json wanted_seq_ = nullptr;
-    scene::Quality wanted_quality_ = scene::Quality::interactive;
+    scene::FrameOptions wanted_options_{scene::Quality::interactive};
+    double budget_ms_ = scene::kDefaultBudgetMs;           // this session's interactive frame budget
+    uint32_t refine_to_ = scene::kMaxRefinementLevel;      // the last refinement level pushed
 
     bool writing_ = false;
     Outgoing current_;

@@ -223,6 +223,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
             frame.photons_traced ? static_cast<double>(photon_steps) / static_cast<double>(frame.photons_traced) : 0.0;
         frame.level = level;
         frame.refinement = refinement_at(level);
+        frame.photons = uint64_t{frame.refinement.photon_batches} * document.photons.count;
         const auto encode_start = Clock::now();
         const auto pixels = resident.gpu->read_ldr();
         frame.png = image::encode_png(pixels, resident.gpu->width(), resident.gpu->height());

@@ -83,6 +83,7 @@ struct FrameResult {
     double mean_steps_per_photon = 0.0;
     uint32_t level = 1;           // the refinement level the frame holds (1 for interactive frames)
     Refinement refinement;        // photon batches and samples per pixel in the frame
+    uint64_t photons = 0;         // photons in the radiance grid the frame was shaded from, all batches
 };
 
 // Raised for a scene that is valid JSON but cannot be rendered (unknown mesh name, over the memory
