@@ -803,7 +803,7 @@ TEST(Daemon, WebSocketCoalescesEditsLatestWins) {
     std::string id = create_scene(client, "live");
     WsClient ws(daemon.ws_port(), "/api/scenes/" + id + "/ws");
 
-    ws.send({{"seq", 0}});
+    ws.send({{"seq", 0}, {"refine", 0}});  // only the frames asked for (refinement: its own test)
     auto [first, first_png] = ws.read_frame();
     EXPECT_EQ(first["seq"], 0);
     EXPECT_EQ(first["revision"], 1);
@@ -857,6 +857,85 @@ TEST(Daemon, WebSocketCoalescesEditsLatestWins) {
     auto [garbage_text, garbage] = ws.read();
     EXPECT_EQ(json::parse(garbage)["type"], "error");
     expect_alive(daemon);
+}
+
+// After the last edit the daemon keeps improving the frame: the still frame and then each refinement
+// level, up to the session's cap; any message interrupts at once, and bad settings change nothing.
+TEST(Daemon, WebSocketPushesRefinementLevelsUntilTheCap) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "refined");
+    WsClient ws(daemon.ws_port(), "/api/scenes/" + id + "/ws");
+
+    ws.send({{"seq", 1}, {"refine", 4}, {"budget_ms", 250}});
+    auto [interactive, png] = ws.read_frame();
+    EXPECT_EQ(interactive["quality"], "interactive");
+    EXPECT_EQ(interactive["budget_ms"], 250.0);
+    EXPECT_EQ(interactive["level"], 1);
+    // Left alone, the still frame follows, then levels 2 to 4, each with one more photon batch.
+    for (int level = 1; level <= 4; ++level) {
+        auto [still, still_png] = ws.read_frame();
+        EXPECT_EQ(still["seq"], 1);
+        EXPECT_EQ(still["quality"], "still");
+        EXPECT_EQ(still["level"], level);
+        EXPECT_EQ(still["photon_batches"], level);
+        EXPECT_EQ(still["samples_per_pixel"], 1);
+        EXPECT_EQ(still["photons"], 256 * level);
+        EXPECT_EQ(still["width"], 64);
+        EXPECT_TRUE(is_png(still_png));
+    }
+    // A bad setting is refused whole: the patch beside it is not applied.
+    for (const json& bad : {json{{"seq", 2}, {"budget_ms", 5}, {"patch", {{"light", {{"intensity", 9.0}}}}}},
+                            json{{"seq", 2}, {"budget_ms", "fast"}, {"patch", {{"light", {{"intensity", 9.0}}}}}},
+                            json{{"seq", 2}, {"refine", 32}, {"patch", {{"light", {{"intensity", 9.0}}}}}},
+                            json{{"seq", 2}, {"refine", -1}, {"patch", {{"light", {{"intensity", 9.0}}}}}}}) {
+        ws.send(bad);
+        auto [is_text, payload] = ws.read();
+        ASSERT_TRUE(is_text);
+        json error = json::parse(payload);
+        EXPECT_EQ(error["type"], "error") << bad.dump();
+        EXPECT_EQ(error["seq"], 2);
+    }
+    EXPECT_EQ(get_json(client, "/api/scenes/" + id)["revision"], 1);
+    // Refinement stops at the cap: the next frame is the one this edit asks for.
+    ws.send({{"seq", 3}, {"patch", {{"light", {{"intensity", 9.0}}}}}, {"quality", "still"}, {"refine", 1}});
+    auto [edited, edited_png] = ws.read_frame();
+    EXPECT_EQ(edited["seq"], 3);
+    EXPECT_EQ(edited["revision"], 2);
+    EXPECT_EQ(edited["level"], 1);
+    expect_alive(daemon);
+}
+
+TEST(Daemon, FrameQueryTakesABudgetAndARefinementLevel) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "levels");
+    auto third = get_frame(client, id, "?level=3");
+    ASSERT_TRUE(third && third->status == 200);
+    EXPECT_EQ(third->get_header_value("X-Refract-Level"), "3");
+    EXPECT_EQ(third->get_header_value("X-Refract-Photons"), "768");
+    EXPECT_EQ(third->get_header_value("X-Refract-Samples"), "1");
+    auto first = get_frame(client, id);
+    ASSERT_TRUE(first && first->status == 200);
+    EXPECT_EQ(first->get_header_value("X-Refract-Level"), "1");
+    EXPECT_NE(first->body, third->body);
+    auto again = get_frame(client, id, "?level=3");  // the same bytes, reached again from level 1
+    ASSERT_TRUE(again && again->status == 200);
+    EXPECT_EQ(again->body, third->body);
+    auto top = get_frame(client, id, "?level=31");
+    ASSERT_TRUE(top && top->status == 200);
+    EXPECT_EQ(top->get_header_value("X-Refract-Samples"), "16");
+    auto budgeted = get_frame(client, id, "?quality=interactive&budget_ms=40");
+    ASSERT_TRUE(budgeted && budgeted->status == 200);
+    for (const char* bad : {"?level=0", "?level=32", "?level=x", "?budget_ms=9", "?budget_ms=10001", "?budget_ms=1.5e3"}) {
+        auto res = client.Get("/api/scenes/" + id + "/frame.png" + bad);
+        ASSERT_TRUE(res);
+        EXPECT_EQ(res->status, 400) << bad;
+        EXPECT_NE(res->body.find("query parameter"), std::string::npos) << res->body;
+    }
+    EXPECT_EQ(get_json(client, "/api/scenes/" + id)["revision"], 1);
 }
 
 TEST(Daemon, WebSocketRefusesUnknownScenesAndBadTokens) {

@@ -244,9 +244,9 @@ private:
         }
         if (message.contains("refine")) {
             const json& r = message["refine"];
-            if (!r.is_number_unsigned() || r.get<uint64_t>() < 1 || r.get<uint64_t>() > scene::kMaxRefinementLevel) {
+            if (!r.is_number_unsigned() || r.get<uint64_t>() > scene::kMaxRefinementLevel) {
                 service_.metrics().record_ws_message(true);
-                return send_error(seq, "refine must be the highest refinement level to push, an integer in [1, " +
+                return send_error(seq, "refine must be the highest refinement level to push, an integer in [0, " +
                                            std::to_string(scene::kMaxRefinementLevel) + "]");
             }
             refine_to = static_cast<uint32_t>(r.get<uint64_t>());
@@ -276,9 +276,10 @@ private:
 
     // After a frame, with nothing newer asked for: keep improving it. A still frame is followed by its
     // next refinement level (renderer.h) up to the session's `refine`; an interactive frame, after
-    // kIdleBeforeStill without another message, by the still frame (the user has let go).
+    // kIdleBeforeStill without another message, by the still frame (the user has let go). `refine` 0
+    // pushes only the frames asked for.
     void refine_after(const json& seq, const scene::FrameOptions& rendered, uint64_t revision) {
-        if (want_frame_ || closing_) return;
+        if (want_frame_ || closing_ || refine_to_ == 0) return;
         auto current = service_.store().get(scene_id_);
         if (!current || current->revision != revision) return;
         if (rendered.quality == scene::Quality::still) {
