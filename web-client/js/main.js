@@ -378,7 +378,15 @@ function updateProgress() {
     if (streaming && inf.quality === 'interactive') text = `${f.toFixed(f < 10 ? 1 : 0)} fps · ${text}`;
   } else if (hooks.lastQuality) {
     const took = hooks.latencyMs ? `, ${duration(hooks.latencyMs)}` : '';
-    text = hooks.lastQuality === 'still' ? `Still frame${took}` : `Preview frame${took}`;
+    const meta = hooks.lastMeta || {};
+    // The daemon keeps refining a still frame (more photons, then anti-aliasing) until its cap.
+    if (hooks.lastQuality === 'still' && meta.level >= 1 && meta.refine > meta.level) {
+      text = `Refining… level ${meta.level} of ${meta.refine}`;
+    } else if (hooks.lastQuality === 'still' && meta.level > 1) {
+      text = `Refined frame, level ${meta.level}`;
+    } else {
+      text = hooks.lastQuality === 'still' ? `Still frame${took}` : `Preview frame${took}`;
+    }
   } else {
     text = 'Waiting for the first frame…';
   }
@@ -403,6 +411,10 @@ function showStats(meta, quality) {
   const size = meta.width && meta.height ? `${meta.width}×${meta.height}` : '';
   const what = quality === 'interactive' ? 'Preview' : 'Still';
   const parts = [`${what} ${size}`.trim(), `revision ${meta.revision ?? '—'}`];
+  if (quality === 'still' && meta.level > 1) {
+    const photons = typeof meta.photons === 'number' ? `${(meta.photons / 1e6).toFixed(2)} M photons` : '';
+    parts.push(`level ${meta.level}: ${photons}, ${meta.samples_per_pixel} sample${meta.samples_per_pixel > 1 ? 's' : ''}/pixel`);
+  }
   if (meta.cached) parts.push('already rendered: timings of its render');
   const timings = meta.timings && typeof meta.timings === 'object' ? meta.timings : {};
   if (meta.cached && Object.keys(timings).length === 0) {

@@ -1,0 +1,425 @@
+#!/usr/bin/env node
+// Interactive benchmark of the browser client against a real refractd (issue 21). Not a test: it
+// measures, prints a table and one JSON line, and fails only when it could not measure at all.
+//
+//   node tests/e2e/interactive.bench.mjs PATH/TO/refractd [PATH/TO/web-client] [LABEL]
+//
+// Starts refractd on free loopback ports with a temporary data directory (LP_NUM_THREADS=2 unless
+// set), opens the client in Debian's headless Chromium (playwright-core, no browser download) at the
+// default URL and window size, on the default scene document, and measures:
+//   - navigation to the first frame received and drawn, and to the first full-resolution still;
+//   - a 3 s orbit drag and a 3 s shift-drag of the light: frames received per second while dragging,
+//     and the time from releasing the mouse to the first full-resolution still;
+//   - an exposure edit over HTTP (POST frame.png with a merge patch): the Server-Timing pass sum and
+//     the request's wall time.
+// Frames are observed on the page's WebSocket (header, then PNG), which works for any client
+// version; the client's window.refract hooks, where present, add when a frame was drawn.
+// $REFRACT_CHROMIUM overrides /usr/bin/chromium; $REFRACT_BENCH_LOG keeps the daemon's log there.
+
+import { spawn } from 'node:child_process';
+import fs from 'node:fs';
+import net from 'node:net';
+import os from 'node:os';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+let chromium;
+try {
+  ({ chromium } = await import('playwright-core'));
+} catch (e) {
+  console.error(`playwright-core is not installed (${e.message}); run: npm --prefix tests/e2e ci`);
+  process.exit(1);
+}
+
+const HERE = path.dirname(fileURLToPath(import.meta.url));
+const REPO = path.resolve(HERE, '../..');
+const [refractdArg, webRootArg, labelArg] = process.argv.slice(2);
+if (!refractdArg) {
+  console.error('usage: node interactive.bench.mjs PATH/TO/refractd [PATH/TO/web-client] [LABEL]');
+  process.exit(2);
+}
+const REFRACTD = path.resolve(refractdArg);
+const WEB_ROOT = path.resolve(webRootArg || path.join(REPO, 'web-client'));
+const LABEL = labelArg || REFRACTD;
+const CHROMIUM = process.env.REFRACT_CHROMIUM || '/usr/bin/chromium';
+const DRAG_MS = 3000;
+const MOVE_EVERY_MS = 16;           // pointer moves while dragging: about one per display frame
+const SETTLE_TIMEOUT_MS = 90_000;   // a still frame after navigation or a drag
+const QUIET_MS = 2000;              // before a drag: no frame for this long (refinement finished) ...
+const QUIET_CAP_MS = 20_000;        // ... or this long after the still, whichever comes first
+const HARD_LIMIT_MS = 8 * 60_000;   // the whole run
+const EXPOSURE_EDITS = [1.3, 0.7, 1.3];
+
+const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'refract-bench-'));
+const dataDir = path.join(tmp, 'data');
+const daemonLogPath = process.env.REFRACT_BENCH_LOG || path.join(tmp, 'refractd.log');
+const daemonLog = fs.createWriteStream(daemonLogPath);
+
+let daemon = null;
+let browser = null;
+let base = '';
+const t0 = Date.now();
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+const log = (...args) => console.error(`[bench +${((Date.now() - t0) / 1000).toFixed(1)}s]`, ...args);
+
+// ---- daemon --------------------------------------------------------------------------------------
+
+function freePort() {
+  return new Promise((resolve, reject) => {
+    const srv = net.createServer();
+    srv.unref();
+    srv.on('error', reject);
+    srv.listen(0, '127.0.0.1', () => {
+      const { port } = srv.address();
+      srv.close(() => resolve(port));
+    });
+  });
+}
+
+function startDaemon(httpPort, wsPort) {
+  const args = ['--bind', '127.0.0.1', '--port', String(httpPort), '--ws-port', String(wsPort),
+    '--data-dir', dataDir, '--web-root', WEB_ROOT];
+  log('starting', REFRACTD, args.join(' '));
+  const child = spawn(REFRACTD, args, {
+    stdio: ['ignore', 'pipe', 'pipe'],
+    env: { LP_NUM_THREADS: '2', ...process.env },
+  });
+  child.stdout.pipe(daemonLog, { end: false });
+  child.stderr.pipe(daemonLog, { end: false });
+  child.exited = new Promise((resolve) => child.on('exit', (code, signal) => resolve({ code, signal })));
+  child.on('error', (e) => log('refractd failed to start:', e.message));
+  return child;
+}
+
+async function stopDaemon(child) {
+  if (!child || child.exitCode !== null || child.signalCode !== null) return;
+  child.kill('SIGTERM');
+  const done = await Promise.race([child.exited, sleep(10_000).then(() => null)]);
+  if (!done) {
+    child.kill('SIGKILL');
+    await child.exited;
+  }
+}
+
+async function waitForHealth(child) {
+  const deadline = Date.now() + 60_000;
+  while (Date.now() < deadline) {
+    if (child.exitCode !== null || child.signalCode !== null) throw new Error(`refractd exited (${child.exitCode ?? child.signalCode})`);
+    try {
+      const res = await fetch(`${base}/api/health`);
+      if (res.status === 200) return await res.json();
+    } catch { /* not listening yet */ }
+    await sleep(100);
+  }
+  throw new Error('refractd did not answer /api/health within 60 s');
+}
+
+// ---- frames seen on the page's WebSocket ---------------------------------------------------------
+
+// Every frame the daemon sent: its header (meta), when the header and the PNG arrived (epoch ms).
+const frames = [];
+const sent = [];  // requests the client sent: { t, quality, patch }
+let pendingHeader = null;
+
+function watchSockets(page) {
+  page.on('websocket', (ws) => {
+    if (!/\/ws(\?|$)/.test(ws.url())) return;
+    ws.on('framereceived', ({ payload }) => {
+      const t = Date.now();
+      if (typeof payload === 'string') {
+        let msg = null;
+        try { msg = JSON.parse(payload); } catch { return; }
+        if (msg && msg.type === 'frame') pendingHeader = { meta: msg, tHeader: t };
+        return;
+      }
+      const head = pendingHeader || { meta: {}, tHeader: t };
+      pendingHeader = null;
+      const m = head.meta;
+      frames.push({
+        t, tHeader: head.tHeader, quality: m.quality ?? null, width: m.width ?? null, height: m.height ?? null,
+        level: m.level ?? null, revision: m.revision ?? null, cached: Boolean(m.cached), bytes: payload.length,
+        passMs: sumTimings(m.timings),
+      });
+    });
+    ws.on('framesent', ({ payload }) => {
+      if (typeof payload !== 'string') return;
+      try {
+        const msg = JSON.parse(payload);
+        sent.push({ t: Date.now(), quality: msg.quality ?? null, patch: msg.patch ?? null });
+      } catch { /* not ours */ }
+    });
+  });
+}
+
+function sumTimings(timings) {
+  if (!timings || typeof timings !== 'object') return null;
+  const values = Object.values(timings).filter((v) => typeof v === 'number');
+  return values.length ? values.reduce((a, b) => a + b, 0) : null;
+}
+
+// The client's own record of drawn frames, where it has window.refract: epoch ms of each draw.
+async function recordDraws(page) {
+  await page.evaluate(() => {
+    const draws = [];
+    window.__benchDraws = draws;
+    let seen = 0;
+    const tick = () => {
+      const hooks = window.refract;
+      if (hooks && typeof hooks.framesReceived === 'number' && hooks.framesReceived !== seen) {
+        seen = hooks.framesReceived;
+        const meta = hooks.lastMeta || {};
+        draws.push({ t: performance.timeOrigin + performance.now(), quality: hooks.lastQuality ?? meta.quality ?? null,
+          width: meta.width ?? null, height: meta.height ?? null });
+      }
+      requestAnimationFrame(tick);
+    };
+    requestAnimationFrame(tick);
+  });
+}
+
+const isFull = (f, size) => f.quality === 'still' && f.width === size.width && f.height === size.height;
+
+async function waitUntil(pred, timeoutMs, what) {
+  const deadline = Date.now() + timeoutMs;
+  while (Date.now() < deadline) {
+    const hit = pred();
+    if (hit) return hit;
+    await sleep(20);
+  }
+  throw new Error(`timed out after ${timeoutMs / 1000} s waiting for ${what}`);
+}
+
+// No frame for QUIET_MS (the daemon stopped refining), or QUIET_CAP_MS since `since`.
+async function waitQuiet(since) {
+  while (true) {
+    const last = frames.length ? frames[frames.length - 1].t : since;
+    if (Date.now() - last >= QUIET_MS) return false;
+    if (Date.now() - since >= QUIET_CAP_MS) return true;
+    await sleep(50);
+  }
+}
+
+const median = (xs) => {
+  const s = xs.filter((x) => typeof x === 'number').sort((a, b) => a - b);
+  if (!s.length) return null;
+  return s.length % 2 ? s[(s.length - 1) / 2] : (s[s.length / 2 - 1] + s[s.length / 2]) / 2;
+};
+
+// ---- the measurements ----------------------------------------------------------------------------
+
+async function sceneImage(id) {
+  const res = await fetch(`${base}/api/scenes/${encodeURIComponent(id)}`);
+  const body = await res.json();
+  return { width: body.scene.image.width, height: body.scene.image.height };
+}
+
+// A drag of DRAG_MS over the canvas (with Shift: the light), then release; frames while dragging
+// and the time from release to the first full-resolution still.
+async function drag(page, size, light) {
+  const box = await page.locator('#view').boundingBox();
+  const cx = box.x + box.width / 2;
+  const cy = box.y + box.height / 2;
+  const amp = Math.min(box.width, box.height) * 0.25;
+  const firstIndex = frames.length;
+  const sentIndex = sent.length;
+  await page.mouse.move(cx, cy);
+  if (light) await page.keyboard.down('Shift');
+  await page.mouse.down();
+  const start = Date.now();
+  let moves = 0;
+  while (Date.now() - start < DRAG_MS) {
+    const phase = ((Date.now() - start) / 1500) * 2 * Math.PI;
+    await page.mouse.move(cx + amp * Math.sin(phase), cy + 0.3 * amp * Math.sin(2 * phase));
+    moves++;
+    await sleep(MOVE_EVERY_MS);
+  }
+  const end = Date.now();
+  await page.mouse.up();
+  if (light) await page.keyboard.up('Shift');
+  const during = frames.slice(firstIndex).filter((f) => f.t >= start && f.t <= end);
+  const still = await waitUntil(() => frames.slice(firstIndex).find((f) => f.t >= end && isFull(f, size)),
+    SETTLE_TIMEOUT_MS, `a full-resolution still after the ${light ? 'light' : 'orbit'} drag`);
+  const interactive = during.filter((f) => f.quality === 'interactive');
+  const firstDuring = frames.slice(firstIndex).find((f) => f.t >= start);
+  return {
+    seconds: (end - start) / 1000,
+    moves,
+    requests: sent.slice(sentIndex).filter((s) => s.t >= start && s.t <= end).length,
+    frames: during.length,
+    fps: during.length / ((end - start) / 1000),
+    interactive_frames: interactive.length,
+    first_frame_ms: firstDuring ? firstDuring.t - start : null,
+    interactive_size: interactive.length ? `${median(interactive.map((f) => f.width))}x${median(interactive.map((f) => f.height))}` : null,
+    interactive_pass_ms: median(interactive.map((f) => f.passMs)),
+    release_to_full_ms: still.t - end,
+    still_pass_ms: still.passMs,
+  };
+}
+
+// An exposure edit over HTTP on the daemon's "default" scene, rendered once before (not timed).
+async function exposureEdits() {
+  const url = `${base}/api/scenes/default/frame.png`;
+  const warm = await fetch(url);
+  await warm.arrayBuffer();
+  if (warm.status !== 200) throw new Error(`GET ${url} -> ${warm.status}`);
+  const edits = [];
+  for (const exposure of EXPOSURE_EDITS) {
+    const startedAt = performance.now();
+    const res = await fetch(url, {
+      method: 'POST', headers: { 'Content-Type': 'application/merge-patch+json' },
+      body: JSON.stringify({ image: { exposure } }),
+    });
+    await res.arrayBuffer();
+    const wall = performance.now() - startedAt;
+    if (res.status !== 200) throw new Error(`POST ${url} -> ${res.status}`);
+    const timing = res.headers.get('server-timing') || '';
+    const passes = {};
+    for (const part of timing.split(',')) {
+      const m = /^\s*([^;]+);dur=([0-9.]+)/.exec(part);
+      if (m) passes[m[1].trim()] = Number(m[2]);
+    }
+    edits.push({ exposure, passMs: Object.values(passes).reduce((a, b) => a + b, 0), wallMs: wall, passes });
+  }
+  return edits;
+}
+
+async function main() {
+  const httpPort = await freePort();
+  let wsPort;
+  do wsPort = await freePort(); while (wsPort === httpPort);
+  base = `http://127.0.0.1:${httpPort}`;
+  daemon = startDaemon(httpPort, wsPort);
+  const health = await waitForHealth(daemon);
+  const device = health.device?.name ?? health.device ?? null;
+  log('refractd is up:', JSON.stringify(device));
+
+  browser = await chromium.launch({
+    executablePath: CHROMIUM,
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+      '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+  });
+  const context = await browser.newContext();  // Playwright's default window: 1280x720, scale 1
+  const page = await context.newPage();
+  page.on('pageerror', (e) => log('page error:', e.message));
+  watchSockets(page);
+
+  // 1. Navigation to the first frame and the first full-resolution still.
+  const navStart = Date.now();
+  await page.goto(`${base}/`);
+  const hooked = await page.evaluate(() => typeof window.refract === 'object' && window.refract !== null);
+  if (hooked) await recordDraws(page);
+  await waitUntil(() => frames.length > 0, SETTLE_TIMEOUT_MS, 'the first frame');
+  await waitUntil(() => sent.length > 0, SETTLE_TIMEOUT_MS, 'the first request');
+  const sceneId = await page.evaluate(() => new URL(location.href).searchParams.get('scene'));
+  // The image size the client asked for (it follows the canvas), i.e. full resolution.
+  await waitUntil(() => frames.some((f) => f.quality === 'still'), SETTLE_TIMEOUT_MS, 'a still frame');
+  const size = await sceneImage(sceneId);
+  const firstFull = await waitUntil(() => frames.find((f) => isFull(f, size)), SETTLE_TIMEOUT_MS, 'a full-resolution still');
+  const draws = hooked ? await page.evaluate(() => window.__benchDraws) : [];
+  const firstDraw = draws.find((d) => d.t >= navStart);
+  const firstFullDraw = draws.find((d) => d.quality === 'still' && d.width === size.width && d.height === size.height);
+  const load = {
+    first_frame_ms: frames[0].t - navStart,
+    first_drawn_ms: firstDraw ? firstDraw.t - navStart : null,
+    first_full_ms: firstFull.t - navStart,
+    first_full_drawn_ms: firstFullDraw ? firstFullDraw.t - navStart : null,
+    first_quality: frames[0].quality,
+    first_size: `${frames[0].width}x${frames[0].height}`,
+    full_size: `${size.width}x${size.height}`,
+    full_pass_ms: firstFull.passMs,
+  };
+  log('load', JSON.stringify(load));
+
+  // 2. Drags, each after the daemon has stopped refining the previous still (or a cap).
+  const capped1 = await waitQuiet(firstFull.t);
+  const refinedBeforeOrbit = frames.filter((f) => f.t > firstFull.t).length;
+  const orbit = await drag(page, size, false);
+  orbit.refining_at_start = capped1;
+  orbit.frames_before = refinedBeforeOrbit;
+  log('orbit', JSON.stringify(orbit));
+  const capped2 = await waitQuiet(Date.now());
+  const light = await drag(page, size, true);
+  light.refining_at_start = capped2;
+  log('light', JSON.stringify(light));
+  const maxLevel = Math.max(0, ...frames.map((f) => f.level ?? 0));
+  await page.close();
+  await context.close();
+
+  // 3. The exposure edit, with no page rendering alongside.
+  const edits = await exposureEdits();
+  log('exposure', JSON.stringify(edits.map(({ passes, ...e }) => e)));
+
+  return {
+    label: LABEL, refractd: REFRACTD, web_root: WEB_ROOT, device, hooks: hooked, scene: sceneId,
+    frames_total: frames.length, max_level: maxLevel, load, orbit, light,
+    exposure: {
+      first_pass_ms: edits[0].passMs, first_wall_ms: edits[0].wallMs,
+      median_pass_ms: median(edits.map((e) => e.passMs)), median_wall_ms: median(edits.map((e) => e.wallMs)),
+      passes: edits[0].passes,
+    },
+  };
+}
+
+function table(r) {
+  const ms = (v) => (typeof v === 'number' ? `${Math.round(v)} ms` : '—');
+  const rows = [
+    ['navigation -> first frame received', ms(r.load.first_frame_ms), `${r.load.first_quality} ${r.load.first_size}`],
+    ['navigation -> first frame drawn', ms(r.load.first_drawn_ms), r.hooks ? 'window.refract' : 'no hooks'],
+    ['navigation -> first full-resolution still', ms(r.load.first_full_ms), `${r.load.full_size}, passes ${ms(r.load.full_pass_ms)}`],
+    ['orbit drag: frames/s', r.orbit.fps.toFixed(1), `${r.orbit.frames} frames in ${r.orbit.seconds.toFixed(1)} s, interactive ${r.orbit.interactive_size ?? '—'}`],
+    ['orbit release -> full-resolution still', ms(r.orbit.release_to_full_ms), `passes ${ms(r.orbit.still_pass_ms)}`],
+    ['light drag: frames/s', r.light.fps.toFixed(1), `${r.light.frames} frames in ${r.light.seconds.toFixed(1)} s, interactive ${r.light.interactive_size ?? '—'}`],
+    ['light release -> full-resolution still', ms(r.light.release_to_full_ms), `passes ${ms(r.light.still_pass_ms)}`],
+    ['exposure edit: pass sum (Server-Timing)', ms(r.exposure.first_pass_ms), `median of ${EXPOSURE_EDITS.length}: ${ms(r.exposure.median_pass_ms)}`],
+    ['exposure edit: wall time (HTTP)', ms(r.exposure.first_wall_ms), `median of ${EXPOSURE_EDITS.length}: ${ms(r.exposure.median_wall_ms)}`],
+  ];
+  const w0 = Math.max(...rows.map((x) => x[0].length));
+  const w1 = Math.max(...rows.map((x) => x[1].length));
+  return rows.map(([a, b, c]) => `${a.padEnd(w0)}  ${b.padStart(w1)}  ${c}`).join('\n');
+}
+
+// ---- run -----------------------------------------------------------------------------------------
+
+async function cleanup() {
+  try { if (browser) await browser.close(); } catch { /* already gone */ }
+  browser = null;
+  await stopDaemon(daemon);
+  daemon = null;
+  await new Promise((resolve) => daemonLog.end(resolve));
+  if (!process.env.REFRACT_BENCH_LOG) fs.rmSync(tmp, { recursive: true, force: true });
+  else fs.rmSync(dataDir, { recursive: true, force: true });
+}
+
+for (const sig of ['SIGINT', 'SIGTERM', 'SIGHUP']) {
+  process.on(sig, async () => {
+    log(`got ${sig}, stopping`);
+    if (daemon && daemon.exitCode === null) daemon.kill('SIGKILL');
+    try { if (browser) await browser.close(); } catch { /* ignore */ }
+    process.exit(1);
+  });
+}
+process.on('exit', () => { if (daemon && daemon.exitCode === null && daemon.signalCode === null) daemon.kill('SIGKILL'); });
+const limit = setTimeout(() => {
+  log(`still running after ${HARD_LIMIT_MS / 60_000} min: stopping`);
+  if (daemon && daemon.exitCode === null) daemon.kill('SIGKILL');
+  if (browser) browser.close().catch(() => {});
+  setTimeout(() => process.exit(1), 5000).unref();
+}, HARD_LIMIT_MS);
+limit.unref();
+
+let result = null;
+let fatal = null;
+try {
+  result = await main();
+} catch (e) {
+  fatal = e;
+  log('FATAL', e.stack || e.message);
+} finally {
+  await cleanup();
+}
+if (result) {
+  console.log(`interactive bench: ${result.label} (${result.device})`);
+  console.log(table(result));
+  console.log(`BENCH_JSON ${JSON.stringify(result)}`);
+}
+process.exit(fatal ? 1 : 0);
