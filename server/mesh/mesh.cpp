@@ -1,4 +1,5 @@
 #include "mesh/mesh.h"
+#include "mesh/triangulate.h"
 
 #include <algorithm>
 #include <array>
@@ -9,6 +10,7 @@
 #include <fstream>
 #include <limits>
 #include <numbers>
+#include <span>
 #include <sstream>
 #include <system_error>
 #include <unordered_map>
@@ -56,10 +58,18 @@ std::string line_ref(size_t line) {
 // corners, indices out of range, "nan"/"inf" or overflowing coordinates) and counts the triangles before any
 // large allocation happens.
 
+struct ObjFace {
+    uint32_t corners;
+    uint32_t line;
+};
+
 struct ObjScan {
     size_t vertices = 0;
     size_t faces = 0;
-    size_t triangles = 0;  // after fan/ear triangulation: corners - 2 per face
+    size_t triangles = 0;  // after triangulation: corners - 2 per face
+    // In file order, which is the order of tinyobjloader's shapes and their indices. Its own count per face
+    // is an unsigned char, so polygons are split by these.
+    std::vector<ObjFace> face_list;
 };
 
 bool is_blank(char c) {
@@ -203,6 +213,7 @@ ObjScan scan_obj(std::string_view text, const MeshLimits& limits) {
                 check_face_corner(tokens[k], line_number, scan.vertices);
             }
             ++scan.faces;
+            scan.face_list.push_back({to_index(corners), to_index(line_number)});
             scan.triangles += corners - 2;
             if (scan.triangles > limits.max_triangles) {
                 throw MeshError("OBJ has more than the limit of " + std::to_string(limits.max_triangles) +
@@ -645,7 +656,7 @@ Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits) {
     }
 
     tinyobj::ObjReaderConfig config;
-    config.triangulate = true;
+    config.triangulate = false;  // tinyobjloader's ear clipping is O(n^2) even for convex faces; ours below
     config.vertex_color = false;
     config.mtl_search_path = "";
     tinyobj::ObjReader reader;
@@ -663,9 +674,62 @@ Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits) {
         }
     }
 
-    // Merge every shape; keep only referenced vertices, in their original order.
-    size_t triangle_count = 0;
-    for (const auto& shape : reader.GetShapes()) triangle_count += shape.mesh.indices.size() / 3;
+    // Every face's corners, in file order across shapes.
+    std::vector<uint32_t> face_corners;
+    for (const auto& shape : reader.GetShapes()) {
+        for (const auto& index : shape.mesh.indices) {
+            if (index.vertex_index < 0 || static_cast<size_t>(index.vertex_index) >= vertex_count) {
+                throw MeshError("OBJ face in '" + shape.name + "' refers to vertex " +
+                                std::to_string(static_cast<long long>(index.vertex_index) + 1) + " of " +
+                                std::to_string(vertex_count) + " (index out of range)");
+            }
+            face_corners.push_back(static_cast<uint32_t>(index.vertex_index));
+        }
+    }
+    size_t expected_corners = 0;
+    for (const ObjFace& face : scan.face_list) expected_corners += face.corners;
+    if (expected_corners != face_corners.size()) {
+        throw MeshError("OBJ could not be parsed: its faces have " + std::to_string(expected_corners) +
+                        " corners, but the OBJ reader found " + std::to_string(face_corners.size()));
+    }
+    std::vector<glm::vec3> all_positions(vertex_count);
+    for (size_t v = 0; v < vertex_count; ++v) {
+        all_positions[v] = glm::vec3(attrib.vertices[3 * v], attrib.vertices[3 * v + 1], attrib.vertices[3 * v + 2]);
+    }
+
+    // Triangulate. A convex polygon (checked in O(n)) is fanned in O(n), however large. Any other polygon is
+    // ear-clipped in O(n^2): a 1M-corner star would take tens of minutes, so such faces are refused beyond
+    // max_concave_polygon_corners, and the sum of corners^2 over them beyond max_concave_polygon_work,
+    // before that work starts (with the defaults, about 0.3 s at most on a 2-core CI machine).
+    std::vector<glm::uvec3> corners;
+    corners.reserve(scan.triangles);
+    uint64_t concave_work = 0;
+    size_t offset = 0;
+    for (const ObjFace& face : scan.face_list) {
+        const std::span<const uint32_t> polygon(face_corners.data() + offset, face.corners);
+        offset += face.corners;
+        if (face.corners == 3) {
+            corners.emplace_back(polygon[0], polygon[1], polygon[2]);
+            continue;
+        }
+        if (!is_convex_polygon(all_positions, polygon)) {
+            if (face.corners > limits.max_concave_polygon_corners) {
+                throw MeshError("OBJ face on " + line_ref(face.line) + " is a non-convex polygon with " +
+                                std::to_string(face.corners) + " corners, over the limit of " +
+                                std::to_string(limits.max_concave_polygon_corners) +
+                                " corners for a non-convex polygon; triangulate it before uploading");
+            }
+            concave_work += uint64_t{face.corners} * face.corners;
+            if (concave_work > limits.max_concave_polygon_work) {
+                throw MeshError("OBJ has too many large non-convex polygons (the face on " + line_ref(face.line) +
+                                " takes the sum of corners^2 over them past the limit of " +
+                                std::to_string(limits.max_concave_polygon_work) +
+                                "); triangulate them before uploading");
+            }
+        }
+        triangulate_polygon(all_positions, polygon, corners);
+    }
+    const size_t triangle_count = corners.size();
     if (triangle_count > limits.max_triangles) {
         throw MeshError("OBJ has " + std::to_string(triangle_count) + " triangles, over the limit of " +
                         std::to_string(limits.max_triangles) + "; simplify the model");
@@ -674,33 +738,14 @@ Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits) {
         throw MeshError("OBJ has no usable faces (every face was degenerate or invalid)");
     }
     // Vertices some triangle uses get new indices in file order.
-    std::vector<glm::uvec3> corners;
-    corners.reserve(triangle_count);
     std::vector<uint8_t> used(vertex_count, 0);
-    for (const auto& shape : reader.GetShapes()) {
-        const auto& indices = shape.mesh.indices;
-        for (size_t t = 0; t + 2 < indices.size(); t += 3) {
-            glm::uvec3 tri;
-            for (int k = 0; k < 3; ++k) {
-                const int index = indices[t + static_cast<size_t>(k)].vertex_index;
-                if (index < 0 || static_cast<size_t>(index) >= vertex_count) {
-                    throw MeshError("OBJ face in '" + shape.name + "' refers to vertex " +
-                                    std::to_string(static_cast<long long>(index) + 1) + " of " +
-                                    std::to_string(vertex_count) + " (index out of range)");
-                }
-                tri[k] = static_cast<uint32_t>(index);
-                used[static_cast<size_t>(index)] = 1;
-            }
-            corners.push_back(tri);
-        }
-    }
+    for (const auto& c : corners) used[c.x] = used[c.y] = used[c.z] = 1;
     std::vector<uint32_t> remap(vertex_count, 0);
     Mesh mesh;
     for (size_t v = 0; v < vertex_count; ++v) {
         if (!used[v]) continue;
         remap[v] = to_index(mesh.positions.size());
-        mesh.positions.emplace_back(attrib.vertices[3 * v], attrib.vertices[3 * v + 1],
-                                    attrib.vertices[3 * v + 2]);
+        mesh.positions.push_back(all_positions[v]);
     }
     mesh.triangles.reserve(corners.size());
     for (const auto& c : corners) mesh.triangles.emplace_back(remap[c.x], remap[c.y], remap[c.z]);
