@@ -451,7 +451,7 @@ TEST(Polygons, StarShapedFacesUpToTheLimitAreEarClipped) {
     std::vector<uint32_t> corners(16);
     for (uint32_t i = 0; i < 16; ++i) corners[i] = i;
     Mesh clipped{circle.positions, {}};
-    ear_clip_polygon(clipped.positions, corners, clipped.triangles);
+    ear_clip_polygon(project_polygon(clipped.positions, corners), corners, clipped.triangles);
     expect_exact_cover(clipped, 16, 1.0);
 }
 

@@ -16,15 +16,6 @@
 #include <unordered_map>
 #include <utility>
 
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wconversion"
-#pragma GCC diagnostic ignored "-Wsign-conversion"
-#pragma GCC diagnostic ignored "-Wshadow"
-#pragma GCC diagnostic ignored "-Wold-style-cast"
-#pragma GCC diagnostic ignored "-Wdouble-promotion"
-#pragma GCC diagnostic ignored "-Wnon-virtual-dtor"
-#include <tiny_obj_loader.h>
-#pragma GCC diagnostic pop
 
 namespace refract::mesh {
 namespace {
@@ -54,9 +45,10 @@ std::string line_ref(size_t line) {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// OBJ pre-scan: checks what tinyobjloader would silently skip, zero or misread (faces with fewer than three
-// corners, indices out of range, "nan"/"inf" or overflowing coordinates) and counts the triangles before any
-// large allocation happens.
+// OBJ reading, in one pass that refuses what a lenient reader would silently skip, zero or misread (faces
+// with fewer than three corners, indices out of range, "nan"/"inf" or overflowing coordinates) and counts the
+// triangles as it goes. Only 'v' and 'f' lines matter; everything else (normals, texture coordinates,
+// groups, materials, lines, points) is ignored.
 
 struct ObjFace {
     uint32_t corners;
@@ -67,9 +59,9 @@ struct ObjScan {
     size_t vertices = 0;
     size_t faces = 0;
     size_t triangles = 0;  // after triangulation: corners - 2 per face
-    // In file order, which is the order of tinyobjloader's shapes and their indices. Its own count per face
-    // is an unsigned char, so polygons are split by these.
     std::vector<ObjFace> face_list;
+    std::vector<glm::vec3> positions;  // every 'v'
+    std::vector<uint32_t> corners;     // every face's corners, 0-based, face after face
 };
 
 bool is_blank(char c) {
@@ -124,7 +116,8 @@ double parse_coordinate(std::string_view token, size_t line, const MeshLimits& l
     return value;
 }
 
-void check_face_corner(std::string_view token, size_t line, size_t vertices_so_far) {
+// Returns the corner's 0-based vertex index.
+uint32_t face_corner(std::string_view token, size_t line, size_t vertices_so_far) {
     // "v", "v/vt", "v//vn" or "v/vt/vn": only the position index matters here.
     std::string_view index_text = token.substr(0, token.find('/'));
     if (!index_text.empty() && index_text.front() == '+') index_text.remove_prefix(1);
@@ -148,6 +141,7 @@ void check_face_corner(std::string_view token, size_t line, size_t vertices_so_f
                         std::to_string(index) + ", which points before the first of the " +
                         std::to_string(n) + " vertices defined so far (index out of range)");
     }
+    return static_cast<uint32_t>(index > 0 ? index - 1 : n + index);
 }
 
 void check_encoding(std::string_view text) {
@@ -181,7 +175,7 @@ ObjScan scan_obj(std::string_view text, const MeshLimits& limits) {
     size_t pos = 0;
     std::vector<std::string_view> tokens;
     while (pos < text.size()) {
-        // Lines end at "\n", "\r\n" or a lone "\r", as in tinyobjloader.
+        // Lines end at "\n", "\r\n" or a lone "\r", as other OBJ readers accept.
         size_t end = pos;
         while (end < text.size() && text[end] != '\n' && text[end] != '\r') ++end;
         const std::string_view line = text.substr(pos, end - pos);
@@ -201,7 +195,11 @@ ObjScan scan_obj(std::string_view text, const MeshLimits& limits) {
                 throw MeshError("OBJ vertex on " + line_ref(line_number) +
                                 " has fewer than 3 coordinates (expected 'v x y z')");
             }
-            for (size_t k = 1; k <= 3; ++k) parse_coordinate(tokens[k], line_number, limits);
+            glm::vec3 p;
+            for (int k = 0; k < 3; ++k) {
+                p[k] = static_cast<float>(parse_coordinate(tokens[static_cast<size_t>(k) + 1], line_number, limits));
+            }
+            scan.positions.push_back(p);
             ++scan.vertices;
         } else if (tokens[0] == "f") {
             const size_t corners = tokens.size() - 1;
@@ -210,7 +208,7 @@ ObjScan scan_obj(std::string_view text, const MeshLimits& limits) {
                                 " vertices; a face needs at least 3");
             }
             for (size_t k = 1; k < tokens.size(); ++k) {
-                check_face_corner(tokens[k], line_number, scan.vertices);
+                scan.corners.push_back(face_corner(tokens[k], line_number, scan.vertices));
             }
             ++scan.faces;
             scan.face_list.push_back({to_index(corners), to_index(line_number)});
@@ -655,64 +653,27 @@ Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits) {
             "triangle or polygon surface is needed");
     }
 
-    tinyobj::ObjReaderConfig config;
-    config.triangulate = false;  // tinyobjloader's ear clipping is O(n^2) even for convex faces; ours below
-    config.vertex_color = false;
-    config.mtl_search_path = "";
-    tinyobj::ObjReader reader;
-    if (!reader.ParseFromString(std::string(obj_text), std::string(), config) || !reader.Valid()) {
-        std::string why = reader.Error();
-        while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
-        throw MeshError("OBJ could not be parsed: " + (why.empty() ? std::string("unknown error") : why));
-    }
-    const tinyobj::attrib_t& attrib = reader.GetAttrib();
-    const size_t vertex_count = attrib.vertices.size() / 3;
-    for (const tinyobj::real_t c : attrib.vertices) {
-        if (!std::isfinite(c) || std::fabs(c) > limits.max_abs_coordinate) {
-            throw MeshError("OBJ has a NaN, infinite or too large vertex coordinate (limit +-" +
-                            std::to_string(limits.max_abs_coordinate) + ")");
-        }
-    }
+    const std::vector<glm::vec3>& all_positions = scan.positions;
+    const size_t vertex_count = all_positions.size();
 
-    // Every face's corners, in file order across shapes.
-    std::vector<uint32_t> face_corners;
-    for (const auto& shape : reader.GetShapes()) {
-        for (const auto& index : shape.mesh.indices) {
-            if (index.vertex_index < 0 || static_cast<size_t>(index.vertex_index) >= vertex_count) {
-                throw MeshError("OBJ face in '" + shape.name + "' refers to vertex " +
-                                std::to_string(static_cast<long long>(index.vertex_index) + 1) + " of " +
-                                std::to_string(vertex_count) + " (index out of range)");
-            }
-            face_corners.push_back(static_cast<uint32_t>(index.vertex_index));
-        }
-    }
-    size_t expected_corners = 0;
-    for (const ObjFace& face : scan.face_list) expected_corners += face.corners;
-    if (expected_corners != face_corners.size()) {
-        throw MeshError("OBJ could not be parsed: its faces have " + std::to_string(expected_corners) +
-                        " corners, but the OBJ reader found " + std::to_string(face_corners.size()));
-    }
-    std::vector<glm::vec3> all_positions(vertex_count);
-    for (size_t v = 0; v < vertex_count; ++v) {
-        all_positions[v] = glm::vec3(attrib.vertices[3 * v], attrib.vertices[3 * v + 1], attrib.vertices[3 * v + 2]);
-    }
-
-    // Triangulate. A convex polygon (checked in O(n)) is fanned in O(n), however large. Any other polygon is
-    // ear-clipped in O(n^2): a 1M-corner star would take tens of minutes, so such faces are refused beyond
-    // max_concave_polygon_corners, and the sum of corners^2 over them beyond max_concave_polygon_work,
-    // before that work starts (with the defaults, about 0.3 s at most on a 2-core CI machine).
-    std::vector<glm::uvec3> corners;
-    corners.reserve(scan.triangles);
+    // Triangulate (issue 20: a reader's ear clipping took 21 s for one face of 80,000 corners, and would take
+    // most of an hour for 1 M). A convex polygon (checked in O(n)) is fanned in O(n), however large. Any
+    // other polygon is ear-clipped in O(n^2), so such faces are refused beyond max_concave_polygon_corners,
+    // and the sum of corners^2 over them beyond max_concave_polygon_work, before a single one is cut (with
+    // the defaults, ear clipping takes 0.3 s at most on a 2-core CI machine).
+    std::vector<glm::uvec3> triangles;
+    triangles.reserve(scan.triangles);
     uint64_t concave_work = 0;
     size_t offset = 0;
     for (const ObjFace& face : scan.face_list) {
-        const std::span<const uint32_t> polygon(face_corners.data() + offset, face.corners);
+        const std::span<const uint32_t> polygon(scan.corners.data() + offset, face.corners);
         offset += face.corners;
         if (face.corners == 3) {
-            corners.emplace_back(polygon[0], polygon[1], polygon[2]);
+            triangles.emplace_back(polygon[0], polygon[1], polygon[2]);
             continue;
         }
-        if (!is_convex_polygon(all_positions, polygon)) {
+        const PlanarPolygon planar = project_polygon(all_positions, polygon);
+        if (!planar.convex) {
             if (face.corners > limits.max_concave_polygon_corners) {
                 throw MeshError("OBJ face on " + line_ref(face.line) + " is a non-convex polygon with " +
                                 std::to_string(face.corners) + " corners, over the limit of " +
@@ -727,9 +688,9 @@ Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits) {
                                 "); triangulate them before uploading");
             }
         }
-        triangulate_polygon(all_positions, polygon, corners);
+        triangulate_polygon(planar, polygon, triangles);
     }
-    const size_t triangle_count = corners.size();
+    const size_t triangle_count = triangles.size();
     if (triangle_count > limits.max_triangles) {
         throw MeshError("OBJ has " + std::to_string(triangle_count) + " triangles, over the limit of " +
                         std::to_string(limits.max_triangles) + "; simplify the model");
@@ -739,7 +700,7 @@ Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits) {
     }
     // Vertices some triangle uses get new indices in file order.
     std::vector<uint8_t> used(vertex_count, 0);
-    for (const auto& c : corners) used[c.x] = used[c.y] = used[c.z] = 1;
+    for (const auto& t : triangles) used[t.x] = used[t.y] = used[t.z] = 1;
     std::vector<uint32_t> remap(vertex_count, 0);
     Mesh mesh;
     for (size_t v = 0; v < vertex_count; ++v) {
@@ -747,8 +708,8 @@ Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits) {
         remap[v] = to_index(mesh.positions.size());
         mesh.positions.push_back(all_positions[v]);
     }
-    mesh.triangles.reserve(corners.size());
-    for (const auto& c : corners) mesh.triangles.emplace_back(remap[c.x], remap[c.y], remap[c.z]);
+    mesh.triangles.reserve(triangles.size());
+    for (const auto& t : triangles) mesh.triangles.emplace_back(remap[t.x], remap[t.y], remap[t.z]);
     return mesh;
 }
 

@@ -139,26 +139,26 @@ void ear_clip(const std::vector<glm::dvec2>& p, std::span<const uint32_t> corner
 
 }  // namespace
 
-bool is_convex_polygon(std::span<const glm::vec3> positions, std::span<const uint32_t> corners) {
-    return convex_projected(project(positions, corners));
+PlanarPolygon project_polygon(std::span<const glm::vec3> positions, std::span<const uint32_t> corners) {
+    PlanarPolygon polygon;
+    polygon.points = project(positions, corners);
+    polygon.convex = polygon.points.size() <= 3 || convex_projected(polygon.points);
+    return polygon;
 }
 
-PolygonShape triangulate_polygon(std::span<const glm::vec3> positions, std::span<const uint32_t> corners,
-                                 std::vector<glm::uvec3>& out) {
-    if (corners.size() < 3) return PolygonShape::convex;
-    const std::vector<glm::dvec2> projected = project(positions, corners);
-    if (corners.size() == 3 || convex_projected(projected)) {
-        fan(corners, out);
-        return PolygonShape::convex;
-    }
-    ear_clip(projected, corners, out);
-    return PolygonShape::concave;
-}
-
-void ear_clip_polygon(std::span<const glm::vec3> positions, std::span<const uint32_t> corners,
-                      std::vector<glm::uvec3>& out) {
+void triangulate_polygon(const PlanarPolygon& polygon, std::span<const uint32_t> corners,
+                         std::vector<glm::uvec3>& out) {
     if (corners.size() < 3) return;
-    ear_clip(project(positions, corners), corners, out);
+    if (polygon.convex) {
+        fan(corners, out);
+    } else {
+        ear_clip(polygon.points, corners, out);
+    }
+}
+
+void ear_clip_polygon(const PlanarPolygon& polygon, std::span<const uint32_t> corners,
+                      std::vector<glm::uvec3>& out) {
+    if (corners.size() >= 3) ear_clip(polygon.points, corners, out);
 }
 
 }  // namespace refract::mesh
