@@ -1,6 +1,7 @@
 #include "scene/index_grid_file.h"
 
 #include <cstring>
+#include <initializer_list>
 
 #include "scene/scene_store.h"
 
@@ -16,6 +17,7 @@ std::vector<char> encode_grid(const IndexGrid& grid) {
                             grid.n.size() * sizeof(float));
     char* out = bytes.data();
     auto put = [&out](const void* data, size_t size) {
+        if (size == 0) return;  // no values: data may be null
         std::memcpy(out, data, size);
         out += size;
     };
@@ -36,6 +38,7 @@ IndexGrid decode_grid(const std::string& bytes) {
         throw StoreError(500, "stored index grid is corrupt");
     const char* in = bytes.data() + sizeof(kGridMagic);
     auto get = [&in](void* data, size_t size) {
+        if (size == 0) return;  // a grid side of 0 (refused below): data is null
         std::memcpy(data, in, size);
         in += size;
     };
@@ -44,7 +47,15 @@ IndexGrid decode_grid(const std::string& bytes) {
     get(&grid.nz, sizeof(uint32_t));
     get(grid.bounds.min.data(), 3 * sizeof(double));
     get(grid.bounds.max.data(), 3 * sizeof(double));
-    size_t count = size_t{grid.nx} * grid.ny * grid.nz;
+    // nx*ny*nz in 64 bits can wrap (three 32-bit sides), and count*4 more easily: a header claiming 2^31 by
+    // 2^31 by 1 would match a file of no values and ask for 16 EiB. Compare the sides with what is there.
+    const size_t values = (bytes.size() - header) / sizeof(float);
+    size_t count = 1;
+    for (const uint32_t side : {grid.nx, grid.ny, grid.nz}) {
+        if (side != 0 && count > values / side)
+            throw StoreError(500, "stored index grid is truncated");
+        count *= side;
+    }
     if (bytes.size() != header + count * sizeof(float))
         throw StoreError(500, "stored index grid is truncated");
     grid.n.resize(count);
