@@ -27,7 +27,8 @@ void check_encodes_back(const IndexGrid& grid, const std::string& file) {
     REFRACT_FUZZ_CHECK(again.nx == grid.nx && again.ny == grid.ny && again.nz == grid.nz);
     REFRACT_FUZZ_CHECK(again.bounds == grid.bounds);
     REFRACT_FUZZ_CHECK(again.n.size() == grid.n.size());
-    REFRACT_FUZZ_CHECK(grid.n.empty() || std::memcmp(again.n.data(), grid.n.data(), grid.n.size() * sizeof(float)) == 0);
+    REFRACT_FUZZ_CHECK(grid.n.empty() ||
+                       std::memcmp(again.n.data(), grid.n.data(), grid.n.size() * sizeof(float)) == 0);
 }
 
 }  // namespace

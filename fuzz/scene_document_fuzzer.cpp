@@ -20,10 +20,11 @@ namespace {
 // As the daemon parses a request body: nesting is limited, so the recursive consumers are bounded.
 std::optional<nlohmann::json> parse_bounded(const uint8_t* data, size_t size) {
     try {
-        return nlohmann::json::parse(data, data + size, [](int depth, nlohmann::json::parse_event_t, nlohmann::json&) {
-            if (depth > 16) throw std::invalid_argument("too deep");
-            return true;
-        });
+        return nlohmann::json::parse(data, data + size,
+                                     [](int depth, nlohmann::json::parse_event_t, nlohmann::json&) {
+                                         if (depth > 16) throw std::invalid_argument("too deep");
+                                         return true;
+                                     });
     } catch (const nlohmann::json::exception&) {
     } catch (const std::invalid_argument&) {
     }
@@ -70,9 +71,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const std::optional<SceneDocument> document = try_parse(scene);
     if (document) {
         check_round_trip(*document);
-        REFRACT_FUZZ_CHECK(refract::protocol::apply_merge_patch(*document, nlohmann::json::object()) == *document);
-        REFRACT_FUZZ_CHECK(refract::protocol::apply_merge_patch(*document, refract::protocol::to_json(*document)) ==
+        REFRACT_FUZZ_CHECK(refract::protocol::apply_merge_patch(*document, nlohmann::json::object()) ==
                            *document);
+        REFRACT_FUZZ_CHECK(refract::protocol::apply_merge_patch(
+                               *document, refract::protocol::to_json(*document)) == *document);
     }
     check_patch(document.value_or(SceneDocument{}), patch);
     return 0;

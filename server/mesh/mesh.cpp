@@ -1,5 +1,4 @@
 #include "mesh/mesh.h"
-#include "mesh/triangulate.h"
 
 #include <algorithm>
 #include <array>
@@ -16,6 +15,7 @@
 #include <unordered_map>
 #include <utility>
 
+#include "mesh/triangulate.h"
 
 namespace refract::mesh {
 namespace {
@@ -197,7 +197,8 @@ ObjScan scan_obj(std::string_view text, const MeshLimits& limits) {
             }
             glm::vec3 p;
             for (int k = 0; k < 3; ++k) {
-                p[k] = static_cast<float>(parse_coordinate(tokens[static_cast<size_t>(k) + 1], line_number, limits));
+                p[k] = static_cast<float>(
+                    parse_coordinate(tokens[static_cast<size_t>(k) + 1], line_number, limits));
             }
             scan.positions.push_back(p);
             ++scan.vertices;
@@ -659,36 +660,44 @@ Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits) {
     // Triangulate (issue 20: a reader's ear clipping took 21 s for one face of 80,000 corners, and would take
     // most of an hour for 1 M). A convex polygon (checked in O(n)) is fanned in O(n), however large. Any
     // other polygon is ear-clipped in O(n^2), so such faces are refused beyond max_concave_polygon_corners,
-    // and the sum of corners^2 over them beyond max_concave_polygon_work, before a single one is cut (with
-    // the defaults, ear clipping takes 0.3 s at most on a 2-core CI machine).
-    std::vector<glm::uvec3> triangles;
-    triangles.reserve(scan.triangles);
+    // and the sum of corners^2 over them beyond max_concave_polygon_work. The first pass checks that, in
+    // time linear in the corners, before the second cuts a single polygon (with the defaults, ear clipping
+    // takes 0.3 s at most on a 2-core CI machine).
+    std::vector<uint8_t> convex(scan.face_list.size(), 1);
     uint64_t concave_work = 0;
     size_t offset = 0;
-    for (const ObjFace& face : scan.face_list) {
+    for (size_t f = 0; f < scan.face_list.size(); ++f) {
+        const ObjFace& face = scan.face_list[f];
         const std::span<const uint32_t> polygon(scan.corners.data() + offset, face.corners);
         offset += face.corners;
-        if (face.corners == 3) {
-            triangles.emplace_back(polygon[0], polygon[1], polygon[2]);
-            continue;
+        if (face.corners == 3 || project_polygon(all_positions, polygon).convex) continue;
+        convex[f] = 0;
+        if (face.corners > limits.max_concave_polygon_corners) {
+            throw MeshError("OBJ face on " + line_ref(face.line) + " is a non-convex polygon with " +
+                            std::to_string(face.corners) + " corners, over the limit of " +
+                            std::to_string(limits.max_concave_polygon_corners) +
+                            " corners for a non-convex polygon; triangulate it before uploading");
         }
-        const PlanarPolygon planar = project_polygon(all_positions, polygon);
-        if (!planar.convex) {
-            if (face.corners > limits.max_concave_polygon_corners) {
-                throw MeshError("OBJ face on " + line_ref(face.line) + " is a non-convex polygon with " +
-                                std::to_string(face.corners) + " corners, over the limit of " +
-                                std::to_string(limits.max_concave_polygon_corners) +
-                                " corners for a non-convex polygon; triangulate it before uploading");
-            }
-            concave_work += uint64_t{face.corners} * face.corners;
-            if (concave_work > limits.max_concave_polygon_work) {
-                throw MeshError("OBJ has too many large non-convex polygons (the face on " + line_ref(face.line) +
-                                " takes the sum of corners^2 over them past the limit of " +
-                                std::to_string(limits.max_concave_polygon_work) +
-                                "); triangulate them before uploading");
-            }
+        concave_work += uint64_t{face.corners} * face.corners;
+        if (concave_work > limits.max_concave_polygon_work) {
+            throw MeshError("OBJ has too many large non-convex polygons (the face on " + line_ref(face.line) +
+                            " takes the sum of corners^2 over them past the limit of " +
+                            std::to_string(limits.max_concave_polygon_work) +
+                            "); triangulate them before uploading");
         }
-        triangulate_polygon(planar, polygon, triangles);
+    }
+    std::vector<glm::uvec3> triangles;
+    triangles.reserve(scan.triangles);
+    offset = 0;
+    for (size_t f = 0; f < scan.face_list.size(); ++f) {
+        const std::span<const uint32_t> polygon(scan.corners.data() + offset, scan.face_list[f].corners);
+        offset += polygon.size();
+        if (convex[f]) {
+            for (size_t i = 1; i + 1 < polygon.size(); ++i)
+                triangles.emplace_back(polygon[0], polygon[i], polygon[i + 1]);
+        } else {
+            triangulate_polygon(project_polygon(all_positions, polygon), polygon, triangles);
+        }
     }
     const size_t triangle_count = triangles.size();
     if (triangle_count > limits.max_triangles) {

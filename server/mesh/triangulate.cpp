@@ -88,7 +88,8 @@ void fan(std::span<const uint32_t> corners, std::vector<glm::uvec3>& out) {
 
 // Ear clipping on a doubly linked ring. Every corner's ear flag is computed once (O(n) each), and after a
 // cut only the two neighbours' flags change, so the whole face costs O(n^2), never more.
-void ear_clip(const std::vector<glm::dvec2>& p, std::span<const uint32_t> corners, std::vector<glm::uvec3>& out) {
+void ear_clip(const std::vector<glm::dvec2>& p, std::span<const uint32_t> corners,
+              std::vector<glm::uvec3>& out) {
     const size_t n = p.size();
     std::vector<size_t> prev(n), next(n);
     for (size_t i = 0; i < n; ++i) {

@@ -52,8 +52,7 @@ IndexGrid decode_grid(const std::string& bytes) {
     const size_t values = (bytes.size() - header) / sizeof(float);
     size_t count = 1;
     for (const uint32_t side : {grid.nx, grid.ny, grid.nz}) {
-        if (side != 0 && count > values / side)
-            throw StoreError(500, "stored index grid is truncated");
+        if (side != 0 && count > values / side) throw StoreError(500, "stored index grid is truncated");
         count *= side;
     }
     if (bytes.size() != header + count * sizeof(float))
