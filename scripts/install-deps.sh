@@ -11,8 +11,9 @@ packages=(
   libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
   glslang-tools
   libcpp-httplib-dev nlohmann-json3-dev libpng-dev libglm-dev libgtest-dev
-  libtinyobjloader-dev libboost1.81-dev
+  libboost1.81-dev
   assimp-testmodels
+  clang lld libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer (libclang_rt.fuzzer) and lld's --gc-sections
 )
 # Browser end-to-end test: Debian's Chromium driven by playwright-core from npm.
 if [ "${REFRACT_NO_BROWSER:-0}" != "1" ]; then

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The README's second command (and all that .ci/run does): install, build with warnings as errors, run
 # every test (unit, GPU on lavapipe with validation, daemon integration, browser end-to-end), then the
-# unit tests once more under AddressSanitizer + UndefinedBehaviorSanitizer.
+# unit tests once more under AddressSanitizer + UndefinedBehaviorSanitizer, then each libFuzzer target briefly.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
@@ -15,6 +15,9 @@ cmake --build build-asan -j"$(nproc)" --target protocol_test mesh_test vk_contex
 for t in protocol_test mesh_test vk_context_test; do
   ASAN_OPTIONS=detect_leaks=0 REFRACT_VALIDATION=1 LP_NUM_THREADS=2 build-asan/tests/$t --gtest_brief=1
 done
+
+echo "== fuzzing (20 s per target; scripts/fuzz.sh with no argument runs 10 minutes each) =="
+bash scripts/fuzz.sh 20
 
 echo "== full suite =="
 cd build && ctest --output-on-failure --timeout 600

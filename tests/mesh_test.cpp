@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -16,6 +17,7 @@
 #include <vector>
 
 #include "mesh/mesh.h"
+#include "mesh/triangulate.h"
 
 namespace refract::mesh {
 namespace {
@@ -346,6 +348,142 @@ TEST(Obj, EnforcesLimits) {
     EXPECT_NE(too_many.find("limit"), std::string::npos) << too_many;
     limits.max_triangles = 4;
     EXPECT_EQ(parse_obj(box, limits).triangles.size(), 4u);
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Large polygons (issue 20): convex faces of any size are fanned in linear time; non-convex ones are
+// ear-clipped up to MeshLimits::max_concave_polygon_corners and refused beyond it, before any cutting.
+
+// One face of n corners in the plane z = 0.5, tilted so it is not axis-aligned: a circle (convex), or a
+// star whose corners alternate between radius 1 and `inner`.
+std::string polygon_obj(size_t n, double inner = 1.0) {
+    std::string text;
+    text.reserve(n * 40);
+    char buf[96];
+    for (size_t i = 0; i < n; ++i) {
+        const double a = 2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(n);
+        const double r = (i % 2 == 1) ? inner : 1.0;
+        const double x = r * std::cos(a), y = r * std::sin(a);
+        std::snprintf(buf, sizeof buf, "v %.9f %.9f %.9f\n", x, 0.6 * y, 0.5 + 0.8 * y);
+        text += buf;
+    }
+    text += 'f';
+    for (size_t i = 1; i <= n; ++i) {
+        text += ' ';
+        text += std::to_string(i);
+    }
+    text += '\n';
+    return text;
+}
+
+// The shoelace area of the same polygon in its own plane, and the area of a triangle soup measured along
+// the polygon's normal (a triangle facing the wrong way subtracts, one outside the polygon adds).
+double star_area(size_t n, double inner) {
+    double twice = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        const double a0 = 2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(n);
+        const double a1 = 2.0 * std::numbers::pi * static_cast<double>(i + 1) / static_cast<double>(n);
+        const double r0 = (i % 2 == 1) ? inner : 1.0, r1 = ((i + 1) % 2 == 1) ? inner : 1.0;
+        twice += r0 * r1 * std::sin(a1 - a0);
+    }
+    return 0.5 * twice;  // the tilt (y scaled by 0.6, z by 0.8) is a rotation, so the area is the same
+}
+
+struct Coverage {
+    double signed_area = 0.0;    // along the face normal
+    double absolute_area = 0.0;  // every triangle counted positive
+};
+
+Coverage coverage(const Mesh& m) {
+    const glm::dvec3 normal(0.0, -0.8, 0.6);  // of the plane spanned by x and (0, 0.6, 0.8)
+    Coverage c;
+    for (const auto& t : m.triangles) {
+        const glm::dvec3 a(m.positions[t.x]), b(m.positions[t.y]), d(m.positions[t.z]);
+        const glm::dvec3 cross = glm::cross(b - a, d - a);
+        c.signed_area += 0.5 * glm::dot(cross, normal);
+        c.absolute_area += 0.5 * glm::length(cross);
+    }
+    return c;
+}
+
+void expect_exact_cover(const Mesh& m, size_t n, double inner) {
+    ASSERT_EQ(m.triangles.size(), n - 2);
+    EXPECT_EQ(m.positions.size(), n);
+    const double area = star_area(n, inner);
+    const Coverage c = coverage(m);
+    // Equal signed and absolute sums: no triangle is flipped, so none overlaps another or leaves the face.
+    EXPECT_NEAR(c.signed_area, area, 1e-5 * area);
+    EXPECT_NEAR(c.absolute_area, area, 1e-5 * area);
+}
+
+TEST(Polygons, SmallConcaveFacesAreEarClippedInsideTheirBoundary) {
+    // An L-shaped hexagon and a concave quad ("dart"): a fan from the first corner would leave the face.
+    const Mesh l_shape = parse_obj("v 0 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nf 4 5 6 1 2 3\n");
+    ASSERT_EQ(l_shape.triangles.size(), 4u);
+    double area = 0.0;
+    for (const auto& t : l_shape.triangles) {
+        const glm::dvec3 a(l_shape.positions[t.x]), b(l_shape.positions[t.y]), c(l_shape.positions[t.z]);
+        const double z = glm::cross(b - a, c - a).z;
+        EXPECT_GT(z, 0.0);
+        area += 0.5 * z;
+    }
+    EXPECT_DOUBLE_EQ(area, 3.0);
+    const Mesh dart = parse_obj("v 0 0 0\nv 1 0.2 0\nv 2 0 0\nv 1 2 0\nf 2 3 4 1\n");
+    ASSERT_EQ(dart.triangles.size(), 2u);
+    for (const auto& t : dart.triangles) {
+        const glm::dvec3 a(dart.positions[t.x]), b(dart.positions[t.y]), c(dart.positions[t.z]);
+        EXPECT_GT(glm::cross(b - a, c - a).z, 0.0);
+    }
+}
+
+TEST(Polygons, ConvexFaceOf80000CornersIsFanned) {
+    const size_t n = 80'000;
+    expect_exact_cover(parse_obj(polygon_obj(n)), n, 1.0);
+}
+
+TEST(Polygons, StarShapedFacesUpToTheLimitAreEarClipped) {
+    for (const size_t n : {size_t{10}, size_t{1000}, MeshLimits{}.max_concave_polygon_corners}) {
+        SCOPED_TRACE(n);
+        expect_exact_cover(parse_obj(polygon_obj(n, 0.5)), n, 0.5);
+    }
+    // Ear clipping itself on a convex face agrees with the fan.
+    const Mesh circle = parse_obj(polygon_obj(16));
+    std::vector<uint32_t> corners(16);
+    for (uint32_t i = 0; i < 16; ++i) corners[i] = i;
+    Mesh clipped{circle.positions, {}};
+    ear_clip_polygon(project_polygon(clipped.positions, corners), corners, clipped.triangles);
+    expect_exact_cover(clipped, 16, 1.0);
+}
+
+TEST(Polygons, LargeNonConvexFacesAreRefusedNamingTheLimit) {
+    const std::string star = error_of([] { parse_obj(polygon_obj(80'000, 0.5)); });
+    EXPECT_NE(star.find("non-convex polygon with 80000 corners"), std::string::npos) << star;
+    EXPECT_NE(star.find("limit of 4096"), std::string::npos) << star;
+    EXPECT_NE(star.find("line 80001"), std::string::npos) << star;
+
+    // The largest face the triangle limit lets through, max_triangles + 2 corners, zigzagging over three
+    // vertices (so not convex): refused after the O(n) convexity test. One corner more is refused by the
+    // pre-scan's triangle count.
+    const size_t most = MeshLimits{}.max_triangles + 2;
+    std::string worst = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf";
+    for (size_t i = 0; i < most; ++i) {
+        worst += ' ';
+        worst += "1232"[i % 4];
+    }
+    const std::string message = error_of([&] { parse_obj(worst + "\n"); });
+    EXPECT_NE(message.find("non-convex polygon with " + std::to_string(most) + " corners"), std::string::npos)
+        << message;
+    const std::string over = error_of([&] { parse_obj(worst + " 1\n"); });
+    EXPECT_NE(over.find("more than the limit of 2000000 triangles"), std::string::npos) << over;
+
+    // Many faces each under the corner limit still add up to the work limit.
+    std::string many;
+    for (int k = 0; k < 5; ++k) many += polygon_obj(1000, 0.5);
+    MeshLimits limits;
+    limits.max_concave_polygon_work = 3 * 1000 * 1000;
+    const std::string total = error_of([&] { parse_obj(many, limits); });
+    EXPECT_NE(total.find("sum of corners^2"), std::string::npos) << total;
+    EXPECT_NE(total.find("limit of 3000000"), std::string::npos) << total;
 }
 
 TEST(ObjFile, MissingFileNamesThePath) {

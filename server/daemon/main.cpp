@@ -26,6 +26,13 @@ using namespace refract;
 
 namespace {
 
+// The scene a first start creates: the default document's glass sphere, made smaller and lifted off the
+// floor so that its caustic lands beside it, seen from above and to the side so that a new user sees
+// the object and what it does to the light in the first frame.
+const nlohmann::json kFirstScene = {
+    {"camera", {{"position", {2.2, 2.0, 5.0}}, {"target", {-0.5, -0.6, 0.0}}, {"fov_deg", 38}}},
+    {"object", {{"position", {0.0, 0.2, 0.0}}, {"scale", 0.6}}}};
+
 int run(const http::DaemonConfig& config) {
     // Signals are taken by sigwait below only: block them before any thread starts, so all inherit it.
     sigset_t stop_signals;
@@ -45,7 +52,7 @@ int run(const http::DaemonConfig& config) {
     mesh::MeshLimits mesh_limits;
     mesh_limits.max_bytes = config.max_body;
     scene::SceneStore store(config.data_dir, limits, mesh_limits);
-    if (store.size() == 0) store.create("default", nlohmann::json::object());
+    if (store.size() == 0) store.create("default", kFirstScene);
 
     // The device: a daemon without one still serves documents, health says why frames cannot render.
     http::DeviceStatus device;

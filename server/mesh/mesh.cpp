@@ -9,20 +9,13 @@
 #include <fstream>
 #include <limits>
 #include <numbers>
+#include <span>
 #include <sstream>
 #include <system_error>
 #include <unordered_map>
 #include <utility>
 
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wconversion"
-#pragma GCC diagnostic ignored "-Wsign-conversion"
-#pragma GCC diagnostic ignored "-Wshadow"
-#pragma GCC diagnostic ignored "-Wold-style-cast"
-#pragma GCC diagnostic ignored "-Wdouble-promotion"
-#pragma GCC diagnostic ignored "-Wnon-virtual-dtor"
-#include <tiny_obj_loader.h>
-#pragma GCC diagnostic pop
+#include "mesh/triangulate.h"
 
 namespace refract::mesh {
 namespace {
@@ -52,14 +45,23 @@ std::string line_ref(size_t line) {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// OBJ pre-scan: checks what tinyobjloader would silently skip, zero or misread (faces with fewer than three
-// corners, indices out of range, "nan"/"inf" or overflowing coordinates) and counts the triangles before any
-// large allocation happens.
+// OBJ reading, in one pass that refuses what a lenient reader would silently skip, zero or misread (faces
+// with fewer than three corners, indices out of range, "nan"/"inf" or overflowing coordinates) and counts the
+// triangles as it goes. Only 'v' and 'f' lines matter; everything else (normals, texture coordinates,
+// groups, materials, lines, points) is ignored.
+
+struct ObjFace {
+    uint32_t corners;
+    uint32_t line;
+};
 
 struct ObjScan {
     size_t vertices = 0;
     size_t faces = 0;
-    size_t triangles = 0;  // after fan/ear triangulation: corners - 2 per face
+    size_t triangles = 0;  // after triangulation: corners - 2 per face
+    std::vector<ObjFace> face_list;
+    std::vector<glm::vec3> positions;  // every 'v'
+    std::vector<uint32_t> corners;     // every face's corners, 0-based, face after face
 };
 
 bool is_blank(char c) {
@@ -114,7 +116,8 @@ double parse_coordinate(std::string_view token, size_t line, const MeshLimits& l
     return value;
 }
 
-void check_face_corner(std::string_view token, size_t line, size_t vertices_so_far) {
+// Returns the corner's 0-based vertex index.
+uint32_t face_corner(std::string_view token, size_t line, size_t vertices_so_far) {
     // "v", "v/vt", "v//vn" or "v/vt/vn": only the position index matters here.
     std::string_view index_text = token.substr(0, token.find('/'));
     if (!index_text.empty() && index_text.front() == '+') index_text.remove_prefix(1);
@@ -138,6 +141,7 @@ void check_face_corner(std::string_view token, size_t line, size_t vertices_so_f
                         std::to_string(index) + ", which points before the first of the " +
                         std::to_string(n) + " vertices defined so far (index out of range)");
     }
+    return static_cast<uint32_t>(index > 0 ? index - 1 : n + index);
 }
 
 void check_encoding(std::string_view text) {
@@ -171,7 +175,7 @@ ObjScan scan_obj(std::string_view text, const MeshLimits& limits) {
     size_t pos = 0;
     std::vector<std::string_view> tokens;
     while (pos < text.size()) {
-        // Lines end at "\n", "\r\n" or a lone "\r", as in tinyobjloader.
+        // Lines end at "\n", "\r\n" or a lone "\r", as other OBJ readers accept.
         size_t end = pos;
         while (end < text.size() && text[end] != '\n' && text[end] != '\r') ++end;
         const std::string_view line = text.substr(pos, end - pos);
@@ -191,7 +195,12 @@ ObjScan scan_obj(std::string_view text, const MeshLimits& limits) {
                 throw MeshError("OBJ vertex on " + line_ref(line_number) +
                                 " has fewer than 3 coordinates (expected 'v x y z')");
             }
-            for (size_t k = 1; k <= 3; ++k) parse_coordinate(tokens[k], line_number, limits);
+            glm::vec3 p;
+            for (int k = 0; k < 3; ++k) {
+                p[k] = static_cast<float>(
+                    parse_coordinate(tokens[static_cast<size_t>(k) + 1], line_number, limits));
+            }
+            scan.positions.push_back(p);
             ++scan.vertices;
         } else if (tokens[0] == "f") {
             const size_t corners = tokens.size() - 1;
@@ -200,9 +209,10 @@ ObjScan scan_obj(std::string_view text, const MeshLimits& limits) {
                                 " vertices; a face needs at least 3");
             }
             for (size_t k = 1; k < tokens.size(); ++k) {
-                check_face_corner(tokens[k], line_number, scan.vertices);
+                scan.corners.push_back(face_corner(tokens[k], line_number, scan.vertices));
             }
             ++scan.faces;
+            scan.face_list.push_back({to_index(corners), to_index(line_number)});
             scan.triangles += corners - 2;
             if (scan.triangles > limits.max_triangles) {
                 throw MeshError("OBJ has more than the limit of " + std::to_string(limits.max_triangles) +
@@ -644,28 +654,52 @@ Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits) {
             "triangle or polygon surface is needed");
     }
 
-    tinyobj::ObjReaderConfig config;
-    config.triangulate = true;
-    config.vertex_color = false;
-    config.mtl_search_path = "";
-    tinyobj::ObjReader reader;
-    if (!reader.ParseFromString(std::string(obj_text), std::string(), config) || !reader.Valid()) {
-        std::string why = reader.Error();
-        while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
-        throw MeshError("OBJ could not be parsed: " + (why.empty() ? std::string("unknown error") : why));
-    }
-    const tinyobj::attrib_t& attrib = reader.GetAttrib();
-    const size_t vertex_count = attrib.vertices.size() / 3;
-    for (const tinyobj::real_t c : attrib.vertices) {
-        if (!std::isfinite(c) || std::fabs(c) > limits.max_abs_coordinate) {
-            throw MeshError("OBJ has a NaN, infinite or too large vertex coordinate (limit +-" +
-                            std::to_string(limits.max_abs_coordinate) + ")");
+    const std::vector<glm::vec3>& all_positions = scan.positions;
+    const size_t vertex_count = all_positions.size();
+
+    // Triangulate (issue 20: a reader's ear clipping took 21 s for one face of 80,000 corners, and would take
+    // most of an hour for 1 M). A convex polygon (checked in O(n)) is fanned in O(n), however large. Any
+    // other polygon is ear-clipped in O(n^2), so such faces are refused beyond max_concave_polygon_corners,
+    // and the sum of corners^2 over them beyond max_concave_polygon_work. The first pass checks that, in
+    // time linear in the corners, before the second cuts a single polygon (with the defaults, ear clipping
+    // takes 0.3 s at most on a 2-core CI machine).
+    std::vector<uint8_t> convex(scan.face_list.size(), 1);
+    uint64_t concave_work = 0;
+    size_t offset = 0;
+    for (size_t f = 0; f < scan.face_list.size(); ++f) {
+        const ObjFace& face = scan.face_list[f];
+        const std::span<const uint32_t> polygon(scan.corners.data() + offset, face.corners);
+        offset += face.corners;
+        if (face.corners == 3 || project_polygon(all_positions, polygon).convex) continue;
+        convex[f] = 0;
+        if (face.corners > limits.max_concave_polygon_corners) {
+            throw MeshError("OBJ face on " + line_ref(face.line) + " is a non-convex polygon with " +
+                            std::to_string(face.corners) + " corners, over the limit of " +
+                            std::to_string(limits.max_concave_polygon_corners) +
+                            " corners for a non-convex polygon; triangulate it before uploading");
+        }
+        concave_work += uint64_t{face.corners} * face.corners;
+        if (concave_work > limits.max_concave_polygon_work) {
+            throw MeshError("OBJ has too many large non-convex polygons (the face on " + line_ref(face.line) +
+                            " takes the sum of corners^2 over them past the limit of " +
+                            std::to_string(limits.max_concave_polygon_work) +
+                            "); triangulate them before uploading");
         }
     }
-
-    // Merge every shape; keep only referenced vertices, in their original order.
-    size_t triangle_count = 0;
-    for (const auto& shape : reader.GetShapes()) triangle_count += shape.mesh.indices.size() / 3;
+    std::vector<glm::uvec3> triangles;
+    triangles.reserve(scan.triangles);
+    offset = 0;
+    for (size_t f = 0; f < scan.face_list.size(); ++f) {
+        const std::span<const uint32_t> polygon(scan.corners.data() + offset, scan.face_list[f].corners);
+        offset += polygon.size();
+        if (convex[f]) {
+            for (size_t i = 1; i + 1 < polygon.size(); ++i)
+                triangles.emplace_back(polygon[0], polygon[i], polygon[i + 1]);
+        } else {
+            triangulate_polygon(project_polygon(all_positions, polygon), polygon, triangles);
+        }
+    }
+    const size_t triangle_count = triangles.size();
     if (triangle_count > limits.max_triangles) {
         throw MeshError("OBJ has " + std::to_string(triangle_count) + " triangles, over the limit of " +
                         std::to_string(limits.max_triangles) + "; simplify the model");
@@ -674,36 +708,17 @@ Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits) {
         throw MeshError("OBJ has no usable faces (every face was degenerate or invalid)");
     }
     // Vertices some triangle uses get new indices in file order.
-    std::vector<glm::uvec3> corners;
-    corners.reserve(triangle_count);
     std::vector<uint8_t> used(vertex_count, 0);
-    for (const auto& shape : reader.GetShapes()) {
-        const auto& indices = shape.mesh.indices;
-        for (size_t t = 0; t + 2 < indices.size(); t += 3) {
-            glm::uvec3 tri;
-            for (int k = 0; k < 3; ++k) {
-                const int index = indices[t + static_cast<size_t>(k)].vertex_index;
-                if (index < 0 || static_cast<size_t>(index) >= vertex_count) {
-                    throw MeshError("OBJ face in '" + shape.name + "' refers to vertex " +
-                                    std::to_string(static_cast<long long>(index) + 1) + " of " +
-                                    std::to_string(vertex_count) + " (index out of range)");
-                }
-                tri[k] = static_cast<uint32_t>(index);
-                used[static_cast<size_t>(index)] = 1;
-            }
-            corners.push_back(tri);
-        }
-    }
+    for (const auto& t : triangles) used[t.x] = used[t.y] = used[t.z] = 1;
     std::vector<uint32_t> remap(vertex_count, 0);
     Mesh mesh;
     for (size_t v = 0; v < vertex_count; ++v) {
         if (!used[v]) continue;
         remap[v] = to_index(mesh.positions.size());
-        mesh.positions.emplace_back(attrib.vertices[3 * v], attrib.vertices[3 * v + 1],
-                                    attrib.vertices[3 * v + 2]);
+        mesh.positions.push_back(all_positions[v]);
     }
-    mesh.triangles.reserve(corners.size());
-    for (const auto& c : corners) mesh.triangles.emplace_back(remap[c.x], remap[c.y], remap[c.z]);
+    mesh.triangles.reserve(triangles.size());
+    for (const auto& t : triangles) mesh.triangles.emplace_back(remap[t.x], remap[t.y], remap[t.z]);
     return mesh;
 }
 

@@ -26,6 +26,10 @@ public:
 struct MeshLimits {
     size_t max_bytes = 64u << 20;      // OBJ text
     size_t max_triangles = 2'000'000;  // after triangulation
+    // Polygons: a convex face is fanned in O(n) whatever its size; any other face is ear-clipped in O(n^2),
+    // so its corners are limited, and so is the sum over such faces of corners^2 (the triangulation work).
+    size_t max_concave_polygon_corners = 4096;
+    uint64_t max_concave_polygon_work = 32ull << 20;  // two faces of 4096 corners
     float max_abs_coordinate = 1e6f;
 };
 
@@ -59,8 +63,9 @@ Mesh make_blobby_bunny();
 // preceded by `comment` as '#' lines when it is not empty.
 std::string to_obj(const Mesh& mesh, std::string_view comment = {}, int decimals = 5);
 
-// Parses OBJ text (polygons are triangulated). Throws MeshError on empty/unparseable input, no faces,
-// NaN or absurd coordinates, out-of-range indices, or limits exceeded. All objects/groups are merged into
+// Parses OBJ text (polygons are triangulated, see triangulate.h). Throws MeshError on empty/unparseable
+// input, no faces, NaN or absurd coordinates, out-of-range indices, or limits exceeded (a non-convex
+// polygon over max_concave_polygon_corners included). All objects/groups are merged into
 // one mesh; triangles are kept as given; vertices no face refers to (normals, texture coordinates, points
 // and lines are ignored) are dropped.
 Mesh parse_obj(std::string_view obj_text, const MeshLimits& limits = {});

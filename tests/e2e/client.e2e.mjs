@@ -268,8 +268,10 @@ async function main() {
     assert(info.device && info.device !== '—' && info.device === info.device.trim(), `device name not shown: "${info.device}"`);
     assert(health.device === null || info.device.includes(health.device.name), `device "${info.device}" is not ${health.device?.name}`);
     assert(info.rows > 0, 'no per-pass timings shown');
-    // The progress line says what it shows: a still and how long it took (not a "- fps" label).
-    assert(/^Still frame, \d+(\.\d)? (ms|s)$/.test(info.hud), `progress line "${info.hud}"`);
+    // The progress line says what it shows: a still, how long it took (not a "- fps" label) and how far
+    // the daemon's refinement of it has come.
+    assert(/^Still frame, \d+(\.\d)? (ms|s)( · refining \d+\/\d+| · refined \(level \d+\))?$/.test(info.hud),
+      `progress line "${info.hud}"`);
     assert(info.summary.includes(`${info.w}×${info.h}`), `frame summary "${info.summary}" lacks the size`);
     // The canvas keeps its own (CSS) size; the frame is drawn into it with smooth filtering.
     assert(info.draw.smoothing === 'high', `frames drawn with smoothing ${info.draw.smoothing}`);

@@ -45,8 +45,7 @@ const CHROMIUM = process.env.REFRACT_CHROMIUM || '/usr/bin/chromium';
 const DRAG_MS = 3000;
 const MOVE_EVERY_MS = 16;           // pointer moves while dragging: about one per display frame
 const SETTLE_TIMEOUT_MS = 90_000;   // a still frame after navigation or a drag
-const QUIET_MS = 2000;              // before a drag: no frame for this long (refinement finished) ...
-const QUIET_CAP_MS = 20_000;        // ... or this long after the still, whichever comes first
+const LOOK_MS = 2000;               // a drag begins this long after the still before it arrived
 const HARD_LIMIT_MS = 8 * 60_000;   // the whole run
 const EXPOSURE_EDITS = [1.3, 0.7, 1.3];
 
@@ -137,7 +136,7 @@ function watchSockets(page) {
       const m = head.meta;
       frames.push({
         t, tHeader: head.tHeader, quality: m.quality ?? null, width: m.width ?? null, height: m.height ?? null,
-        level: m.level ?? null, revision: m.revision ?? null, cached: Boolean(m.cached), bytes: payload.length,
+        level: m.level ?? null, revision: m.revision ?? null, seq: m.seq ?? null, cached: Boolean(m.cached), bytes: payload.length,
         passMs: sumTimings(m.timings),
       });
     });
@@ -145,7 +144,7 @@ function watchSockets(page) {
       if (typeof payload !== 'string') return;
       try {
         const msg = JSON.parse(payload);
-        sent.push({ t: Date.now(), quality: msg.quality ?? null, patch: msg.patch ?? null });
+        sent.push({ t: Date.now(), seq: msg.seq ?? null, quality: msg.quality ?? null, patch: msg.patch ?? null });
       } catch { /* not ours */ }
     });
   });
@@ -189,14 +188,11 @@ async function waitUntil(pred, timeoutMs, what) {
   throw new Error(`timed out after ${timeoutMs / 1000} s waiting for ${what}`);
 }
 
-// No frame for QUIET_MS (the daemon stopped refining), or QUIET_CAP_MS since `since`.
-async function waitQuiet(since) {
-  while (true) {
-    const last = frames.length ? frames[frames.length - 1].t : since;
-    if (Date.now() - last >= QUIET_MS) return false;
-    if (Date.now() - since >= QUIET_CAP_MS) return true;
-    await sleep(50);
-  }
+// The user looks at the still for LOOK_MS; a daemon that refines stills keeps rendering meanwhile.
+// Returns how many frames (refinement levels) arrived after the still.
+async function look(still) {
+  await sleep(Math.max(0, still.t + LOOK_MS - Date.now()));
+  return frames.filter((f) => f.t > still.t).length;
 }
 
 const median = (xs) => {
@@ -207,15 +203,29 @@ const median = (xs) => {
 
 // ---- the measurements ----------------------------------------------------------------------------
 
-async function sceneImage(id) {
+async function sceneOnServer(id) {
   const res = await fetch(`${base}/api/scenes/${encodeURIComponent(id)}`);
   const body = await res.json();
-  return { width: body.scene.image.width, height: body.scene.image.height };
+  return { revision: body.revision, width: body.scene.image.width, height: body.scene.image.height };
+}
+
+// The first full-resolution still received after `since` that shows the scene as it is now: its
+// revision is the daemon's current one and the client sent no edit after it arrived. (A refinement
+// of an older revision, in flight when a drag began, does not count.)
+async function stillOfLatest(sceneId, size, since, what) {
+  const deadline = Date.now() + SETTLE_TIMEOUT_MS;
+  while (Date.now() < deadline) {
+    const { revision } = await sceneOnServer(sceneId);
+    const f = frames.find((x) => x.t >= since && isFull(x, size) && x.revision === revision);
+    if (f && !sent.some((m) => m.t > f.t && m.patch)) return f;
+    await sleep(50);
+  }
+  throw new Error(`timed out after ${SETTLE_TIMEOUT_MS / 1000} s waiting for ${what}`);
 }
 
 // A drag of DRAG_MS over the canvas (with Shift: the light), then release; frames while dragging
-// and the time from release to the first full-resolution still.
-async function drag(page, size, light) {
+// and the time from release to the first full-resolution still. Returns [measurements, that still].
+async function drag(page, sceneId, size, light) {
   const box = await page.locator('#view').boundingBox();
   const cx = box.x + box.width / 2;
   const cy = box.y + box.height / 2;
@@ -237,11 +247,16 @@ async function drag(page, size, light) {
   await page.mouse.up();
   if (light) await page.keyboard.up('Shift');
   const during = frames.slice(firstIndex).filter((f) => f.t >= start && f.t <= end);
-  const still = await waitUntil(() => frames.slice(firstIndex).find((f) => f.t >= end && isFull(f, size)),
-    SETTLE_TIMEOUT_MS, `a full-resolution still after the ${light ? 'light' : 'orbit'} drag`);
+  const still = await stillOfLatest(sceneId, size, end, `a full-resolution still after the ${light ? 'light' : 'orbit'} drag`);
   const interactive = during.filter((f) => f.quality === 'interactive');
   const firstDuring = frames.slice(firstIndex).find((f) => f.t >= start);
-  return {
+  // Frames of the drag's own edits: from the first one answering a request sent while dragging.
+  const firstSeq = sent.slice(sentIndex).find((m) => m.t >= start)?.seq;
+  const answers = (f) => typeof f.seq === 'number' && typeof firstSeq === 'number' && f.seq >= firstSeq;
+  const firstAnswer = frames.slice(firstIndex).find(answers);
+  const answering = during.filter(answers);
+  const steadySpan = answering.length >= 2 ? (answering[answering.length - 1].t - answering[0].t) / 1000 : 0;
+  const result = {
     seconds: (end - start) / 1000,
     moves,
     requests: sent.slice(sentIndex).filter((s) => s.t >= start && s.t <= end).length,
@@ -249,11 +264,15 @@ async function drag(page, size, light) {
     fps: during.length / ((end - start) / 1000),
     interactive_frames: interactive.length,
     first_frame_ms: firstDuring ? firstDuring.t - start : null,
+    first_answer_ms: firstAnswer ? firstAnswer.t - start : null,
+    steady_fps: steadySpan > 0 ? (answering.length - 1) / steadySpan : null,
     interactive_size: interactive.length ? `${median(interactive.map((f) => f.width))}x${median(interactive.map((f) => f.height))}` : null,
     interactive_pass_ms: median(interactive.map((f) => f.passMs)),
     release_to_full_ms: still.t - end,
     still_pass_ms: still.passMs,
+    still_level: still.level,
   };
+  return [result, still];
 }
 
 // An exposure edit over HTTP on the daemon's "default" scene, rendered once before (not timed).
@@ -313,8 +332,9 @@ async function main() {
   const sceneId = await page.evaluate(() => new URL(location.href).searchParams.get('scene'));
   // The image size the client asked for (it follows the canvas), i.e. full resolution.
   await waitUntil(() => frames.some((f) => f.quality === 'still'), SETTLE_TIMEOUT_MS, 'a still frame');
-  const size = await sceneImage(sceneId);
-  const firstFull = await waitUntil(() => frames.find((f) => isFull(f, size)), SETTLE_TIMEOUT_MS, 'a full-resolution still');
+  const current = await sceneOnServer(sceneId);
+  const size = { width: current.width, height: current.height };
+  const firstFull = await stillOfLatest(sceneId, size, navStart, 'a full-resolution still');
   const draws = hooked ? await page.evaluate(() => window.__benchDraws) : [];
   const firstDraw = draws.find((d) => d.t >= navStart);
   const firstFullDraw = draws.find((d) => d.quality === 'still' && d.width === size.width && d.height === size.height);
@@ -330,16 +350,14 @@ async function main() {
   };
   log('load', JSON.stringify(load));
 
-  // 2. Drags, each after the daemon has stopped refining the previous still (or a cap).
-  const capped1 = await waitQuiet(firstFull.t);
-  const refinedBeforeOrbit = frames.filter((f) => f.t > firstFull.t).length;
-  const orbit = await drag(page, size, false);
-  orbit.refining_at_start = capped1;
+  // 2. Drags, each LOOK_MS after the still before it.
+  const refinedBeforeOrbit = await look(firstFull);
+  const [orbit, orbitStill] = await drag(page, sceneId, size, false);
   orbit.frames_before = refinedBeforeOrbit;
   log('orbit', JSON.stringify(orbit));
-  const capped2 = await waitQuiet(Date.now());
-  const light = await drag(page, size, true);
-  light.refining_at_start = capped2;
+  const refinedBeforeLight = await look(orbitStill);
+  const [light] = await drag(page, sceneId, size, true);
+  light.frames_before = refinedBeforeLight;
   log('light', JSON.stringify(light));
   const maxLevel = Math.max(0, ...frames.map((f) => f.level ?? 0));
   await page.close();
@@ -352,6 +370,8 @@ async function main() {
   return {
     label: LABEL, refractd: REFRACTD, web_root: WEB_ROOT, device, hooks: hooked, scene: sceneId,
     frames_total: frames.length, max_level: maxLevel, load, orbit, light,
+    frames: frames.map((f) => [f.t - navStart, f.quality, `${f.width}x${f.height}`, f.level, f.revision, f.seq,
+      f.passMs === null ? null : Math.round(f.passMs)]),
     exposure: {
       first_pass_ms: edits[0].passMs, first_wall_ms: edits[0].wallMs,
       median_pass_ms: median(edits.map((e) => e.passMs)), median_wall_ms: median(edits.map((e) => e.wallMs)),
@@ -367,8 +387,10 @@ function table(r) {
     ['navigation -> first frame drawn', ms(r.load.first_drawn_ms), r.hooks ? 'window.refract' : 'no hooks'],
     ['navigation -> first full-resolution still', ms(r.load.first_full_ms), `${r.load.full_size}, passes ${ms(r.load.full_pass_ms)}`],
     ['orbit drag: frames/s', r.orbit.fps.toFixed(1), `${r.orbit.frames} frames in ${r.orbit.seconds.toFixed(1)} s, interactive ${r.orbit.interactive_size ?? '—'}`],
+    ['orbit: first frame of the drag\'s edits', ms(r.orbit.first_answer_ms), `then ${r.orbit.steady_fps === null ? '—' : r.orbit.steady_fps.toFixed(1)} frames/s, interactive passes ${ms(r.orbit.interactive_pass_ms)}`],
     ['orbit release -> full-resolution still', ms(r.orbit.release_to_full_ms), `passes ${ms(r.orbit.still_pass_ms)}`],
     ['light drag: frames/s', r.light.fps.toFixed(1), `${r.light.frames} frames in ${r.light.seconds.toFixed(1)} s, interactive ${r.light.interactive_size ?? '—'}`],
+    ['light: first frame of the drag\'s edits', ms(r.light.first_answer_ms), `then ${r.light.steady_fps === null ? '—' : r.light.steady_fps.toFixed(1)} frames/s, interactive passes ${ms(r.light.interactive_pass_ms)}`],
     ['light release -> full-resolution still', ms(r.light.release_to_full_ms), `passes ${ms(r.light.still_pass_ms)}`],
     ['exposure edit: pass sum (Server-Timing)', ms(r.exposure.first_pass_ms), `median of ${EXPOSURE_EDITS.length}: ${ms(r.exposure.median_pass_ms)}`],
     ['exposure edit: wall time (HTTP)', ms(r.exposure.first_wall_ms), `median of ${EXPOSURE_EDITS.length}: ${ms(r.exposure.median_wall_ms)}`],

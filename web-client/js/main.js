@@ -380,12 +380,11 @@ function updateProgress() {
     const took = hooks.latencyMs ? `, ${duration(hooks.latencyMs)}` : '';
     const meta = hooks.lastMeta || {};
     // The daemon keeps refining a still frame (more photons, then anti-aliasing) until its cap.
+    text = hooks.lastQuality === 'still' ? `Still frame${took}` : `Preview frame${took}`;
     if (hooks.lastQuality === 'still' && meta.level >= 1 && meta.refine > meta.level) {
-      text = `Refining… level ${meta.level} of ${meta.refine}`;
+      text += ` · refining ${meta.level}/${meta.refine}`;
     } else if (hooks.lastQuality === 'still' && meta.level > 1) {
-      text = `Refined frame, level ${meta.level}`;
-    } else {
-      text = hooks.lastQuality === 'still' ? `Still frame${took}` : `Preview frame${took}`;
+      text += ` · refined (level ${meta.level})`;
     }
   } else {
     text = 'Waiting for the first frame…';
