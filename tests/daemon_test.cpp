@@ -97,6 +97,10 @@ TEST(DaemonHttp, JsonDepthIsBounded) {
     std::string deep = std::string(100000, '[') + std::string(100000, ']');
     EXPECT_THROW(http::parse_json_document(deep), std::invalid_argument);
     EXPECT_ANY_THROW(http::parse_json_document("{\"a\": NaN}"));
+    // A repeated key would keep only its last value, silently: refused at any depth.
+    EXPECT_THROW(http::parse_json_document(R"({"light":{"intensity":1,"intensity":2}})"), std::invalid_argument);
+    EXPECT_THROW(http::parse_json_document(R"([{"a":1},{"b":1,"b":1}])"), std::invalid_argument);
+    EXPECT_NO_THROW(http::parse_json_document(R"([{"a":1},{"a":1}])"));
 }
 
 TEST(DaemonStaticFiles, ServesInsideTheRootOnly) {
@@ -233,6 +237,21 @@ TEST(DaemonSceneStore, MeshesAndGridsAreValidatedStoredAndReplaced) {
     EXPECT_THROW(store.put_index_grid("g", grid), scene::StoreError);
     grid.n[7] = std::numeric_limits<float>::quiet_NaN();
     EXPECT_THROW(store.put_index_grid("g", grid), scene::StoreError);
+    grid.n[7] = 1.33f;
+    // Refused at upload, not at the first frame: voxels that are not cubes, bounds floats cannot hold.
+    for (auto [min, max] : {std::pair<protocol::Vec3, protocol::Vec3>{{-1, -1, -1}, {1, 1, 3}},
+                            {{-1e300, -1e300, -1e300}, {1e300, 1e300, 1e300}},
+                            {{0, 0, 0}, {1e-7, 1e-7, 1e-7}}}) {
+        scene::IndexGrid odd = grid;
+        odd.bounds.min = min;
+        odd.bounds.max = max;
+        try {
+            store.put_index_grid("g", odd);
+            ADD_FAILURE() << "grid bounds " << max[0] << " accepted";
+        } catch (const scene::StoreError& e) {
+            EXPECT_EQ(e.status(), 400) << e.what();
+        }
+    }
     EXPECT_EQ(store.get("g")->revision, 2u);
 
     opened.reset();

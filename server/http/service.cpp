@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <cstdio>
+#include <set>
 #include <sstream>
 
 #include "scene/passes.h"
@@ -92,9 +93,16 @@ nlohmann::json Service::health() const {
 
 nlohmann::json parse_json_document(const std::string& text) {
     constexpr int kMaxDepth = 16;
-    return nlohmann::json::parse(text, [](int depth, nlohmann::json::parse_event_t, nlohmann::json&) {
+    using Event = nlohmann::json::parse_event_t;
+    // The keys of each object being read: a repeated key would silently keep only its last value.
+    std::vector<std::set<std::string>> keys;
+    return nlohmann::json::parse(text, [&keys](int depth, Event event, nlohmann::json& parsed) {
         if (depth > kMaxDepth)
             throw std::invalid_argument("JSON nested deeper than " + std::to_string(kMaxDepth) + " levels");
+        if (event == Event::object_start) keys.emplace_back();
+        if (event == Event::object_end) keys.pop_back();
+        if (event == Event::key && !keys.back().insert(parsed.get<std::string>()).second)
+            throw std::invalid_argument("JSON object has the key \"" + parsed.get<std::string>() + "\" twice");
         return true;
     });
 }

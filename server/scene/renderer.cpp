@@ -105,6 +105,14 @@ Renderer::Renderer(vk::Context& context, RendererOptions options)
 
 Renderer::~Renderer() = default;
 
+bool has_cubic_voxels(const IndexGrid& grid) {
+    const uint32_t sides[3] = {grid.nx, grid.ny, grid.nz};
+    const double h = (grid.bounds.max[0] - grid.bounds.min[0]) / sides[0];
+    for (size_t axis = 1; axis < 3; ++axis)
+        if (std::abs((grid.bounds.max[axis] - grid.bounds.min[axis]) / sides[axis] - h) > 0.01 * h) return false;
+    return true;
+}
+
 Refinement refinement_at(uint32_t level) {
     level = std::clamp(level, 1u, kMaxRefinementLevel);
     return {std::min(level, kMaxPhotonBatches), level > kMaxPhotonBatches ? level - kMaxPhotonBatches + 1 : 1u};
@@ -122,12 +130,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     if (object.index_field == protocol::IndexFieldKind::grid) {
         grid = assets.grid ? assets.grid(object.grid) : nullptr;
         if (!grid) throw RenderError("index field grid '" + object.grid + "' is not loaded");
-        const double h = (grid->bounds.max[0] - grid->bounds.min[0]) / grid->nx;
-        for (int axis = 1; axis < 3; ++axis) {
-            const uint32_t n = axis == 1 ? grid->ny : grid->nz;
-            const double ha = (grid->bounds.max[static_cast<size_t>(axis)] - grid->bounds.min[static_cast<size_t>(axis)]) / n;
-            if (std::abs(ha - h) > 0.01 * h) throw RenderError("index field grid voxels must be cubic (within 1%)");
-        }
+        if (!has_cubic_voxels(*grid)) throw RenderError("index field grid voxels must be cubic (within 1%)");
     } else {
         mesh = base_mesh(requested, assets.mesh);
         if (!mesh) throw RenderError("mesh '" + object.mesh + "' is not a built-in or an uploaded mesh");

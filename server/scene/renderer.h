@@ -32,6 +32,10 @@ struct IndexGrid {
     std::vector<float> n;  // x fastest, then y, then z; every value finite and >= 1
 };
 
+// True when the grid's voxels are cubes (their sides agree within 1%): the index field is sampled on
+// cubic voxels.
+bool has_cubic_voxels(const IndexGrid& grid);
+
 // Where the renderer finds uploaded assets named by a scene document. A lookup returns nullptr when the
 // name is unknown. A re-upload under the same name must return a different pointer (that invalidates).
 struct Assets {

@@ -120,11 +120,19 @@ void validate_index_grid(const IndexGrid& grid) {
             throw StoreError(400, "index grid sides must be between " + std::to_string(kMinGridSide) +
                                       " and " + std::to_string(kMaxGridSide));
     }
+    // Bounds the renderer's float coordinates hold: within a kilometre of the origin (a scene's box is
+    // metres across), voxels at least a micrometre.
+    constexpr double kMaxCoordinate = 1e3, kMinVoxel = 1e-6;
+    const uint32_t sides[3] = {grid.nx, grid.ny, grid.nz};
     for (size_t axis = 0; axis < 3; ++axis) {
-        if (!std::isfinite(grid.bounds.min[axis]) || !std::isfinite(grid.bounds.max[axis]) ||
-            !(grid.bounds.min[axis] < grid.bounds.max[axis]))
+        const double lo = grid.bounds.min[axis], hi = grid.bounds.max[axis];
+        if (!std::isfinite(lo) || !std::isfinite(hi) || !(lo < hi))
             throw StoreError(400, "index grid bounds need finite min < max on every axis");
+        if (std::abs(lo) > kMaxCoordinate || std::abs(hi) > kMaxCoordinate || (hi - lo) / sides[axis] < kMinVoxel)
+            throw StoreError(400, "index grid bounds must lie within 1000 m of the origin, with voxels of at least 1 um");
     }
+    if (!has_cubic_voxels(grid))
+        throw StoreError(400, "index grid voxels must be cubic (within 1%): (max - min) / side the same on every axis");
     if (grid.n.size() != size_t{grid.nx} * grid.ny * grid.nz)
         throw StoreError(400,
                          "index grid holds " + std::to_string(grid.n.size()) + " values, expected nx*ny*nz");

@@ -795,6 +795,9 @@ async function connect() {
     stageMessage('');
     state.frameMeta = null;
     checkImageSize(true);
+    // A quick preview first (the daemon sizes it to its frame budget), then the still: on two CPU cores
+    // the still of a fresh scene takes seconds.
+    requestFrame('interactive');
     requestFrame('still');
   });
   ws.addEventListener('message', (ev) => {
