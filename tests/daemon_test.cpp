@@ -923,6 +923,25 @@ TEST(Daemon, WebSocketPushesRefinementLevelsUntilTheCap) {
     EXPECT_EQ(edited["seq"], 3);
     EXPECT_EQ(edited["revision"], 2);
     EXPECT_EQ(edited["level"], 1);
+    // An edit while refinement runs: the level in flight finishes or gives way (silently, no error),
+    // and the edit's frame follows.
+    ws.send({{"seq", 4}, {"quality", "still"}, {"refine", 31}});
+    auto [refined, refined_png] = ws.read_frame();
+    EXPECT_EQ(refined["level"], 1);
+    ws.send({{"seq", 5}, {"patch", {{"light", {{"intensity", 7.0}}}}}});
+    for (int frames = 0;; ++frames) {
+        ASSERT_LT(frames, 4) << "the edit's frame did not come next";
+        auto [is_text, payload] = ws.read();
+        ASSERT_TRUE(is_text);
+        json header = json::parse(payload);
+        ASSERT_EQ(header["type"], "frame") << payload;
+        ws.read();  // its PNG
+        if (header["seq"] == 5) {
+            EXPECT_EQ(header["revision"], 3);
+            EXPECT_EQ(header["quality"], "interactive");
+            break;
+        }
+    }
     expect_alive(daemon);
 }
 

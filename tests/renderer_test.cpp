@@ -150,6 +150,13 @@ TEST_F(RendererTest, RefinementLevelsAreDeterministicHoweverTheyAreReached) {
               frames.back());
     EXPECT_EQ(direct.render("b", doc, no_assets, {Quality::still, kDefaultBudgetMs, 3}).png, frames[2]);
     EXPECT_EQ(direct.render("b", doc, no_assets).png, frames[0]);
+    // A level that gives way halfway makes no frame, rebuilds nothing, and leaves no trace in the bytes
+    // of the levels after it.
+    FrameOptions yielding{Quality::still, kDefaultBudgetMs, 2, [] { return true; }};
+    EXPECT_THROW(direct.render("b", doc, no_assets, yielding), Superseded);
+    const FrameResult after = direct.render("b", doc, no_assets, {Quality::still, kDefaultBudgetMs, 3});
+    EXPECT_EQ(after.png, frames[2]);
+    EXPECT_EQ(after.rerun & kVoxelize, 0u);
 }
 
 // Interactive frames deposit photons into a coarser radiance grid.// Interactive frames deposit photons into a coarser radiance grid. With 4096 photons and a 32-pixel

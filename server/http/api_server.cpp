@@ -258,6 +258,7 @@ struct ApiServer::Impl {
                 send_error(res, 500, outcome->error);
                 return;
             case Status::no_device:
+            case Status::superseded:  // only refinement the WebSocket pushes gives way
             case Status::timed_out:
             case Status::shutting_down:
                 res.set_header("Retry-After", "5");

@@ -268,6 +268,7 @@ private:
         // Latest wins: remember only the newest request; the frame after the one in flight renders it.
         // Any message stops refinement: the frame it asks for comes next.
         idle_timer_.cancel();
+        newer_message_->store(true);
         wanted_seq_ = seq;
         wanted_options_ = {quality, budget_ms_, 1};
         want_frame_ = true;
@@ -285,7 +286,13 @@ private:
         if (rendered.quality == scene::Quality::still) {
             if (rendered.level >= refine_to_) return;
             wanted_seq_ = seq;
-            wanted_options_ = {scene::Quality::still, budget_ms_, rendered.level + 1};
+            // A level gives way halfway when anything else waits for the render thread: this session's
+            // next message (which waits here, one frame in flight a session), or another frame.
+            newer_message_ = std::make_shared<std::atomic<bool>>(false);
+            wanted_options_ = {scene::Quality::still, budget_ms_, rendered.level + 1,
+                               [newer = newer_message_, &queue = service_.queue()] {
+                                   return newer->load() || queue.queued() > 0;
+                               }};
             want_frame_ = true;
             return submit_frame();
         }
@@ -331,7 +338,9 @@ private:
         in_flight_ = false;
         if (closing_) return;
         const scene::Quality quality = options.quality;
-        if (outcome.status != scene::FrameOutcome::Status::ok) {
+        if (outcome.status == scene::FrameOutcome::Status::superseded) {
+            // Refinement gave way to a newer request, which is queued; it resumes after that request's frame.
+        } else if (outcome.status != scene::FrameOutcome::Status::ok) {
             send_error(seq, outcome.error);
         } else {
             const scene::FrameResult& frame = *outcome.frame;
@@ -412,6 +421,8 @@ private:
     scene::FrameOptions wanted_options_{scene::Quality::interactive};
     double budget_ms_ = scene::kDefaultBudgetMs;           // this session's interactive frame budget
     uint32_t refine_to_ = scene::kMaxRefinementLevel;      // the last refinement level pushed
+    // Set by a message that arrives while a refinement level renders: the level gives way to it.
+    std::shared_ptr<std::atomic<bool>> newer_message_ = std::make_shared<std::atomic<bool>>(false);
 
     bool writing_ = false;
     Outgoing current_;

@@ -135,6 +135,11 @@ void RenderQueue::forget_cached_frames() {
     if (in_flight_) in_flight_stale_ = true;
 }
 
+size_t RenderQueue::queued() const {
+    std::lock_guard lock(mutex_);
+    return pending_.size();
+}
+
 size_t RenderQueue::waiting() const {
     std::lock_guard lock(mutex_);
     return waiters_;
@@ -205,6 +210,9 @@ void RenderQueue::run() {
             frames_rendered_.fetch_add(1);
             if (options_.on_rendered) options_.on_rendered(request, *frame);
             outcome.frame = std::move(frame);
+        } catch (const Superseded& e) {
+            outcome.status = FrameOutcome::Status::superseded;
+            outcome.error = e.what();
         } catch (const RenderError& e) {
             outcome.status = FrameOutcome::Status::unrenderable;
             outcome.error = e.what();
@@ -212,7 +220,7 @@ void RenderQueue::run() {
             outcome.status = FrameOutcome::Status::device_error;
             outcome.error = e.what();
         }
-        if (outcome.status != FrameOutcome::Status::ok)
+        if (outcome.status != FrameOutcome::Status::ok && outcome.status != FrameOutcome::Status::superseded)
             std::cerr << "refractd: frame of " << request.scene_id << " r" << request.revision
                       << " failed: " << outcome.error << "\n";
         try {

@@ -40,6 +40,7 @@ struct FrameOutcome {
         gone,           // the scene was deleted while waiting
         timed_out,      // not ready within the caller's timeout
         shutting_down,  // the daemon is stopping
+        superseded,     // a refinement step gave way to newer work (FrameOptions::give_way); no frame
     };
     Status status = Status::ok;
     std::string error;
@@ -85,6 +86,8 @@ public:
     void stop();
 
     size_t waiting() const;
+    // Requests queued behind the frame being rendered (all scenes).
+    size_t queued() const;
     uint64_t frames_rendered() const { return frames_rendered_.load(); }
 
 private:

@@ -105,14 +105,6 @@ Renderer::Renderer(vk::Context& context, RendererOptions options)
 
 Renderer::~Renderer() = default;
 
-bool has_cubic_voxels(const IndexGrid& grid) {
-    const uint32_t sides[3] = {grid.nx, grid.ny, grid.nz};
-    const double h = (grid.bounds.max[0] - grid.bounds.min[0]) / sides[0];
-    for (size_t axis = 1; axis < 3; ++axis)
-        if (std::abs((grid.bounds.max[axis] - grid.bounds.min[axis]) / sides[axis] - h) > 0.01 * h) return false;
-    return true;
-}
-
 Refinement refinement_at(uint32_t level) {
     level = std::clamp(level, 1u, kMaxRefinementLevel);
     return {std::min(level, kMaxPhotonBatches), level > kMaxPhotonBatches ? level - kMaxPhotonBatches + 1 : 1u};
@@ -161,7 +153,8 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     const uint32_t level = quality == Quality::still ? std::clamp(options.level, 1u, kMaxRefinementLevel) : 1u;
     uint32_t resident_level = 0;  // levels the resident frame already holds of this very frame
     if (quality == Quality::still && stale == 0 && held && !held->interactive) {
-        if (held->level > level) stale = kPhotons | kView | kToneMap;
+        // Level 0: a refinement step gave way halfway, so the grid holds a batch the frame does not.
+        if (held->level == 0 || held->level > level) stale = kPhotons | kView | kToneMap;
         else resident_level = held->level;
     }
     // The object in world space fits the grid; needed only when the volume is rebuilt.
@@ -216,11 +209,30 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
                     passes = kView;
                 }
             }
-            const RunStats stats = resident.gpu->run(passes, document, world, grid.get(), run_options);
-            frame.rerun |= stats.ran;
-            for (const auto& [name, ms] : stats.gpu_ms) add_timing(frame.timings, name, ms);
-            frame.photons_traced += stats.photons_entered;
-            photon_steps += stats.photon_steps;
+            auto run = [&](PassSet these) {
+                const RunStats stats = resident.gpu->run(these, document, world, grid.get(), run_options);
+                frame.rerun |= stats.ran;
+                for (const auto& [name, ms] : stats.gpu_ms) add_timing(frame.timings, name, ms);
+                frame.photons_traced += stats.photons_entered;
+                photon_steps += stats.photon_steps;
+            };
+            if (step > 1 && passes == kPhotons && options.give_way) {
+                // Two submissions, so that waiting work can come between them.
+                run_options.limit = kAllPasses & ~(kView | kToneMap);
+                run(kPhotons);
+                if (options.give_way()) {
+                    // What the GPU holds now: this document, its photons one batch past its frame.
+                    resident.document = document;
+                    resident.mesh = mesh;
+                    resident.grid = grid;
+                    resident.interactive.reset();
+                    resident.level = 0;
+                    throw Superseded();
+                }
+                run_options.limit = kAllPasses;
+                passes = kView;
+            }
+            run(passes);
         }
         frame.mean_steps_per_photon =
             frame.photons_traced ? static_cast<double>(photon_steps) / static_cast<double>(frame.photons_traced) : 0.0;
@@ -233,6 +245,8 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         frame.timings.push_back({"encode", 0.0, ms_since(encode_start)});
         frame.width = resident.gpu->width();
         frame.height = resident.gpu->height();
+    } catch (const Superseded&) {
+        throw;  // the resident state is whole; only the frame was not made
     } catch (...) {
         // Partially rebuilt state is not trusted: drop it, the next render rebuilds from the document.
         {

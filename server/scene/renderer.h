@@ -3,6 +3,7 @@
 // Thread-compatible: exactly one thread (the daemon's render thread, or the CLI) calls it.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -33,8 +34,14 @@ struct IndexGrid {
 };
 
 // True when the grid's voxels are cubes (their sides agree within 1%): the index field is sampled on
-// cubic voxels.
-bool has_cubic_voxels(const IndexGrid& grid);
+// cubic voxels. Inline: the store checks uploads with it without linking the renderer.
+inline bool has_cubic_voxels(const IndexGrid& grid) {
+    const uint32_t sides[3] = {grid.nx, grid.ny, grid.nz};
+    const double h = (grid.bounds.max[0] - grid.bounds.min[0]) / sides[0];
+    for (size_t axis = 1; axis < 3; ++axis)
+        if (std::abs((grid.bounds.max[axis] - grid.bounds.min[axis]) / sides[axis] - h) > 0.01 * h) return false;
+    return true;
+}
 
 // Where the renderer finds uploaded assets named by a scene document. A lookup returns nullptr when the
 // name is unknown. A re-upload under the same name must return a different pointer (that invalidates).
@@ -76,6 +83,10 @@ struct FrameOptions {
     Quality quality = Quality::still;
     double budget_ms = kDefaultBudgetMs;  // interactive frames: the frame-time budget (frame_budget.h)
     uint32_t level = 1;                   // still frames: the refinement level, 1 to kMaxRefinementLevel
+    // When set, a refinement step that adds photons asks it between its photon and view submissions, and
+    // gives way (Superseded) if it says other work is waiting: a user's next edit need not wait for a
+    // whole level. The refinement state is then dropped, so levels stay the same bytes however reached.
+    std::function<bool()> give_way;
 };
 
 struct FrameResult {
@@ -95,6 +106,12 @@ struct FrameResult {
 class RenderError : public std::runtime_error {
 public:
     using std::runtime_error::runtime_error;
+};
+
+// Raised when a refinement step gave way to waiting work (FrameOptions::give_way): no frame came of it.
+class Superseded : public std::runtime_error {
+public:
+    Superseded() : std::runtime_error("a newer request came first") {}
 };
 
 struct RendererOptions {
