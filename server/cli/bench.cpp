@@ -83,10 +83,11 @@ std::vector<BenchCase> standard_suite(bool gpu) {
                                           {"image", {{"width", image}, {"height", image}}}}, scene::kView, "camera");
     add("target light", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", gpu ? 1 << 20 : 1 << 16}}},
                                          {"image", {{"width", image}, {"height", image}}}}, scene::kPhotons | scene::kView, "light");
-    // The same edits as refractd renders them while a client drags (quality=interactive): half the
-    // document's image side and a quarter of its photons, so a 2048^2 / 2^22 document (GPU) or a
-    // 512^2 / 2^18 one (lavapipe) gives these sizes, two-voxel view steps in fog, a radiance grid
-    // of a third of the resolution per axis, sampled photon deposits and adaptive pixels.
+    // The same edits with the passes refractd runs while a client drags (quality=interactive), at fixed
+    // sizes: those the frame budget starts from (half the document's image side, a quarter of its
+    // photons) for a 2048^2 / 2^22 document (GPU) or a 512^2 / 2^18 one (lavapipe); two-voxel view
+    // steps in fog, a radiance grid of a third of the resolution per axis, sampled photon deposits and
+    // adaptive pixels. (refractd then sizes each frame to its budget: frame_budget.h.)
     add("target camera interactive", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", gpu ? 1 << 20 : 1 << 16}}},
                                                        {"image", {{"width", image}, {"height", image}}}}, scene::kView, "camera", scene::Quality::interactive);
     add("target light interactive", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", gpu ? 1 << 20 : 1 << 16}}},
