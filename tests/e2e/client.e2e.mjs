@@ -12,21 +12,14 @@
 // $REFRACT_E2E_OUT (default build/e2e-screenshots); $REFRACT_CHROMIUM overrides /usr/bin/chromium.
 // Ends with "browser_e2e: N passed, M failed".
 
-import { spawn } from 'node:child_process';
 import fs from 'node:fs';
-import net from 'node:net';
 import os from 'node:os';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 
-let chromium;
-try {
-  ({ chromium } = await import('playwright-core'));
-} catch (e) {
-  console.error(`playwright-core is not installed (${e.message}); run: npm --prefix tests/e2e ci`);
-  console.log('browser_e2e: 0 passed, 1 failed');
-  process.exit(1);
-}
+import { freePort, loadChromium, sleep, startRefractd, stopRefractd, waitForHealth } from './refractd.mjs';
+
+const chromium = await loadChromium(() => console.log('browser_e2e: 0 passed, 1 failed'));
 
 const HERE = path.dirname(fileURLToPath(import.meta.url));
 const REPO = path.resolve(HERE, '../..');
@@ -67,43 +60,11 @@ let base = '';
 
 function log(...args) { console.log(`[e2e +${((Date.now() - t0) / 1000).toFixed(1)}s]`, ...args); }
 const t0 = Date.now();
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
-
-function freePort() {
-  return new Promise((resolve, reject) => {
-    const srv = net.createServer();
-    srv.unref();
-    srv.on('error', reject);
-    srv.listen(0, '127.0.0.1', () => {
-      const { port } = srv.address();
-      srv.close(() => resolve(port));
-    });
-  });
-}
 
 function startDaemon() {
   const args = ['--bind', '127.0.0.1', '--port', String(httpPort), '--ws-port', String(wsPort),
     '--data-dir', dataDir, '--web-root', WEB_ROOT, '--examples-dir', examplesDir];
-  log('starting', REFRACTD, args.join(' '));
-  const child = spawn(REFRACTD, args, {
-    stdio: ['ignore', 'pipe', 'pipe'],
-    env: { LP_NUM_THREADS: '2', ...process.env },
-  });
-  child.stdout.pipe(daemonLog, { end: false });
-  child.stderr.pipe(daemonLog, { end: false });
-  child.exited = new Promise((resolve) => child.on('exit', (code, signal) => resolve({ code, signal })));
-  child.on('error', (e) => log('refractd failed to start:', e.message));
-  return child;
-}
-
-async function stopDaemon(child, signal = 'SIGTERM') {
-  if (!child || child.exitCode !== null || child.signalCode !== null) return;
-  child.kill(signal);
-  const done = await Promise.race([child.exited, sleep(10_000).then(() => null)]);
-  if (!done) {
-    child.kill('SIGKILL');
-    await child.exited;
-  }
+  return startRefractd(REFRACTD, args, daemonLog, log);
 }
 
 async function api(method, urlPath, body, contentType = 'application/json') {
@@ -117,21 +78,6 @@ async function api(method, urlPath, body, contentType = 'application/json') {
   let json = null;
   try { json = text ? JSON.parse(text) : null; } catch { json = { raw: text }; }
   return { status: res.status, json };
-}
-
-async function waitForHealth(child) {
-  const deadline = Date.now() + WAIT_MS;
-  while (Date.now() < deadline) {
-    if (child.exitCode !== null || child.signalCode !== null) {
-      throw new Error(`refractd exited (${child.exitCode ?? child.signalCode}) before answering /api/health`);
-    }
-    try {
-      const r = await api('GET', '/api/health');
-      if (r.status === 200) return r.json;
-    } catch { /* not listening yet */ }
-    await sleep(200);
-  }
-  throw new Error('refractd did not answer /api/health within 60 s');
 }
 
 function assert(condition, message) {
@@ -219,7 +165,7 @@ async function main() {
   do wsPort = await freePort(); while (wsPort === httpPort);
   base = `http://127.0.0.1:${httpPort}`;
   daemon = startDaemon();
-  const health = await waitForHealth(daemon);
+  const health = await waitForHealth(base, daemon);
   log('refractd is up:', JSON.stringify(health.device));
 
   const created = await api('POST', '/api/scenes', SMALL_SCENE);
@@ -727,12 +673,12 @@ async function main() {
       abbe: Number(document.getElementById('ctl-object-abbe-num').value),
     }));
     assert(before.abbe > 0, 'the scene before the restart does not disperse');
-    await stopDaemon(daemon);
+    await stopRefractd(daemon);
     await waitFor(page, () => !window.refract.connected);
     await shot(page, '09-daemon-down.png');
     await sleep(1500);  // let the client back off at least once
     daemon = startDaemon();
-    await waitForHealth(daemon);
+    await waitForHealth(base, daemon);
     await waitFor(page, (n) => window.refract.connects > n && window.refract.framesReceived > 0, before.connects);
     await waitFor(page, (n) => window.refract.framesReceived > n, before.frames);
     await waitSettled(page);
@@ -777,7 +723,7 @@ async function main() {
 async function cleanup() {
   try { if (browser) await browser.close(); } catch { /* already gone */ }
   browser = null;
-  await stopDaemon(daemon);
+  await stopRefractd(daemon);
   daemon = null;
   await new Promise((resolve) => daemonLog.end(resolve));
   fs.rmSync(tmp, { recursive: true, force: true });

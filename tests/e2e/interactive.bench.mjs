@@ -16,20 +16,14 @@
 // version; the client's window.refract hooks, where present, add when a frame was drawn.
 // $REFRACT_CHROMIUM overrides /usr/bin/chromium; $REFRACT_BENCH_LOG keeps the daemon's log there.
 
-import { spawn } from 'node:child_process';
 import fs from 'node:fs';
-import net from 'node:net';
 import os from 'node:os';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 
-let chromium;
-try {
-  ({ chromium } = await import('playwright-core'));
-} catch (e) {
-  console.error(`playwright-core is not installed (${e.message}); run: npm --prefix tests/e2e ci`);
-  process.exit(1);
-}
+import { freePort, loadChromium, sleep, startRefractd, stopRefractd, waitForHealth } from './refractd.mjs';
+
+const chromium = await loadChromium();
 
 const HERE = path.dirname(fileURLToPath(import.meta.url));
 const REPO = path.resolve(HERE, '../..');
@@ -58,59 +52,14 @@ let daemon = null;
 let browser = null;
 let base = '';
 const t0 = Date.now();
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 const log = (...args) => console.error(`[bench +${((Date.now() - t0) / 1000).toFixed(1)}s]`, ...args);
 
 // ---- daemon --------------------------------------------------------------------------------------
 
-function freePort() {
-  return new Promise((resolve, reject) => {
-    const srv = net.createServer();
-    srv.unref();
-    srv.on('error', reject);
-    srv.listen(0, '127.0.0.1', () => {
-      const { port } = srv.address();
-      srv.close(() => resolve(port));
-    });
-  });
-}
-
 function startDaemon(httpPort, wsPort) {
   const args = ['--bind', '127.0.0.1', '--port', String(httpPort), '--ws-port', String(wsPort),
     '--data-dir', dataDir, '--web-root', WEB_ROOT];
-  log('starting', REFRACTD, args.join(' '));
-  const child = spawn(REFRACTD, args, {
-    stdio: ['ignore', 'pipe', 'pipe'],
-    env: { LP_NUM_THREADS: '2', ...process.env },
-  });
-  child.stdout.pipe(daemonLog, { end: false });
-  child.stderr.pipe(daemonLog, { end: false });
-  child.exited = new Promise((resolve) => child.on('exit', (code, signal) => resolve({ code, signal })));
-  child.on('error', (e) => log('refractd failed to start:', e.message));
-  return child;
-}
-
-async function stopDaemon(child) {
-  if (!child || child.exitCode !== null || child.signalCode !== null) return;
-  child.kill('SIGTERM');
-  const done = await Promise.race([child.exited, sleep(10_000).then(() => null)]);
-  if (!done) {
-    child.kill('SIGKILL');
-    await child.exited;
-  }
-}
-
-async function waitForHealth(child) {
-  const deadline = Date.now() + 60_000;
-  while (Date.now() < deadline) {
-    if (child.exitCode !== null || child.signalCode !== null) throw new Error(`refractd exited (${child.exitCode ?? child.signalCode})`);
-    try {
-      const res = await fetch(`${base}/api/health`);
-      if (res.status === 200) return await res.json();
-    } catch { /* not listening yet */ }
-    await sleep(100);
-  }
-  throw new Error('refractd did not answer /api/health within 60 s');
+  return startRefractd(REFRACTD, args, daemonLog, log);
 }
 
 // ---- frames seen on the page's WebSocket ---------------------------------------------------------
@@ -308,7 +257,7 @@ async function main() {
   do wsPort = await freePort(); while (wsPort === httpPort);
   base = `http://127.0.0.1:${httpPort}`;
   daemon = startDaemon(httpPort, wsPort);
-  const health = await waitForHealth(daemon);
+  const health = await waitForHealth(base, daemon);
   const device = health.device?.name ?? health.device ?? null;
   log('refractd is up:', JSON.stringify(device));
 
@@ -405,7 +354,7 @@ function table(r) {
 async function cleanup() {
   try { if (browser) await browser.close(); } catch { /* already gone */ }
   browser = null;
-  await stopDaemon(daemon);
+  await stopRefractd(daemon);
   daemon = null;
   await new Promise((resolve) => daemonLog.end(resolve));
   if (!process.env.REFRACT_BENCH_LOG) fs.rmSync(tmp, { recursive: true, force: true });

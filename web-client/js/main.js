@@ -173,7 +173,8 @@ function pump() {
   const message = { seq, quality };
   if (patch) message.patch = patch;
   ws.send(JSON.stringify(message));
-  state.inflight = { seq, patch, quality, sentAt: performance.now(), retry };
+  // errorsBefore: an error shown after this request was sent is newer than its edit and must outlive it.
+  state.inflight = { seq, patch, quality, sentAt: performance.now(), retry, errorsBefore: hooks.errors };
   hooks.requestsSent++;
   hooks.sent[quality]++;
   hooks.maxInFlight = Math.max(hooks.maxInFlight, 1);
@@ -206,7 +207,7 @@ function onBinary(blob) {
     clearTimeout(state.watchdog);
     hooks.latencyMs = Math.round(performance.now() - inf.sentAt);
     // An accepted edit makes earlier complaints stale: a failed upload, a frame that could not render.
-    if (inf.patch && !inf.retry) {
+    if (inf.patch && !inf.retry && hooks.errors === inf.errorsBefore) {
       controls.mesh.clearError();
       controls.file.clearError();
       controls.file.status.textContent = '';
