@@ -17,7 +17,7 @@ import os from 'node:os';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 
-import { freePort, loadChromium, sleep, startRefractd, stopRefractd, waitForHealth } from './refractd.mjs';
+import { freePort, killOnExit, loadChromium, sleep, startRefractd, stopRefractd, waitForHealth } from './refractd.mjs';
 
 const chromium = await loadChromium(() => console.log('browser_e2e: 0 passed, 1 failed'));
 
@@ -729,15 +729,7 @@ async function cleanup() {
   fs.rmSync(tmp, { recursive: true, force: true });
 }
 
-for (const sig of ['SIGINT', 'SIGTERM', 'SIGHUP']) {
-  process.on(sig, async () => {
-    log(`got ${sig}, stopping`);
-    if (daemon && daemon.exitCode === null) daemon.kill('SIGKILL');
-    try { if (browser) await browser.close(); } catch { /* ignore */ }
-    process.exit(1);
-  });
-}
-process.on('exit', () => { if (daemon && daemon.exitCode === null && daemon.signalCode === null) daemon.kill('SIGKILL'); });
+killOnExit(() => daemon, () => browser, log);
 
 let fatal = null;
 try {

@@ -21,7 +21,7 @@ import os from 'node:os';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 
-import { freePort, loadChromium, sleep, startRefractd, stopRefractd, waitForHealth } from './refractd.mjs';
+import { freePort, killOnExit, loadChromium, sleep, startRefractd, stopRefractd, waitForHealth } from './refractd.mjs';
 
 const chromium = await loadChromium();
 
@@ -361,15 +361,7 @@ async function cleanup() {
   else fs.rmSync(dataDir, { recursive: true, force: true });
 }
 
-for (const sig of ['SIGINT', 'SIGTERM', 'SIGHUP']) {
-  process.on(sig, async () => {
-    log(`got ${sig}, stopping`);
-    if (daemon && daemon.exitCode === null) daemon.kill('SIGKILL');
-    try { if (browser) await browser.close(); } catch { /* ignore */ }
-    process.exit(1);
-  });
-}
-process.on('exit', () => { if (daemon && daemon.exitCode === null && daemon.signalCode === null) daemon.kill('SIGKILL'); });
+killOnExit(() => daemon, () => browser, log);
 const limit = setTimeout(() => {
   log(`still running after ${HARD_LIMIT_MS / 60_000} min: stopping`);
   if (daemon && daemon.exitCode === null) daemon.kill('SIGKILL');

@@ -71,3 +71,21 @@ export async function waitForHealth(base, child) {
   }
   throw new Error('refractd did not answer /api/health within 60 s');
 }
+
+// However the script ends (a signal, an exception, process.exit), the daemon it started does not
+// outlive it; on a signal the browser is closed too. The getters read the script's current ones.
+export function killOnExit(daemon, browser, log) {
+  const kill = () => {
+    const child = daemon();
+    if (child && child.exitCode === null && child.signalCode === null) child.kill('SIGKILL');
+  };
+  for (const sig of ['SIGINT', 'SIGTERM', 'SIGHUP']) {
+    process.on(sig, async () => {
+      log(`got ${sig}, stopping`);
+      kill();
+      try { await browser()?.close(); } catch { /* ignore */ }
+      process.exit(1);
+    });
+  }
+  process.on('exit', kill);
+}

@@ -507,19 +507,19 @@ function setSceneId(id) {
   }
 }
 
-// Loads the scene named in the URL (or our current one); creates one if there is none, restoring
-// our last view of it when the daemon lost it.
+// Loads the scene named in the URL (or our current one, or else the daemon's `default`, framed to show
+// the object and its caustic); creates one if there is none, restoring our last view of it when the
+// daemon lost it.
 async function loadScene() {
-  const id = state.sceneId || params.get('scene');
-  if (id) {
-    try {
-      const got = await api('GET', `/api/scenes/${encodeURIComponent(id)}`);
-      adoptScene(got.id || id, got);
-      return;
-    } catch (e) {
-      if (!(e instanceof HttpError) || e.status !== 404) throw e;
-      showGlobalError(`Scene “${id}” does not exist on this daemon; started a new one.`);
-    }
+  const named = state.sceneId || params.get('scene');
+  const id = named || 'default';
+  try {
+    const got = await api('GET', `/api/scenes/${encodeURIComponent(id)}`);
+    adoptScene(got.id || id, got);
+    return;
+  } catch (e) {
+    if (!(e instanceof HttpError) || e.status !== 404) throw e;
+    if (named) showGlobalError(`Scene “${id}” does not exist on this daemon; started a new one.`);
   }
   let created;
   try {
