@@ -28,6 +28,10 @@ struct FrameRequest {
     uint64_t revision = 0;
     protocol::SceneDocument document;  // the document at `revision`, image size already overridden
     FrameOptions options;  // quality, frame-time budget, refinement level
+    // Non-empty for a frame of an animation played into a viewer: its document is not the stored
+    // revision's, so it is keyed by this tag, never answered from or kept as the scene's cached frame,
+    // and shared with no other waiter.
+    std::string playback;
 };
 
 // What a waiter gets. `frame` is set on success; otherwise `status` says why and `error` in words.
