@@ -326,12 +326,12 @@ private:
         if (rendered.quality == scene::Quality::still) {
             if (rendered.level >= refine_to_) return;
             wanted_seq_ = seq;
-            // A level gives way halfway when anything else waits for the render thread: this session's
-            // next message (which waits here, one frame in flight a session), or another frame.
+            // A level gives way after any part of its work when this session's next message waits (here:
+            // one frame in flight a session) or another frame does that is not a refinement level.
             newer_message_ = std::make_shared<std::atomic<bool>>(false);
             wanted_options_ = {scene::Quality::still, budget_ms_, rendered.level + 1,
                                [newer = newer_message_, &queue = service_.queue()] {
-                                   return newer->load() || queue.queued() > 0;
+                                   return newer->load() || queue.queued_ahead_of_refinement() > 0;
                                }};
             want_frame_ = true;
             return submit_frame();

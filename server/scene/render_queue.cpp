@@ -1,5 +1,6 @@
 #include "scene/render_queue.h"
 
+#include <algorithm>
 #include <exception>
 #include <iostream>
 
@@ -139,9 +140,12 @@ void RenderQueue::forget_cached_frames() {
     if (in_flight_) in_flight_stale_ = true;
 }
 
-size_t RenderQueue::queued() const {
+size_t RenderQueue::queued_ahead_of_refinement() const {
     std::lock_guard lock(mutex_);
-    return pending_.size();
+    return static_cast<size_t>(std::count_if(pending_.begin(), pending_.end(), [](const auto& entry) {
+        const FrameOptions& o = entry.second.request.options;
+        return o.quality == Quality::interactive || o.level <= 1;
+    }));
 }
 
 size_t RenderQueue::waiting() const {

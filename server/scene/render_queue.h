@@ -90,8 +90,10 @@ public:
     void stop();
 
     size_t waiting() const;
-    // Requests queued behind the frame being rendered (all scenes).
-    size_t queued() const;
+    // Requests queued behind the frame being rendered (all scenes) that a refinement level gives way to:
+    // all but other refinement levels (still frames past level 1), which take their turns whole, so
+    // that two scenes refining at once both progress.
+    size_t queued_ahead_of_refinement() const;
     uint64_t frames_rendered() const { return frames_rendered_.load(); }
 
 private:
