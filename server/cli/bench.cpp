@@ -66,6 +66,11 @@ json scene_patch(const std::string& base) {
     if (base == "bunny") return {{"object", {{"mesh", "upload:bunny"}}}};
     // The ball lens in fog dispersing (flint glass): against "volume 128", what dispersion costs.
     if (base == "dispersion") return {{"object", {{"abbe", 30}}}};
+    // The ball lens in fog dense enough (optical depth 2 across the beam's path to the lens, albedo 0.975)
+    // that light scatters many times: what each bounce of the photons' random walks costs.
+    if (base == "dense_fog")
+        return {{"medium", {{"extinction", {0.8, 0.8, 0.8}}, {"scattering", {0.78, 0.78, 0.78}},
+                            {"phase", {{"model", "henyey-greenstein"}, {"g", 0.3}}}}}};
     throw std::runtime_error("unknown bench scene " + base);
 }
 
@@ -112,6 +117,10 @@ std::vector<BenchCase> standard_suite(bool gpu) {
     for (int i : images)
         add("image " + std::to_string(i), "ball_lens_fog",
             {{"photons", {{"count", base_photons}}}, {"image", {{"width", i}, {"height", i}}}}, scene::kView, "camera");
+    for (const int b : {0, 1, 4, 16, 64})
+        add("bounces " + std::to_string(b), "dense_fog",
+            {{"photons", {{"count", base_photons}, {"max_bounces", b}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
+            scene::kPhotons | scene::kView, "light");
     for (const std::string base : {"luneburg", "torus_floor", "bunny", "dispersion"})
         add(base, base, {{"photons", {{"count", base_photons}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
             scene::kAllPasses, "full");
