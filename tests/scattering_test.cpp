@@ -240,6 +240,33 @@ TEST_F(ScatteringTest, EnergyIsConservedInAClosedBox) {
     }
 }
 
+// Interactive frames take at most kInteractiveBounces of the document's bounces; a frame that takes
+// more (the still frame after a drag, on the same resident scene) retraces its photons with all of them,
+// though nothing else about the photons changed.
+TEST_F(ScatteringTest, InteractiveFramesCapTheBounces) {
+    EXPECT_EQ(scene::run_options_for(scene::Quality::interactive).bounce_cap, scene::kInteractiveBounces);
+    EXPECT_EQ(scene::run_options_for(scene::Quality::still).bounce_cap, protocol::kMaxBounces);
+    json patch = homogeneous(8.0, 8.0, {{"model", "isotropic"}}, 64);
+    patch.merge_patch({{"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", 1.0}}},
+                       {"photons", {{"count", 4096}}},
+                       {"volume", {{"resolution", 32}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 1, 1}}}}}}});
+    const auto doc = protocol::parse_scene(patch);
+    scene::SceneGpu gpu(kit());
+    for (const uint32_t cap : {scene::kInteractiveBounces, protocol::kMaxBounces}) {
+        auto options = scene::run_options_for(scene::Quality::still);
+        options.bounce_cap = cap;
+        options.record_photon_exits = true;
+        options.limit = scene::kAllPasses & ~scene::kView;
+        const auto stats = gpu.run(scene::kView, doc, world_mesh(doc), nullptr, options);
+        EXPECT_TRUE(stats.ran & scene::kPhotons) << "cap " << cap;
+        float most = 0.0f;
+        for (const auto& e : gpu.read_photon_exits()) most = std::max(most, e.weight.w);
+        std::printf("bounce cap %u: at most %.0f bounces of the document's 64\n", cap, static_cast<double>(most));
+        // A cube of side optical depth 16 keeps nearly every photon scattering past 4 bounces.
+        EXPECT_EQ(static_cast<uint32_t>(most), std::min(cap, 64u));
+    }
+}
+
 // ---------------------------------------------------------------------------------------------------
 // An independent reference for the slab: analog Monte Carlo on the CPU, in double precision, with its
 // own Henyey-Greenstein inversion (the usual form of OPTICS.md): a photon enters the top face of the box
