@@ -344,6 +344,7 @@ void main() {
             split_phase = deposit_phase;
         }
         atomicAdd(stats.steps, steps + 1u - first_step);
+        if (kRandomWalks) atomicAdd(stats.scatterings, walk.bounces - (kDispersive && path > 0u ? split_walk.bounces : 0u));
         if (split) continue;
         // A photon that left the grid goes on straight (outside is empty) to the floor.
         if (outcome == 2.0 || (outcome == 1.0 && floor_on && ray.d.y < 0.0)) {

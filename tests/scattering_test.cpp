@@ -207,10 +207,11 @@ TEST_F(ScatteringTest, EnergyIsConservedInAClosedBox) {
             const auto run = photons(protocol::parse_scene(patch));
             const double photon_flux = static_cast<double>(run.gpu->params().photon_flux.w);
             double emitted = 0.0, escaped = 0.0, stopped = 0.0;
-            uint64_t most_bounces = 0;
+            uint64_t most_bounces = 0, all_bounces = 0;
             for (const auto& e : run.exits) {
                 if (e.entry.w != 1.0f) continue;
                 emitted += photon_flux;
+                all_bounces += static_cast<uint64_t>(e.weight.w);
                 const double carried = photon_flux * static_cast<double>(e.weight.r + e.weight.g + e.weight.b) / 3.0;
                 (e.position.w == 1.0f ? escaped : stopped) += carried;
                 most_bounces = std::max(most_bounces, static_cast<uint64_t>(e.weight.w));
@@ -227,6 +228,7 @@ TEST_F(ScatteringTest, EnergyIsConservedInAClosedBox) {
                         dropped, stopped, 100.0 * (balance / emitted - 1.0));
             EXPECT_NEAR(emitted, E * 4.0, 1e-4 * E);  // every photon enters the top face: irradiance x area
             EXPECT_LE(most_bounces, bounces);
+            EXPECT_EQ(run.stats.photon_scatterings, all_bounces);  // the benchmarks' bounces per photon
             // The 1%: the escaped flux's own noise (at most the beam's flux times 1 / sqrt(2^16),
             // 0.4%, and less since most photons escape with their whole weight) fits well inside it, and
             // the closed-form direct light at voxel centres differs from the voxel mean of exp(-sigma_t

@@ -121,6 +121,11 @@ std::vector<BenchCase> standard_suite(bool gpu) {
         add("bounces " + std::to_string(b), "dense_fog",
             {{"photons", {{"count", base_photons}, {"max_bounces", b}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
             scene::kPhotons | scene::kView, "light");
+    // While dragging: the frame budget's starting sizes, and at most scene::kInteractiveBounces.
+    for (const int b : {0, 64})
+        add("bounces " + std::to_string(b) + " interactive", "dense_fog",
+            {{"photons", {{"count", base_photons}, {"max_bounces", b}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
+            scene::kPhotons | scene::kView, "light", scene::Quality::interactive);
     for (const std::string base : {"luneburg", "torus_floor", "bunny", "dispersion"})
         add(base, base, {{"photons", {{"count", base_photons}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
             scene::kAllPasses, "full");
@@ -362,6 +367,8 @@ int bench_command(const Arguments& args) {
             entry["photons_per_s"] = static_cast<double>(last.photons_entered) / (ms * 1e-3);
             entry["photon_steps_per_s"] = static_cast<double>(last.photon_steps) / (ms * 1e-3);
             entry["mean_steps_per_photon"] = last.mean_steps_per_photon();
+            entry["mean_bounces_per_photon"] =
+                static_cast<double>(last.photon_scatterings) / static_cast<double>(std::max<uint64_t>(last.photons_entered, 1));
         }
         if (pass_ms.count("view")) {
             const double ms = summarize(pass_ms["view"]).median;
@@ -379,8 +386,9 @@ int bench_command(const Arguments& args) {
             }
             std::printf(" | encode %.1f host %.1f ms | %.0f MiB", encode.median, host.median, static_cast<double>(memory) / (1 << 20));
             if (entry.contains("photons_per_s"))
-                std::printf(" | %.2f Mphotons/s %.1f steps/photon", entry["photons_per_s"].get<double>() * 1e-6,
-                            entry["mean_steps_per_photon"].get<double>());
+                std::printf(" | %.2f Mphotons/s %.1f steps/photon %.2f bounces/photon %.1f Msteps/s",
+                            entry["photons_per_s"].get<double>() * 1e-6, entry["mean_steps_per_photon"].get<double>(),
+                            entry["mean_bounces_per_photon"].get<double>(), entry["photon_steps_per_s"].get<double>() * 1e-6);
             if (entry.contains("view_steps_per_s"))
                 std::printf(" | view %.1f Msteps/s %.0f ns/pixel", entry["view_steps_per_s"].get<double>() * 1e-6,
                             entry["ns_per_pixel"].get<double>());

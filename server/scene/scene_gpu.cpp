@@ -275,6 +275,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             stats.photon_steps = counters.steps;
             stats.floor_hits = counters.floor_hits;
             stats.direct_overlaps = counters.direct_overlaps;
+            stats.photon_scatterings = counters.scatterings;
         }
         if (stale & kView) stats.view_steps = counters.view_steps;
     }

@@ -52,6 +52,7 @@ struct RunStats {
     uint64_t photon_steps = 0;
     uint64_t floor_hits = 0;
     uint64_t direct_overlaps = 0;  // photons the light map sent straight where n varies (transport.h)
+    uint64_t photon_scatterings = 0;  // scattering events of the photons' random walks
     uint64_t view_steps = 0;  // eye-ray march steps, when the viewing pass ran
     double mean_steps_per_photon() const {
         return photons_entered ? static_cast<double>(photon_steps) / static_cast<double>(photons_entered) : 0.0;

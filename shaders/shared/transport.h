@@ -237,6 +237,7 @@ struct PhotonStats {
     uint view_steps;        // eye-ray march steps (the viewing pass)
     uint queue_taken[3];    // work items handed out so far by each pass's queue (take_from_queue)
     uint direct_overlaps;   // photons whose straight step over their direct span landed where n varies
+    uint scatterings;       // scattering events of photon random walks (photons.max_bounces)
 };
 #define QUEUE_VIEW_PIXELS 0u
 #define QUEUE_VIEW_REFINED 1u
@@ -278,7 +279,7 @@ REFRACT_SHADERS_END
 
 #ifdef __cplusplus
 static_assert(sizeof(refract::shaders::TransportParams) == 35 * 16);
-static_assert(sizeof(refract::shaders::PhotonStats) == 32);
+static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 80);
 #endif
