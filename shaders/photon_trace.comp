@@ -8,8 +8,8 @@
 // length to every voxel they cross (the track-length estimator of fluence) plus a flux-weighted
 // direction, except over the part of their path whose light the direct-light pass stores in closed
 // form (transport.h, DIRECT_*). Up to photons.max_bounces times a photon scatters on its way
-// (random_walk.glsl), and every order deposits alike. Accumulation is fixed-point integer atomics: deterministic on every
-// device.
+// (random_walk.glsl), and every order deposits alike. Accumulation is fixed-point integer atomics:
+// deterministic on every device.
 #include "transport_common.glsl"
 #include "emission.glsl"
 #include "radiance_sums.glsl"
