@@ -367,8 +367,7 @@ int bench_command(const Arguments& args) {
             entry["photons_per_s"] = static_cast<double>(last.photons_entered) / (ms * 1e-3);
             entry["photon_steps_per_s"] = static_cast<double>(last.photon_steps) / (ms * 1e-3);
             entry["mean_steps_per_photon"] = last.mean_steps_per_photon();
-            entry["mean_bounces_per_photon"] =
-                static_cast<double>(last.photon_scatterings) / static_cast<double>(std::max<uint64_t>(last.photons_entered, 1));
+            entry["mean_bounces_per_photon"] = last.mean_bounces_per_photon();
         }
         if (pass_ms.count("view")) {
             const double ms = summarize(pass_ms["view"]).median;

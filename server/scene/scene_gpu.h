@@ -57,6 +57,9 @@ struct RunStats {
     double mean_steps_per_photon() const {
         return photons_entered ? static_cast<double>(photon_steps) / static_cast<double>(photons_entered) : 0.0;
     }
+    double mean_bounces_per_photon() const {
+        return photons_entered ? static_cast<double>(photon_scatterings) / static_cast<double>(photons_entered) : 0.0;
+    }
 };
 
 struct RunOptions {
