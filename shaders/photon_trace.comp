@@ -287,6 +287,7 @@ void main() {
             float ds = safe_step(level, ray.p, ray.d, shell_step);
             float coverage = coverage_for(kRandomWalks ? max(params.flags.y, params.flags.z) : params.flags.y, ray.p,
                                           ray.field.x);
+            if (kRandomWalks) coverage = walk_step(ray.p, ray.d, ds, coverage, max(params.flags.y, params.flags.z), shell_step);
             vec3 kappa = extinction_at(coverage) * h;  // per voxel length
             overlap = overlap || (jumped && !flat_medium(ray.field, coverage));
             bool in_direct = along >= direct_from && along < direct_to;

@@ -280,7 +280,14 @@ struct SlabTally {
     double se_reflected = 0.0, se_transmitted = 0.0;  // their standard errors
 };
 
-SlabTally cpu_slab(glm::dvec3 lo, glm::dvec3 hi, double sigma_t, double albedo, double g, int photons, uint32_t seed) {
+// One layer of the slab: its extinction (per metre) and albedo.
+struct Layer {
+    double sigma_t, albedo;
+};
+
+// The slab is `above` over y = split and `below` under it (the same layer twice: one homogeneous slab).
+SlabTally cpu_slab(glm::dvec3 lo, glm::dvec3 hi, Layer above, Layer below, double split, double g, int photons,
+                   uint32_t seed) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> uniform(0.0, 1.0);
     int up = 0, down = 0;
@@ -288,25 +295,45 @@ SlabTally cpu_slab(glm::dvec3 lo, glm::dvec3 hi, double sigma_t, double albedo, 
         glm::dvec3 p(lo.x + (hi.x - lo.x) * uniform(rng), hi.y, lo.z + (hi.z - lo.z) * uniform(rng));
         glm::dvec3 d(0.0, -1.0, 0.0);
         for (bool scattered = false;; scattered = true) {
-            const double s = -std::log(1.0 - uniform(rng)) / sigma_t;
-            // Distance to the box's boundary along d.
-            double exit = 1e300;
-            for (int a = 0; a < 3; ++a) {
-                if (d[a] > 0.0) exit = std::min(exit, (hi[a] - p[a]) / d[a]);
-                if (d[a] < 0.0) exit = std::min(exit, (lo[a] - p[a]) / d[a]);
-            }
-            if (s >= exit) {
-                const glm::dvec3 q = p + d * exit;
-                const double to_top = hi.y - q.y, to_bottom = q.y - lo.y;
-                const double to_side = std::min({q.x - lo.x, hi.x - q.x, q.z - lo.z, hi.z - q.z});
-                if (to_top < to_side && to_top <= to_bottom) {
-                    ++up;
-                } else if (to_bottom < to_side && scattered) {
-                    ++down;
+            // A free path: an optical depth, spent layer by layer along d until it runs out or the photon
+            // leaves the box.
+            double depth = -std::log(1.0 - uniform(rng));
+            bool left = false;
+            double albedo = 0.0;
+            for (;;) {
+                const bool upper = p.y > split || (p.y == split && d.y > 0.0);
+                const Layer& layer = upper ? above : below;
+                double exit = 1e300;
+                for (int a = 0; a < 3; ++a) {
+                    if (d[a] > 0.0) exit = std::min(exit, (hi[a] - p[a]) / d[a]);
+                    if (d[a] < 0.0) exit = std::min(exit, (lo[a] - p[a]) / d[a]);
                 }
-                break;
+                double to_split = 1e300;
+                if (upper && d.y < 0.0) to_split = (p.y - split) / -d.y;
+                if (!upper && d.y > 0.0) to_split = (split - p.y) / d.y;
+                const double run = std::min(exit, to_split);
+                if (depth < layer.sigma_t * run) {
+                    p += d * (depth / layer.sigma_t);
+                    albedo = layer.albedo;
+                    break;
+                }
+                depth -= layer.sigma_t * run;
+                if (exit <= to_split) {
+                    const glm::dvec3 q = p + d * exit;
+                    const double to_top = hi.y - q.y, to_bottom = q.y - lo.y;
+                    const double to_side = std::min({q.x - lo.x, hi.x - q.x, q.z - lo.z, hi.z - q.z});
+                    if (to_top < to_side && to_top <= to_bottom) {
+                        ++up;
+                    } else if (to_bottom < to_side && scattered) {
+                        ++down;
+                    }
+                    left = true;
+                    break;
+                }
+                p += d * to_split;
+                p.y = split;
             }
-            p += d * s;
+            if (left) break;
             if (uniform(rng) >= albedo) break;
             double mu;
             const double xi = uniform(rng);
@@ -337,6 +364,42 @@ SlabTally cpu_slab(glm::dvec3 lo, glm::dvec3 hi, double sigma_t, double albedo, 
 // under a collimated beam at normal incidence, n = 1 everywhere, against cpu_slab on the same box (its
 // sides absorb what reaches them, as the grid's do). Transmittance is diffuse: the unscattered beam
 // (exp(-tau)) is left out.
+// The GPU's tallies of the same box: each photon's weight where it left, by face (the bottom only once
+// scattered), with standard errors from the photons' own spread.
+SlabTally gpu_slab(const std::vector<PhotonExit>& exits, glm::dvec3 lo, glm::dvec3 hi) {
+    double sum[2] = {0, 0}, sum_sq[2] = {0, 0}, n = 0;
+    for (const auto& e : exits) {
+        if (e.entry.w != 1.0f) continue;
+        n += 1.0;
+        if (e.position.w != 1.0f) continue;
+        const glm::dvec3 q(glm::vec3(e.position));
+        const double w = static_cast<double>(e.weight.r + e.weight.g + e.weight.b) / 3.0;
+        const double to_top = hi.y - q.y, to_bottom = q.y - lo.y;
+        const double to_side = std::min({q.x - lo.x, hi.x - q.x, q.z - lo.z, hi.z - q.z});
+        const int face = to_top < to_side && to_top <= to_bottom ? 0 : to_bottom < to_side ? 1 : -1;
+        if (face < 0 || (face == 1 && e.weight.w == 0.0f)) continue;
+        sum[face] += w;
+        sum_sq[face] += w * w;
+    }
+    SlabTally t;
+    t.reflected = sum[0] / n;
+    t.transmitted = sum[1] / n;
+    t.se_reflected = std::sqrt((sum_sq[0] / n - t.reflected * t.reflected) / n);
+    t.se_transmitted = std::sqrt((sum_sq[1] / n - t.transmitted * t.transmitted) / n);
+    return t;
+}
+
+// R and T within `systematic` (relative) plus 4 standard errors of the difference, which keep a false
+// failure below 1e-4 per comparison.
+void compare_slab(const char* what, const SlabTally& gpu, const SlabTally& cpu, double systematic, double steps) {
+    const double tol_r = systematic * cpu.reflected + 4.0 * std::hypot(gpu.se_reflected, cpu.se_reflected);
+    const double tol_t = systematic * cpu.transmitted + 4.0 * std::hypot(gpu.se_transmitted, cpu.se_transmitted);
+    std::printf("%s: R %.4f vs CPU %.4f (tolerance %.4f), T %.4f vs %.4f (%.4f); %.1f steps per photon\n", what,
+                gpu.reflected, cpu.reflected, tol_r, gpu.transmitted, cpu.transmitted, tol_t, steps);
+    EXPECT_NEAR(gpu.reflected, cpu.reflected, tol_r) << what;
+    EXPECT_NEAR(gpu.transmitted, cpu.transmitted, tol_t) << what;
+}
+
 void ScatteringTest::check_slab(const char* what, double g, const json& phase) {
     constexpr int kPhotons = 1 << 16;
     for (const double tau : {0.5, 2.0, 8.0})
@@ -349,39 +412,14 @@ void ScatteringTest::check_slab(const char* what, double g, const json& phase) {
             const auto& grid = run.gpu->grid();
             const glm::dvec3 lo(grid.origin), hi(grid.max_corner());
             ASSERT_NEAR(hi.y - lo.y, 1.0, 1e-6);
-            // The GPU's tallies: each photon's weight where it left, by face; their standard errors from the
-            // photons' own spread.
-            double sum[2] = {0, 0}, sum_sq[2] = {0, 0}, n = 0;
-            for (const auto& e : run.exits) {
-                if (e.entry.w != 1.0f) continue;
-                n += 1.0;
-                if (e.position.w != 1.0f) continue;
-                const glm::dvec3 q(glm::vec3(e.position));
-                const double w = static_cast<double>(e.weight.r + e.weight.g + e.weight.b) / 3.0;
-                const double to_top = hi.y - q.y, to_bottom = q.y - lo.y;
-                const double to_side = std::min({q.x - lo.x, hi.x - q.x, q.z - lo.z, hi.z - q.z});
-                const int face = to_top < to_side && to_top <= to_bottom ? 0 : to_bottom < to_side ? 1 : -1;
-                if (face < 0 || (face == 1 && e.weight.w == 0.0f)) continue;
-                sum[face] += w;
-                sum_sq[face] += w * w;
-            }
-            const SlabTally cpu = cpu_slab(lo, hi, tau, albedo, g, kPhotons, 7);
-            const double gpu_r = sum[0] / n, gpu_t = sum[1] / n;
-            const double se_r = std::sqrt((sum_sq[0] / n - gpu_r * gpu_r) / n);
-            const double se_t = std::sqrt((sum_sq[1] / n - gpu_t * gpu_t) / n);
+            const SlabTally cpu = cpu_slab(lo, hi, {tau, albedo}, {tau, albedo}, 0.0, g, kPhotons, 7);
+            char what_case[96];
+            std::snprintf(what_case, sizeof what_case, "slab %s, tau %.1f, albedo %.2f", what, tau, albedo);
             // Both sample the same process exactly (a homogeneous medium: the walk's free paths are exact
             // exponentials, the CPU's too), so they differ by noise, plus float rounding of positions
             // (1e-7 of a path) and the walk's cap (1024 bounces: at albedo 0.99 a weight of 0.99^1024 =
-            // 3e-5 would be left). 2% is the allowance for anything systematic; 4 standard errors
-            // of the difference keep a false failure below 1e-4 per comparison.
-            const double tol_r = 0.02 * cpu.reflected + 4.0 * std::hypot(se_r, cpu.se_reflected);
-            const double tol_t = 0.02 * cpu.transmitted + 4.0 * std::hypot(se_t, cpu.se_transmitted);
-            std::printf("slab %s, tau %.1f, albedo %.2f: R %.4f vs CPU %.4f (tolerance %.4f), T %.4f vs %.4f (%.4f); "
-                        "%.1f steps per photon\n",
-                        what, tau, albedo, gpu_r, cpu.reflected, tol_r, gpu_t, cpu.transmitted, tol_t,
-                        run.stats.mean_steps_per_photon());
-            EXPECT_NEAR(gpu_r, cpu.reflected, tol_r) << what << " tau " << tau << " albedo " << albedo;
-            EXPECT_NEAR(gpu_t, cpu.transmitted, tol_t) << what << " tau " << tau << " albedo " << albedo;
+            // 3e-5 would be left). 2% is the allowance for anything systematic.
+            compare_slab(what_case, gpu_slab(run.exits, lo, hi), cpu, 0.02, run.stats.mean_steps_per_photon());
         }
 }
 
@@ -391,6 +429,36 @@ TEST_F(ScatteringTest, SlabOfIsotropicScatterersMatchesMonteCarlo) {
 
 TEST_F(ScatteringTest, SlabOfHenyeyGreensteinScatterersMatchesMonteCarlo) {
     check_slab("HG g=0.8", 0.8, {{"model", "henyey-greenstein"}, {"g", 0.8}});
+}
+
+// Where scattering changes and n does not (an index-matched object), the octree's leaves span the change:
+// free paths must still see it. Two layers: thin fog (optical thickness 0.5, albedo 0.99) over a dense
+// layer (8, albedo 0.9), the lower half of the grid filled by an index-matched cube (no smoothing: its
+// faces lie on voxel boundaries, so coverage is 0 or 1 per voxel and the interface is one voxel of
+// trilinear ramp), against cpu_slab with a sharp interface.
+TEST_F(ScatteringTest, LayeredSlabWhereOnlyScatteringChangesMatchesMonteCarlo) {
+    constexpr int kPhotons = 1 << 16;
+    const Layer fog{1.0, 0.99}, dense{16.0, 0.9};
+    const json phase = {{"model", "isotropic"}};
+    json patch = homogeneous(fog.sigma_t, fog.sigma_t * fog.albedo, phase, protocol::kMaxBounces);
+    patch.merge_patch({{"object", {{"mesh", "cube"}, {"scale", 2.5}, {"position", {0, -2.5, 0}},
+                                   {"extinction", {dense.sigma_t, dense.sigma_t, dense.sigma_t}},
+                                   {"scattering", json::array({dense.sigma_t * dense.albedo, dense.sigma_t * dense.albedo,
+                                                               dense.sigma_t * dense.albedo})}}},
+                       {"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", 1.0}}},
+                       {"photons", {{"count", kPhotons}}},
+                       {"volume", {{"resolution", 64}, {"smoothing", 0.0},
+                                   {"bounds", {{"min", {-2, -0.5, -2}}, {"max", {2, 0.5, 2}}}}}}});
+    const auto run = photons(protocol::parse_scene(patch));
+    const glm::dvec3 lo(run.gpu->grid().origin), hi(run.gpu->grid().max_corner());
+    const SlabTally cpu = cpu_slab(lo, hi, fog, dense, 0.0, 0.0, kPhotons, 11);
+    // The interface: one voxel (h = 1/16 m) where the GPU's coefficient ramps linearly between the
+    // layers, symmetric about the CPU's sharp step (the same optical depth across it). It moves
+    // collisions within that voxel by at most h / 2, against the dense layer's mean free path of h: the
+    // share of light turned there is what changes, bounded by the collisions in that voxel (1 - e^-1
+    // of what reaches it) times the half of them that move, times the layers' albedo difference and
+    // direction: 3% of R and T as a systematic allowance, beside the noise.
+    compare_slab("layered slab", gpu_slab(run.exits, lo, hi), cpu, 0.03, run.stats.mean_steps_per_photon());
 }
 
 // ---------------------------------------------------------------------------------------------------

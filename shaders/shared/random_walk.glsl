@@ -5,8 +5,10 @@
 // already integrates extinction step by step (Beer-Lambert with each step's coefficients), and a free
 // path drawn as an optical depth -ln(1 - xi) and spent along those same steps is exact for that
 // piecewise-constant extinction, so a walk sees the very medium a photon of today's single-scattering
-// transport sees. Delta tracking would need a majorant of extinction per octree node, which the
-// octree does not keep (it splits on n, and coverage maps to extinction only for the uniform object).
+// transport sees; where coefficients change, steps are a voxel long (refracting shells, and walk_step
+// where n does not change with them) and take the mean of their ends' coefficients. Delta tracking would need a majorant of extinction per octree
+// node, which the octree does not keep (it splits on n, and coverage maps to extinction only for the
+// uniform object).
 //
 // Collisions are sampled against the channels' mean scattering coefficient sigma (per voxel), not the
 // extinction: a photon's weight takes absorption continuously, exp(-(kappa_c - sigma) s) per channel,
@@ -41,6 +43,27 @@ float walk_free_path(inout Walk w, float c, float h, inout float len) {
         w.depth_left -= depth;
     }
     return sigma;
+}
+
+// The step (voxels) a walking photon takes from p along d where the octree allows ds, and the coverage
+// its coefficients are taken at. The octree splits on n, so where coefficients change and n does not
+// (an index-matched object, an imported grid's coverage) a leaf spans the change, and a step across it
+// would take its start's coefficients for the whole of it, free path and absorption alike. A step that
+// would end at another coverage than it starts at (`coverage`, found by `mode`) is cut to the shell
+// step, so the walk crosses the change voxel by voxel, as photons cross a refracting shell; and every
+// step takes the mean of its ends' coverage (the trapezoid rule: the start's alone would lag half a
+// step behind the change, half a mean free path in a medium as dense as a voxel). (An object thinner
+// than a leaf step, entered and left within one, is still stepped over.)
+float walk_step(vec3 p, vec3 d, inout float ds, float coverage, uint mode, float shell_step) {
+    if (mode == COVERAGE_CONSTANT) return coverage;
+    vec3 q = p + d * ds;
+    float far = coverage_for(mode, q, index_at(q).x);
+    if (abs(far - coverage) > 1e-3 && ds > shell_step) {
+        ds = shell_step;
+        q = p + d * ds;
+        far = coverage_for(mode, q, index_at(q).x);
+    }
+    return 0.5 * (coverage + far);
 }
 
 // A unit vector at angle acos(mu) from unit vector d, at azimuth phi about it.
