@@ -7,11 +7,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <nlohmann/json.hpp>
 #include <numeric>
 #include <random>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "gpu_fixture.h"
 #include "phase.h"
@@ -32,9 +31,10 @@ TEST(PhaseSampling, DrawsEachPhaseFunction) {
     constexpr int kBins = 40;
     constexpr int kSamples = 400000;
     const std::pair<uint32_t, float> cases[] = {
-        {PHASE_ISOTROPIC_ID, 0.0f}, {PHASE_HG_ID, 0.0f},     {PHASE_HG_ID, 1e-6f},   {PHASE_HG_ID, 0.3f},
-        {PHASE_HG_ID, -0.5f},       {PHASE_HG_ID, 0.8f},     {PHASE_HG_ID, 0.99f},   {PHASE_SCHLICK_ID, 0.0f},
-        {PHASE_SCHLICK_ID, 0.6f},   {PHASE_SCHLICK_ID, -0.9f}, {PHASE_SCHLICK_ID, 0.99f}};
+        {PHASE_ISOTROPIC_ID, 0.0f}, {PHASE_HG_ID, 0.0f},      {PHASE_HG_ID, 1e-6f},
+        {PHASE_HG_ID, 0.3f},        {PHASE_HG_ID, -0.5f},     {PHASE_HG_ID, 0.8f},
+        {PHASE_HG_ID, 0.99f},       {PHASE_SCHLICK_ID, 0.0f}, {PHASE_SCHLICK_ID, 0.6f},
+        {PHASE_SCHLICK_ID, -0.9f},  {PHASE_SCHLICK_ID, 0.99f}};
     for (const auto& [model, g] : cases) {
         std::vector<double> counts(size_t{kBins}, 0.0);
         // A stratified xi: each sample inverts the distribution at its own quantile, so the histogram is
@@ -43,7 +43,8 @@ TEST(PhaseSampling, DrawsEachPhaseFunction) {
         for (int i = 0; i < kSamples; ++i) {
             const float xi = (static_cast<float>(i) + 0.5f) / kSamples;
             const float mu = shaders::phase_sample_cos(model, g, xi);
-            ASSERT_TRUE(mu >= -1.0f && mu <= 1.0f) << "model " << model << " g " << g << " xi " << xi << ": " << mu;
+            ASSERT_TRUE(mu >= -1.0f && mu <= 1.0f)
+                << "model " << model << " g " << g << " xi " << xi << ": " << mu;
             counts[std::min(size_t{kBins - 1}, static_cast<size_t>((mu + 1.0f) * 0.5f * kBins))] += 1.0;
             mean_cos += static_cast<double>(mu);
         }
@@ -57,7 +58,8 @@ TEST(PhaseSampling, DrawsEachPhaseFunction) {
             constexpr int kSteps = 1 << 14;
             for (int k = 0; k <= kSteps; ++k) {
                 const double w = (k == 0 || k == kSteps) ? 1.0 : (k % 2 ? 4.0 : 2.0);
-                mass += w * static_cast<double>(shaders::phase_value(model, static_cast<float>(lo + (hi - lo) * k / kSteps), g));
+                mass += w * static_cast<double>(shaders::phase_value(
+                                model, static_cast<float>(lo + (hi - lo) * k / kSteps), g));
             }
             mass *= (hi - lo) / (3.0 * kSteps) * 2.0 * kPi;  // the azimuth's 2 pi
             // Float rounding of mu near a bin edge moves a sample across it: a few samples per edge at
@@ -65,7 +67,8 @@ TEST(PhaseSampling, DrawsEachPhaseFunction) {
             const double tolerance = 4.0 / kSamples + 1e-6 * mass;
             const double share = counts[static_cast<size_t>(b)] / kSamples;
             worst = std::max(worst, std::abs(share - mass) / (tolerance + 1e-3 * mass));
-            EXPECT_NEAR(share, mass, tolerance + 1e-3 * mass) << "model " << model << " g " << g << " bin " << b;
+            EXPECT_NEAR(share, mass, tolerance + 1e-3 * mass)
+                << "model " << model << " g " << g << " bin " << b;
         }
         // The mean cosine of Henyey-Greenstein is g.
         if (model == PHASE_HG_ID) {
@@ -139,9 +142,11 @@ uint64_t fnv1a_pfm_order(const std::vector<glm::vec4>& hdr, uint32_t width, uint
 }
 
 TEST_F(ScatteringTest, ZeroBouncesRendersTodaysFramesByteForByte) {
-    const json small = {{"image", {{"width", 96}, {"height", 96}}}, {"photons", {{"count", 16384}, {"max_bounces", 0}}},
+    const json small = {{"image", {{"width", 96}, {"height", 96}}},
+                        {"photons", {{"count", 16384}, {"max_bounces", 0}}},
                         {"volume", {{"resolution", 48}}}};
-    json absorbing = json::parse(R"({"camera":{"position":[0.3,1.6,4.6],"target":[0.1,-0.35,0.0],"fov_deg":40},
+    json absorbing =
+        json::parse(R"({"camera":{"position":[0.3,1.6,4.6],"target":[0.1,-0.35,0.0],"fov_deg":40},
         "image":{"exposure":-1},"light":{"type":"spot","position":[-1.8,4.2,-1.6],"direction":[1.8,-4.7,1.6],
         "color":[1.0,0.97,0.92],"intensity":45,"cone_deg":28},"object":{"mesh":"cube","scale":0.55,"position":[0.0,-0.2,0.0],
         "rotation_deg":[30,40,10],"ior":1.5,"extinction":[0.15,2.2,2.8],"scattering":[0.0,0.0,0.0]},
@@ -154,7 +159,8 @@ TEST_F(ScatteringTest, ZeroBouncesRendersTodaysFramesByteForByte) {
         "phase":{"model":"henyey-greenstein","g":0.2}},"volume":{"smoothing":0.75,"bounds":{"min":[-2.5,-2.6,-1.6],
         "max":[3.2,2.6,1.6]}},"floor":{"enabled":false}})");
     json dispersion = ball_lens;
-    dispersion.merge_patch(json::parse(R"({"camera":{"position":[1.0,0.35,2.6],"target":[1.0,0.0,0.0],"fov_deg":40},
+    dispersion.merge_patch(
+        json::parse(R"({"camera":{"position":[1.0,0.35,2.6],"target":[1.0,0.0,0.0],"fov_deg":40},
         "light":{"color":[1.0,1.0,1.0]},"object":{"ior":1.6,"abbe":6}})"));
     struct Case {
         const char* name;
@@ -201,9 +207,10 @@ TEST_F(ScatteringTest, EnergyIsConservedInAClosedBox) {
         double previous_fluence = 0.0;  // integral of fluence of the run capped one bounce lower
         for (const uint32_t bounces : {0u, 1u, 7u, 8u, 63u, 64u}) {
             json patch = homogeneous(sigma_t, sigma_s, {{"model", "isotropic"}}, bounces);
-            patch.merge_patch({{"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", E}}},
-                               {"photons", {{"count", 1 << 16}}},
-                               {"volume", {{"resolution", 32}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 1, 1}}}}}}});
+            patch.merge_patch(
+                {{"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", E}}},
+                 {"photons", {{"count", 1 << 16}}},
+                 {"volume", {{"resolution", 32}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 1, 1}}}}}}});
             const auto run = photons(protocol::parse_scene(patch));
             const double photon_flux = static_cast<double>(run.gpu->params().photon_flux.w);
             double emitted = 0.0, escaped = 0.0, stopped = 0.0;
@@ -212,7 +219,8 @@ TEST_F(ScatteringTest, EnergyIsConservedInAClosedBox) {
                 if (e.entry.w != 1.0f) continue;
                 emitted += photon_flux;
                 all_bounces += static_cast<uint64_t>(e.weight.w);
-                const double carried = photon_flux * static_cast<double>(e.weight.r + e.weight.g + e.weight.b) / 3.0;
+                const double carried =
+                    photon_flux * static_cast<double>(e.weight.r + e.weight.g + e.weight.b) / 3.0;
                 (e.position.w == 1.0f ? escaped : stopped) += carried;
                 most_bounces = std::max(most_bounces, static_cast<uint64_t>(e.weight.w));
             }
@@ -222,10 +230,12 @@ TEST_F(ScatteringTest, EnergyIsConservedInAClosedBox) {
             previous_fluence = fluence;
             if (bounces == 7 || bounces == 63) continue;  // only the lower run of a pair
             const double balance = escaped + absorbed + dropped;
-            std::printf("closed box, albedo %.2f, %u bounces (most taken %llu): emitted %.5f W, escaped %.5f, absorbed "
-                        "%.5f, scattered past the cap %.5f, stopped with %.2e: balance %+.4f%%\n",
-                        albedo, bounces, static_cast<unsigned long long>(most_bounces), emitted, escaped, absorbed,
-                        dropped, stopped, 100.0 * (balance / emitted - 1.0));
+            std::printf(
+                "closed box, albedo %.2f, %u bounces (most taken %llu): emitted %.5f W, escaped %.5f, "
+                "absorbed "
+                "%.5f, scattered past the cap %.5f, stopped with %.2e: balance %+.4f%%\n",
+                albedo, bounces, static_cast<unsigned long long>(most_bounces), emitted, escaped, absorbed,
+                dropped, stopped, 100.0 * (balance / emitted - 1.0));
             EXPECT_NEAR(emitted, E * 4.0, 1e-4 * E);  // every photon enters the top face: irradiance x area
             EXPECT_LE(most_bounces, bounces);
             EXPECT_EQ(run.stats.photon_scatterings, all_bounces);  // the benchmarks' bounces per photon
@@ -249,9 +259,10 @@ TEST_F(ScatteringTest, InteractiveFramesCapTheBounces) {
     EXPECT_EQ(scene::run_options_for(scene::Quality::interactive).bounce_cap, scene::kInteractiveBounces);
     EXPECT_EQ(scene::run_options_for(scene::Quality::still).bounce_cap, protocol::kMaxBounces);
     json patch = homogeneous(8.0, 8.0, {{"model", "isotropic"}}, 64);
-    patch.merge_patch({{"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", 1.0}}},
-                       {"photons", {{"count", 4096}}},
-                       {"volume", {{"resolution", 32}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 1, 1}}}}}}});
+    patch.merge_patch(
+        {{"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", 1.0}}},
+         {"photons", {{"count", 4096}}},
+         {"volume", {{"resolution", 32}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 1, 1}}}}}}});
     const auto doc = protocol::parse_scene(patch);
     scene::SceneGpu gpu(kit());
     for (const uint32_t cap : {scene::kInteractiveBounces, protocol::kMaxBounces}) {
@@ -263,7 +274,8 @@ TEST_F(ScatteringTest, InteractiveFramesCapTheBounces) {
         EXPECT_TRUE(stats.ran & scene::kPhotons) << "cap " << cap;
         float most = 0.0f;
         for (const auto& e : gpu.read_photon_exits()) most = std::max(most, e.weight.w);
-        std::printf("bounce cap %u: at most %.0f bounces of the document's 64\n", cap, static_cast<double>(most));
+        std::printf("bounce cap %u: at most %.0f bounces of the document's 64\n", cap,
+                    static_cast<double>(most));
         // A cube of side optical depth 16 keeps nearly every photon scattering past 4 bounces.
         EXPECT_EQ(static_cast<uint32_t>(most), std::min(cap, 64u));
     }
@@ -276,7 +288,7 @@ TEST_F(ScatteringTest, InteractiveFramesCapTheBounces) {
 // collision or scatters, and is tallied by the face it leaves through (the bottom only once scattered:
 // diffuse transmittance).
 struct SlabTally {
-    double reflected = 0.0, transmitted = 0.0;  // fractions of the photons
+    double reflected = 0.0, transmitted = 0.0;        // fractions of the photons
     double se_reflected = 0.0, se_transmitted = 0.0;  // their standard errors
 };
 
@@ -286,8 +298,8 @@ struct Layer {
 };
 
 // The slab is `above` over y = split and `below` under it (the same layer twice: one homogeneous slab).
-SlabTally cpu_slab(glm::dvec3 lo, glm::dvec3 hi, Layer above, Layer below, double split, double g, int photons,
-                   uint32_t seed) {
+SlabTally cpu_slab(glm::dvec3 lo, glm::dvec3 hi, Layer above, Layer below, double split, double g,
+                   int photons, uint32_t seed) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> uniform(0.0, 1.0);
     int up = 0, down = 0;
@@ -391,11 +403,13 @@ SlabTally gpu_slab(const std::vector<PhotonExit>& exits, glm::dvec3 lo, glm::dve
 
 // R and T within `systematic` (relative) plus 4 standard errors of the difference, which keep a false
 // failure below 1e-4 per comparison.
-void compare_slab(const char* what, const SlabTally& gpu, const SlabTally& cpu, double systematic, double steps) {
+void compare_slab(const char* what, const SlabTally& gpu, const SlabTally& cpu, double systematic,
+                  double steps) {
     const double tol_r = systematic * cpu.reflected + 4.0 * std::hypot(gpu.se_reflected, cpu.se_reflected);
-    const double tol_t = systematic * cpu.transmitted + 4.0 * std::hypot(gpu.se_transmitted, cpu.se_transmitted);
-    std::printf("%s: R %.4f vs CPU %.4f (tolerance %.4f), T %.4f vs %.4f (%.4f); %.1f steps per photon\n", what,
-                gpu.reflected, cpu.reflected, tol_r, gpu.transmitted, cpu.transmitted, tol_t, steps);
+    const double tol_t =
+        systematic * cpu.transmitted + 4.0 * std::hypot(gpu.se_transmitted, cpu.se_transmitted);
+    std::printf("%s: R %.4f vs CPU %.4f (tolerance %.4f), T %.4f vs %.4f (%.4f); %.1f steps per photon\n",
+                what, gpu.reflected, cpu.reflected, tol_r, gpu.transmitted, cpu.transmitted, tol_t, steps);
     EXPECT_NEAR(gpu.reflected, cpu.reflected, tol_r) << what;
     EXPECT_NEAR(gpu.transmitted, cpu.transmitted, tol_t) << what;
 }
@@ -405,9 +419,11 @@ void ScatteringTest::check_slab(const char* what, double g, const json& phase) {
     for (const double tau : {0.5, 2.0, 8.0})
         for (const double albedo : {0.5, 0.9, 0.99}) {
             json patch = homogeneous(tau, albedo * tau, phase, protocol::kMaxBounces);
-            patch.merge_patch({{"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", 1.0}}},
-                               {"photons", {{"count", kPhotons}}},
-                               {"volume", {{"resolution", 64}, {"bounds", {{"min", {-2, -0.5, -2}}, {"max", {2, 0.5, 2}}}}}}});
+            patch.merge_patch(
+                {{"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", 1.0}}},
+                 {"photons", {{"count", kPhotons}}},
+                 {"volume",
+                  {{"resolution", 64}, {"bounds", {{"min", {-2, -0.5, -2}}, {"max", {2, 0.5, 2}}}}}}});
             const auto run = photons(protocol::parse_scene(patch));
             const auto& grid = run.gpu->grid();
             const glm::dvec3 lo(grid.origin), hi(grid.max_corner());
@@ -419,7 +435,8 @@ void ScatteringTest::check_slab(const char* what, double g, const json& phase) {
             // exponentials, the CPU's too), so they differ by noise, plus float rounding of positions
             // (1e-7 of a path) and the walk's cap (1024 bounces: at albedo 0.99 a weight of 0.99^1024 =
             // 3e-5 would be left). 2% is the issue's allowance for anything systematic.
-            compare_slab(what_case, gpu_slab(run.exits, lo, hi), cpu, 0.02, run.stats.mean_steps_per_photon());
+            compare_slab(what_case, gpu_slab(run.exits, lo, hi), cpu, 0.02,
+                         run.stats.mean_steps_per_photon());
         }
 }
 
@@ -441,14 +458,20 @@ TEST_F(ScatteringTest, LayeredSlabWhereOnlyScatteringChangesMatchesMonteCarlo) {
     const Layer fog{1.0, 0.99}, dense{16.0, 0.9};
     const json phase = {{"model", "isotropic"}};
     json patch = homogeneous(fog.sigma_t, fog.sigma_t * fog.albedo, phase, protocol::kMaxBounces);
-    patch.merge_patch({{"object", {{"mesh", "cube"}, {"scale", 2.5}, {"position", {0, -2.5, 0}},
-                                   {"extinction", {dense.sigma_t, dense.sigma_t, dense.sigma_t}},
-                                   {"scattering", json::array({dense.sigma_t * dense.albedo, dense.sigma_t * dense.albedo,
-                                                               dense.sigma_t * dense.albedo})}}},
-                       {"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", 1.0}}},
-                       {"photons", {{"count", kPhotons}}},
-                       {"volume", {{"resolution", 64}, {"smoothing", 0.0},
-                                   {"bounds", {{"min", {-2, -0.5, -2}}, {"max", {2, 0.5, 2}}}}}}});
+    patch.merge_patch(
+        {{"object",
+          {{"mesh", "cube"},
+           {"scale", 2.5},
+           {"position", {0, -2.5, 0}},
+           {"extinction", {dense.sigma_t, dense.sigma_t, dense.sigma_t}},
+           {"scattering", json::array({dense.sigma_t * dense.albedo, dense.sigma_t * dense.albedo,
+                                       dense.sigma_t * dense.albedo})}}},
+         {"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", 1.0}}},
+         {"photons", {{"count", kPhotons}}},
+         {"volume",
+          {{"resolution", 64},
+           {"smoothing", 0.0},
+           {"bounds", {{"min", {-2, -0.5, -2}}, {"max", {2, 0.5, 2}}}}}}});
     const auto run = photons(protocol::parse_scene(patch));
     const glm::dvec3 lo(run.gpu->grid().origin), hi(run.gpu->grid().max_corner());
     const SlabTally cpu = cpu_slab(lo, hi, fog, dense, 0.0, 0.0, kPhotons, 11);
@@ -473,9 +496,10 @@ TEST_F(ScatteringTest, FluenceFarFromAPointSourceFollowsDiffusion) {
     const double sigma_s = 32.0, sigma_a = 0.32, sigma_t = sigma_s + sigma_a, intensity = 1.0;
     const double power = 4.0 * kPi * intensity;
     json patch = homogeneous(sigma_t, sigma_s, {{"model", "isotropic"}}, protocol::kMaxBounces);
-    patch.merge_patch({{"light", {{"type", "point"}, {"position", {0, 0, 0}}, {"intensity", intensity}}},
-                       {"photons", {{"count", 1 << 15}}},
-                       {"volume", {{"resolution", 64}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 1, 1}}}}}}});
+    patch.merge_patch(
+        {{"light", {{"type", "point"}, {"position", {0, 0, 0}}, {"intensity", intensity}}},
+         {"photons", {{"count", 1 << 15}}},
+         {"volume", {{"resolution", 64}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 1, 1}}}}}}});
     const auto run = photons(protocol::parse_scene(patch), false);
     const auto& grid = run.gpu->grid();
     const double h = grid.voxel_size;
@@ -485,7 +509,8 @@ TEST_F(ScatteringTest, FluenceFarFromAPointSourceFollowsDiffusion) {
     // each, and what the voxels inside them absorb.
     constexpr double kFrom = 0.25, kTo = 0.5;
     const auto shells = static_cast<size_t>(std::ceil(kTo / h)) + 1;
-    std::vector<double> phi(shells, 0.0), radial(shells, 0.0), radius(shells, 0.0), count(shells, 0.0), absorbed(shells, 0.0);
+    std::vector<double> phi(shells, 0.0), radial(shells, 0.0), radius(shells, 0.0), count(shells, 0.0),
+        absorbed(shells, 0.0);
     const auto dims = grid.dims;
     for (uint32_t z = 0; z < dims.z; ++z)
         for (uint32_t y = 0; y < dims.y; ++y)
@@ -505,19 +530,22 @@ TEST_F(ScatteringTest, FluenceFarFromAPointSourceFollowsDiffusion) {
     // Least squares of ln(r fluence) against r over the far shells; the slope's standard error from the
     // residuals.
     std::vector<double> rs, ys;
-    std::vector<double> gauss;  // the ratio of the radial flux through each shell to P less what is absorbed inside
+    std::vector<double>
+        gauss;  // the ratio of the radial flux through each shell to P less what is absorbed inside
     double inside = 0.0;
     for (size_t s = 0; s < shells; ++s) {
         const double r = radius[s] / count[s], mean_phi = phi[s] / count[s];
         if (r >= kFrom && r <= kTo) {
             rs.push_back(r);
             ys.push_back(std::log(r * mean_phi));
-            gauss.push_back(4.0 * kPi * r * r * (radial[s] / count[s]) / (power - inside - 0.5 * absorbed[s]));
+            gauss.push_back(4.0 * kPi * r * r * (radial[s] / count[s]) /
+                            (power - inside - 0.5 * absorbed[s]));
         }
         inside += absorbed[s];
     }
     const double n = static_cast<double>(rs.size());
-    const double mr = std::accumulate(rs.begin(), rs.end(), 0.0) / n, my = std::accumulate(ys.begin(), ys.end(), 0.0) / n;
+    const double mr = std::accumulate(rs.begin(), rs.end(), 0.0) / n,
+                 my = std::accumulate(ys.begin(), ys.end(), 0.0) / n;
     double sxx = 0.0, sxy = 0.0;
     for (size_t k = 0; k < rs.size(); ++k) {
         sxx += (rs[k] - mr) * (rs[k] - mr);
@@ -544,17 +572,21 @@ TEST_F(ScatteringTest, FluenceFarFromAPointSourceFollowsDiffusion) {
     //  - the unscattered and few-times scattered light near the source decays as exp(-sigma_t r): its
     //    share of the fluence at kFrom, exp(-(sigma_t - sigma_eff) kFrom), times sigma_t;
     //  - noise: 4 standard errors of the fitted slope.
-    const double tolerance = std::abs(kappa_transport - sigma_eff) + 2.0 * sigma_eff * std::exp(-2.0 * sigma_eff * (1.0 - kTo)) +
+    const double tolerance = std::abs(kappa_transport - sigma_eff) +
+                             2.0 * sigma_eff * std::exp(-2.0 * sigma_eff * (1.0 - kTo)) +
                              sigma_t * std::exp(-(sigma_t - sigma_eff) * kFrom) + 4.0 * slope_se;
-    const double gauss_mean = std::accumulate(gauss.begin(), gauss.end(), 0.0) / static_cast<double>(gauss.size());
+    const double gauss_mean =
+        std::accumulate(gauss.begin(), gauss.end(), 0.0) / static_cast<double>(gauss.size());
     double gauss_var = 0.0;
     for (const double g : gauss) gauss_var += (g - gauss_mean) * (g - gauss_mean);
-    const double gauss_se = std::sqrt(gauss_var / (static_cast<double>(gauss.size()) - 1.0) / static_cast<double>(gauss.size()));
-    std::printf("diffusion: decay %.4f /m against sigma_eff %.4f (transport %.4f), tolerance %.4f (slope SE %.4f); "
-                "%.1f steps per photon\n", -slope, sigma_eff, kappa_transport, tolerance, slope_se,
-                run.stats.mean_steps_per_photon());
-    std::printf("diffusion: radial net flux / (P - absorbed inside) = %.4f mean over %zu shells (SE %.4f):", gauss_mean,
-                gauss.size(), gauss_se);
+    const double gauss_se =
+        std::sqrt(gauss_var / (static_cast<double>(gauss.size()) - 1.0) / static_cast<double>(gauss.size()));
+    std::printf(
+        "diffusion: decay %.4f /m against sigma_eff %.4f (transport %.4f), tolerance %.4f (slope SE %.4f); "
+        "%.1f steps per photon\n",
+        -slope, sigma_eff, kappa_transport, tolerance, slope_se, run.stats.mean_steps_per_photon());
+    std::printf("diffusion: radial net flux / (P - absorbed inside) = %.4f mean over %zu shells (SE %.4f):",
+                gauss_mean, gauss.size(), gauss_se);
     for (const double g : gauss) std::printf(" %.3f", g);
     std::printf("\n");
     EXPECT_NEAR(-slope, sigma_eff, tolerance);

@@ -21,7 +21,7 @@ struct TransportOptions {
     bool direct_light = true;  // unbent light in closed form (DirectLightPass) rather than by photons
     uint32_t photon_batch = 0;  // progressive refinement: which batch of photons (0: the document's seed)
     uint32_t view_sample = 0;   // progressive refinement: which eye-ray sample per pixel (0: the centre)
-    uint32_t bounce_cap = protocol::kMaxBounces;  // at most this many of photons.max_bounces (interactive frames)
+    uint32_t bounce_cap = protocol::kMaxBounces;  // most of photons.max_bounces taken (interactive: fewer)
 };
 
 // The sub-pixel offset of eye-ray sample `index` (0: the pixel centre; then a Halton (2, 3) sequence

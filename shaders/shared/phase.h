@@ -1,6 +1,7 @@
 // Phase functions of the viewing pass and of photon random walks, shared with the C++ tests that
-// integrate them over the sphere and histogram their samples. cos_theta is the cosine between the light's travel direction and the scattered direction (towards the
-// eye), so positive g (or Schlick k) favours forward scattering.
+// integrate them over the sphere and histogram their samples. cos_theta is the cosine between the
+// light's travel direction and the scattered direction (towards the eye), so positive g (or Schlick k)
+// favours forward scattering.
 #ifndef REFRACT_SHADERS_PHASE_H
 #define REFRACT_SHADERS_PHASE_H
 

@@ -140,7 +140,7 @@ struct TransportParams {
     vec4 object_extinction;   // rgb per metre; w: object ior (uniform field)
     vec4 object_scattering;   // rgb per metre; w: phase g
     uvec4 models;             // x: medium phase model, y: object phase model, z: light type, w: most
-                              // scattering events per photon (photons.max_bounces, capped for interactive frames)
+                              // scattering events per photon (photons.max_bounces; interactive: capped)
     // Light
     vec4 light_position;      // xyz world; w: cos of the spot half-angle
     vec4 light_direction;     // xyz: spot axis / directional travel direction; w: unused
@@ -226,7 +226,7 @@ struct PhotonExit {
     vec4 entry_direction;  // unit direction there; w: path length inside the grid (m)
     vec4 position;         // world point where it left the grid or stopped; w: 1 left, 2 hit the floor
     vec4 direction;        // unit travel direction there; w: steps taken
-    vec4 weight;           // rgb: its flux there over the reference flux (photon_flux.w); w: scattering events
+    vec4 weight;           // rgb: its flux there over photon_flux.w; w: scattering events
 };
 
 // Counters the photon and viewing passes keep for statistics and benchmarks (atomic adds).
