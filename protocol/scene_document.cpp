@@ -475,10 +475,11 @@ private:
 
     void read_photons(const json& root, Photons& p) const {
         const std::string base = "/photons";
-        const json* j = section(root, "", "photons", {"count", "seed"});
+        const json* j = section(root, "", "photons", {"count", "seed", "max_bounces"});
         if (j == nullptr) return;
         p.count = uinteger(*j, base, "count", p.count, 1, limits_.max_photons);
         p.seed = uinteger(*j, base, "seed", p.seed, 0, std::numeric_limits<uint32_t>::max());
+        p.max_bounces = uinteger(*j, base, "max_bounces", p.max_bounces, 0, kMaxBounces);
     }
 
     static void read_floor(const json& root, Floor& f) {
@@ -589,7 +590,7 @@ json to_json(const SceneDocument& d) {
           {"scattering", vec(d.medium.scattering)},
           {"phase", phase_json(d.medium.phase)}}},
         {"volume", std::move(volume)},
-        {"photons", {{"count", d.photons.count}, {"seed", d.photons.seed}}},
+        {"photons", {{"count", d.photons.count}, {"seed", d.photons.seed}, {"max_bounces", d.photons.max_bounces}}},
         {"floor",
          {{"enabled", d.floor.enabled},
           {"height", d.floor.height},

@@ -100,9 +100,15 @@ struct Volume {
     bool operator==(const Volume&) const = default;
 };
 
+// Most scattering events per photon (Photons::max_bounces).
+inline constexpr uint32_t kMaxBounces = 1024;
+
 struct Photons {
     uint32_t count = 1u << 18;
     uint32_t seed = 1;
+    // Scattering events a photon's random walk may take (0: photons are only attenuated, and the viewing
+    // pass adds the one scattering event, as in Sun et al. 2008).
+    uint32_t max_bounces = 0;
 
     bool operator==(const Photons&) const = default;
 };

@@ -7,13 +7,17 @@
 // octree's largest safe step, lose flux to extinction (Beer-Lambert per channel), and add flux x path
 // length to every voxel they cross (the track-length estimator of fluence) plus a flux-weighted
 // direction, except over the part of their path whose light the direct-light pass stores in closed
-// form (transport.h, DIRECT_*). Accumulation is fixed-point integer atomics: deterministic on every
-// device.
+// form (transport.h, DIRECT_*). Up to photons.max_bounces times a photon scatters on its way
+// (random_walk.glsl), and every order deposits alike. Accumulation is fixed-point integer atomics:
+// deterministic on every device.
 #include "transport_common.glsl"
 #include "emission.glsl"
 #include "radiance_sums.glsl"
+#include "phase.h"
+#include "random_walk.glsl"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 layout(constant_id = PHOTON_CONSTANT_SAMPLED_DEPOSITS) const bool kSampledDeposits = false;
+layout(constant_id = PHOTON_CONSTANT_RANDOM_WALKS) const bool kRandomWalks = false;
 
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) buffer AccumFloor { uint accum_floor[]; };
 layout(std430, binding = TRANSPORT_BINDING_PHOTON_EXITS) writeonly buffer Exits { PhotonExit exits[]; };
@@ -244,6 +248,9 @@ void main() {
     vec3 split_weight = weight;
     uint split_steps = 0u, split_rng = 0u, split_phase = 0u;
     bool split_jumped = false, split_overlap = false, split_unbent = true;
+    // Multiple scattering (random_walk.glsl): compiled out where photons do not scatter.
+    Walk walk = start_walk(kRandomWalks ? next_unit() : 0.0);
+    Walk split_walk = walk;
     // One loop and one floor deposit for all paths: lavapipe runs every line of a loop body on each pass.
     for (uint path = 0u; path < (kDispersive ? 4u : 1u); ++path) {
         uint first_step = 0u;
@@ -257,6 +264,7 @@ void main() {
             jumped = split_jumped;
             overlap = split_overlap;
             unbent = split_unbent;
+            walk = split_walk;
             rng_state = split_rng;
             deposit_phase = split_phase;
             ray_step(ray, split_ds);
@@ -267,9 +275,19 @@ void main() {
         bool split = false;
         float outcome = 0.0;
         for (; steps < params.photon_info.z; ++steps) {
+            if (kRandomWalks && walk.collides) {
+                vec3 factor;
+                ray.d = scatter(walk, ray.d, vec3(next_unit(), next_unit(), next_unit()), factor);
+                weight *= factor;
+                unbent = false;
+                direct_to = -1.0;  // what direct light counts is light that never scattered
+                if (!survives_roulette(weight, next_unit())) break;
+            }
             uint level = fixed_step ? 0u : octree_level(ray.p);
             float ds = safe_step(level, ray.p, ray.d, shell_step);
-            float coverage = coverage_for(params.flags.y, ray.p, ray.field.x);
+            float coverage = coverage_for(kRandomWalks ? max(params.flags.y, params.flags.z) : params.flags.y, ray.p,
+                                          ray.field.x);
+            if (kRandomWalks) coverage = walk_step(ray.p, ray.d, ds, coverage, max(params.flags.y, params.flags.z), shell_step);
             vec3 kappa = extinction_at(coverage) * h;  // per voxel length
             overlap = overlap || (jumped && !flat_medium(ray.field, coverage));
             bool in_direct = along >= direct_from && along < direct_to;
@@ -281,6 +299,11 @@ void main() {
             bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
             float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
             float len = min(ds, min(to_exit, to_floor));
+            if (kRandomWalks) {
+                // Absorption stays in the weight; scattering ends the step where the walk says.
+                kappa -= walk_free_path(walk, coverage_as(params.flags.z, coverage), h, len);
+                if (walk.collides) { ds = len; to_exit = 1e30; to_floor = 1e30; }
+            }
             unbent = unbent && all(equal(ray.field.yzw, vec3(0.0)));
             if (deposits && !in_direct) deposit(ray.p / radiance_factor, ray.d, len / radiance_factor, weight, kappa * radiance_factor, unbent);
             path_length += len;
@@ -309,6 +332,7 @@ void main() {
                 split_jumped = jumped;
                 split_overlap = overlap;
                 split_unbent = unbent;
+                split_walk = walk;
                 break;
             }
             along += ds;
@@ -321,6 +345,7 @@ void main() {
             split_phase = deposit_phase;
         }
         atomicAdd(stats.steps, steps + 1u - first_step);
+        if (kRandomWalks) atomicAdd(stats.scatterings, walk.bounces - (kDispersive && path > 0u ? split_walk.bounces : 0u));
         if (split) continue;
         // A photon that left the grid goes on straight (outside is empty) to the floor.
         if (outcome == 2.0 || (outcome == 1.0 && floor_on && ray.d.y < 0.0)) {
@@ -332,7 +357,8 @@ void main() {
             // Under dispersive transport exits are kept per channel, channel by channel: a white path's
             // in all three.
             PhotonExit exit = PhotonExit(vec4(entry, 1.0), vec4(direction, path_length * h),
-                                         vec4(to_world(ray.p), outcome), vec4(ray.d, float(steps + 1u)));
+                                         vec4(to_world(ray.p), outcome), vec4(ray.d, float(steps + 1u)),
+                                         vec4(weight, float(walk.bounces)));
             uint first = kDispersive && path > 0u ? path - 1u : 0u;
             uint last = kDispersive ? (path > 0u ? path : 3u) : 1u;
             for (uint c = first; c < last; ++c) exits[i + c * count] = exit;

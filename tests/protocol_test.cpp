@@ -66,7 +66,7 @@ SceneDocument customised() {
     d.volume.octree_epsilon = 1.0;
     d.volume.bounds = Bounds{{-2.0, -1.5, -1.0}, {2.0, 1.5, 1.0}};
     d.volume.margin = 0.0;
-    d.photons = {12345, 4294967295u};
+    d.photons = {12345, 4294967295u, 17};
     d.floor = {false, -2.5, {0.1, 0.5, 1.0}, false, 1.0};
     return d;
 }
@@ -157,7 +157,7 @@ TEST(SceneDocument, ToJsonEmitsEveryField) {
           "scattering", "phase", "grid"}},
         {"medium", {"ior", "extinction", "scattering", "phase"}},
         {"volume", {"resolution", "smoothing", "octree_epsilon", "margin"}},
-        {"photons", {"count", "seed"}},
+        {"photons", {"count", "seed", "max_bounces"}},
         {"floor", {"enabled", "height", "albedo", "checker", "checker_size"}},
     };
     ASSERT_EQ(j.size(), expected.size());
@@ -516,6 +516,17 @@ std::vector<BadPatch> bad_patches() {
         {"photons over limit", json::parse(R"({"photons": {"count": 16777217}})"), "/photons/count"},
         {"seed over 32 bits", json::parse(R"({"photons": {"seed": 4294967296}})"), "/photons/seed"},
         {"seed as bool", json::parse(R"({"photons": {"seed": true}})"), "/photons/seed"},
+        {"negative bounces", json::parse(R"({"photons": {"max_bounces": -1}})"), "/photons/max_bounces"},
+        {"bounces over the limit", json::parse(R"({"photons": {"max_bounces": 1025}})"), "/photons/max_bounces"},
+        {"fractional bounces", json::parse(R"({"photons": {"max_bounces": 2.5}})"), "/photons/max_bounces"},
+        {"bounces as string", json::parse(R"({"photons": {"max_bounces": "8"}})"), "/photons/max_bounces"},
+        {"bounces as bool", json::parse(R"({"photons": {"max_bounces": true}})"), "/photons/max_bounces"},
+        {"bounces as array", json::parse(R"({"photons": {"max_bounces": [8]}})"), "/photons/max_bounces"},
+        {"bounces huge", json::parse(R"({"photons": {"max_bounces": 1e300}})"), "/photons/max_bounces"},
+        {"bounces NaN", json{{"photons", {{"max_bounces", nan}}}}, "/photons/max_bounces"},
+        {"bounces infinite", json{{"photons", {{"max_bounces", inf}}}}, "/photons/max_bounces"},
+        {"bounces with a degenerate phase", json::parse(R"({"photons": {"max_bounces": 8}, "medium": {"phase": {"g": 1}}})"),
+         "/medium/phase/g"},
         // floor
         {"enabled as number", json::parse(R"({"floor": {"enabled": 1}})"), "/floor/enabled"},
         {"checker as string", json::parse(R"({"floor": {"checker": "yes"}})"), "/floor/checker"},

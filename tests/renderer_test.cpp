@@ -87,6 +87,20 @@ TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
     const SceneDocument clear_scene = protocol::apply_merge_patch(before, clear);
     EXPECT_EQ(pass_names(passes_invalidated(clear_scene, before)), pass_names(kPhotons | kView | kToneMap));
     EXPECT_EQ(pass_names(passes_invalidated(before, clear_scene)), pass_names(kPhotons | kView | kToneMap));
+    // Photons that scatter (random walks) read scattering and phase functions too; the bounces themselves
+    // are photons' business.
+    const SceneDocument walks = protocol::apply_merge_patch(before, {{"photons", {{"max_bounces", 8}}}});
+    EXPECT_EQ(pass_names(passes_invalidated(before, walks)), pass_names(kPhotons | kView | kToneMap));
+    for (const char* section : {"medium", "object"}) {
+        const json scattering = {{section, {{"scattering", {0.01, 0.01, 0.01}}}}};
+        const json phase = {{section, {{"phase", {{"model", "schlick"}, {"g", 0.5}}}}}};
+        for (const json& patch : {scattering, phase}) {
+            EXPECT_EQ(pass_names(passes_invalidated(walks, protocol::apply_merge_patch(walks, patch))),
+                      pass_names(kPhotons | kView | kToneMap)) << patch.dump();
+            EXPECT_EQ(pass_names(passes_invalidated(before, protocol::apply_merge_patch(before, patch))),
+                      pass_names(kView | kToneMap)) << patch.dump();
+        }
+    }
 }
 
 class RendererTest : public ::testing::Test {

@@ -66,6 +66,11 @@ json scene_patch(const std::string& base) {
     if (base == "bunny") return {{"object", {{"mesh", "upload:bunny"}}}};
     // The ball lens in fog dispersing (flint glass): against "volume 128", what dispersion costs.
     if (base == "dispersion") return {{"object", {{"abbe", 30}}}};
+    // The ball lens in fog dense enough (optical depth 2 across the beam's path to the lens, albedo 0.975)
+    // that light scatters many times: what each bounce of the photons' random walks costs.
+    if (base == "dense_fog")
+        return {{"medium", {{"extinction", {0.8, 0.8, 0.8}}, {"scattering", {0.78, 0.78, 0.78}},
+                            {"phase", {{"model", "henyey-greenstein"}, {"g", 0.3}}}}}};
     throw std::runtime_error("unknown bench scene " + base);
 }
 
@@ -112,6 +117,15 @@ std::vector<BenchCase> standard_suite(bool gpu) {
     for (int i : images)
         add("image " + std::to_string(i), "ball_lens_fog",
             {{"photons", {{"count", base_photons}}}, {"image", {{"width", i}, {"height", i}}}}, scene::kView, "camera");
+    for (const int b : {0, 1, 4, 16, 64})
+        add("bounces " + std::to_string(b), "dense_fog",
+            {{"photons", {{"count", base_photons}, {"max_bounces", b}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
+            scene::kPhotons | scene::kView, "light");
+    // While dragging: the frame budget's starting sizes, and at most scene::kInteractiveBounces.
+    for (const int b : {0, 64})
+        add("bounces " + std::to_string(b) + " interactive", "dense_fog",
+            {{"photons", {{"count", base_photons}, {"max_bounces", b}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
+            scene::kPhotons | scene::kView, "light", scene::Quality::interactive);
     for (const std::string base : {"luneburg", "torus_floor", "bunny", "dispersion"})
         add(base, base, {{"photons", {{"count", base_photons}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
             scene::kAllPasses, "full");
@@ -353,6 +367,7 @@ int bench_command(const Arguments& args) {
             entry["photons_per_s"] = static_cast<double>(last.photons_entered) / (ms * 1e-3);
             entry["photon_steps_per_s"] = static_cast<double>(last.photon_steps) / (ms * 1e-3);
             entry["mean_steps_per_photon"] = last.mean_steps_per_photon();
+            entry["mean_bounces_per_photon"] = last.mean_bounces_per_photon();
         }
         if (pass_ms.count("view")) {
             const double ms = summarize(pass_ms["view"]).median;
@@ -370,8 +385,9 @@ int bench_command(const Arguments& args) {
             }
             std::printf(" | encode %.1f host %.1f ms | %.0f MiB", encode.median, host.median, static_cast<double>(memory) / (1 << 20));
             if (entry.contains("photons_per_s"))
-                std::printf(" | %.2f Mphotons/s %.1f steps/photon", entry["photons_per_s"].get<double>() * 1e-6,
-                            entry["mean_steps_per_photon"].get<double>());
+                std::printf(" | %.2f Mphotons/s %.1f steps/photon %.2f bounces/photon %.1f Msteps/s",
+                            entry["photons_per_s"].get<double>() * 1e-6, entry["mean_steps_per_photon"].get<double>(),
+                            entry["mean_bounces_per_photon"].get<double>(), entry["photon_steps_per_s"].get<double>() * 1e-6);
             if (entry.contains("view_steps_per_s"))
                 std::printf(" | view %.1f Msteps/s %.0f ns/pixel", entry["view_steps_per_s"].get<double>() * 1e-6,
                             entry["ns_per_pixel"].get<double>());

@@ -60,15 +60,20 @@ constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_PHOTON_EXITS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_LIGHT_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
-// The photon pass's own specialization constant (PHOTON_CONSTANT_SAMPLED_DEPOSITS), per pipeline set.
+// The photon pass's own specialization constants (PHOTON_CONSTANT_SAMPLED_DEPOSITS, then
+// PHOTON_CONSTANT_RANDOM_WALKS), per pipeline set.
 static_assert(PHOTON_CONSTANT_SAMPLED_DEPOSITS == TRANSPORT_CONSTANT_COVERAGE_FETCH + 1);
-constexpr uint32_t kExact[] = {0u}, kSampled[] = {1u};
+static_assert(PHOTON_CONSTANT_RANDOM_WALKS == PHOTON_CONSTANT_SAMPLED_DEPOSITS + 1);
+constexpr uint32_t kExact[] = {0u, 0u}, kSampled[] = {1u, 0u}, kExactWalks[] = {0u, 1u}, kSampledWalks[] = {1u, 1u};
 constexpr auto kLayout = transport_layout(kOwnLayout);
 }  // namespace
 
 PhotonTracePass::PhotonTracePass(vk::Context& context)
     : exact_(context, photon_trace_spv, kLayout, 0, "photon trace", kExact),
-      sampled_(context, photon_trace_spv, kLayout, 0, "photon trace (sampled deposits)", kSampled) {}
+      sampled_(context, photon_trace_spv, kLayout, 0, "photon trace (sampled deposits)", kSampled),
+      exact_walks_(context, photon_trace_spv, kLayout, 0, "photon trace (random walks)", kExactWalks),
+      sampled_walks_(context, photon_trace_spv, kLayout, 0, "photon trace (random walks, sampled deposits)",
+                     kSampledWalks) {}
 
 void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey) {
     if (!grey) recorder.fill(accum.red_green, 0);
@@ -81,8 +86,9 @@ void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumu
 
 void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
                              const PhotonAccumulators& accum, uint32_t photon_count, bool sampled_deposits,
-                             const BetweenParts& between) const {
-    const vk::ComputePipeline& pipeline = (sampled_deposits ? sampled_ : exact_)(in.variant);
+                             bool random_walks, const BetweenParts& between) const {
+    const TransportPipeline& walks = sampled_deposits ? sampled_walks_ : exact_walks_;
+    const vk::ComputePipeline& pipeline = (random_walks ? walks : sampled_deposits ? sampled_ : exact_)(in.variant);
     const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits),

@@ -39,13 +39,15 @@ public:
     explicit PhotonTracePass(vk::Context& context);
     // Traces `photon_count` photons into the accumulators (under dispersive transport each parts into a
     // path per channel where it first meets a gradient of n); `sampled_deposits`: one deposit per radiance
-    // voxel of path instead of one per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS). With `between`,
-    // in parts of kWorkPart photons, `between` running after each part but the last.
+    // voxel of path instead of one per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS); `random_walks`:
+    // photons scatter, up to the frame's bounces (PHOTON_CONSTANT_RANDOM_WALKS). With `between`, in parts
+    // of kWorkPart photons, `between` running after each part but the last.
     void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const PhotonAccumulators& accum,
-                uint32_t photon_count, bool sampled_deposits, const BetweenParts& between = {}) const;
+                uint32_t photon_count, bool sampled_deposits, bool random_walks,
+                const BetweenParts& between = {}) const;
 
 private:
-    TransportPipeline exact_, sampled_;
+    TransportPipeline exact_, sampled_, exact_walks_, sampled_walks_;
 };
 
 }  // namespace refract::passes

@@ -102,6 +102,10 @@ bool any_scattering(const protocol::SceneDocument& document) {
     return std::max({m[0], m[1], m[2], o[0], o[1], o[2]}) > 0.0;
 }
 
+uint32_t photon_bounces(const protocol::SceneDocument& document, uint32_t cap) {
+    return any_scattering(document) ? std::min(document.photons.max_bounces, cap) : 0u;
+}
+
 float octree_epsilon(const protocol::SceneDocument& document) {
     const glm::vec3 scales = dispersion_scales(document.object.abbe);
     return static_cast<float>(document.volume.octree_epsilon) / std::max({scales.r, scales.g, scales.b, 1.0f});
@@ -139,7 +143,8 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     uint32_t light_type = LIGHT_POINT;
     if (light.type == LightType::spot) light_type = LIGHT_SPOT;
     if (light.type == LightType::directional) light_type = LIGHT_DIRECTIONAL;
-    p.models = glm::uvec4(phase_model(medium.phase.model), phase_model(object.phase.model), light_type, 0u);
+    const uint32_t bounces = photon_bounces(document, options.bounce_cap);
+    p.models = glm::uvec4(phase_model(medium.phase.model), phase_model(object.phase.model), light_type, bounces);
     p.dispersion = glm::vec4(dispersion_scales(object.abbe), 0.0f);
     p.light_position = glm::vec4(light_position, cos_spot);
     p.light_direction = glm::vec4(light_direction, 0.0f);
@@ -196,7 +201,9 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     }
     const float reference = std::max({flux.r, flux.g, flux.b, 1e-30f});
     p.photon_flux = glm::vec4(flux, reference);
-    const uint32_t max_steps = 4 * (grid.dims.x + grid.dims.y + grid.dims.z);
+    // A guard against photons that never finish, not a budget: a random walk's free paths each take
+    // their own steps, so the guard grows with the bounces allowed.
+    const uint32_t max_steps = 4 * (grid.dims.x + grid.dims.y + grid.dims.z) * (1 + bounces);
     // Each refinement batch draws its own photons: another seed (a Weyl step, so batches never repeat one).
     const uint32_t seed = document.photons.seed + options.photon_batch * 0x9e3779b9u;
     p.photon_info = glm::uvec4(photons, seed, max_steps, options.fixed_step ? 1u : 0u);

@@ -21,6 +21,7 @@ struct TransportOptions {
     bool direct_light = true;  // unbent light in closed form (DirectLightPass) rather than by photons
     uint32_t photon_batch = 0;  // progressive refinement: which batch of photons (0: the document's seed)
     uint32_t view_sample = 0;   // progressive refinement: which eye-ray sample per pixel (0: the centre)
+    uint32_t bounce_cap = protocol::kMaxBounces;  // most of photons.max_bounces taken (interactive: fewer)
 };
 
 // The sub-pixel offset of eye-ray sample `index` (0: the pixel centre; then a Halton (2, 3) sequence
@@ -47,6 +48,10 @@ glm::vec3 dispersion_scales(double abbe);
 // over the largest dispersion scale, so that n varies by less than epsilon within a leaf in every
 // channel.
 float octree_epsilon(const protocol::SceneDocument& document);
+
+// Scattering events per photon a frame's random walks take: photons.max_bounces up to `cap`, 0 where
+// nothing scatters (PHOTON_CONSTANT_RANDOM_WALKS is on when this is not 0).
+uint32_t photon_bounces(const protocol::SceneDocument& document, uint32_t cap);
 
 // Whether anything scatters: photons deposit into the radiance grid (and direct light is computed) only then.
 bool any_scattering(const protocol::SceneDocument& document);

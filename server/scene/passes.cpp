@@ -41,6 +41,11 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
         before.medium.extinction != after.medium.extinction || before.floor.enabled != after.floor.enabled ||
         before.floor.height != after.floor.height || passes::any_scattering(before) != passes::any_scattering(after))
         stale |= kPhotons | kView | kToneMap;
+    // Photons that scatter (random walks) see scattering and phase functions too.
+    const bool walks = before.photons.max_bounces > 0 || after.photons.max_bounces > 0;
+    if (walks && (a.scattering != b.scattering || !(a.phase == b.phase) ||
+                  before.medium.scattering != after.medium.scattering || !(before.medium.phase == after.medium.phase)))
+        stale |= kPhotons | kView | kToneMap;
     // Only the viewing pass reads scattering, phase functions, the floor's look, the camera and the image size.
     if (!(before.camera == after.camera) || before.image.width != after.image.width ||
         before.image.height != after.image.height || a.scattering != b.scattering ||

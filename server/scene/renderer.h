@@ -52,9 +52,14 @@ struct Assets {
 
 enum class Quality { interactive, still };
 
+// Scattering events per photon interactive frames take at most: each bounce costs about one more free
+// path of steps, and the first few carry most of the glow (README, "Multiple scattering").
+inline constexpr uint32_t kInteractiveBounces = 4;
+
 // How the passes run for a quality: `interactive` takes two-voxel eye-ray steps in fog, a radiance
-// grid of a third of the resolution per axis, sampled photon deposits and adaptive pixels (the image
-// size and photon count are chosen per frame by the scene's FrameBudget, in the renderer).
+// grid of a third of the resolution per axis, sampled photon deposits, adaptive pixels and at most
+// kInteractiveBounces (the image size and photon count are chosen per frame by the scene's FrameBudget,
+// in the renderer).
 RunOptions run_options_for(Quality quality);
 
 struct PassTiming {

@@ -134,13 +134,15 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         allocate_volume(grid);
         stale = kAllPasses;
     }
-    // Another radiance-grid resolution or deposit estimator (interactive <-> still) or kind of transport
-    // means new photons into a new grid.
+    // Another radiance-grid resolution, deposit estimator or bounce cap (interactive <-> still) or kind of
+    // transport means new photons into a new grid.
     const uint32_t channels = passes::transport_channels(document);
+    const uint32_t bounces = passes::photon_bounces(document, options.bounce_cap);
     if (options.radiance_factor != radiance_factor_ || options.sampled_deposits != sampled_deposits_ ||
-        channels != channels_)
+        channels != channels_ || bounces != bounces_)
         built_ &= ~(kPhotons | kView | kToneMap);
     sampled_deposits_ = options.sampled_deposits;
+    bounces_ = bounces;
     stale |= kAllPasses & ~built_;
     // Each pass depends on all before it.
     for (PassSet p : {kVoxelize, kIndexField, kOctree, kPhotons, kView})
@@ -159,6 +161,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     transport_options.direct_light = options.direct_light;
     transport_options.photon_batch = options.photon_batch;
     transport_options.view_sample = options.view_sample;
+    transport_options.bounce_cap = options.bounce_cap;
     params_ = passes::make_transport_params(document, grid_, transport_options);
     params_.flags.x = options.record_photon_exits ? 1u : 0u;
     if (accum_) {
@@ -255,7 +258,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             recorder_.compute_barrier();
         }
         kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count, options.sampled_deposits,
-                                 between_parts("photons"));
+                                 bounces > 0, between_parts("photons"));
         recorder_.compute_barrier();
         kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, grey(), radiance_, flux_, floor_map_);
         recorder_.compute_barrier();
@@ -299,6 +302,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             stats.photon_steps = counters.steps;
             stats.floor_hits = counters.floor_hits;
             stats.direct_overlaps = counters.direct_overlaps;
+            stats.photon_scatterings = counters.scatterings;
         }
         if (stale & kView) stats.view_steps = counters.view_steps;
     }

@@ -53,9 +53,13 @@ struct RunStats {
     uint64_t photon_steps = 0;
     uint64_t floor_hits = 0;
     uint64_t direct_overlaps = 0;  // photons the light map sent straight where n varies (transport.h)
+    uint64_t photon_scatterings = 0;  // scattering events of the photons' random walks
     uint64_t view_steps = 0;  // eye-ray march steps, when the viewing pass ran
     double mean_steps_per_photon() const {
         return photons_entered ? static_cast<double>(photon_steps) / static_cast<double>(photons_entered) : 0.0;
+    }
+    double mean_bounces_per_photon() const {
+        return photons_entered ? static_cast<double>(photon_scatterings) / static_cast<double>(photons_entered) : 0.0;
     }
 };
 
@@ -69,6 +73,7 @@ struct RunOptions {
                                    // voxel crossed (photon_trace.comp); interactive
     bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
     bool direct_light = true;     // unbent light in closed form; false: photons carry all light (tests)
+    uint32_t bounce_cap = protocol::kMaxBounces;  // most of photons.max_bounces a frame takes; interactive: 4
     // Progressive refinement (still frames): a photon run with photon_batch k > 0 draws new photons and
     // joins the radiance grid's running mean of k + 1 batches; a view run with view_sample s > 0 traces
     // a jittered sample into the frame's running mean of s + 1 samples. Runs must come in order.
@@ -137,6 +142,7 @@ private:
     PassSet built_ = 0;
     uint32_t width_ = 0, height_ = 0, floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
     bool sampled_deposits_ = false;  // how the photons in the radiance grid were deposited (RunOptions)
+    uint32_t bounces_ = 0;           // how often they could scatter (passes::photon_bounces)
     uint32_t channels_ = CHANNELS_RGB;
     shaders::TransportParams params_{};
     // Volume (voxelize, index field, octree)

@@ -112,6 +112,10 @@ REFRACT_SHADERS_BEGIN
 // Specialization constant of the photon pass (after the transport constants): deposits are sampled, one
 // per radiance voxel of path, rather than exact per voxel crossed (photon_trace.comp, deposit).
 #define PHOTON_CONSTANT_SAMPLED_DEPOSITS 2
+// Specialization constant of the photon pass: photons scatter (random walks, models.w > 0 bounces and
+// something scatters; random_walk.glsl). Without it the walk is compiled out and photons do what they
+// did before walks existed, operation for operation.
+#define PHOTON_CONSTANT_RANDOM_WALKS 3
 #ifndef __cplusplus
 layout(constant_id = TRANSPORT_CONSTANT_CHANNELS) const uint kChannels = CHANNELS_RGB;
 const bool kGreyTransport = kChannels == CHANNELS_GREY;
@@ -135,7 +139,8 @@ struct TransportParams {
     vec4 medium_scattering;   // rgb per metre; w: phase g
     vec4 object_extinction;   // rgb per metre; w: object ior (uniform field)
     vec4 object_scattering;   // rgb per metre; w: phase g
-    uvec4 models;             // x: medium phase model, y: object phase model, z: light type, w: unused
+    uvec4 models;             // x: medium phase model, y: object phase model, z: light type, w: most
+                              // scattering events per photon (photons.max_bounces; interactive: capped)
     // Light
     vec4 light_position;      // xyz world; w: cos of the spot half-angle
     vec4 light_direction;     // xyz: spot axis / directional travel direction; w: unused
@@ -221,6 +226,7 @@ struct PhotonExit {
     vec4 entry_direction;  // unit direction there; w: path length inside the grid (m)
     vec4 position;         // world point where it left the grid or stopped; w: 1 left, 2 hit the floor
     vec4 direction;        // unit travel direction there; w: steps taken
+    vec4 weight;           // rgb: its flux there over photon_flux.w; w: scattering events
 };
 
 // Counters the photon and viewing passes keep for statistics and benchmarks (atomic adds).
@@ -231,6 +237,7 @@ struct PhotonStats {
     uint view_steps;        // eye-ray march steps (the viewing pass)
     uint queue_taken[3];    // work items handed out so far by each pass's queue (take_from_queue)
     uint direct_overlaps;   // photons whose straight step over their direct span landed where n varies
+    uint scatterings;       // scattering events of photon random walks (photons.max_bounces)
 };
 #define QUEUE_VIEW_PIXELS 0u
 #define QUEUE_VIEW_REFINED 1u
@@ -272,9 +279,9 @@ REFRACT_SHADERS_END
 
 #ifdef __cplusplus
 static_assert(sizeof(refract::shaders::TransportParams) == 35 * 16);
-static_assert(sizeof(refract::shaders::PhotonStats) == 32);
+static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
-static_assert(sizeof(refract::shaders::PhotonExit) == 64);
+static_assert(sizeof(refract::shaders::PhotonExit) == 80);
 #endif
 
 #endif

@@ -382,6 +382,28 @@ async function main() {
       `${after.sent.still - before.sent.still} still; intensity now ${server.scene.light.intensity}`);
   });
 
+  await check('the bounces control sets photons.max_bounces; out of range, its error shows there', async () => {
+    const box = '#ctl-photons-max-bounces-num';
+    await waitSettled(page);
+    const before = await page.evaluate(() => window.refract.lastRevision);
+    await page.fill(box, '2');
+    await page.press(box, 'Enter');
+    await waitSettled(page, before);
+    assert((await sceneOnServer(sceneId)).scene.photons.max_bounces === 2, 'max_bounces not 2 on the server');
+    const errors0 = await page.evaluate(() => window.refract.errors);
+    await page.fill(box, '2000');
+    await page.press(box, 'Enter');
+    await waitFor(page, (n) => window.refract.errors > n, errors0);
+    const err = await page.evaluate(() => window.refract.lastError);
+    assert(err.pointer === '/photons/max_bounces', `pointer ${err.pointer}`);
+    assert(await page.evaluate((b) => document.querySelector(b).getAttribute('aria-invalid') === 'true', box),
+      'bounces error not shown at the bounces control');
+    assert((await sceneOnServer(sceneId)).scene.photons.max_bounces === 2, 'a refused edit changed the scene');
+    await page.fill(box, '0');
+    await page.press(box, 'Enter');
+    await waitFor(page, (b) => !document.querySelector(b).hasAttribute('aria-invalid'), box);
+  });
+
   await check('linked-value and upload errors land next to their controls', async () => {
     // scattering above extinction: the daemon names /object/scattering/0, shown at the scattering control.
     const errors0 = await page.evaluate(() => window.refract.errors);

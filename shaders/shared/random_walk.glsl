@@ -1,0 +1,106 @@
+// Photon random walks (multiple scattering, photons.max_bounces): where a photon scatters along its
+// curved path, and where it goes then. Needs transport_common.glsl (params) and phase.h.
+//
+// Free paths are sampled by ray marching the optical depth, not by delta tracking: the photon loop
+// already integrates extinction step by step (Beer-Lambert with each step's coefficients), and a free
+// path drawn as an optical depth -ln(1 - xi) and spent along those same steps is exact for that
+// piecewise-constant extinction, so a walk sees the very medium a photon of today's single-scattering
+// transport sees; where coefficients change, steps are a voxel long (refracting shells, and walk_step
+// where n does not change with them) and take the mean of their ends' coefficients. Delta tracking would need a majorant of extinction per octree
+// node, which the octree does not keep (it splits on n, and coverage maps to extinction only for the
+// uniform object).
+//
+// Collisions are sampled against the channels' mean scattering coefficient sigma (per voxel), not the
+// extinction: a photon's weight takes absorption continuously, exp(-(kappa_c - sigma) s) per channel,
+// and at a scattering event each channel's weight is multiplied by sigma_s,c / sigma (1 for grey
+// scattering). The expected weight of every channel is then that of an analog walk with albedo
+// sigma_s,c / kappa_c (unbiased), absorbing glass that does not scatter is crossed with today's
+// Beer-Lambert weights and no collisions at all, and no photon is killed by absorption: what a walk
+// loses to it, the track-length deposits count. After its last allowed bounce a photon goes on as
+// today's photons do, attenuated by the whole extinction.
+struct Walk {
+    float depth_left;  // optical depth (against sigma) still to go before the next scattering event
+    uint bounces;      // scattering events so far
+    bool collides;     // the step being taken ends at a scattering event
+    float coverage;    // the coverage of that step's coefficients
+};
+
+// A walk before its first free path: `xi` uniform in [0, 1).
+Walk start_walk(float xi) { return Walk(-log(1.0 - xi), 0u, false, 0.0); }
+
+// Spends the optical depth of a step of length `len` (voxels of side h) at coverage c, and returns the
+// coefficient sigma it was sampled against (per voxel; 0 once the photon has used its bounces): the
+// photon crosses the whole step, or `len` is shortened to where it scatters (w.collides).
+float walk_free_path(inout Walk w, float c, float h, inout float len) {
+    vec3 s = scattering_at(c);
+    float sigma = w.bounces < params.models.w ? (s.r + s.g + s.b) * (1.0 / 3.0) * h : 0.0;
+    float depth = sigma * len;
+    w.collides = depth > w.depth_left;
+    if (w.collides) {
+        len = w.depth_left / sigma;
+        w.coverage = c;
+    } else {
+        w.depth_left -= depth;
+    }
+    return sigma;
+}
+
+// The step (voxels) a walking photon takes from p along d where the octree allows ds, and the coverage
+// its coefficients are taken at. The octree splits on n, so where coefficients change and n does not
+// (an index-matched object, an imported grid's coverage) a leaf spans the change, and a step across it
+// would take its start's coefficients for the whole of it, free path and absorption alike. A step that
+// would end at another coverage than it starts at (`coverage`, found by `mode`) is cut to the shell
+// step, so the walk crosses the change voxel by voxel, as photons cross a refracting shell; and every
+// step takes the mean of its ends' coverage (the trapezoid rule: the start's alone would lag half a
+// step behind the change, half a mean free path in a medium as dense as a voxel). (An object thinner
+// than a leaf step, entered and left within one, is still stepped over.)
+float walk_step(vec3 p, vec3 d, inout float ds, float coverage, uint mode, float shell_step) {
+    if (mode == COVERAGE_CONSTANT) return coverage;
+    vec3 q = p + d * ds;
+    float far = coverage_for(mode, q, index_at(q).x);
+    if (abs(far - coverage) > 1e-3 && ds > shell_step) {
+        ds = shell_step;
+        q = p + d * ds;
+        far = coverage_for(mode, q, index_at(q).x);
+    }
+    return 0.5 * (coverage + far);
+}
+
+// A unit vector at angle acos(mu) from unit vector d, at azimuth phi about it.
+vec3 turn(vec3 d, float mu, float phi) {
+    vec3 a = abs(d.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+    vec3 u = normalize(cross(d, a));
+    vec3 v = cross(d, u);
+    float sin_theta = sqrt(max(0.0, 1.0 - mu * mu));
+    return normalize(mu * d + sin_theta * (cos(phi) * u + sin(phi) * v));
+}
+
+// Scatters a photon travelling along d where its step ended at a scattering event: its new direction,
+// drawn from the phase function of the region (the object's where the coverage is over 0.5, as the
+// viewing pass gathers), and each channel's weight factor sigma_s,c / sigma with the step's
+// coefficients. `xi`: three uniform numbers, the last for the next free path. The walk counts the
+// bounce and starts its next free path.
+vec3 scatter(inout Walk w, vec3 d, vec3 xi, out vec3 weight_factor) {
+    bool in_object = w.coverage > 0.5;
+    uint model = in_object ? params.models.y : params.models.x;
+    float g = in_object ? params.object_scattering.w : params.medium_scattering.w;
+    vec3 s = scattering_at(w.coverage);
+    weight_factor = s * (3.0 / (s.r + s.g + s.b));
+    w.bounces += 1u;
+    w.depth_left = -log(1.0 - xi.z);
+    w.collides = false;
+    return turn(d, phase_sample_cos(model, g, xi.x), 6.28318530717959 * xi.y);
+}
+
+// Russian roulette after a scattering event: a photon whose weight (relative to the reference flux) has
+// fallen below 1/4 goes on with probability 4 x its largest channel and that channel raised to 1/4, else
+// it stops with no weight left. Unbiased; walks in weakly absorbing media then end after a few times
+// ln(4) / (1 - albedo) bounces instead of running on to the weight floor of 1e-4 (ln(1e4) / (1 - albedo):
+// 920 bounces at albedo 0.99).
+bool survives_roulette(inout vec3 weight, float xi) {
+    float largest = max(weight.r, max(weight.g, weight.b));
+    if (largest >= 0.25) return true;
+    bool survives = xi * 0.25 < largest;
+    weight = survives ? weight * (0.25 / largest) : vec3(0.0);
+    return survives;
+}
