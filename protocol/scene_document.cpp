@@ -136,7 +136,8 @@ public:
 
     SceneDocument document(const json& root) {
         SceneDocument d;
-        check_object(root, "", {"camera", "image", "light", "object", "medium", "volume", "photons", "floor"},
+        check_object(root, "", {"camera", "image", "light", "object", "medium", "volume", "photons", "floor",
+                                "environment"},
                      "must be a JSON object");
         read_camera(root, d.camera);
         read_image(root, d.image);
@@ -146,6 +147,7 @@ public:
         read_volume(root, d.volume);
         read_photons(root, d.photons);
         read_floor(root, d.floor);
+        read_environment(root, d.environment);
         return d;
     }
 
@@ -397,7 +399,7 @@ private:
         const std::string base = "/object";
         if (const json* j = section(root, "", "object",
                                     {"mesh", "position", "rotation_deg", "scale", "index_field", "ior",
-                                     "maxwell_n0", "abbe", "extinction", "scattering", "phase", "grid"})) {
+                                     "maxwell_n0", "abbe", "fresnel", "extinction", "scattering", "phase", "grid"})) {
             static constexpr const char* kMeshRule =
                 "must be \"sphere\", \"cube\", \"torus\", \"prism\" or \"upload:NAME\" with NAME 1..64 characters of "
                 "[A-Za-z0-9_.-]";
@@ -422,6 +424,7 @@ private:
             o.abbe = number(*j, base, "abbe", o.abbe, kAbbe);
             // Below 5 no glass exists, and channels would part by more than the field's own contrast.
             if (o.abbe > 0.0 && o.abbe < 5.0) fail(child(base, "abbe"), kAbbeRule);
+            o.fresnel = boolean(*j, base, "fresnel", o.fresnel);
             coefficients(*j, base, o.extinction, o.scattering);
             o.phase = phase(*j, base, o.phase);
             static constexpr const char* kGridRule =
@@ -493,6 +496,15 @@ private:
         f.checker_size = number(*j, base, "checker_size", f.checker_size, kChecker);
     }
 
+    static void read_environment(const json& root, Environment& e) {
+        const std::string base = "/environment";
+        const json* j = section(root, "", "environment", {"type", "color", "intensity"});
+        if (j == nullptr) return;
+        e.type = enumeration(*j, base, "type", e.type, {{"sky", EnvironmentKind::sky}, {"uniform", EnvironmentKind::uniform}});
+        e.color = vec3(*j, base, "color", e.color, kColor);
+        e.intensity = number(*j, base, "intensity", e.intensity, kIntensity);
+    }
+
     const Limits& limits_;
     const json* touched_;
 };
@@ -539,6 +551,8 @@ const char* name(IndexFieldKind k) {
     return "uniform";
 }
 
+const char* name(EnvironmentKind k) { return k == EnvironmentKind::uniform ? "uniform" : "sky"; }
+
 json phase_json(const Phase& p) {
     return {{"model", name(p.model)}, {"g", p.g}};
 }
@@ -579,6 +593,7 @@ json to_json(const SceneDocument& d) {
           {"ior", d.object.ior},
           {"maxwell_n0", d.object.maxwell_n0},
           {"abbe", d.object.abbe},
+          {"fresnel", d.object.fresnel},
           {"extinction", vec(d.object.extinction)},
           {"scattering", vec(d.object.scattering)},
           {"phase", phase_json(d.object.phase)},
@@ -596,6 +611,10 @@ json to_json(const SceneDocument& d) {
           {"albedo", vec(d.floor.albedo)},
           {"checker", d.floor.checker},
           {"checker_size", d.floor.checker_size}}},
+        {"environment",
+         {{"type", name(d.environment.type)},
+          {"color", vec(d.environment.color)},
+          {"intensity", d.environment.intensity}}},
     };
 }
 

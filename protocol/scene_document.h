@@ -17,6 +17,7 @@ using Vec3 = std::array<double, 3>;
 enum class LightType { point, spot, directional };
 enum class PhaseModel { isotropic, schlick, henyey_greenstein };
 enum class IndexFieldKind { uniform, luneburg, maxwell, grid };
+enum class EnvironmentKind { sky, uniform };
 
 struct Phase {
     PhaseModel model = PhaseModel::isotropic;
@@ -65,6 +66,8 @@ struct Object {
     // from the medium's by (1 + k_c / V) times the field's (Cauchy's law; passes::dispersion_scales).
     // 0: no dispersion.
     double abbe = 0.0;
+    // The boundary reflects by the Fresnel equations (photons and eye rays); false: it only refracts.
+    bool fresnel = true;
     Vec3 extinction{0.05, 0.05, 0.05};  // per metre
     Vec3 scattering{0.02, 0.02, 0.02};  // per metre, each channel <= extinction
     Phase phase{};
@@ -117,6 +120,15 @@ struct Floor {
     bool operator==(const Floor&) const = default;
 };
 
+// What rays that leave the scene see (the backdrop, and what reflections and refractions show).
+struct Environment {
+    EnvironmentKind type = EnvironmentKind::sky;  // the built-in dark sky gradient, or one colour everywhere
+    Vec3 color{1.0, 1.0, 1.0};                    // linear RGB radiance of a uniform environment (W/(m^2 sr))
+    double intensity = 1.0;                       // multiplies either
+
+    bool operator==(const Environment&) const = default;
+};
+
 struct SceneDocument {
     Camera camera;
     Image image;
@@ -126,6 +138,7 @@ struct SceneDocument {
     Volume volume;
     Photons photons;
     Floor floor;
+    Environment environment;
 
     bool operator==(const SceneDocument&) const = default;
 };

@@ -12,6 +12,7 @@
 #include "transport_common.glsl"
 #include "emission.glsl"
 #include "radiance_sums.glsl"
+#include "fresnel.glsl"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 layout(constant_id = PHOTON_CONSTANT_SAMPLED_DEPOSITS) const bool kSampledDeposits = false;
 
@@ -36,6 +37,14 @@ uint rng_state;
 float next_unit() {
     rng_state = hash(rng_state + 0x9e3779b9u);
     return to_unit(rng_state);
+}
+
+// A second stream for the Fresnel choices alone: a photon then reflects at the same boundaries however
+// its deposits are made (exact or sampled, with or without direct light), which draw on rng_state.
+uint fresnel_rng;
+float next_fresnel_unit() {
+    fresnel_rng = hash(fresnel_rng + 0x9e3779b9u);
+    return to_unit(fresnel_rng);
 }
 
 // Stratified 2D sample i of n: a Hammersley point shifted by a seed-dependent rotation.
@@ -200,6 +209,7 @@ void main() {
     vec2 sample_point = stratified(i, count, params.photon_info.y);
     if (!emit_ray(sample_point, origin, direction)) return;
     rng_state = hash(i ^ hash(params.photon_info.y));
+    uint fresnel_seed = hash(i ^ hash(params.photon_info.y + 2u));
     deposit_phase = i * 2654435769u + hash(params.photon_info.y + 1u);  // 2^32 / the golden ratio
     vec3 weight = params.photon_flux.rgb / params.photon_flux.w;  // relative to the reference flux
 
@@ -247,6 +257,7 @@ void main() {
     // One loop and one floor deposit for all paths: lavapipe runs every line of a loop body on each pass.
     for (uint path = 0u; path < (kDispersive ? 4u : 1u); ++path) {
         uint first_step = 0u;
+        fresnel_rng = fresnel_seed;  // each channel chooses as a photon of its own index would
         if (kDispersive && path > 0u) {
             uint c = path - 1u;
             ray_contrast = params.dispersion[c];
@@ -268,7 +279,7 @@ void main() {
         float outcome = 0.0;
         for (; steps < params.photon_info.z; ++steps) {
             uint level = fixed_step ? 0u : octree_level(ray.p);
-            float ds = safe_step(level, ray.p, ray.d, shell_step);
+            float ds = safe_step(level, ray.p, ray.d, shell_step_for(ray, shell_step));
             float coverage = coverage_for(params.flags.y, ray.p, ray.field.x);
             vec3 kappa = extinction_at(coverage) * h;  // per voxel length
             overlap = overlap || (jumped && !flat_medium(ray.field, coverage));
@@ -310,6 +321,12 @@ void main() {
                 split_overlap = overlap;
                 split_unbent = unbent;
                 break;
+            }
+            if (kFresnel) {
+                // Reflected with probability R, transmitted otherwise: unbiased, and flux stays whole.
+                vec3 reflected;
+                float reflectance = shell_reflectance(before, ray, reflected);
+                if (reflectance > 0.0 && next_fresnel_unit() < reflectance) ray = Ray(before.p, reflected, before.field);
             }
             along += ds;
             if (max(weight.r, max(weight.g, weight.b)) < 1e-4) break;

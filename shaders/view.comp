@@ -3,8 +3,10 @@
 // The viewing pass: one thread per pixel. Eye rays travel straight outside the grid and follow the ray
 // equation inside it, gathering single scattering (transmittance x scattering x phase x fluence) from
 // the radiance grid, then finish on the floor (lit analytically, plus the photons' floor map of what
-// the grid changes: its shadow and caustics) or the sky. Output: linear radiance and a tone-mapped sRGB pixel.
+// the grid changes: its shadow and caustics) or the sky. Where a ray crosses the object's boundary the
+// reflected part is traced too (fresnel.glsl). Output: linear radiance and a tone-mapped sRGB pixel.
 #include "transport_common.glsl"
+#include "fresnel.glsl"
 #include "phase.h"
 #include "view_tiles.glsl"
 
@@ -80,9 +82,30 @@ vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
 
 vec3 sky(vec3 d) { return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0)); }
 
+// A path an eye ray still has to trace: where the channels part under dispersion (the ray before the step
+// that parts them, and that step's length) or the part of the light a boundary reflects (fresnel.glsl).
+// Its transmittance carries the channel's mask or the reflectance, so everything it gathers is weighted.
+struct PendingPath {
+    Ray ray;
+    float first_step;  // voxels; 0: none
+    float contrast;    // ray_contrast of the path's channel
+    vec3 transmittance;
+    float cutoff;      // see shade
+    uint channel;      // whose budget of paths it counts against (0 without dispersion)
+};
+// Paths per pixel: one (one per channel after the white one under dispersion), and with Fresnel up to
+// FRESNEL_EYE_REFLECTIONS reflected ones per channel. Each channel keeps its own count, and takes its
+// paths in the same order, so it is traced exactly as a frame of its own index would be.
+const uint kChannelPaths = kDispersive ? 3u : 1u;
+const uint kPathsPerChannel = kFresnel ? 1u + FRESNEL_EYE_REFLECTIONS : 1u;
+const uint kPaths = (kDispersive ? 1u : 0u) + kChannelPaths * kPathsPerChannel;
+const uint kPendingCapacity = 3u + 3u * FRESNEL_EYE_REFLECTIONS;
+
 // Traces the eye ray of one pixel and writes its HDR and sRGB values. Under dispersive transport the ray
 // is one path until its first step that depends on the channel (channel_free), and from the start of that
-// step each channel follows its own path, bent by its own index, and brings back its own channel.
+// step each channel follows its own path, bent by its own index, and brings back its own channel. Where
+// a path crosses the object's boundary it goes on with the transmitted share and leaves the reflected one
+// for a path of its own.
 void shade(uvec2 pixel) {
     uint width = params.image.x, height = params.image.y;
     float tan_half = params.camera_position.w;
@@ -103,24 +126,36 @@ void shade(uvec2 pixel) {
     Ray ray = start_ray(p + d * (marches ? span.x + 1e-3 : 0.0), d);
     vec3 radiance_sum = vec3(0.0);
     vec3 transmittance = vec3(1.0);
+    // A path ends once extinction has dimmed it a thousandfold: the share a boundary passes on lowers the
+    // bar with it, so no light is cut from a lossless object.
+    float cutoff = 1e-3;
     bool on_floor = false;
     uint march_steps = 0u;
-    // Where the channels part: the ray before that step, the step's length, what the path had gathered.
-    Ray split_ray = ray;
-    float split_run = 0.0;
-    vec3 split_sum = vec3(0.0), split_transmittance = vec3(1.0);
+    PendingPath pending[kPendingCapacity];
+    uint pending_count = 0u;
+    uint channel = 0u;
+    uint begun[3] = uint[3](1u, 0u, 0u);    // paths of each channel begun (the white one counts for none)
+    uint waiting[3] = uint[3](0u, 0u, 0u);  // and pending
+    if (kDispersive) begun[0] = 0u;
     vec3 pixel_radiance = vec3(0.0);
     // One march and one floor_radiance call site for all paths: lavapipe runs every call (and its fetches)
     // for every pixel.
-    for (uint path = 0u; path < (kDispersive ? 4u : 1u); ++path) {
+    for (uint path = 0u; path < kPaths; ++path) {
         bool split = false;
-        if (kDispersive && path > 0u) {
-            ray_contrast = params.dispersion[path - 1u];
-            ray = split_ray;
-            radiance_sum = split_sum;
-            transmittance = split_transmittance;
+        if (path > 0u) {
+            if (pending_count == 0u) break;
+            PendingPath next = pending[--pending_count];
+            ray = next.ray;
+            ray_contrast = next.contrast;
+            transmittance = next.transmittance;
+            radiance_sum = vec3(0.0);
+            cutoff = next.cutoff;
+            channel = next.channel;
+            --waiting[channel];
+            ++begun[channel];
             on_floor = false;
-            ray_step(ray, split_run);
+            marches = true;
+            if (next.first_step > 0.0) ray_step(ray, next.first_step);
         }
         uint steps = 0u;
         // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch
@@ -143,8 +178,9 @@ void shade(uvec2 pixel) {
             // than the leaf, so coarse view steps never step over a shell.
             float unlit = unlit_cell(ray.p);
             bool gathers = scatters && (level == 0u || unlit == 0.0);
-            float run = level == 0u ? params.stepping.x
-                                    : min(safe_step(level, ray.p, ray.d, params.stepping.x),
+            float shell_step = shell_step_for(ray, params.stepping.x);
+            float run = level == 0u ? shell_step
+                                    : min(safe_step(level, ray.p, ray.d, shell_step),
                                           scatters && !gathers
                                               ? max(cell_exit(ray.p, ray.d, unlit) + params.stepping.y, view_step)
                                               : 1e30);
@@ -187,29 +223,47 @@ void shade(uvec2 pixel) {
             if (kDispersive && path == 0u && !(channel_free(before.field) && channel_free(ray.field))) {
                 // What this step gathered lay on its straight start, the same in every channel.
                 split = true;
-                split_ray = before;
-                split_run = run;
-                split_sum = radiance_sum;
-                split_transmittance = transmittance;
+                for (uint c = 0u; c < 3u; ++c) {
+                    pending[pending_count++] =
+                        PendingPath(before, run, params.dispersion[c], transmittance * channel_mask(c), cutoff, c);
+                    ++waiting[c];
+                }
                 break;
             }
-            if (max(transmittance.r, max(transmittance.g, transmittance.b)) < 1e-3) {
+            if (kFresnel) {
+                vec3 reflected;
+                float reflectance = shell_reflectance(before, ray, reflected);
+                Ray mirrored = Ray(before.p, reflected, before.field);
+                vec3 reflected_share = transmittance * reflectance;
+                // The reflection gets a path of its own unless the pixel has traced all it may or the share
+                // is too small to see (the march's own cut-off below); then the ray takes all of the light
+                // to the stronger side, so none is lost (a white furnace stays white).
+                if (begun[channel] + waiting[channel] < kPathsPerChannel &&
+                    max(reflected_share.r, max(reflected_share.g, reflected_share.b)) >= 1e-3) {
+                    pending[pending_count++] =
+                        PendingPath(mirrored, 0.0, ray_contrast, reflected_share, cutoff * reflectance, channel);
+                    ++waiting[channel];
+                    transmittance *= 1.0 - reflectance;
+                    cutoff *= 1.0 - reflectance;
+                } else if (reflectance > 0.5) {
+                    ray = mirrored;
+                }
+            }
+            if (max(transmittance.r, max(transmittance.g, transmittance.b)) < cutoff) {
                 transmittance = vec3(0.0);
                 break;
             }
         }
         march_steps += steps;
+        pixel_radiance += radiance_sum;
         if (split) continue;
         vec3 end = marches ? to_world(ray.p) : position;
         vec3 end_d = marches ? ray.d : d;
-        vec3 total = radiance_sum;
         if (any(greaterThan(transmittance, vec3(0.0)))) {
             bool sees_floor = on_floor || (floor_on && end_d.y < 0.0 && end.y > params.floor_plane.x);
             vec3 floor_point = on_floor ? end : end + end_d * ((end.y - params.floor_plane.x) / -end_d.y);
-            total += transmittance * (sees_floor ? floor_radiance(floor_point) : sky(end_d));
+            pixel_radiance += transmittance * (sees_floor ? floor_radiance(floor_point) : sky(end_d));
         }
-        pixel_radiance = kDispersive && path > 0u ? pixel_radiance + total * channel_mask(path - 1u) : total;
-        if (path == 0u) break;  // one path served every channel
     }
     atomicAdd(stats.view_steps, march_steps);
     uint index = pixel.y * width + pixel.x;

@@ -63,6 +63,8 @@ TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
         {"object scattering", {{"object", {{"scattering", {0.01, 0.01, 0.01}}}}}, kView | kToneMap},
         {"phase", {{"medium", {{"phase", {{"model", "isotropic"}, {"g", 0.0}}}}}}, kView | kToneMap},
         {"floor look", {{"floor", {{"albedo", {0.5, 0.5, 0.5}}}}}, kView | kToneMap},
+        {"environment", {{"environment", {{"type", "uniform"}, {"intensity", 2.0}}}}, kView | kToneMap},
+        {"fresnel", {{"object", {{"fresnel", false}}}}, kPhotons | kView | kToneMap},
         {"light", {{"light", {{"position", {-2, 3, 1}}}}}, kPhotons | kView | kToneMap},
         {"photon count", {{"photons", {{"count", 2048}}}}, kPhotons | kView | kToneMap},
         {"extinction", {{"object", {{"extinction", {0.5, 0.5, 0.5}}}}}, kPhotons | kView | kToneMap},

@@ -61,7 +61,7 @@ constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_LIGHT_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 // The photon pass's own specialization constant (PHOTON_CONSTANT_SAMPLED_DEPOSITS), per pipeline set.
-static_assert(PHOTON_CONSTANT_SAMPLED_DEPOSITS == TRANSPORT_CONSTANT_COVERAGE_FETCH + 1);
+static_assert(PHOTON_CONSTANT_SAMPLED_DEPOSITS == TRANSPORT_CONSTANT_COUNT);
 constexpr uint32_t kExact[] = {0u}, kSampled[] = {1u};
 constexpr auto kLayout = transport_layout(kOwnLayout);
 }  // namespace

@@ -96,6 +96,11 @@ glm::vec3 dispersion_scales(double abbe) {
     return scales;
 }
 
+bool fresnel_reflects(const protocol::SceneDocument& document) {
+    return document.object.fresnel && document.object.index_field == protocol::IndexFieldKind::uniform &&
+           std::abs(document.object.ior - document.medium.ior) > 1e-4;
+}
+
 bool any_scattering(const protocol::SceneDocument& document) {
     const auto& m = document.medium.scattering;
     const auto& o = document.object.scattering;
@@ -281,8 +286,15 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     const float near = light_type == LIGHT_DIRECTIONAL ? 0.0f : (UNBENT_MIN_DISTANCE + 1.0f) * static_cast<float>(options.radiance_factor);
     p.direct_light = glm::vec4(static_cast<float>(light_map_texels(grid, photons)), near, 0.0f,
                                options.direct_light && scatters ? 1.0f : 0.0f);
-    p.sky_zenith = glm::vec4(0.010f, 0.014f, 0.024f, 0.0f);
-    p.sky_horizon = glm::vec4(0.045f, 0.050f, 0.060f, 0.0f);
+    p.shell = glm::vec4(static_cast<float>(object.ior), static_cast<float>(0.5 * (object.ior + medium.ior)), 0.0f, 0.0f);
+    // The environment: what rays that leave the scene see (view.comp, sky).
+    const auto& environment = document.environment;
+    const float intensity = static_cast<float>(environment.intensity);
+    const bool uniform_environment = environment.type == protocol::EnvironmentKind::uniform;
+    const glm::vec3 zenith = uniform_environment ? vec(environment.color) : glm::vec3(0.010f, 0.014f, 0.024f);
+    const glm::vec3 horizon = uniform_environment ? vec(environment.color) : glm::vec3(0.045f, 0.050f, 0.060f);
+    p.sky_zenith = glm::vec4(zenith * intensity, 0.0f);
+    p.sky_horizon = glm::vec4(horizon * intensity, 0.0f);
     return p;
 }
 

@@ -48,6 +48,11 @@ glm::vec3 dispersion_scales(double abbe);
 // channel.
 float octree_epsilon(const protocol::SceneDocument& document);
 
+// Whether the object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL): Fresnel on, a uniform object (graded
+// fields have no flat index either side of a shell to reflect between; fresnel.glsl) and an index step
+// at its boundary.
+bool fresnel_reflects(const protocol::SceneDocument& document);
+
 // Whether anything scatters: photons deposit into the radiance grid (and direct light is computed) only then.
 bool any_scattering(const protocol::SceneDocument& document);
 

@@ -18,6 +18,7 @@ namespace refract::passes {
 struct TransportVariant {
     uint32_t channels = CHANNELS_RGB;  // how the colour channels travel (TRANSPORT_CONSTANT_CHANNELS)
     bool coverage_fetch = false;       // some coefficient reads the coverage texture (TRANSPORT_CONSTANT_COVERAGE_FETCH)
+    bool fresnel = false;              // the object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL)
 };
 
 // What every transport pass reads first: the frame's parameters, the index field, its coverage and the
@@ -60,7 +61,7 @@ std::array<vk::Binding, kTransportInputCount + N> transport_bindings(const Trans
     return bindings;
 }
 
-// Each variant is compiled the first time a frame needs it: most scenes use one or two of the six, and
+// Each variant is compiled the first time a frame needs it: most scenes use one or two of the twelve, and
 // every pipeline created costs a driver compile (LLVM, on lavapipe). Not thread-safe (one thread records).
 class TransportPipeline {
 public:
@@ -72,7 +73,7 @@ public:
     const vk::ComputePipeline& operator()(TransportVariant variant) const;
 
 private:
-    static constexpr size_t kVariants = 3 * 2;  // CHANNELS_* x coverage fetch
+    static constexpr size_t kVariants = 3 * 2 * 2;  // CHANNELS_* x coverage fetch x Fresnel
 
     vk::Context& context_;
     std::span<const uint32_t> spirv_;

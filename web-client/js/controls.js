@@ -46,6 +46,8 @@ export const SECTIONS = [
         showIf: (doc) => doc.object?.index_field === 'maxwell' },
       { kind: 'range', ptr: '/object/abbe', label: 'Dispersion: Abbe number (0 = none; glass 30-60)',
         min: 0, max: 0.2, step: 0.002, ...INVERSE_SLIDER },
+      { kind: 'checkbox', ptr: '/object/fresnel', label: 'Fresnel reflection at the surface',
+        showIf: (doc) => (doc.object?.index_field ?? 'uniform') === 'uniform' },
       { kind: 'range', ptr: '/object/scale', label: 'Scale', min: -3, max: 2, step: 0.01, ...LOG10_SLIDER },
       { kind: 'vec3', ptr: '/object/position', label: 'Position (m)', step: 0.05 },
       { kind: 'vec3', ptr: '/object/rotation_deg', label: 'Rotation (°, about x, then y, then z)', step: 5 },
@@ -63,6 +65,15 @@ export const SECTIONS = [
       { kind: 'range', ptr: '/medium/phase/g', label: 'Fog anisotropy g', min: -0.95, max: 0.95, step: 0.01 },
       { kind: 'checkbox', ptr: '/floor/enabled', label: 'Floor' },
       { kind: 'checkbox', ptr: '/floor/checker', label: 'Checkered floor' },
+    ],
+  },
+  {
+    id: 'environment', title: 'Environment', controls: [
+      { kind: 'select', ptr: '/environment/type', label: 'Environment (seen past the scene and in reflections)',
+        options: [['sky', 'Dark sky'], ['uniform', 'Uniform colour']] },
+      { kind: 'color', ptr: '/environment/color', label: 'Environment colour',
+        showIf: (doc) => doc.environment?.type === 'uniform' },
+      { kind: 'range', ptr: '/environment/intensity', label: 'Environment intensity', min: 0, max: 20, step: 0.05 },
     ],
   },
   {
