@@ -81,6 +81,7 @@ constexpr Range kScale{0.0, 1e3, true, false, "a number in (0, 1e3]"};
 constexpr Range kIor{1.0, 4.0, false, false, "a number in [1, 4]"};
 constexpr const char* kAbbeRule = "must be 0 (no dispersion) or a number in [5, 1000]";
 constexpr Range kAbbe{0.0, 1000.0, false, false, kAbbeRule};
+constexpr Range kFilmThickness{0.0, 5000.0, false, false, "a number in [0, 5000] (nm)"};
 constexpr Range kCoefficient{0.0, 1e3, false, false, "a number in [0, 1000] (per metre)"};
 constexpr Range kPhaseG{-0.99, 0.99, false, false, "a number in [-0.99, 0.99]"};
 constexpr Range kSmoothing{0.0, 4.0, false, false, "a number in [0, 4]"};
@@ -399,7 +400,8 @@ private:
         const std::string base = "/object";
         if (const json* j = section(root, "", "object",
                                     {"mesh", "position", "rotation_deg", "scale", "index_field", "ior",
-                                     "maxwell_n0", "abbe", "fresnel", "extinction", "scattering", "phase", "grid"})) {
+                                     "maxwell_n0", "abbe", "fresnel", "film", "extinction", "scattering", "phase",
+                                     "grid"})) {
             static constexpr const char* kMeshRule =
                 "must be \"sphere\", \"cube\", \"torus\", \"prism\" or \"upload:NAME\" with NAME 1..64 characters of "
                 "[A-Za-z0-9_.-]";
@@ -425,6 +427,12 @@ private:
             // Below 5 no glass exists, and channels would part by more than the field's own contrast.
             if (o.abbe > 0.0 && o.abbe < 5.0) fail(child(base, "abbe"), kAbbeRule);
             o.fresnel = boolean(*j, base, "fresnel", o.fresnel);
+            if (const json* f = section(*j, base, "film", {"ior", "top_nm", "bottom_nm"})) {
+                const std::string film = base + "/film";
+                o.film.ior = number(*f, film, "ior", o.film.ior, kIor);
+                o.film.top_nm = number(*f, film, "top_nm", o.film.top_nm, kFilmThickness);
+                o.film.bottom_nm = number(*f, film, "bottom_nm", o.film.bottom_nm, kFilmThickness);
+            }
             coefficients(*j, base, o.extinction, o.scattering);
             o.phase = phase(*j, base, o.phase);
             static constexpr const char* kGridRule =
@@ -594,6 +602,7 @@ json to_json(const SceneDocument& d) {
           {"maxwell_n0", d.object.maxwell_n0},
           {"abbe", d.object.abbe},
           {"fresnel", d.object.fresnel},
+          {"film", {{"ior", d.object.film.ior}, {"top_nm", d.object.film.top_nm}, {"bottom_nm", d.object.film.bottom_nm}}},
           {"extinction", vec(d.object.extinction)},
           {"scattering", vec(d.object.scattering)},
           {"phase", phase_json(d.object.phase)},

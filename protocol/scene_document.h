@@ -54,6 +54,17 @@ struct Light {
     bool operator==(const Light&) const = default;
 };
 
+// A thin film on the object's boundary (soap, an anti-reflection coating): its thickness varies linearly
+// with height from top_nm at the object's top (position.y + scale) to bottom_nm at its bottom
+// (position.y - scale), as a draining soap film does; 0 at both is no film.
+struct Film {
+    double ior = 1.33;
+    double top_nm = 0.0;
+    double bottom_nm = 0.0;
+
+    bool operator==(const Film&) const = default;
+};
+
 struct Object {
     std::string mesh = "sphere";  // "sphere" | "cube" | "torus" | "prism" | "upload:NAME"
     Vec3 position{0.0, 0.0, 0.0};
@@ -68,6 +79,7 @@ struct Object {
     double abbe = 0.0;
     // The boundary reflects by the Fresnel equations (photons and eye rays); false: it only refracts.
     bool fresnel = true;
+    Film film;
     Vec3 extinction{0.05, 0.05, 0.05};  // per metre
     Vec3 scattering{0.02, 0.02, 0.02};  // per metre, each channel <= extinction
     Phase phase{};

@@ -323,10 +323,17 @@ void main() {
                 break;
             }
             if (kFresnel) {
-                // Reflected with probability R, transmitted otherwise: unbiased, and flux stays whole.
+                // Reflected with probability R, transmitted otherwise: unbiased, and flux stays whole. A
+                // film's R differs by channel: the chance is the flux-weighted mean, and each channel's
+                // weight is scaled by its R (or 1 - R) over that chance, which keeps every channel unbiased.
                 vec3 reflected;
-                float reflectance = shell_reflectance(before, ray, reflected);
-                if (reflectance > 0.0 && next_fresnel_unit() < reflectance) ray = Ray(before.p, reflected, before.field);
+                vec3 reflectance = shell_reflectance(before, ray, reflected);
+                float chance = kFilm ? dot(weight, reflectance) / max(weight.r + weight.g + weight.b, 1e-30) : reflectance.r;
+                if (chance > 0.0) {
+                    bool reflects = next_fresnel_unit() < chance;
+                    if (kFilm) weight *= reflects ? reflectance / chance : (1.0 - reflectance) / (1.0 - chance);
+                    if (reflects) ray = Ray(before.p, reflected, before.field);
+                }
             }
             along += ds;
             if (max(weight.r, max(weight.g, weight.b)) < 1e-4) break;

@@ -232,7 +232,8 @@ void shade(uvec2 pixel) {
             }
             if (kFresnel) {
                 vec3 reflected;
-                float reflectance = shell_reflectance(before, ray, reflected);
+                vec3 reflectance = shell_reflectance(before, ray, reflected);
+                float mean_reflectance = (reflectance.r + reflectance.g + reflectance.b) * (1.0 / 3.0);
                 Ray mirrored = Ray(before.p, reflected, before.field);
                 vec3 reflected_share = transmittance * reflectance;
                 // The reflection gets a path of its own unless the pixel has traced all it may or the share
@@ -241,11 +242,11 @@ void shade(uvec2 pixel) {
                 if (begun[channel] + waiting[channel] < kPathsPerChannel &&
                     max(reflected_share.r, max(reflected_share.g, reflected_share.b)) >= 1e-3) {
                     pending[pending_count++] =
-                        PendingPath(mirrored, 0.0, ray_contrast, reflected_share, cutoff * reflectance, channel);
+                        PendingPath(mirrored, 0.0, ray_contrast, reflected_share, cutoff * mean_reflectance, channel);
                     ++waiting[channel];
                     transmittance *= 1.0 - reflectance;
-                    cutoff *= 1.0 - reflectance;
-                } else if (reflectance > 0.5) {
+                    cutoff *= 1.0 - mean_reflectance;
+                } else if (mean_reflectance > 0.5) {
                     ray = mirrored;
                 }
             }

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <numbers>
 
@@ -259,6 +260,134 @@ TEST_F(FresnelViewTest, GlassInAUniformEnvironmentIsAWhiteFurnace) {
             for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(double{px[c]} - L));
         std::printf("white furnace, %s: worst pixel off L by %.2e\n", object["mesh"].get<std::string>().c_str(), worst);
         EXPECT_LT(worst, 1e-4 * L);
+    }
+}
+
+// Thin films. The reference: the Airy sum in complex amplitudes (OPTICS.md), r = (r01 + r12 e^(2i delta)) /
+// (1 + r01 r12 e^(2i delta)) per polarization, written here independently of fresnel.h's real form, and
+// averaged over each channel's band as the protocol defines the channels: blue 400-490, green 490-580,
+// red 580-700 nm, evenly weighted (a fine 200-point midpoint rule here; the shaders take 8 points).
+double airy(double n0, double n1, double n2, double theta0, double d, double lambda) {
+    using C = std::complex<double>;
+    const C s0(std::sin(theta0), 0.0);
+    const C c0 = std::sqrt(1.0 - s0 * s0), c1 = std::sqrt(1.0 - (n0 / n1) * (n0 / n1) * s0 * s0),
+            c2 = std::sqrt(1.0 - (n0 / n2) * (n0 / n2) * s0 * s0);
+    const C phase = std::exp(C(0.0, 2.0) * (2.0 * kPi * n1 * d / lambda) * c1);
+    auto sum = [&](C r01, C r12) { return std::norm((r01 + r12 * phase) / (1.0 + r01 * r12 * phase)); };
+    const C rs01 = (n0 * c0 - n1 * c1) / (n0 * c0 + n1 * c1), rs12 = (n1 * c1 - n2 * c2) / (n1 * c1 + n2 * c2);
+    const C rp01 = (n1 * c0 - n0 * c1) / (n1 * c0 + n0 * c1), rp12 = (n2 * c1 - n1 * c2) / (n2 * c1 + n1 * c2);
+    return (sum(rs01, rs12) + sum(rp01, rp12)) / 2.0;
+}
+
+double band_airy(int channel, double n0, double n1, double n2, double theta0, double d) {
+    const double lo[3] = {580.0, 490.0, 400.0}, hi[3] = {700.0, 580.0, 490.0};
+    double sum = 0.0;
+    for (int k = 0; k < 200; ++k) sum += airy(n0, n1, n2, theta0, d, lo[channel] + (hi[channel] - lo[channel]) * (k + 0.5) / 200.0);
+    return sum / 200.0;
+}
+
+// How far the shaders' 8-point midpoint rule over a band (width w = 90-120 nm) may stray from the band's
+// mean: w^2 / (24 * 8^2) |R''|. R oscillates with the film's phase 4 pi n1 d / lambda between bounds
+// (|r01| - |r12|)^2 and (|r01| + |r12|)^2, so |R''| <= (4 pi n1 d / lambda^2)^2 (|r01| + |r12|)^2, largest
+// at lambda = 400 nm (the first derivative's term is smaller by lambda / (4 pi n1 d)), and w <= 120 nm.
+// Plus 1e-4 for single-precision sums.
+double band_tolerance(double n0, double n1, double n2, double d) {
+    const double r01 = std::abs((n0 - n1) / (n0 + n1)), r12 = std::abs((n1 - n2) / (n1 + n2));
+    const double phase_rate = 4.0 * kPi * n1 * d / (400.0 * 400.0);
+    return 120.0 * 120.0 / (24.0 * 64.0) * phase_rate * phase_rate * (r01 + r12) * (r01 + r12) + 1e-4;
+}
+
+// Eye rays looking down at a filmed face (the object reaching below the grid, as in the 4% test): per
+// channel, R_total is the band-averaged Airy reflectance.
+class FilmViewTest : public FresnelViewTest {
+protected:
+    // R_total per channel at the centre pixels (normal incidence within 0.3 degrees), for a film of index
+    // n_film and thickness d on an object of index n_object.
+    glm::dvec3 measured(double n_object, double n_film, double d) {
+        const auto doc = glass_scene({{"camera", {{"position", {0, 4, 0}}, {"target", {0, 0, 0}}, {"up", {0, 0, -1}},
+                                                  {"fov_deg", 10}}},
+                                      {"image", {{"width", 16}, {"height", 16}}},
+                                      {"object", {{"ior", n_object}, {"film", {{"ior", n_film}, {"top_nm", d}, {"bottom_nm", d}}}}},
+                                      {"volume", {{"resolution", 64}, {"smoothing", 0.75}, {"octree_epsilon", 1e-4},
+                                                  {"bounds", {{"min", {-0.4, 0.5, -0.4}}, {"max", {0.4, 1.3, 0.4}}}}}}});
+        scene::SceneGpu gpu(kit());
+        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+        const auto hdr = gpu.read_hdr();
+        const auto& p = gpu.params();
+        glm::dvec3 r(0.0);
+        for (uint32_t y = 7; y <= 8; ++y)
+            for (uint32_t x = 7; x <= 8; ++x)
+                for (int c = 0; c < 3; ++c) {
+                    const double horizon = double{p.sky_horizon[c]}, up = double{p.sky_zenith[c]};
+                    r[c] += (double{hdr[y * p.image.x + x][c]} - horizon) / (up - horizon) / 4.0;
+                }
+        return r;
+    }
+};
+
+// MgF2 (1.38) a quarter wave thick at 535 nm (the green band's centre) on glass (1.5): at its design
+// wavelength ((n0 n2 - n1^2) / (n0 n2 + n1^2))^2 = 1.4% against 4.0% uncoated.
+TEST_F(FilmViewTest, QuarterWaveCoatingReflectsAsAiryPredicts) {
+    const double n1 = 1.38, n2 = 1.5, design = 535.0, d = design / (4.0 * n1);
+    const double quarter_wave = std::pow((n2 - n1 * n1) / (n2 + n1 * n1), 2.0);
+    EXPECT_NEAR(airy(1.0, n1, n2, 0.0, d, design), quarter_wave, 1e-12);  // the reference agrees with the formula
+    const glm::dvec3 r = measured(n2, n1, d);
+    for (int c = 0; c < 3; ++c) {
+        const double expected = band_airy(c, 1.0, n1, n2, 0.0, d);
+        std::printf("quarter-wave MgF2 on glass, channel %d: reflected %.5f, band-averaged Airy %.5f (at 535 nm %.5f, "
+                    "uncoated %.5f)\n", c, r[c], expected, quarter_wave, reflectance(1.0, n2, 0.0));
+        EXPECT_NEAR(r[c], expected, band_tolerance(1.0, n1, n2, d));
+        EXPECT_LT(r[c], 0.6 * reflectance(1.0, n2, 0.0));
+    }
+}
+
+// A soap film (1.33) in air, for several thicknesses: an object of index 1.001 under it (a bubble's
+// inside is air; the index step only marks where the film is, and reflects 2.5e-7 by itself).
+TEST_F(FilmViewTest, SoapFilmColoursFollowAiry) {
+    for (const double d : {100.0, 300.0, 500.0}) {
+        const glm::dvec3 r = measured(1.001, 1.33, d);
+        for (int c = 0; c < 3; ++c) {
+            const double expected = band_airy(c, 1.0, 1.33, 1.001, 0.0, d);
+            std::printf("soap film %.0f nm, channel %d: reflected %.5f, band-averaged Airy %.5f, tolerance %.5f\n", d, c,
+                        r[c], expected, band_tolerance(1.0, 1.33, 1.001, d));
+            EXPECT_NEAR(r[c], expected, band_tolerance(1.0, 1.33, 1.001, d));
+        }
+    }
+}
+
+// Photons through a soap film (300 nm, where the channels reflect 4.0, 7.3 and 3.0%): a beam straight
+// down onto the filmed face, the object reaching below the grid, the floor under it. The floor map holds
+// what the grid changes: each reflected photon's flux is taken from the floor and never returned, each
+// transmitted one returns its weight times (1 - R_c) / (1 - P) (P the mean chance). So per channel
+// -(floor change) / (entered flux) = R_c. Its noise is that of the transmitted count: the standard
+// deviation of R_c is (1 - R_c) sqrt(P / ((1 - P) N)), four of them the tolerance (3e-3 at 2^16 photons,
+// a tenth of the channels' spread); the floor's stochastic rounding adds none in expectation.
+TEST_F(FresnelTest, PhotonsThroughASoapFilmReflectEachChannelsBandAverage) {
+    const double d = 300.0;
+    const auto doc = glass_scene({{"light", {{"direction", {0, -1, 0}}}},
+                                  {"object", {{"ior", 1.001}, {"film", {{"ior", 1.33}, {"top_nm", d}, {"bottom_nm", d}}}}},
+                                  {"floor", {{"enabled", true}, {"height", -1.0}}},
+                                  {"volume", {{"resolution", 64}, {"smoothing", 0.75}, {"octree_epsilon", 1e-4},
+                                              {"bounds", {{"min", {-0.4, 0.5, -0.4}}, {"max", {0.4, 1.3, 0.4}}}}}}});
+    scene::SceneGpu gpu(kit());
+    scene::RunOptions options;
+    options.limit = scene::kAllPasses & ~scene::kView;
+    const auto stats = gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
+    const double entered = static_cast<double>(stats.photons_entered);
+    ASSERT_GT(entered, 60000.0);
+    const auto map = gpu.read_floor_map();
+    const double side = static_cast<double>(gpu.params().floor_map.z) / gpu.floor_map_side();
+    double mean = 0.0;
+    for (int c = 0; c < 3; ++c) mean += band_airy(c, 1.0, 1.33, 1.001, 0.0, d) / 3.0;
+    for (int c = 0; c < 3; ++c) {
+        double change = 0.0;
+        for (const auto& texel : map) change += double{texel[c]} * side * side;
+        const double measured = -change / (entered * double{gpu.params().photon_flux[c]});
+        const double expected = band_airy(c, 1.0, 1.33, 1.001, 0.0, d);
+        const double tolerance = 4.0 * (1.0 - expected) * std::sqrt(mean / ((1.0 - mean) * entered));
+        std::printf("soap film %.0f nm, photons, channel %d: reflected %.5f, band-averaged Airy %.5f, tolerance %.5f\n", d,
+                    c, measured, expected, tolerance);
+        EXPECT_NEAR(measured, expected, tolerance);
     }
 }
 

@@ -69,6 +69,7 @@ SceneDocument customised() {
     d.photons = {12345, 4294967295u};
     d.floor = {false, -2.5, {0.1, 0.5, 1.0}, false, 1.0};
     d.object.fresnel = false;
+    d.object.film = {1.38, 99.6, 5000.0};
     d.environment = {EnvironmentKind::uniform, {0.5, 0.25, 1000.0}, 1e6};
     return d;
 }
@@ -155,7 +156,7 @@ TEST(SceneDocument, ToJsonEmitsEveryField) {
         {"image", {"width", "height", "exposure"}},
         {"light", {"type", "position", "direction", "color", "intensity", "cone_deg"}},
         {"object",
-         {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "abbe", "fresnel",
+         {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "abbe", "fresnel", "film",
           "extinction", "scattering", "phase", "grid"}},
         {"medium", {"ior", "extinction", "scattering", "phase"}},
         {"volume", {"resolution", "smoothing", "octree_epsilon", "margin"}},
@@ -470,6 +471,13 @@ std::vector<BadPatch> bad_patches() {
         {"abbe not a number", json::parse(R"({"object": {"abbe": "flint"}})"), "/object/abbe"},
         {"abbe NaN", json{{"object", {{"abbe", std::nan("")}}}}, "/object/abbe"},
         {"fresnel not a boolean", json::parse(R"({"object": {"fresnel": 1}})"), "/object/fresnel"},
+        {"film thickness negative", json::parse(R"({"object": {"film": {"top_nm": -1}}})"), "/object/film/top_nm"},
+        {"film thickness above 5000 nm", json::parse(R"({"object": {"film": {"bottom_nm": 5001}}})"),
+         "/object/film/bottom_nm"},
+        {"film thickness NaN", json{{"object", {{"film", {{"top_nm", nan}}}}}}, "/object/film/top_nm"},
+        {"film index below 1", json::parse(R"({"object": {"film": {"ior": 0.5}}})"), "/object/film/ior"},
+        {"film not an object", json::parse(R"({"object": {"film": 300}})"), "/object/film"},
+        {"unknown film field", json::parse(R"({"object": {"film": {"thickness": 300}}})"), "/object/film/thickness"},
         {"unknown environment", json::parse(R"({"environment": {"type": "studio"}})"), "/environment/type"},
         {"environment colour negative", json::parse(R"({"environment": {"color": [1, -0.1, 1]}})"),
          "/environment/color/1"},

@@ -65,6 +65,7 @@ TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
         {"floor look", {{"floor", {{"albedo", {0.5, 0.5, 0.5}}}}}, kView | kToneMap},
         {"environment", {{"environment", {{"type", "uniform"}, {"intensity", 2.0}}}}, kView | kToneMap},
         {"fresnel", {{"object", {{"fresnel", false}}}}, kPhotons | kView | kToneMap},
+        {"film", {{"object", {{"film", {{"top_nm", 300.0}}}}}}, kPhotons | kView | kToneMap},
         {"light", {{"light", {{"position", {-2, 3, 1}}}}}, kPhotons | kView | kToneMap},
         {"photon count", {{"photons", {{"count", 2048}}}}, kPhotons | kView | kToneMap},
         {"extinction", {{"object", {{"extinction", {0.5, 0.5, 0.5}}}}}, kPhotons | kView | kToneMap},

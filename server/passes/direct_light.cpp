@@ -34,7 +34,7 @@ std::array<vk::Binding, kLayout.size()> bindings(const TransportInputs& in, cons
 // sums, and no variant compiled for nothing).
 TransportVariant direct_variant(TransportVariant variant) {
     if (variant.channels == CHANNELS_DISPERSIVE) variant.channels = CHANNELS_RGB;
-    variant.fresnel = false;
+    variant.fresnel = variant.film = false;
     return variant;
 }
 

@@ -36,10 +36,10 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     if (before.volume.octree_epsilon != after.volume.octree_epsilon || a.abbe != b.abbe)
         stale |= kOctree | kPhotons | kView | kToneMap;
     // What photons see: the light, their number, extinction (Beer-Lambert), whether the boundary reflects
-    // and where the floor stops them;
+    // (and through what film) and where the floor stops them;
     // and whether they deposit at all (only where something scatters).
     if (!(before.light == after.light) || !(before.photons == after.photons) || a.extinction != b.extinction ||
-        a.fresnel != b.fresnel ||
+        a.fresnel != b.fresnel || !(a.film == b.film) ||
         before.medium.extinction != after.medium.extinction || before.floor.enabled != after.floor.enabled ||
         before.floor.height != after.floor.height || passes::any_scattering(before) != passes::any_scattering(after))
         stale |= kPhotons | kView | kToneMap;

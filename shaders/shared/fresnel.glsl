@@ -24,6 +24,10 @@
 //
 // Graded fields (Luneburg, Maxwell, imported grids) have no flat value either side of a shell to take:
 // Fresnel is off for them (transport_params.cpp, fresnel_reflects), so nothing inside them reflects.
+//
+// A thin film on the boundary (kFilm) replaces the interface's reflectance by the film's Airy reflectance
+// between the same two indices, averaged over each channel's band (fresnel.h), with the film's thickness
+// at the crossing's height (TransportParams::shell.zw, film.yz). The film's own index does not disperse.
 #include "fresnel.h"
 
 // The shell step for a ray: whole where its momentum along grad n, n cos(angle to grad n), is at least
@@ -39,16 +43,16 @@ float shell_step_for(Ray ray, float shell_step) {
     return clamp(0.25 * along / max(g, 1e-30), shell_step * 0.25, shell_step);
 }
 
-// The reflectance where a ray step from `before` to `after` crosses the object's boundary, in the ray's
-// channel (ray_contrast), and the direction the reflected part leaves in; 0 where the step does not
-// cross it.
-float shell_reflectance(Ray before, Ray after, out vec3 reflected) {
+// The reflectance where a ray step from `before` to `after` crosses the object's boundary, per channel
+// (the same in each without a film; under dispersion the ray's own channel, ray_contrast, is the one that
+// counts), and the direction the reflected part leaves in; 0 where the step does not cross it.
+vec3 shell_reflectance(Ray before, Ray after, out vec3 reflected) {
     reflected = before.d;
     float midpoint = params.shell.y;
     bool entering = before.field.x < midpoint;
     vec3 g = before.field.yzw + after.field.yzw;
     float g_length = length(g);
-    if (entering == (after.field.x < midpoint) || g_length == 0.0) return 0.0;
+    if (entering == (after.field.x < midpoint) || g_length == 0.0) return vec3(0.0);
     vec3 normal = g / g_length;
     float contrast = kDispersive ? ray_contrast : 1.0;
     float n_medium = params.medium_extinction.w;
@@ -58,6 +62,11 @@ float shell_reflectance(Ray before, Ray after, out vec3 reflected) {
     float cos_here = dot(before.d, normal);
     reflected = before.d - 2.0 * cos_here * normal;
     float across = n_here * sqrt(max(1.0 - cos_here * cos_here, 0.0));  // n sin(theta)
-    if (across >= min(n1, n2)) return 0.0;
-    return fresnel_reflectance(n1, n2, across / n1);
+    if (across >= min(n1, n2)) return vec3(0.0);
+    if (kFilm) {
+        float height = clamp((params.shell.z - before.p.y) / max(params.shell.z - params.shell.w, 1e-6), 0.0, 1.0);
+        float thickness = mix(params.film.y, params.film.z, height);
+        if (thickness > 0.0) return film_band_reflectance(n1, params.film.x, n2, across / n1, thickness);
+    }
+    return vec3(fresnel_reflectance(n1, n2, across / n1));
 }

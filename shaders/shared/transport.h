@@ -113,7 +113,10 @@ REFRACT_SHADERS_BEGIN
 // where nothing can reflect (Fresnel off in the document, or no index step at the boundary), so such
 // scenes run the shaders they ran before reflection existed.
 #define TRANSPORT_CONSTANT_FRESNEL 2
-#define TRANSPORT_CONSTANT_COUNT 3  // a pass's own constants are numbered from here
+// Specialization constant of the same passes, with Fresnel on: the boundary carries a thin film (its
+// Airy reflectance per channel, fresnel.h), so reflection may colour light.
+#define TRANSPORT_CONSTANT_FILM 3
+#define TRANSPORT_CONSTANT_COUNT 4  // a pass's own constants are numbered from here
 // Specialization constant of the photon pass (after the transport constants): deposits are sampled, one
 // per radiance voxel of path, rather than exact per voxel crossed (photon_trace.comp, deposit).
 #define PHOTON_CONSTANT_SAMPLED_DEPOSITS TRANSPORT_CONSTANT_COUNT
@@ -123,6 +126,7 @@ const bool kGreyTransport = kChannels == CHANNELS_GREY;
 const bool kDispersive = kChannels == CHANNELS_DISPERSIVE;
 layout(constant_id = TRANSPORT_CONSTANT_COVERAGE_FETCH) const bool kCoverageFetch = true;
 layout(constant_id = TRANSPORT_CONSTANT_FRESNEL) const bool kFresnel = false;
+layout(constant_id = TRANSPORT_CONSTANT_FILM) const bool kFilm = false;
 #endif
 
 // How a pass finds the coverage that mixes medium and object coefficients: not at all when both are
@@ -186,7 +190,9 @@ struct TransportParams {
                               // y: this eye-ray sample's weight in the frame's running mean (1/samples; 1
                               // replaces), zw: the sample's offset from the pixel centre (pixels)
     vec4 shell;               // the object's boundary (fresnel.glsl): x: the object's index at its surface
-                              // (reference channel), y: the shell's midpoint, where rays reflect; zw: unused
+                              // (reference channel), y: the shell's midpoint, where rays reflect; z, w: the
+                              // heights (voxels) where a film has its top and bottom thickness
+    vec4 film;                // x: the film's index, y: its thickness at the top, z: at the bottom (nm); w: unused
 };
 
 // The unit direction light travels at world point x as if nothing were in its way: the net flux
@@ -279,7 +285,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == 36 * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == 37 * 16);
 static_assert(sizeof(refract::shaders::PhotonStats) == 32);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 64);
