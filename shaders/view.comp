@@ -82,24 +82,18 @@ vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
 
 vec3 sky(vec3 d) { return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0)); }
 
-// A path an eye ray still has to trace: where the channels part under dispersion (the ray before the step
-// that parts them, and that step's length) or the part of the light a boundary reflects (fresnel.glsl).
-// Its transmittance carries the channel's mask or the reflectance, so everything it gathers is weighted.
+// A reflection an eye ray still has to trace (fresnel.glsl): its transmittance carries the reflectance,
+// so everything it gathers is weighted.
 struct PendingPath {
     Ray ray;
-    float first_step;  // voxels; 0: none
-    float contrast;    // ray_contrast of the path's channel
     vec3 transmittance;
-    float cutoff;      // see shade
-    uint channel;      // whose budget of paths it counts against (0 without dispersion)
+    float cutoff;  // see shade
 };
 // Paths per pixel: one (one per channel after the white one under dispersion), and with Fresnel up to
-// FRESNEL_EYE_REFLECTIONS reflected ones per channel. Each channel keeps its own count, and takes its
-// paths in the same order, so it is traced exactly as a frame of its own index would be.
-const uint kChannelPaths = kDispersive ? 3u : 1u;
+// FRESNEL_EYE_REFLECTIONS reflected ones per channel. A channel traces its reflections before the next
+// channel starts, and counts its own paths, so it is traced exactly as a frame of its own index would be.
 const uint kPathsPerChannel = kFresnel ? 1u + FRESNEL_EYE_REFLECTIONS : 1u;
-const uint kPaths = (kDispersive ? 1u : 0u) + kChannelPaths * kPathsPerChannel;
-const uint kPendingCapacity = 3u + 3u * FRESNEL_EYE_REFLECTIONS;
+const uint kPaths = (kDispersive ? 1u : 0u) + (kDispersive ? 3u : 1u) * kPathsPerChannel;
 
 // Traces the eye ray of one pixel and writes its HDR and sRGB values. Under dispersive transport the ray
 // is one path until its first step that depends on the channel (channel_free), and from the start of that
@@ -131,31 +125,41 @@ void shade(uvec2 pixel) {
     float cutoff = 1e-3;
     bool on_floor = false;
     uint march_steps = 0u;
-    PendingPath pending[kPendingCapacity];
+    PendingPath pending[FRESNEL_EYE_REFLECTIONS];
     uint pending_count = 0u;
-    uint channel = 0u;
-    uint begun[3] = uint[3](1u, 0u, 0u);    // paths of each channel begun (the white one counts for none)
-    uint waiting[3] = uint[3](0u, 0u, 0u);  // and pending
-    if (kDispersive) begun[0] = 0u;
+    uint channel_paths = 1u;  // paths the channel being traced has begun
+    // Where the channels part: the ray before that step, the step's length, and the path's state then.
+    Ray split_ray = ray;
+    float split_run = 0.0, split_cutoff = cutoff;
+    vec3 split_transmittance = vec3(1.0);
+    bool parted = false;
+    uint next_channel = 0u;
     vec3 pixel_radiance = vec3(0.0);
     // One march and one floor_radiance call site for all paths: lavapipe runs every call (and its fetches)
     // for every pixel.
     for (uint path = 0u; path < kPaths; ++path) {
         bool split = false;
         if (path > 0u) {
-            if (pending_count == 0u) break;
-            PendingPath next = pending[--pending_count];
-            ray = next.ray;
-            ray_contrast = next.contrast;
-            transmittance = next.transmittance;
+            if (kFresnel && pending_count > 0u) {
+                PendingPath next = pending[--pending_count];
+                ray = next.ray;
+                transmittance = next.transmittance;
+                cutoff = next.cutoff;
+                ++channel_paths;
+            } else if (kDispersive && parted && next_channel < 3u) {
+                uint c = next_channel++;
+                ray_contrast = params.dispersion[c];
+                ray = split_ray;
+                transmittance = split_transmittance * channel_mask(c);
+                cutoff = split_cutoff;
+                channel_paths = 1u;
+                ray_step(ray, split_run);
+            } else {
+                break;
+            }
             radiance_sum = vec3(0.0);
-            cutoff = next.cutoff;
-            channel = next.channel;
-            --waiting[channel];
-            ++begun[channel];
             on_floor = false;
             marches = true;
-            if (next.first_step > 0.0) ray_step(ray, next.first_step);
         }
         uint steps = 0u;
         // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch
@@ -223,11 +227,11 @@ void shade(uvec2 pixel) {
             if (kDispersive && path == 0u && !(channel_free(before.field) && channel_free(ray.field))) {
                 // What this step gathered lay on its straight start, the same in every channel.
                 split = true;
-                for (uint c = 0u; c < 3u; ++c) {
-                    pending[pending_count++] =
-                        PendingPath(before, run, params.dispersion[c], transmittance * channel_mask(c), cutoff, c);
-                    ++waiting[c];
-                }
+                parted = true;
+                split_ray = before;
+                split_run = run;
+                split_transmittance = transmittance;
+                split_cutoff = cutoff;
                 break;
             }
             if (kFresnel) {
@@ -239,11 +243,9 @@ void shade(uvec2 pixel) {
                 // The reflection gets a path of its own unless the pixel has traced all it may or the share
                 // is too small to see (the march's own cut-off below); then the ray takes all of the light
                 // to the stronger side, so none is lost (a white furnace stays white).
-                if (begun[channel] + waiting[channel] < kPathsPerChannel &&
+                if (channel_paths + pending_count < kPathsPerChannel &&
                     max(reflected_share.r, max(reflected_share.g, reflected_share.b)) >= 1e-3) {
-                    pending[pending_count++] =
-                        PendingPath(mirrored, 0.0, ray_contrast, reflected_share, cutoff * mean_reflectance, channel);
-                    ++waiting[channel];
+                    pending[pending_count++] = PendingPath(mirrored, reflected_share, cutoff * mean_reflectance);
                     transmittance *= 1.0 - reflectance;
                     cutoff *= 1.0 - mean_reflectance;
                 } else if (mean_reflectance > 0.5) {
