@@ -81,6 +81,7 @@ constexpr Range kScale{0.0, 1e3, true, false, "a number in (0, 1e3]"};
 constexpr Range kIor{1.0, 4.0, false, false, "a number in [1, 4]"};
 constexpr const char* kAbbeRule = "must be 0 (no dispersion) or a number in [5, 1000]";
 constexpr Range kAbbe{0.0, 1000.0, false, false, kAbbeRule};
+constexpr Range kFilmThickness{0.0, 5000.0, false, false, "a number in [0, 5000] (nm)"};
 constexpr Range kCoefficient{0.0, 1e3, false, false, "a number in [0, 1000] (per metre)"};
 constexpr Range kPhaseG{-0.99, 0.99, false, false, "a number in [-0.99, 0.99]"};
 constexpr Range kSmoothing{0.0, 4.0, false, false, "a number in [0, 4]"};
@@ -136,7 +137,8 @@ public:
 
     SceneDocument document(const json& root) {
         SceneDocument d;
-        check_object(root, "", {"camera", "image", "light", "object", "medium", "volume", "photons", "floor"},
+        check_object(root, "", {"camera", "image", "light", "object", "medium", "volume", "photons", "floor",
+                                "environment"},
                      "must be a JSON object");
         read_camera(root, d.camera);
         read_image(root, d.image);
@@ -146,6 +148,7 @@ public:
         read_volume(root, d.volume);
         read_photons(root, d.photons);
         read_floor(root, d.floor);
+        read_environment(root, d.environment);
         return d;
     }
 
@@ -397,7 +400,8 @@ private:
         const std::string base = "/object";
         if (const json* j = section(root, "", "object",
                                     {"mesh", "position", "rotation_deg", "scale", "index_field", "ior",
-                                     "maxwell_n0", "abbe", "extinction", "scattering", "phase", "grid"})) {
+                                     "maxwell_n0", "abbe", "fresnel", "film", "extinction", "scattering", "phase",
+                                     "grid"})) {
             static constexpr const char* kMeshRule =
                 "must be \"sphere\", \"cube\", \"torus\", \"prism\" or \"upload:NAME\" with NAME 1..64 characters of "
                 "[A-Za-z0-9_.-]";
@@ -422,6 +426,13 @@ private:
             o.abbe = number(*j, base, "abbe", o.abbe, kAbbe);
             // Below 5 no glass exists, and channels would part by more than the field's own contrast.
             if (o.abbe > 0.0 && o.abbe < 5.0) fail(child(base, "abbe"), kAbbeRule);
+            o.fresnel = boolean(*j, base, "fresnel", o.fresnel);
+            if (const json* f = section(*j, base, "film", {"ior", "top_nm", "bottom_nm"})) {
+                const std::string film = base + "/film";
+                o.film.ior = number(*f, film, "ior", o.film.ior, kIor);
+                o.film.top_nm = number(*f, film, "top_nm", o.film.top_nm, kFilmThickness);
+                o.film.bottom_nm = number(*f, film, "bottom_nm", o.film.bottom_nm, kFilmThickness);
+            }
             coefficients(*j, base, o.extinction, o.scattering);
             o.phase = phase(*j, base, o.phase);
             static constexpr const char* kGridRule =
@@ -494,6 +505,15 @@ private:
         f.checker_size = number(*j, base, "checker_size", f.checker_size, kChecker);
     }
 
+    static void read_environment(const json& root, Environment& e) {
+        const std::string base = "/environment";
+        const json* j = section(root, "", "environment", {"type", "color", "intensity"});
+        if (j == nullptr) return;
+        e.type = enumeration(*j, base, "type", e.type, {{"sky", EnvironmentKind::sky}, {"uniform", EnvironmentKind::uniform}});
+        e.color = vec3(*j, base, "color", e.color, kColor);
+        e.intensity = number(*j, base, "intensity", e.intensity, kIntensity);
+    }
+
     const Limits& limits_;
     const json* touched_;
 };
@@ -540,6 +560,8 @@ const char* name(IndexFieldKind k) {
     return "uniform";
 }
 
+const char* name(EnvironmentKind k) { return k == EnvironmentKind::uniform ? "uniform" : "sky"; }
+
 json phase_json(const Phase& p) {
     return {{"model", name(p.model)}, {"g", p.g}};
 }
@@ -580,6 +602,8 @@ json to_json(const SceneDocument& d) {
           {"ior", d.object.ior},
           {"maxwell_n0", d.object.maxwell_n0},
           {"abbe", d.object.abbe},
+          {"fresnel", d.object.fresnel},
+          {"film", {{"ior", d.object.film.ior}, {"top_nm", d.object.film.top_nm}, {"bottom_nm", d.object.film.bottom_nm}}},
           {"extinction", vec(d.object.extinction)},
           {"scattering", vec(d.object.scattering)},
           {"phase", phase_json(d.object.phase)},
@@ -597,6 +621,10 @@ json to_json(const SceneDocument& d) {
           {"albedo", vec(d.floor.albedo)},
           {"checker", d.floor.checker},
           {"checker_size", d.floor.checker_size}}},
+        {"environment",
+         {{"type", name(d.environment.type)},
+          {"color", vec(d.environment.color)},
+          {"intensity", d.environment.intensity}}},
     };
 }
 

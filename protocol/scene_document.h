@@ -17,6 +17,7 @@ using Vec3 = std::array<double, 3>;
 enum class LightType { point, spot, directional };
 enum class PhaseModel { isotropic, schlick, henyey_greenstein };
 enum class IndexFieldKind { uniform, luneburg, maxwell, grid };
+enum class EnvironmentKind { sky, uniform };
 
 struct Phase {
     PhaseModel model = PhaseModel::isotropic;
@@ -53,6 +54,17 @@ struct Light {
     bool operator==(const Light&) const = default;
 };
 
+// A thin film on the object's boundary (soap, an anti-reflection coating): its thickness varies linearly
+// with height from top_nm at the object's top (position.y + scale) to bottom_nm at its bottom
+// (position.y - scale), as a draining soap film does; 0 at both is no film.
+struct Film {
+    double ior = 1.33;
+    double top_nm = 0.0;
+    double bottom_nm = 0.0;
+
+    bool operator==(const Film&) const = default;
+};
+
 struct Object {
     std::string mesh = "sphere";  // "sphere" | "cube" | "torus" | "prism" | "upload:NAME"
     Vec3 position{0.0, 0.0, 0.0};
@@ -65,6 +77,9 @@ struct Object {
     // from the medium's by (1 + k_c / V) times the field's (Cauchy's law; passes::dispersion_scales).
     // 0: no dispersion.
     double abbe = 0.0;
+    // The boundary reflects by the Fresnel equations (photons and eye rays); false: it only refracts.
+    bool fresnel = true;
+    Film film;
     Vec3 extinction{0.05, 0.05, 0.05};  // per metre
     Vec3 scattering{0.02, 0.02, 0.02};  // per metre, each channel <= extinction
     Phase phase{};
@@ -123,6 +138,15 @@ struct Floor {
     bool operator==(const Floor&) const = default;
 };
 
+// What rays that leave the scene see (the backdrop, and what reflections and refractions show).
+struct Environment {
+    EnvironmentKind type = EnvironmentKind::sky;  // the built-in dark sky gradient, or one colour everywhere
+    Vec3 color{1.0, 1.0, 1.0};                    // linear RGB radiance of a uniform environment (W/(m^2 sr))
+    double intensity = 1.0;                       // multiplies either
+
+    bool operator==(const Environment&) const = default;
+};
+
 struct SceneDocument {
     Camera camera;
     Image image;
@@ -132,6 +156,7 @@ struct SceneDocument {
     Volume volume;
     Photons photons;
     Floor floor;
+    Environment environment;
 
     bool operator==(const SceneDocument&) const = default;
 };

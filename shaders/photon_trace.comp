@@ -15,6 +15,7 @@
 #include "radiance_sums.glsl"
 #include "phase.h"
 #include "random_walk.glsl"
+#include "fresnel.glsl"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 layout(constant_id = PHOTON_CONSTANT_SAMPLED_DEPOSITS) const bool kSampledDeposits = false;
 layout(constant_id = PHOTON_CONSTANT_RANDOM_WALKS) const bool kRandomWalks = false;
@@ -40,6 +41,14 @@ uint rng_state;
 float next_unit() {
     rng_state = hash(rng_state + 0x9e3779b9u);
     return to_unit(rng_state);
+}
+
+// A second stream for the Fresnel choices alone: a photon then reflects at the same boundaries however
+// its deposits are made (exact or sampled, with or without direct light), which draw on rng_state.
+uint fresnel_rng;
+float next_fresnel_unit() {
+    fresnel_rng = hash(fresnel_rng + 0x9e3779b9u);
+    return to_unit(fresnel_rng);
 }
 
 // Stratified 2D sample i of n: a Hammersley point shifted by a seed-dependent rotation.
@@ -204,6 +213,7 @@ void main() {
     vec2 sample_point = stratified(i, count, params.photon_info.y);
     if (!emit_ray(sample_point, origin, direction)) return;
     rng_state = hash(i ^ hash(params.photon_info.y));
+    uint fresnel_seed = hash(i ^ hash(params.photon_info.y + 2u));
     deposit_phase = i * 2654435769u + hash(params.photon_info.y + 1u);  // 2^32 / the golden ratio
     vec3 weight = params.photon_flux.rgb / params.photon_flux.w;  // relative to the reference flux
 
@@ -254,6 +264,7 @@ void main() {
     // One loop and one floor deposit for all paths: lavapipe runs every line of a loop body on each pass.
     for (uint path = 0u; path < (kDispersive ? 4u : 1u); ++path) {
         uint first_step = 0u;
+        fresnel_rng = fresnel_seed;  // each channel chooses as a photon of its own index would
         if (kDispersive && path > 0u) {
             uint c = path - 1u;
             ray_contrast = params.dispersion[c];
@@ -284,7 +295,7 @@ void main() {
                 if (!survives_roulette(weight, next_unit())) break;
             }
             uint level = fixed_step ? 0u : octree_level(ray.p);
-            float ds = safe_step(level, ray.p, ray.d, shell_step);
+            float ds = safe_step(level, ray.p, ray.d, shell_step_for(ray, shell_step));
             float coverage = coverage_for(kRandomWalks ? max(params.flags.y, params.flags.z) : params.flags.y, ray.p,
                                           ray.field.x);
             if (kRandomWalks) coverage = walk_step(ray.p, ray.d, ds, coverage, max(params.flags.y, params.flags.z), shell_step);
@@ -334,6 +345,19 @@ void main() {
                 split_unbent = unbent;
                 split_walk = walk;
                 break;
+            }
+            if (kFresnel) {
+                // Reflected with probability R, transmitted otherwise: unbiased, and flux stays whole. A
+                // film's R differs by channel: the chance is the flux-weighted mean, and each channel's
+                // weight is scaled by its R (or 1 - R) over that chance, which keeps every channel unbiased.
+                vec3 reflected;
+                vec3 reflectance = shell_reflectance(before, ray, reflected);
+                float chance = kFilm ? dot(weight, reflectance) / max(weight.r + weight.g + weight.b, 1e-30) : reflectance.r;
+                if (chance > 0.0) {
+                    bool reflects = next_fresnel_unit() < chance;
+                    if (kFilm) weight *= reflects ? reflectance / chance : (1.0 - reflectance) / (1.0 - chance);
+                    if (reflects) ray = Ray(before.p, reflected, before.field);
+                }
             }
             along += ds;
             if (max(weight.r, max(weight.g, weight.b)) < 1e-4) break;

@@ -3,8 +3,10 @@
 // The viewing pass: one thread per pixel. Eye rays travel straight outside the grid and follow the ray
 // equation inside it, gathering single scattering (transmittance x scattering x phase x fluence) from
 // the radiance grid, then finish on the floor (lit analytically, plus the photons' floor map of what
-// the grid changes: its shadow and caustics) or the sky. Output: linear radiance and a tone-mapped sRGB pixel.
+// the grid changes: its shadow and caustics) or the sky. Where a ray crosses the object's boundary the
+// reflected part is traced too (fresnel.glsl). Output: linear radiance and a tone-mapped sRGB pixel.
 #include "transport_common.glsl"
+#include "fresnel.glsl"
 #include "phase.h"
 #include "view_tiles.glsl"
 
@@ -80,9 +82,24 @@ vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
 
 vec3 sky(vec3 d) { return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0)); }
 
+// A reflection an eye ray still has to trace (fresnel.glsl): its transmittance carries the reflectance,
+// so everything it gathers is weighted.
+struct PendingPath {
+    Ray ray;
+    vec3 transmittance;
+    float cutoff;  // see shade
+};
+// Paths per pixel: one (one per channel after the white one under dispersion), and with Fresnel up to
+// FRESNEL_EYE_REFLECTIONS reflected ones per channel. A channel traces its reflections before the next
+// channel starts, and counts its own paths, so it is traced exactly as a frame of its own index would be.
+const uint kPathsPerChannel = kFresnel ? 1u + FRESNEL_EYE_REFLECTIONS : 1u;
+const uint kPaths = (kDispersive ? 1u : 0u) + (kDispersive ? 3u : 1u) * kPathsPerChannel;
+
 // Traces the eye ray of one pixel and writes its HDR and sRGB values. Under dispersive transport the ray
 // is one path until its first step that depends on the channel (channel_free), and from the start of that
-// step each channel follows its own path, bent by its own index, and brings back its own channel.
+// step each channel follows its own path, bent by its own index, and brings back its own channel. Where
+// a path crosses the object's boundary it goes on with the transmitted share and leaves the reflected one
+// for a path of its own.
 void shade(uvec2 pixel) {
     uint width = params.image.x, height = params.image.y;
     float tan_half = params.camera_position.w;
@@ -103,24 +120,46 @@ void shade(uvec2 pixel) {
     Ray ray = start_ray(p + d * (marches ? span.x + 1e-3 : 0.0), d);
     vec3 radiance_sum = vec3(0.0);
     vec3 transmittance = vec3(1.0);
+    // A path ends once extinction has dimmed it a thousandfold: the share a boundary passes on lowers the
+    // bar with it, so no light is cut from a lossless object.
+    float cutoff = 1e-3;
     bool on_floor = false;
     uint march_steps = 0u;
-    // Where the channels part: the ray before that step, the step's length, what the path had gathered.
+    PendingPath pending[FRESNEL_EYE_REFLECTIONS];
+    uint pending_count = 0u;
+    uint channel_paths = 1u;  // paths the channel being traced has begun
+    // Where the channels part: the ray before that step, the step's length, and the path's state then.
     Ray split_ray = ray;
-    float split_run = 0.0;
-    vec3 split_sum = vec3(0.0), split_transmittance = vec3(1.0);
+    float split_run = 0.0, split_cutoff = cutoff;
+    vec3 split_transmittance = vec3(1.0);
+    bool parted = false;
+    uint next_channel = 0u;
     vec3 pixel_radiance = vec3(0.0);
     // One march and one floor_radiance call site for all paths: lavapipe runs every call (and its fetches)
     // for every pixel.
-    for (uint path = 0u; path < (kDispersive ? 4u : 1u); ++path) {
+    for (uint path = 0u; path < kPaths; ++path) {
         bool split = false;
-        if (kDispersive && path > 0u) {
-            ray_contrast = params.dispersion[path - 1u];
-            ray = split_ray;
-            radiance_sum = split_sum;
-            transmittance = split_transmittance;
+        if (path > 0u) {
+            if (kFresnel && pending_count > 0u) {
+                PendingPath next = pending[--pending_count];
+                ray = next.ray;
+                transmittance = next.transmittance;
+                cutoff = next.cutoff;
+                ++channel_paths;
+            } else if (kDispersive && parted && next_channel < 3u) {
+                uint c = next_channel++;
+                ray_contrast = params.dispersion[c];
+                ray = split_ray;
+                transmittance = split_transmittance * channel_mask(c);
+                cutoff = split_cutoff;
+                channel_paths = 1u;
+                ray_step(ray, split_run);
+            } else {
+                break;
+            }
+            radiance_sum = vec3(0.0);
             on_floor = false;
-            ray_step(ray, split_run);
+            marches = true;
         }
         uint steps = 0u;
         // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch
@@ -143,8 +182,9 @@ void shade(uvec2 pixel) {
             // than the leaf, so coarse view steps never step over a shell.
             float unlit = unlit_cell(ray.p);
             bool gathers = scatters && (level == 0u || unlit == 0.0);
-            float run = level == 0u ? params.stepping.x
-                                    : min(safe_step(level, ray.p, ray.d, params.stepping.x),
+            float shell_step = shell_step_for(ray, params.stepping.x);
+            float run = level == 0u ? shell_step
+                                    : min(safe_step(level, ray.p, ray.d, shell_step),
                                           scatters && !gathers
                                               ? max(cell_exit(ray.p, ray.d, unlit) + params.stepping.y, view_step)
                                               : 1e30);
@@ -187,29 +227,46 @@ void shade(uvec2 pixel) {
             if (kDispersive && path == 0u && !(channel_free(before.field) && channel_free(ray.field))) {
                 // What this step gathered lay on its straight start, the same in every channel.
                 split = true;
+                parted = true;
                 split_ray = before;
                 split_run = run;
-                split_sum = radiance_sum;
                 split_transmittance = transmittance;
+                split_cutoff = cutoff;
                 break;
             }
-            if (max(transmittance.r, max(transmittance.g, transmittance.b)) < 1e-3) {
+            if (kFresnel) {
+                vec3 reflected;
+                vec3 reflectance = shell_reflectance(before, ray, reflected);
+                float mean_reflectance = (reflectance.r + reflectance.g + reflectance.b) * (1.0 / 3.0);
+                Ray mirrored = Ray(before.p, reflected, before.field);
+                vec3 reflected_share = transmittance * reflectance;
+                // The reflection gets a path of its own unless the pixel has traced all it may or the share
+                // is too small to see (the march's own cut-off below); then the ray takes all of the light
+                // to the stronger side, so none is lost (a white furnace stays white).
+                if (channel_paths + pending_count < kPathsPerChannel &&
+                    max(reflected_share.r, max(reflected_share.g, reflected_share.b)) >= 1e-3) {
+                    pending[pending_count++] = PendingPath(mirrored, reflected_share, cutoff * mean_reflectance);
+                    transmittance *= 1.0 - reflectance;
+                    cutoff *= 1.0 - mean_reflectance;
+                } else if (mean_reflectance > 0.5) {
+                    ray = mirrored;
+                }
+            }
+            if (max(transmittance.r, max(transmittance.g, transmittance.b)) < cutoff) {
                 transmittance = vec3(0.0);
                 break;
             }
         }
         march_steps += steps;
+        pixel_radiance += radiance_sum;
         if (split) continue;
         vec3 end = marches ? to_world(ray.p) : position;
         vec3 end_d = marches ? ray.d : d;
-        vec3 total = radiance_sum;
         if (any(greaterThan(transmittance, vec3(0.0)))) {
             bool sees_floor = on_floor || (floor_on && end_d.y < 0.0 && end.y > params.floor_plane.x);
             vec3 floor_point = on_floor ? end : end + end_d * ((end.y - params.floor_plane.x) / -end_d.y);
-            total += transmittance * (sees_floor ? floor_radiance(floor_point) : sky(end_d));
+            pixel_radiance += transmittance * (sees_floor ? floor_radiance(floor_point) : sky(end_d));
         }
-        pixel_radiance = kDispersive && path > 0u ? pixel_radiance + total * channel_mask(path - 1u) : total;
-        if (path == 0u) break;  // one path served every channel
     }
     atomicAdd(stats.view_steps, march_steps);
     uint index = pixel.y * width + pixel.x;

@@ -68,6 +68,9 @@ SceneDocument customised() {
     d.volume.margin = 0.0;
     d.photons = {12345, 4294967295u, 17};
     d.floor = {false, -2.5, {0.1, 0.5, 1.0}, false, 1.0};
+    d.object.fresnel = false;
+    d.object.film = {1.38, 99.6, 5000.0};
+    d.environment = {EnvironmentKind::uniform, {0.5, 0.25, 1000.0}, 1e6};
     return d;
 }
 
@@ -153,12 +156,13 @@ TEST(SceneDocument, ToJsonEmitsEveryField) {
         {"image", {"width", "height", "exposure"}},
         {"light", {"type", "position", "direction", "color", "intensity", "cone_deg"}},
         {"object",
-         {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "abbe", "extinction",
-          "scattering", "phase", "grid"}},
+         {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "abbe", "fresnel", "film",
+          "extinction", "scattering", "phase", "grid"}},
         {"medium", {"ior", "extinction", "scattering", "phase"}},
         {"volume", {"resolution", "smoothing", "octree_epsilon", "margin"}},
         {"photons", {"count", "seed", "max_bounces"}},
         {"floor", {"enabled", "height", "albedo", "checker", "checker_size"}},
+        {"environment", {"type", "color", "intensity"}},
     };
     ASSERT_EQ(j.size(), expected.size());
     for (const auto& [section, fields] : expected) {
@@ -466,6 +470,23 @@ std::vector<BadPatch> bad_patches() {
         {"abbe above 1000", json::parse(R"({"object": {"abbe": 1001}})"), "/object/abbe"},
         {"abbe not a number", json::parse(R"({"object": {"abbe": "flint"}})"), "/object/abbe"},
         {"abbe NaN", json{{"object", {{"abbe", std::nan("")}}}}, "/object/abbe"},
+        {"fresnel not a boolean", json::parse(R"({"object": {"fresnel": 1}})"), "/object/fresnel"},
+        {"film thickness negative", json::parse(R"({"object": {"film": {"top_nm": -1}}})"), "/object/film/top_nm"},
+        {"film thickness above 5000 nm", json::parse(R"({"object": {"film": {"bottom_nm": 5001}}})"),
+         "/object/film/bottom_nm"},
+        {"film thickness NaN", json{{"object", {{"film", {{"top_nm", nan}}}}}}, "/object/film/top_nm"},
+        {"film index below 1", json::parse(R"({"object": {"film": {"ior": 0.5}}})"), "/object/film/ior"},
+        {"film not an object", json::parse(R"({"object": {"film": 300}})"), "/object/film"},
+        {"unknown film field", json::parse(R"({"object": {"film": {"thickness": 300}}})"), "/object/film/thickness"},
+        {"unknown environment", json::parse(R"({"environment": {"type": "studio"}})"), "/environment/type"},
+        {"environment colour negative", json::parse(R"({"environment": {"color": [1, -0.1, 1]}})"),
+         "/environment/color/1"},
+        {"environment colour NaN", json{{"environment", {{"color", {1.0, 1.0, std::nan("")}}}}}, "/environment/color/2"},
+        {"environment intensity infinite", json{{"environment", {{"intensity", inf}}}},
+         "/environment/intensity"},
+        {"environment intensity above 1e6", json::parse(R"({"environment": {"intensity": 2e6}})"),
+         "/environment/intensity"},
+        {"unknown environment field", json::parse(R"({"environment": {"map": "sky.hdr"}})"), "/environment/map"},
         {"unknown index field", json::parse(R"({"object": {"index_field": "Uniform"}})"),
          "/object/index_field"},
         {"negative extinction", json::parse(R"({"object": {"extinction": [0.05, -1, 0.05]}})"),

@@ -17,7 +17,7 @@ constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_DIRECT_REACH, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 constexpr auto kLayout = transport_layout(kOwnLayout);
-static_assert(DIRECT_CONSTANT_MODE == TRANSPORT_CONSTANT_COVERAGE_FETCH + 1);
+static_assert(DIRECT_CONSTANT_MODE == TRANSPORT_CONSTANT_COUNT);
 constexpr uint32_t kTrace[] = {DIRECT_MODE_TRACE}, kMargin[] = {DIRECT_MODE_MARGIN}, kReach[] = {DIRECT_MODE_REACH},
                    kDeposit[] = {DIRECT_MODE_DEPOSIT}, kEdge[] = {DIRECT_MODE_EDGE};
 
@@ -29,10 +29,12 @@ std::array<vk::Binding, kLayout.size()> bindings(const TransportInputs& in, cons
     return transport_bindings(in, own);
 }
 
-// Direct light has met no gradient of n, so it is the same light in every channel's path: dispersive
-// transport takes the RGB pipelines (the same sums, and no variant compiled for nothing).
+// Direct light has met no gradient of n, so it is the same light in every channel's path, and has met no
+// shell to reflect from: dispersive transport takes the RGB pipelines and Fresnel the plain ones (the same
+// sums, and no variant compiled for nothing).
 TransportVariant direct_variant(TransportVariant variant) {
     if (variant.channels == CHANNELS_DISPERSIVE) variant.channels = CHANNELS_RGB;
+    variant.fresnel = variant.film = false;
     return variant;
 }
 

@@ -62,7 +62,7 @@ constexpr vk::BindingLayout kOwnLayout[] = {
 };
 // The photon pass's own specialization constants (PHOTON_CONSTANT_SAMPLED_DEPOSITS, then
 // PHOTON_CONSTANT_RANDOM_WALKS), per pipeline set.
-static_assert(PHOTON_CONSTANT_SAMPLED_DEPOSITS == TRANSPORT_CONSTANT_COVERAGE_FETCH + 1);
+static_assert(PHOTON_CONSTANT_SAMPLED_DEPOSITS == TRANSPORT_CONSTANT_COUNT);
 static_assert(PHOTON_CONSTANT_RANDOM_WALKS == PHOTON_CONSTANT_SAMPLED_DEPOSITS + 1);
 constexpr uint32_t kExact[] = {0u, 0u}, kSampled[] = {1u, 0u}, kExactWalks[] = {0u, 1u}, kSampledWalks[] = {1u, 1u};
 constexpr auto kLayout = transport_layout(kOwnLayout);

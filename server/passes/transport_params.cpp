@@ -72,7 +72,9 @@ std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims) {
 uint32_t transport_channels(const protocol::SceneDocument& document) {
     if (document.object.abbe > 0.0) return CHANNELS_DISPERSIVE;
     auto grey = [](const auto& rgb) { return rgb[0] == rgb[1] && rgb[1] == rgb[2]; };
-    return grey(document.medium.extinction) && grey(document.object.extinction) ? CHANNELS_GREY : CHANNELS_RGB;
+    return grey(document.medium.extinction) && grey(document.object.extinction) && !film_reflects(document)
+               ? CHANNELS_GREY
+               : CHANNELS_RGB;
 }
 
 uint32_t photon_exit_count(uint32_t photons, uint32_t channels) {
@@ -94,6 +96,16 @@ glm::vec3 dispersion_scales(double abbe) {
     for (int c = 0; c < 3; ++c)
         scales[c] = static_cast<float>(1.0 + (inverse_square(channel_nm[c]) - d) / f_minus_c / abbe);
     return scales;
+}
+
+bool fresnel_reflects(const protocol::SceneDocument& document) {
+    return document.object.fresnel && document.object.index_field == protocol::IndexFieldKind::uniform &&
+           std::abs(document.object.ior - document.medium.ior) > 1e-4;
+}
+
+bool film_reflects(const protocol::SceneDocument& document) {
+    const auto& film = document.object.film;
+    return fresnel_reflects(document) && (film.top_nm > 0.0 || film.bottom_nm > 0.0);
 }
 
 bool any_scattering(const protocol::SceneDocument& document) {
@@ -288,8 +300,21 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     const float near = light_type == LIGHT_DIRECTIONAL ? 0.0f : (UNBENT_MIN_DISTANCE + 1.0f) * static_cast<float>(options.radiance_factor);
     p.direct_light = glm::vec4(static_cast<float>(light_map_texels(grid, photons)), near, 0.0f,
                                options.direct_light && scatters ? 1.0f : 0.0f);
-    p.sky_zenith = glm::vec4(0.010f, 0.014f, 0.024f, 0.0f);
-    p.sky_horizon = glm::vec4(0.045f, 0.050f, 0.060f, 0.0f);
+    // A film's thickness goes from its top value at the object's top to its bottom value at its bottom
+    // (the built-in meshes reach scale above and below position).
+    const auto to_voxel_y = [&](double y) { return (static_cast<float>(y) - grid.origin.y) / grid.voxel_size; };
+    p.shell = glm::vec4(static_cast<float>(object.ior), static_cast<float>(0.5 * (object.ior + medium.ior)),
+                        to_voxel_y(object.position[1] + object.scale), to_voxel_y(object.position[1] - object.scale));
+    p.film = glm::vec4(static_cast<float>(object.film.ior), static_cast<float>(object.film.top_nm),
+                       static_cast<float>(object.film.bottom_nm), 0.0f);
+    // The environment: what rays that leave the scene see (view.comp, sky).
+    const auto& environment = document.environment;
+    const float intensity = static_cast<float>(environment.intensity);
+    const bool uniform_environment = environment.type == protocol::EnvironmentKind::uniform;
+    const glm::vec3 zenith = uniform_environment ? vec(environment.color) : glm::vec3(0.010f, 0.014f, 0.024f);
+    const glm::vec3 horizon = uniform_environment ? vec(environment.color) : glm::vec3(0.045f, 0.050f, 0.060f);
+    p.sky_zenith = glm::vec4(zenith * intensity, 0.0f);
+    p.sky_horizon = glm::vec4(horizon * intensity, 0.0f);
     return p;
 }
 

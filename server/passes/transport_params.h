@@ -33,7 +33,8 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
 
 // How the colour channels travel (CHANNELS_*, TRANSPORT_CONSTANT_CHANNELS): dispersive where the object
 // has an Abbe number; else grey where extinction is the same in every channel, in the medium and in the
-// object (photons then keep their colour from emission to deposit); else RGB.
+// object, and no film colours what it reflects (photons then keep their colour from emission to
+// deposit); else RGB.
 uint32_t transport_channels(const protocol::SceneDocument& document);
 
 // Photon exits a frame records (RunOptions::record_photon_exits) for `photons` emission samples: one per
@@ -52,6 +53,14 @@ float octree_epsilon(const protocol::SceneDocument& document);
 // Scattering events per photon a frame's random walks take: photons.max_bounces up to `cap`, 0 where
 // nothing scatters (PHOTON_CONSTANT_RANDOM_WALKS is on when this is not 0).
 uint32_t photon_bounces(const protocol::SceneDocument& document, uint32_t cap);
+
+// Whether the object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL): Fresnel on, a uniform object (graded
+// fields have no flat index either side of a shell to reflect between; fresnel.glsl) and an index step
+// at its boundary.
+bool fresnel_reflects(const protocol::SceneDocument& document);
+
+// Whether that boundary carries a thin film (TRANSPORT_CONSTANT_FILM): it reflects and has a thickness.
+bool film_reflects(const protocol::SceneDocument& document);
 
 // Whether anything scatters: photons deposit into the radiance grid (and direct light is computed) only then.
 bool any_scattering(const protocol::SceneDocument& document);

@@ -27,6 +27,8 @@ using BetweenParts = std::function<void()>;
 struct TransportVariant {
     uint32_t channels = CHANNELS_RGB;  // how the colour channels travel (TRANSPORT_CONSTANT_CHANNELS)
     bool coverage_fetch = false;       // some coefficient reads the coverage texture (TRANSPORT_CONSTANT_COVERAGE_FETCH)
+    bool fresnel = false;              // the object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL)
+    bool film = false;                 // ... through a thin film (TRANSPORT_CONSTANT_FILM; with fresnel only)
 };
 
 // What every transport pass reads first: the frame's parameters, the index field, its coverage and the
@@ -69,7 +71,7 @@ std::array<vk::Binding, kTransportInputCount + N> transport_bindings(const Trans
     return bindings;
 }
 
-// Each variant is compiled the first time a frame needs it: most scenes use one or two of the six, and
+// Each variant is compiled the first time a frame needs it: most scenes use one or two of the 18, and
 // every pipeline created costs a driver compile (LLVM, on lavapipe). Not thread-safe (one thread records).
 class TransportPipeline {
 public:
@@ -81,7 +83,7 @@ public:
     const vk::ComputePipeline& operator()(TransportVariant variant) const;
 
 private:
-    static constexpr size_t kVariants = 3 * 2;  // CHANNELS_* x coverage fetch
+    static constexpr size_t kVariants = 3 * 2 * 3;  // CHANNELS_* x coverage fetch x (none, Fresnel, film)
 
     vk::Context& context_;
     std::span<const uint32_t> spirv_;

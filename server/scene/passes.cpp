@@ -35,9 +35,11 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     // The octree's leaves keep n within epsilon in every channel, so dispersion changes them too.
     if (before.volume.octree_epsilon != after.volume.octree_epsilon || a.abbe != b.abbe)
         stale |= kOctree | kPhotons | kView | kToneMap;
-    // What photons see: the light, their number, extinction (Beer-Lambert) and where the floor stops them;
+    // What photons see: the light, their number, extinction (Beer-Lambert), whether the boundary reflects
+    // (and through what film) and where the floor stops them;
     // and whether they deposit at all (only where something scatters).
     if (!(before.light == after.light) || !(before.photons == after.photons) || a.extinction != b.extinction ||
+        a.fresnel != b.fresnel || !(a.film == b.film) ||
         before.medium.extinction != after.medium.extinction || before.floor.enabled != after.floor.enabled ||
         before.floor.height != after.floor.height || passes::any_scattering(before) != passes::any_scattering(after))
         stale |= kPhotons | kView | kToneMap;
@@ -46,11 +48,13 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     if (walks && (a.scattering != b.scattering || !(a.phase == b.phase) ||
                   before.medium.scattering != after.medium.scattering || !(before.medium.phase == after.medium.phase)))
         stale |= kPhotons | kView | kToneMap;
-    // Only the viewing pass reads scattering, phase functions, the floor's look, the camera and the image size.
+    // Only the viewing pass reads scattering, phase functions, the floor's look, the environment (it lights
+    // nothing: only rays that leave the scene see it), the camera and the image size.
     if (!(before.camera == after.camera) || before.image.width != after.image.width ||
         before.image.height != after.image.height || a.scattering != b.scattering ||
         !(a.phase == b.phase) || before.medium.scattering != after.medium.scattering ||
-        !(before.medium.phase == after.medium.phase) || !(before.floor == after.floor))
+        !(before.medium.phase == after.medium.phase) || !(before.floor == after.floor) ||
+        !(before.environment == after.environment))
         stale |= kView | kToneMap;
     // Exposure is display only: the resident linear frame is tone-mapped again.
     if (before.image.exposure != after.image.exposure) stale |= kToneMap;

@@ -248,7 +248,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     }
     const passes::TransportInputs inputs{params_buffer_, index_field_, coverage_image_, levels_,
                                          kit_.linear_sampler.get(),
-                                         {channels_, params_.flags.y == COVERAGE_FETCH || params_.flags.z == COVERAGE_FETCH}};
+                                         {channels_, params_.flags.y == COVERAGE_FETCH || params_.flags.z == COVERAGE_FETCH,
+                                          passes::fresnel_reflects(document), passes::film_reflects(document)}};
     if (stale & kPhotons) {
         timer_.begin(cmd, "photons");
         passes::clear_photon_accumulators(recorder_, *accum_, grey());

@@ -62,7 +62,7 @@ REFRACT_SHADERS_BEGIN
 // traced stops of the texel and its neighbours, less a margin. So a photon crosses that part of its
 // path in one straight step; one that lands where n varies or on the object (the map was wrong for
 // it) is counted in PhotonStats::direct_overlaps.
-#define DIRECT_CONSTANT_MODE 2   // after the transport constants
+#define DIRECT_CONSTANT_MODE TRANSPORT_CONSTANT_COUNT
 #define DIRECT_MODE_TRACE 0u     // one ray per light-map texel: where it stops going straight
 #define DIRECT_MODE_MARGIN 1u    // the light map: the least stop around each texel, less the margin
 #define DIRECT_MODE_REACH 2u     // one invocation per 32 radiance-voxel corners along x: which of them
@@ -109,18 +109,28 @@ REFRACT_SHADERS_BEGIN
 // (COVERAGE_FETCH). Without it the coverage texture is never read: lavapipe would fetch it on every
 // step whatever the mode.
 #define TRANSPORT_CONSTANT_COVERAGE_FETCH 1
+// Specialization constant of the same passes: the object's boundary reflects (Fresnel, fresnel.glsl). Off
+// where nothing can reflect (Fresnel off in the document, or no index step at the boundary), so such
+// scenes run the shaders they ran before reflection existed.
+#define TRANSPORT_CONSTANT_FRESNEL 2
+// Specialization constant of the same passes, with Fresnel on: the boundary carries a thin film (its
+// Airy reflectance per channel, fresnel.h), so reflection may colour light.
+#define TRANSPORT_CONSTANT_FILM 3
+#define TRANSPORT_CONSTANT_COUNT 4  // a pass's own constants are numbered from here
 // Specialization constant of the photon pass (after the transport constants): deposits are sampled, one
 // per radiance voxel of path, rather than exact per voxel crossed (photon_trace.comp, deposit).
-#define PHOTON_CONSTANT_SAMPLED_DEPOSITS 2
+#define PHOTON_CONSTANT_SAMPLED_DEPOSITS TRANSPORT_CONSTANT_COUNT
 // Specialization constant of the photon pass: photons scatter (random walks, models.w > 0 bounces and
 // something scatters; random_walk.glsl). Without it the walk is compiled out and photons do what they
 // did before walks existed, operation for operation.
-#define PHOTON_CONSTANT_RANDOM_WALKS 3
+#define PHOTON_CONSTANT_RANDOM_WALKS (TRANSPORT_CONSTANT_COUNT + 1)
 #ifndef __cplusplus
 layout(constant_id = TRANSPORT_CONSTANT_CHANNELS) const uint kChannels = CHANNELS_RGB;
 const bool kGreyTransport = kChannels == CHANNELS_GREY;
 const bool kDispersive = kChannels == CHANNELS_DISPERSIVE;
 layout(constant_id = TRANSPORT_CONSTANT_COVERAGE_FETCH) const bool kCoverageFetch = true;
+layout(constant_id = TRANSPORT_CONSTANT_FRESNEL) const bool kFresnel = false;
+layout(constant_id = TRANSPORT_CONSTANT_FILM) const bool kFilm = false;
 #endif
 
 // How a pass finds the coverage that mixes medium and object coefficients: not at all when both are
@@ -184,6 +194,10 @@ struct TransportParams {
                               // the radiance grid's and floor map's running mean (1/batches; 1 replaces),
                               // y: this eye-ray sample's weight in the frame's running mean (1/samples; 1
                               // replaces), zw: the sample's offset from the pixel centre (pixels)
+    vec4 shell;               // the object's boundary (fresnel.glsl): x: the object's index at its surface
+                              // (reference channel), y: the shell's midpoint, where rays reflect; z, w: the
+                              // heights (voxels) where a film has its top and bottom thickness
+    vec4 film;                // x: the film's index, y: its thickness at the top, z: at the bottom (nm); w: unused
 };
 
 // The unit direction light travels at world point x as if nothing were in its way: the net flux
@@ -200,13 +214,13 @@ REFRACT_INLINE vec3 grey_colour(vec4 photon_flux) {
 
 // The radiance resolve, one specialization per job (constant RESOLVE_CONSTANT_FLOOR, after the transport
 // constants): true for the dispatch that resolves the floor map, false for the radiance grid's voxels.
-#define RESOLVE_CONSTANT_FLOOR 2
+#define RESOLVE_CONSTANT_FLOOR TRANSPORT_CONSTANT_COUNT
 
 // The lit-pyramid pass, one specialization per job (constant LIT_CONSTANT_MODE, after the transport
 // constants, which every transport shader declares): find level 0 from the radiance grid; merge a
 // level's cells into the level above (push.level); finally replace each level-0 flag by the number of
 // levels that are unlit at that block, so an eye ray finds its largest unlit cell with one lookup.
-#define LIT_CONSTANT_MODE 2
+#define LIT_CONSTANT_MODE TRANSPORT_CONSTANT_COUNT
 #define LIT_MODE_BASE 0u
 #define LIT_MODE_MERGE 1u
 #define LIT_MODE_COUNT 2u
@@ -278,7 +292,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == 35 * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == 37 * 16);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 80);

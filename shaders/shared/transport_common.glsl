@@ -130,8 +130,24 @@ void ray_step(inout Ray ray, float ds) {
     vec3 across = g - dot(g, ray.d) * ray.d;
     ray.p += ds * ray.d + (0.5 * ds * ds / n) * across;
     vec4 next = index_at(ray.p);
-    vec3 v = n * ray.d + (0.5 * ds) * (g + contrast * next.yzw);
+    vec3 g_mean = 0.5 * (g + contrast * next.yzw);
+    vec3 v = n * ray.d + ds * g_mean;
     ray.field = next;
+    if (kFresnel) {
+        // |v| must be n at the far end. The trapezoid's error in it lies along grad n, so it is taken
+        // out there: the momentum across grad n, n sin(theta), is kept exactly, as the ray equation keeps
+        // it in a stratified shell. Snell's law and its critical angle then hold across a shell of any
+        // smoothing (fresnel.glsl); rescaling v instead changed n sin(theta) by a few percent over a
+        // shell, enough to turn back rays two degrees short of the critical angle.
+        float g_length = length(g_mean);
+        if (g_length > 0.0) {
+            vec3 normal = g_mean / g_length;
+            float v_along = dot(v, normal);
+            vec3 v_across = v - v_along * normal;
+            float n_next = kDispersive ? n_medium + contrast * (next.x - n_medium) : next.x;
+            v = v_across + sign(v_along) * sqrt(max(n_next * n_next - dot(v_across, v_across), 0.0)) * normal;
+        }
+    }
     float len = length(v);
     if (len > 0.0) ray.d = v / len;
 }
