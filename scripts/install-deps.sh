@@ -12,6 +12,7 @@ packages=(
   glslang-tools
   libcpp-httplib-dev nlohmann-json3-dev libpng-dev libglm-dev libgtest-dev
   libboost1.81-dev
+  libpq-dev  # the shared PostgreSQL store (refractd --store postgresql://...); no server needed to build
   assimp-testmodels
   clang lld libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer (libclang_rt.fuzzer) and lld's --gc-sections
 )
@@ -20,6 +21,12 @@ if [ "${REFRACT_NO_BROWSER:-0}" != "1" ]; then
   packages+=(chromium)
   # A machine may already carry Node.js from elsewhere (whose nodejs bundles npm); only add Debian's when absent.
   command -v npm >/dev/null 2>&1 || packages+=(nodejs npm)
+fi
+
+# Services only the tests start (a throwaway PostgreSQL cluster and HAProxy, tests/scale/): scripts/test.sh
+# asks for them, the README's first command does not, so a new user's machine runs no database.
+if [ "${REFRACT_TEST_SERVICES:-0}" = "1" ]; then
+  packages+=(postgresql haproxy)
 fi
 
 missing=()

@@ -19,6 +19,7 @@
 #include "mesh/mesh.h"
 #include "scene/render_queue.h"
 #include "scene/renderer.h"
+#include "scene/pg_scene_store.h"
 #include "scene/scene_store.h"
 #include "vk/context.h"
 
@@ -51,8 +52,20 @@ int run(const http::DaemonConfig& config) {
     protocol::Limits limits{config.max_resolution, config.max_photons, config.max_image};
     mesh::MeshLimits mesh_limits;
     mesh_limits.max_bytes = config.max_body;
-    scene::SceneStore store(config.data_dir, limits, mesh_limits);
-    if (store.size() == 0) store.create("default", kFirstScene);
+    std::unique_ptr<scene::Store> store_owner;
+    if (config.store.empty())
+        store_owner = std::make_unique<scene::SceneStore>(config.data_dir, limits, mesh_limits);
+    else
+        store_owner = std::make_unique<scene::PgSceneStore>(config.store, limits, mesh_limits);
+    scene::Store& store = *store_owner;
+    if (store.size() == 0) {
+        try {
+            store.create("default", kFirstScene);
+        } catch (const scene::StoreError& e) {
+            // Replicas sharing a store start together: one of them creates the scene.
+            if (e.status() != 409) throw;
+        }
+    }
 
     // The device: a daemon without one still serves documents, health says why frames cannot render.
     http::DeviceStatus device;
@@ -121,7 +134,7 @@ int run(const http::DaemonConfig& config) {
     std::fprintf(stderr, "refractd %s: http://%s:%u  ws://%s:%u  device: %s  data: %s  scenes: %zu\n",
                  REFRACT_VERSION, config.bind.c_str(), unsigned{config.port}, config.bind.c_str(),
                  unsigned{config.effective_ws_port()}, device.error.empty() ? device.name.c_str() : "none",
-                 config.data_dir.c_str(), store.size());
+                 config.store.empty() ? config.data_dir.c_str() : store.location().c_str(), store.size());
 
     int signal_number = 0;
     sigwait(&stop_signals, &signal_number);

@@ -285,7 +285,15 @@ struct ApiServer::Impl {
     }
 
     void route(const char* method, const std::string& pattern, Handler handler) {
-        server.route(method, pattern, std::move(handler));
+        // A store that cannot answer (a shared database gone away: 503) fails the request with its reason
+        // wherever in a route it is asked.
+        server.route(method, pattern, [handler = std::move(handler)](const Request& req, Response& res) {
+            try {
+                handler(req, res);
+            } catch (const scene::StoreError& e) {
+                send_error(res, e.status(), e.what());
+            }
+        });
     }
 
     // 202: the edit is committed (its revision and ETag say which) but no frame comes with it; the client

@@ -65,6 +65,10 @@ CommandLine parse_command_line(const std::vector<std::string>& args, DaemonConfi
             c.device = next();
         } else if (flag == "--data-dir") {
             c.data_dir = next();
+        } else if (flag == "--store") {
+            c.store = next();
+            if (c.store.rfind("postgresql://", 0) != 0 && c.store.rfind("postgres://", 0) != 0)
+                throw ConfigError("--store takes a postgresql:// URL (without it, scenes are kept under --data-dir)");
         } else if (flag == "--token") {
             c.token = next();
         } else if (flag == "--web-root") {
@@ -109,6 +113,8 @@ std::string usage_text(const DaemonConfig& d) {
         << "  --device NAME          use the Vulkan device whose name contains NAME (or REFRACT_DEVICE)\n"
         << "  --data-dir DIR         where scenes, meshes and index grids persist (default " << d.data_dir
         << ")\n"
+        << "  --store URL            keep scenes, meshes and grids in PostgreSQL (postgresql://USER@HOST:PORT/DB),\n"
+        << "                         shared by every replica given the same URL; --data-dir is then unused\n"
         << "  --token T              require 'Authorization: Bearer T' (or ?token=T) on everything but\n"
         << "                         /api/health and static files\n"
         << "  --web-root DIR         static files served at / (default " << d.web_root << ")\n"

@@ -15,6 +15,7 @@ struct DaemonConfig {
     uint16_t ws_port = 0;  // 0: port + 1
     std::string device;    // substring of the device name; empty: REFRACT_DEVICE or the best device
     std::string data_dir = "./refract-data";
+    std::string store;      // postgresql:// URL of the shared store; empty: the embedded store in data_dir
     std::string token;      // non-empty: Bearer token required by everything but /api/health and static files
     std::string web_root;   // static files served at /
     std::string examples_dir;  // example scene documents served at /api/examples

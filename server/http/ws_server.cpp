@@ -1,6 +1,7 @@
 // One of the two translation units that include Boost.Beast (it compiles slowly).
 #include "http/ws_server.h"
 
+#include <algorithm>
 #include <atomic>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
@@ -92,6 +93,21 @@ public:
                       });
     }
 
+    // Revision `revision` of scene `id` is committed (by anyone, on any replica): a viewer of that scene
+    // gets its frame unless it has asked for or rendered that revision already. Safe from any thread.
+    void scene_changed(const std::string& id, uint64_t revision) {
+        net::post(ws_.get_executor(), [self = shared_from_this(), id, revision] {
+            if (!self->viewing_ || self->closing_ || id != self->scene_id_) return;
+            if (revision <= self->submitted_revision_ || self->want_frame_) return;
+            self->idle_timer_.cancel();
+            self->newer_message_->store(true);  // a refinement level in flight gives way
+            self->wanted_seq_ = nullptr;        // nobody on this session asked: no seq to echo
+            self->wanted_options_ = {scene::Quality::interactive, self->budget_ms_, 1};
+            self->want_frame_ = true;
+            self->submit_frame();
+        });
+    }
+
     // Drops the connection (daemon shutdown); safe from any thread.
     void close() {
         net::post(ws_.get_executor(), [self = shared_from_this()] {
@@ -170,6 +186,7 @@ private:
         ws_.read_message_max(kMaxMessageBytes);
         ws_.async_accept(req, [self = shared_from_this()](beast::error_code accept_ec) {
             if (accept_ec) return;
+            self->viewing_ = true;
             self->log(101);
             self->read_message();
         });
@@ -313,6 +330,7 @@ private:
             want_frame_ = false;
             return send_error(wanted_seq_, "the scene was deleted");
         }
+        submitted_revision_ = std::max(submitted_revision_, snapshot->revision);
         scene::FrameRequest request{snapshot->id, snapshot->revision, snapshot->document, wanted_options_};
         json seq = wanted_seq_;
         scene::FrameOptions options = wanted_options_;
@@ -415,6 +433,8 @@ private:
     std::string scene_id_;
 
     bool closing_ = false;
+    bool viewing_ = false;            // the handshake is done: edits of scene_id_ are pushed
+    uint64_t submitted_revision_ = 0;  // the newest revision this session has rendered or is rendering
     bool in_flight_ = false;
     bool want_frame_ = false;
     json wanted_seq_ = nullptr;
@@ -437,6 +457,7 @@ struct SessionRegistry {
     std::mutex mutex;
     std::set<WsSession*> live;
     std::vector<std::weak_ptr<WsSession>> refs;
+    bool stopped = false;  // no more posts to sessions: their io_context is stopping
 };
 
 struct WsServer::Impl {
@@ -507,6 +528,20 @@ void WsServer::start() {
                                  std::to_string(c.effective_ws_port()) + ": " + ec.message());
     impl_->work.emplace(impl_->ioc.get_executor());
     impl_->started = true;
+    // Every committed revision (from this daemon or, with a shared store, any replica) goes to each
+    // session, which keeps it only if it views that scene: a few hundred sessions at most.
+    impl_->service.store().on_change([registry = impl_->registry](const std::string& id, uint64_t revision) {
+        // Released after the lock: a last reference's destructor takes the registry's lock itself.
+        std::vector<std::shared_ptr<WsSession>> told;
+        std::lock_guard lock(registry->mutex);
+        if (registry->stopped) return;
+        for (const auto& ref : registry->refs) {
+            if (auto session = ref.lock()) {
+                session->scene_changed(id, revision);
+                told.push_back(std::move(session));
+            }
+        }
+    });
     impl_->accept();
     for (int i = 0; i < 2; ++i) impl_->threads.emplace_back([this] { impl_->ioc.run(); });
 }
@@ -519,6 +554,10 @@ void WsServer::adopt(UpgradePtr upgrade) {
 void WsServer::stop() {
     if (impl_->stopped || !impl_->started) return;
     impl_->stopped = true;
+    {
+        std::lock_guard lock(impl_->registry->mutex);
+        impl_->registry->stopped = true;
+    }
     net::post(impl_->ioc, [this] {
         beast::error_code ignored;
         impl_->acceptor.close(ignored);
