@@ -6,6 +6,9 @@ export DEBIAN_FRONTEND=noninteractive
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
+# REFRACT_RUNTIME_ONLY=1: only what the built binaries need to run (the container image's final stage).
+runtime=(libvulkan1 mesa-vulkan-drivers libpng16-16 libpq5 curl ca-certificates)
+
 packages=(
   build-essential cmake pkg-config git ca-certificates curl
   libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
@@ -23,10 +26,15 @@ if [ "${REFRACT_NO_BROWSER:-0}" != "1" ]; then
   command -v npm >/dev/null 2>&1 || packages+=(nodejs npm)
 fi
 
-# Services only the tests start (a throwaway PostgreSQL cluster and HAProxy, tests/scale/): scripts/test.sh
+# Services only the tests start (a throwaway PostgreSQL cluster and HAProxy, tests/scale/), and PyYAML for
+# the deploy/ manifests check (tests/deploy/): scripts/test.sh
 # asks for them, the README's first command does not, so a new user's machine runs no database.
 if [ "${REFRACT_TEST_SERVICES:-0}" = "1" ]; then
-  packages+=(postgresql haproxy)
+  packages+=(postgresql haproxy python3-yaml)
+fi
+
+if [ "${REFRACT_RUNTIME_ONLY:-0}" = "1" ]; then
+  packages=("${runtime[@]}")
 fi
 
 missing=()

@@ -75,6 +75,34 @@ TEST(DaemonConfig, ParsesFlagsAndRejectsNonsense) {
                  http::ConfigError);
 }
 
+TEST(DaemonConfig, ListensBeyondLoopbackOnlyWithATokenOrWhenToldToBeOpen) {
+    http::DaemonConfig defaults;
+    for (const char* loopback : {"127.0.0.1", "127.1.2.3", "::1", "localhost"})
+        EXPECT_NO_THROW(http::parse_command_line({"--bind", loopback}, defaults)) << loopback;
+    EXPECT_THROW(http::parse_command_line({"--bind", "0.0.0.0"}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--bind", "::"}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--bind", "10.0.0.7"}, defaults), http::ConfigError);
+    EXPECT_NO_THROW(http::parse_command_line({"--bind", "0.0.0.0", "--token", "t"}, defaults));
+    EXPECT_TRUE(http::parse_command_line({"--bind", "0.0.0.0", "--open"}, defaults).config.open);
+
+    TempDir dir;
+    const std::string token_file = (dir.path() / "token").string();
+    std::ofstream(token_file) << "s3cret\n";
+    EXPECT_EQ(http::parse_command_line({"--bind", "::", "--token-file", token_file}, defaults).config.token, "s3cret");
+    std::ofstream(token_file, std::ios::trunc) << "\n";
+    EXPECT_THROW(http::parse_command_line({"--token-file", token_file}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--token-file", (dir.path() / "none").string()}, defaults),
+                 http::ConfigError);
+}
+
+TEST(DaemonConfig, TheSharedStoreTakesAPostgresqlUrl) {
+    http::DaemonConfig defaults;
+    EXPECT_EQ(http::parse_command_line({"--store", "postgresql://u@db:5432/refract"}, defaults).config.store,
+              "postgresql://u@db:5432/refract");
+    EXPECT_THROW(http::parse_command_line({"--store", "/var/lib/refract"}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--store", "mysql://db/refract"}, defaults), http::ConfigError);
+}
+
 TEST(DaemonHttp, IfMatchAcceptsQuotedAndBareRevisions) {
     EXPECT_EQ(http::parse_if_match("3"), 3u);
     EXPECT_EQ(http::parse_if_match("\"17\""), 17u);
@@ -770,6 +798,24 @@ TEST(Daemon, PostFrameAppliesTheEditAndAnswersThePngInOneRoundTrip) {
     ASSERT_TRUE(bad_query);
     EXPECT_EQ(bad_query->status, 400);
     EXPECT_EQ(get_json(client, "/api/scenes/" + id)["revision"], 2);
+}
+
+TEST(Daemon, AWebSocketViewerGetsAFrameOfAnotherClientsEdit) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "together");
+    WsClient viewer(daemon.ws_port(), "/api/scenes/" + id + "/ws");
+    viewer.send({{"seq", 0}, {"refine", 0}});
+    EXPECT_EQ(viewer.read_frame().first["revision"], 1);
+    auto edited = client.Patch("/api/scenes/" + id, json{{"light", {{"intensity", 3.0}}}}.dump(),
+                               "application/merge-patch+json");
+    ASSERT_TRUE(edited);
+    ASSERT_EQ(edited->status, 200) << edited->body;
+    auto [header, png] = viewer.read_frame();
+    EXPECT_EQ(header["revision"], 2);
+    EXPECT_EQ(header["seq"], nullptr);  // pushed: nobody on this session asked
+    EXPECT_FALSE(png.empty());
 }
 
 TEST(Daemon, WebSocketCoalescesEditsLatestWins) {

@@ -125,6 +125,11 @@ int patch(httplib::Client& client, const std::string& id, const json& body, json
     return res->status;
 }
 
+std::string health_of(uint16_t port) {
+    auto res = client_for(port).Get("/api/health");
+    return res ? res->body : "{}";
+}
+
 json get_scene(httplib::Client& client, const std::string& id) {
     auto res = client.Get("/api/scenes/" + id);
     if (!res || res->status != 200) return nullptr;
@@ -235,6 +240,9 @@ TEST_F(ScaleOut, ViewersOnTwoReplicasGetAFrameOfAThirdClientsEdit) {
     std::vector<std::unique_ptr<WsClient>> viewers;
     viewers.push_back(std::make_unique<WsClient>(replicas_[0]->port(), "/api/scenes/shared/ws"));
     viewers.push_back(std::make_unique<WsClient>(replicas_[1]->port(), "/api/scenes/shared/ws"));
+    // Browsers are told to upgrade through the proxy's one port, not the replica's WebSocket port.
+    EXPECT_EQ(json::parse(client.Get("/api/health")->body).value("ws_on_http_port", false), true);
+    EXPECT_FALSE(json::parse(health_of(replicas_[0]->port())).contains("ws_on_http_port"));
     // And one through HAProxy, on its one port: the upgrade is routed by the same hash.
     viewers.push_back(std::make_unique<WsClient>(haproxy_->port(), "/api/scenes/shared/ws"));
     for (auto& viewer : viewers) {

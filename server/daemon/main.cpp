@@ -136,6 +136,12 @@ int run(const http::DaemonConfig& config) {
                  unsigned{config.effective_ws_port()}, device.error.empty() ? device.name.c_str() : "none",
                  config.store.empty() ? config.data_dir.c_str() : store.location().c_str(), store.size());
 
+    if (!http::is_loopback(config.bind) && config.token.empty())
+        std::fprintf(stderr,
+                     "refractd: WARNING: OPEN TO THE NETWORK: listening on %s with no token (--open): anyone who "
+                     "reaches this address can read, edit and delete every scene\n",
+                     config.bind.c_str());
+
     int signal_number = 0;
     sigwait(&stop_signals, &signal_number);
     std::fprintf(stderr, "refractd: %s received, stopping\n", signal_number == SIGINT ? "SIGINT" : "SIGTERM");

@@ -306,8 +306,13 @@ struct ApiServer::Impl {
     }
 
     void routes() {
-        route("GET", "/api/health",
-              [this](const Request&, Response& res) { send_json(res, 200, service.health()); });
+        route("GET", "/api/health", [this](const Request& req, Response& res) {
+            json health = service.health();
+            // Behind a proxy (which adds X-Forwarded-For, as deploy/haproxy does) the WebSocket port is
+            // not reachable: upgrades go through the proxy's one port, which the HTTP port also serves.
+            if (req.has_header("X-Forwarded-For")) health["ws_on_http_port"] = true;
+            send_json(res, 200, health);
+        });
 
         route("GET", "/metrics", [this](const Request& req, Response& res) {
             if (!authorize(req, res)) return;
