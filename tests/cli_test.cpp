@@ -195,6 +195,19 @@ const BadLine kBadLines[] = {
     {"SceneWithDaemon",
      {"bench", "--scene", kScene, "--daemon", "localhost:8080"},
      "refract: --scene: not with --daemon"},
+    // animate
+    {"KeyframesNotGiven", {"animate", kScene, "-o", "frames"}, "refract: animate needs KEYFRAMES.json"},
+    {"KeyframesIsADirectory",
+     {"animate", kScene, kExamples, "-o", "frames"},
+     "refract: KEYFRAMES.json '" + kExamples + "' is a directory"},
+    {"AnimateOutNotGiven", {"animate", kScene, kScene}, "refract: animate needs -o DIR"},
+    {"FpsZero", {"animate", kScene, kScene, "-o", "frames", "--fps", "0"}, "refract: --fps: '0' must be between 1 and 240"},
+    {"FpsNotANumber",
+     {"animate", kScene, kScene, "-o", "frames", "--fps", "fast"},
+     "refract: --fps: 'fast' is not a whole number"},
+    {"StrayPositionalAnimate",
+     {"animate", kScene, kScene, kScene, "-o", "frames"},
+     "refract: unexpected argument '" + kScene + "' (animate takes SCENE.json and KEYFRAMES.json)"},
     {"UnknownCommand", {"draw"}, "refract: unknown command 'draw' (see refract help)"},
     {"HelpForUnknownCommand", {"help", "draw"}, "refract: unknown command 'draw' (see refract help)"},
     {"HelpWithTwoCommands",
@@ -251,7 +264,7 @@ TEST(Cli, OverviewListsEveryCommand) {
     const Outcome help = run_refract({"help"});
     EXPECT_EQ(help.status, 0);
     EXPECT_TRUE(help.out.starts_with("usage: refract COMMAND")) << help.out;
-    for (const std::string command : {"devices", "voxelize", "trace", "render", "bench", "help"})
+    for (const std::string command : {"devices", "voxelize", "trace", "render", "animate", "bench", "help"})
         EXPECT_NE(help.out.find("\n  " + command + " "), std::string::npos) << command;
     EXPECT_EQ(run_refract({"--help"}).out, help.out);
     EXPECT_EQ(run_refract({"help", "help"}).out, help.out);
@@ -266,12 +279,15 @@ TEST(Cli, GoodArgumentsReachTheDevice) {
     const fs::path dir = fs::temp_directory_path() / ("refract_cli_good_" + std::to_string(::getpid()));
     fs::create_directories(dir);
     const std::string frame = (dir / "frame.PNG").string(), slices = (dir / "new" / "slices").string();
+    const std::string keyframes = (dir / "keyframes.json").string();
+    std::ofstream(keyframes) << R"([{"time": 0, "patch": {}}, {"time": 1, "patch": {"light": {"intensity": 5}}}])";
     const std::vector<std::vector<std::string>> lines = {
         {"render", kScene, "-o", frame, "--hdr", (dir / "frame.pfm").string(), "--stats",
          (dir / "s.json").string(), "--quality", "interactive", "--device", "none"},
         {"render", "-", "--out=" + frame, "--mesh", "bunny=" REFRACT_SOURCE_DIR "/examples/meshes/bunny.obj"},
         {"voxelize", kScene, "--out", slices},
         {"trace", "-", "-o", slices},
+        {"animate", kScene, keyframes, "-o", slices, "--fps", "2"},
         {"bench", "--case", "target", "--runs", "1000", "--json"},
         {"bench", "--scene", kScene, "--runs=1", "--json"},
         {"devices"},
@@ -283,6 +299,30 @@ TEST(Cli, GoodArgumentsReachTheDevice) {
         EXPECT_NE(run.err.find("VK_ERROR_"), std::string::npos) << run.err;  // from Vulkan, not the checks
     }
     EXPECT_FALSE(fs::exists(frame));
+    fs::remove_all(dir);
+}
+
+// A keyframe file that is not a valid animation is refused with the pointer of the bad keyframe (exit 1),
+// before a device starts or a frame is written.
+TEST(Cli, AnimateRefusesBadKeyframesBeforeTheDevice) {
+    const fs::path dir = fs::temp_directory_path() / ("refract_cli_keys_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    const std::pair<std::string, std::string> cases[] = {
+        {R"([{"time": 2, "patch": {}}, {"time": 1, "patch": {}}])", "/1/time: must be later than the keyframe before it"},
+        {R"([{"time": 0, "patch": {"object": {"ior": 0}}}])", "/0/patch/object/ior"},
+        {R"({"time": 0})", "keyframes must be a list"},
+        {R"([{"time": 0, "patch": {}})", "not valid JSON"},
+    };
+    for (const auto& [text, expected] : cases) {
+        const std::string keys = (dir / "keys.json").string(), out = (dir / "frames").string();
+        std::ofstream(keys) << text;
+        const Outcome run = run_refract({"animate", "-", keys, "-o", out});
+        EXPECT_EQ(run.status, 1) << text;
+        EXPECT_TRUE(run.err.starts_with("refract: " + keys + ": ")) << run.err;
+        EXPECT_NE(run.err.find(expected), std::string::npos) << run.err;
+        EXPECT_EQ(run.err.find("VK_ERROR_"), std::string::npos) << run.err;
+        EXPECT_FALSE(fs::exists(out));
+    }
     fs::remove_all(dir);
 }
 

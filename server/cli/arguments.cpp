@@ -25,6 +25,8 @@ Commands:
          [--hdr FRAME.pfm] [--stats STATS.json]
          [--quality still|interactive]    interactive: the passes as refractd runs them during a
                                           drag, at the document's own image size and photon count
+  animate SCENE.json KEYFRAMES.json -o DIR [--fps N]
+                                          a frame sequence: keyframes are merge patches at times
   bench [--scene FILE | --suite standard] [--case PREFIX] [--runs N] [--json]
                                           per-pass GPU milliseconds (timestamp queries) for fixed scenes
   bench --daemon HOST:PORT [--runs N]     a running refractd end to end: edit + frame round trips
@@ -44,13 +46,14 @@ struct Option {
     std::function<void(Arguments&, const std::string& flag, const std::string& value)> store;
 };
 
-// One command: what follows "refract NAME" in its usage, what it does, whether it takes SCENE.json,
-// its options and what they must say together.
+// One command: what follows "refract NAME" in its usage, what it does, whether it takes SCENE.json (and
+// a second input file after it), its options and what they must say together.
 struct Command {
     std::string name, synopsis, description;
     bool takes_scene = false;
     std::vector<Option> options;
     std::function<void(const Arguments&)> check = [](const Arguments&) {};
+    std::string second_input;  // the label of a second input file after SCENE.json (empty: none)
 };
 
 bool ends_with_ignoring_case(const std::string& text, const std::string& suffix) {
@@ -186,6 +189,27 @@ const std::vector<Command>& commands() {
              }),
              [](const Arguments& a) { require_out(a, "render", "-o FRAME.png"); }});
         t.push_back(
+            {"animate",
+             "SCENE.json KEYFRAMES.json -o DIR [--fps N]",
+             "Renders SCENE.json animated by KEYFRAMES.json, a list of {\"time\": seconds, \"patch\": merge\n"
+             "patch}, as DIR/frame_00000.png onwards: one frame every 1/N s from 0 to the last keyframe,\n"
+             "numbers and vectors interpolated between keyframes. Each frame reruns only the passes its\n"
+             "change makes stale; prints a summary (frames, passes rerun per frame) as JSON.",
+             true,
+             with_common_options({
+                 {"--out", "-o", "DIR", "where the frames go (created if missing); required",
+                  [](Arguments& a, const std::string& flag, const std::string& dir) {
+                      check_output_dir(flag, dir);
+                      a.out = dir;
+                  }},
+                 {"--fps", "", "N", "frames per second of animation time, 1 to 240 (default 24)",
+                  [](Arguments& a, const std::string& flag, const std::string& n) {
+                      a.fps = parse_whole_number(flag, n, 1, 240);
+                  }},
+             }),
+             [](const Arguments& a) { require_out(a, "animate", "-o DIR"); },
+             "KEYFRAMES.json"});
+        t.push_back(
             {"bench",
              "[--scene FILE | --suite standard] [--case PREFIX] [--runs N] [--json]\n"
              "       refract bench --daemon HOST:PORT [--runs N] [--json]",
@@ -320,16 +344,22 @@ Invocation parse_command_line(const std::vector<std::string>& args) {
         }
         given.push_back({&*option, flag, value});
     }
-    const size_t scenes = command.takes_scene ? 1 : 0;
-    if (parsed.positional.size() > scenes)
-        throw UsageError("unexpected argument '" + parsed.positional[scenes] + "' (" + command.name +
-                         (command.takes_scene ? " takes one SCENE.json)" : " takes only options)"));
+    const size_t inputs = (command.takes_scene ? 1u : 0u) + (command.second_input.empty() ? 0u : 1u);
+    if (parsed.positional.size() > inputs)
+        throw UsageError("unexpected argument '" + parsed.positional[inputs] + "' (" + command.name +
+                         (!command.takes_scene            ? " takes only options)"
+                          : command.second_input.empty() ? " takes one SCENE.json)"
+                                                          : " takes SCENE.json and " + command.second_input + ")"));
 
     for (const Given& g : given) g.option->store(parsed, g.flag, g.value);
     if (command.takes_scene) {
         if (parsed.positional.empty())
             throw UsageError(command.name + " needs SCENE.json (- for the default scene)");
         if (parsed.positional[0] != "-") check_input_file("SCENE.json", parsed.positional[0]);
+    }
+    if (!command.second_input.empty()) {
+        if (parsed.positional.size() < 2) throw UsageError(command.name + " needs " + command.second_input);
+        check_input_file(command.second_input, parsed.positional[1]);
     }
     command.check(parsed);
     return invocation;

@@ -17,6 +17,7 @@ struct Arguments {
     bool json = false;
     bool interactive = false;  // --quality interactive
     int runs = 0;              // 0: the command's default
+    int fps = 24;              // animate: frames per second of animation time
 };
 
 // A command line that cannot be used; the one-line message names the argument. Exit status 2.

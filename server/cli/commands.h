@@ -10,6 +10,7 @@ int devices_command();
 int voxelize_command(const Arguments& args);
 int trace_command(const Arguments& args);
 int render_command(const Arguments& args);
+int animate_command(const Arguments& args);
 int bench_command(const Arguments& args);
 
 }  // namespace refract::cli

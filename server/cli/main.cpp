@@ -1,4 +1,4 @@
-// refract: the command-line face of the renderer (devices, voxelize, trace, render, bench).
+// refract: the command-line face of the renderer (devices, voxelize, trace, render, animate, bench).
 #include <exception>
 #include <iostream>
 #include <string>
@@ -29,6 +29,7 @@ int main(int argc, char** argv) {
         if (command == "voxelize") return refract::cli::voxelize_command(parsed);
         if (command == "trace") return refract::cli::trace_command(parsed);
         if (command == "render") return refract::cli::render_command(parsed);
+        if (command == "animate") return refract::cli::animate_command(parsed);
         return refract::cli::bench_command(parsed);
     } catch (const refract::cli::UsageError& e) {
         std::cerr << "refract: " << e.what() << "\n";

@@ -198,7 +198,6 @@ private:
                 self->closing_ = true;
                 self->timer_.cancel();
                 self->idle_timer_.cancel();
-            self->idle_timer_.cancel();
                 return;
             }
             std::string text = beast::buffers_to_string(self->incoming_.data());

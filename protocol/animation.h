@@ -1,0 +1,44 @@
+// Keyframed animation of a scene document: merge patches at times, and the document between them.
+// Protocol only (no GPU): the CLI's `animate` and the WebSocket `play` message both go through it.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "protocol/scene_document.h"
+
+namespace refract::protocol {
+
+// Bounds on what one animation may ask for.
+constexpr size_t kMaxKeyframes = 10000;
+constexpr double kMaxAnimationSeconds = 86400.0;
+
+class Animation {
+public:
+    // `keyframes` is a JSON list of {"time": seconds, "patch": merge patch}: times from 0 to
+    // kMaxAnimationSeconds, strictly increasing; each patch applies to the document of the keyframe
+    // before it (the first to `base`). Throws ValidationError whose pointer points into the list
+    // (e.g. /2/patch/object/ior for a patch that makes an invalid document).
+    Animation(const SceneDocument& base, const nlohmann::json& keyframes, const Limits& limits = {});
+
+    // The last keyframe's time: the animation runs from 0 to it.
+    double duration() const { return times_.back(); }
+    size_t keyframes() const { return times_.size(); }
+
+    // The document at time t (seconds): before the first keyframe and after the last, that keyframe's;
+    // between two, every number interpolated linearly, except that an object's rotation turns along the
+    // shortest arc between the two orientations (spherical) unless only one of its angles changes (a
+    // turntable turn keeps every degree asked for, 0 to 720 turns twice), and a light's direction turns
+    // at a constant rate; whole numbers (image size, photon count, resolution), names and switches keep
+    // the earlier keyframe's value until the next keyframe.
+    SceneDocument at(double t) const;
+
+private:
+    std::vector<double> times_;
+    std::vector<nlohmann::json> documents_;  // to_json of each keyframe's document
+    Limits limits_;
+};
+
+}  // namespace refract::protocol
