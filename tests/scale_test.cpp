@@ -261,6 +261,52 @@ TEST_F(ScaleOut, ViewersOnTwoReplicasGetAFrameOfAThirdClientsEdit) {
     }
 }
 
+TEST_F(ScaleOut, MeshesAndIndexGridsUploadedToOneReplicaRenderOnTheOthers) {
+    auto r1 = client_for(replicas_[0]->port());
+    auto r2 = client_for(replicas_[1]->port());
+    auto r3 = client_for(replicas_[2]->port());
+    const std::string tetrahedron = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    auto uploaded = r1.Put("/api/meshes/tet", tetrahedron, "text/plain");
+    ASSERT_TRUE(uploaded);
+    ASSERT_EQ(uploaded->status, 201) << uploaded->body;
+    json document = kSmallScene;
+    document["object"] = {{"mesh", "upload:tet"}};
+    auto created = r2.Post("/api/scenes?id=assets", document.dump(), "application/json");
+    ASSERT_TRUE(created);
+    ASSERT_EQ(created->status, 201) << created->body;
+    auto meshes = r3.Get("/api/meshes");
+    ASSERT_TRUE(meshes);
+    EXPECT_NE(meshes->body.find("\"tet\""), std::string::npos) << meshes->body;
+    auto frame = r3.Get("/api/scenes/assets/frame.png");
+    ASSERT_TRUE(frame);
+    EXPECT_EQ(frame->status, 200) << frame->body;
+
+    // A re-upload through another replica: the replica holding the scene sees the new version and
+    // voxelizes again.
+    const std::string bigger = "v 0 0 0\nv 2 0 0\nv 0 2 0\nv 0 0 2\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    ASSERT_EQ(r2.Put("/api/meshes/tet", bigger, "text/plain")->status, 201);
+    frame = r3.Get("/api/scenes/assets/frame.png?width=32&height=32");
+    ASSERT_TRUE(frame);
+    ASSERT_EQ(frame->status, 200) << frame->body;
+    EXPECT_NE(frame->get_header_value("X-Refract-Passes").find("voxelize"), std::string::npos)
+        << frame->get_header_value("X-Refract-Passes");
+
+    // An index grid (a simulation's field) stored through one replica, rendered by another.
+    constexpr uint32_t n = 8;
+    std::vector<float> values(n * n * n);
+    for (size_t i = 0; i < values.size(); ++i) values[i] = 1.0f + 0.05f * static_cast<float>(i % n);
+    std::string body(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));
+    auto put = r1.Put("/api/scenes/assets/index-field?nx=8&ny=8&nz=8&min=-1,-1,-1&max=1,1,1", body,
+                      "application/octet-stream");
+    ASSERT_TRUE(put);
+    ASSERT_EQ(put->status, 200) << put->body;
+    EXPECT_EQ(json::parse(put->body)["revision"], 2);
+    frame = r2.Get("/api/scenes/assets/frame.png");
+    ASSERT_TRUE(frame);
+    EXPECT_EQ(frame->status, 200) << frame->body;
+    EXPECT_EQ(frame->get_header_value("X-Refract-Revision"), "2");
+}
+
 TEST_F(ScaleOut, TheDatabaseGoingAwayAnswers503WithAReasonLosesNothingAndRecovers) {
     auto client = client_for(replicas_[0]->port());
     ASSERT_EQ(client.Post("/api/scenes?id=outage", kSmallScene.dump(), "application/json")->status, 201);
@@ -268,7 +314,17 @@ TEST_F(ScaleOut, TheDatabaseGoingAwayAnswers503WithAReasonLosesNothingAndRecover
     ASSERT_EQ(patch(client, "outage", {{"image", {{"exposure", 1.0}}}}, &answer), 200);
     ASSERT_EQ(answer["revision"], 2);
 
+    WsClient viewer(replicas_[0]->port(), "/api/scenes/outage/ws");
+    viewer.send({{"seq", 1}, {"refine", 0}});
+    EXPECT_EQ(viewer.read_frame().first["revision"], 2);
+
     pg_ctl("stop -m fast");
+    // A WebSocket edit is refused with the reason and the session stays open; a new session is refused.
+    viewer.send({{"seq", 2}, {"patch", {{"image", {{"exposure", 2.5}}}}}});
+    json refusal = json::parse(viewer.read().second);
+    EXPECT_EQ(refusal["type"], "error");
+    EXPECT_NE(refusal.value("error", "").find("scene store unavailable"), std::string::npos) << refusal.dump();
+    EXPECT_THROW(WsClient(replicas_[0]->port(), "/api/scenes/outage/ws"), boost::system::system_error);
     int status = patch(client, "outage", {{"image", {{"exposure", 2.0}}}}, &answer);
     EXPECT_EQ(status, 503);
     EXPECT_NE(answer.value("error", "").find("scene store unavailable"), std::string::npos) << answer.dump();
@@ -301,6 +357,7 @@ TEST_F(ScaleOut, TheDatabaseGoingAwayAnswers503WithAReasonLosesNothingAndRecover
     EXPECT_EQ(scene["revision"], 4);
     EXPECT_EQ(scene["scene"]["image"]["exposure"], last_exposure);
     EXPECT_EQ(json::parse(client.Get("/api/health")->body)["status"], "ok");
+    EXPECT_TRUE(replicas_[0]->running());
 }
 
 TEST_F(ScaleOut, TwentyScenesSurviveAReplicaKilledDuringAPatchBurst) {

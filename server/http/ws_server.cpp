@@ -178,8 +178,16 @@ private:
         if (!service_.authorized(authorization, query_value(query, "token")))
             return refuse(bhttp::status::unauthorized, "missing or wrong bearer token");
         scene_id_ = scene_of_path(path_);
-        if (scene_id_.empty() || !service_.store().get(scene_id_))
-            return refuse(bhttp::status::not_found, "no scene at " + path_);
+        std::optional<scene::SceneSnapshot> viewed;
+        try {
+            if (!scene_id_.empty()) viewed = service_.store().get(scene_id_);
+        } catch (const scene::StoreError& e) {
+            return refuse(bhttp::status::service_unavailable, e.what());
+        }
+        if (!viewed) return refuse(bhttp::status::not_found, "no scene at " + path_);
+        // Edits are pushed from here on: an announcement of this revision or an older one that arrives
+        // late (another replica's NOTIFY) is not news to this viewer.
+        submitted_revision_ = viewed->revision;
 
         beast::get_lowest_layer(ws_).expires_never();
         ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
@@ -297,7 +305,12 @@ private:
     // pushes only the frames asked for.
     void refine_after(const json& seq, const scene::FrameOptions& rendered, uint64_t revision) {
         if (want_frame_ || closing_ || refine_to_ == 0) return;
-        auto current = service_.store().get(scene_id_);
+        std::optional<scene::SceneSnapshot> current;
+        try {
+            current = service_.store().get(scene_id_);
+        } catch (const scene::StoreError&) {
+            return;  // the store is away: refinement waits for the next message
+        }
         if (!current || current->revision != revision) return;
         if (rendered.quality == scene::Quality::still) {
             if (rendered.level >= refine_to_) return;
@@ -324,7 +337,14 @@ private:
 
     void submit_frame() {
         if (in_flight_ || !want_frame_ || closing_) return;
-        auto snapshot = service_.store().get(scene_id_);
+        std::optional<scene::SceneSnapshot> snapshot;
+        try {
+            snapshot = service_.store().get(scene_id_);
+        } catch (const scene::StoreError& e) {
+            // A shared store's database is away: the session stays open and the next message retries.
+            want_frame_ = false;
+            return send_error(wanted_seq_, e.what());
+        }
         if (!snapshot) {
             want_frame_ = false;
             return send_error(wanted_seq_, "the scene was deleted");

@@ -259,7 +259,7 @@ void PgSceneStore::listen() {
                     if (revision > 0) publish(id, revision);
                 }
             }
-        } catch (const StoreError& e) {
+        } catch (const std::exception& e) {
             // Viewers miss the edits made while the database is away; their next message or frame
             // request reads the newest revision.
             std::cerr << "refractd: scene notifications paused: " << e.what() << "\n";
