@@ -51,6 +51,9 @@ Connection::Connection(const std::string& url) : conn_(nullptr, PQfinish) {
     if (PQstatus(conn_.get()) != CONNECTION_OK)
         throw StoreError(503, "scene store unavailable: cannot connect to PostgreSQL (" + describe() +
                                   "): " + trimmed(PQerrorMessage(conn_.get())));
+    backend_start_ = exec("SELECT backend_start::text FROM pg_stat_activity WHERE pid = pg_backend_pid()", {},
+                          "identifying the connection's server process")
+                         .text(0, 0);
 }
 
 std::string Connection::describe() const {

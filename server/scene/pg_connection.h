@@ -63,6 +63,10 @@ public:
     // False once the server has gone or a transaction was left open: the pool drops it.
     bool reusable() const;
     PGconn* raw() const { return conn_.get(); }
+    // The server process serving this connection and when it started (together they name it even
+    // after the process is gone and its pid reused); still known after the connection is lost.
+    int backend_pid() const { return PQbackendPID(conn_.get()); }
+    const std::string& backend_start() const { return backend_start_; }
     // "database refract on 127.0.0.1:5432", never the password.
     std::string describe() const;
 
@@ -71,6 +75,7 @@ private:
     Result checked(Result result, const std::string& doing) const;
 
     std::unique_ptr<PGconn, void (*)(PGconn*)> conn_;
+    std::string backend_start_;
 };
 
 // Connections for the request threads: at most `max_size` open, borrowed one per statement sequence.

@@ -124,16 +124,62 @@ EditResult PgSceneStore::patch(const std::string& id, const nlohmann::json& merg
         // Optimistic concurrency: the update takes only if nobody committed since the read. Zero rows
         // means another replica won: with If-Match that is the client's 412, without it we edit the
         // newer revision. The statement is its own transaction: its success is the commit.
-        pg::Result updated = connection->exec(
-            "UPDATE scenes SET document = $2::jsonb, revision = revision + 1 WHERE id = $1 AND revision = $3",
-            {{id}, {dump(result.after.document)}, {text_of(current->revision)}},
-            "committing revision " + text_of(result.after.revision) + " of scene '" + id +
-                "' (if the connection was lost here, the outcome is unknown: GET the scene to see its revision)");
-        if (updated.affected() == 1) return result;  // the trigger's NOTIFY tells every replica's viewers
+        uint64_t affected = 0;
+        try {
+            affected = connection
+                           ->exec("UPDATE scenes SET document = $2::jsonb, revision = revision + 1 "
+                                  "WHERE id = $1 AND revision = $3",
+                                  {{id}, {dump(result.after.document)}, {text_of(current->revision)}},
+                                  "committing revision " + text_of(result.after.revision) + " of scene '" + id + "'")
+                           .affected();
+        } catch (const StoreError& e) {
+            if (e.status() != 503) throw;
+            // The answer was lost, not necessarily the edit: acknowledge it if it committed, and say
+            // which it was when it did not.
+            switch (outcome_of_lost_update(*connection, result.after)) {
+                case LostUpdate::committed:
+                    return result;
+                case LostUpdate::not_applied:
+                    throw StoreError(503, std::string(e.what()) + "; the edit was not applied");
+                case LostUpdate::unknown:
+                    throw StoreError(503, std::string(e.what()) +
+                                              "; whether the edit was applied is unknown until the database "
+                                              "answers again: GET the scene to see its revision");
+            }
+        }
+        if (affected == 1) return result;  // the trigger's NOTIFY tells every replica's viewers
         if (if_match)
             throw StoreError(412, "scene moved past revision " + text_of(*if_match) + " while this edit was applied");
     }
     throw StoreError(503, "scene '" + id + "' is edited too fast to apply this edit; try again");
+}
+
+PgSceneStore::LostUpdate PgSceneStore::outcome_of_lost_update(const pg::Connection& lost,
+                                                               const SceneSnapshot& after) const {
+    try {
+        pg::Connection check(pool_.url());
+        // Once the server process that ran the update has exited, its transaction is settled one way or
+        // the other (it cannot commit later); then the row says which. PostgreSQL 14+ waits for the exit.
+        const std::string pid = std::to_string(lost.backend_pid());
+        constexpr std::string_view kLostProcess =
+            " FROM pg_stat_activity WHERE pid = $1::int AND backend_start = $2::timestamptz";
+        check.exec("SELECT pg_terminate_backend(pid, 5000)" + std::string(kLostProcess), {{pid}, {lost.backend_start()}},
+                   "ending the lost connection's server process");
+        if (check.exec("SELECT 1" + std::string(kLostProcess), {{pid}, {lost.backend_start()}}, "checking it ended")
+                .rows() != 0)
+            return LostUpdate::unknown;
+        pg::Result row = check.exec("SELECT revision, document::text FROM scenes WHERE id = $1", {{after.id}},
+                                    "reading scene '" + after.id + "'");
+        if (row.rows() == 0) return LostUpdate::unknown;  // deleted since: what came first cannot be told
+        const uint64_t revision = row.number(0, 0);
+        if (revision < after.revision) return LostUpdate::not_applied;
+        if (revision == after.revision)  // the same number by another writer means ours lost the race
+            return snapshot(after.id, revision, row.text(0, 1)).document == after.document ? LostUpdate::committed
+                                                                                         : LostUpdate::not_applied;
+        return LostUpdate::unknown;  // edited again since: ours may be in between
+    } catch (const std::exception&) {
+        return LostUpdate::unknown;
+    }
 }
 
 MeshEntry PgSceneStore::put_mesh(const std::string& name, const std::string& obj_text) {

@@ -42,6 +42,10 @@ public:
 private:
     // A stored document as a snapshot; documents stored under looser limits than this run's are kept.
     SceneSnapshot snapshot(const std::string& id, uint64_t revision, const std::string& document) const;
+    // Whether an update whose connection was lost before its answer committed: committed, not
+    // applied, or unknown (the database cannot be asked).
+    enum class LostUpdate { committed, not_applied, unknown };
+    LostUpdate outcome_of_lost_update(const pg::Connection& lost, const SceneSnapshot& after) const;
     // LISTEN refract_scenes on a connection of its own, publishing each notification; reconnects
     // when the database comes back.
     void listen();
