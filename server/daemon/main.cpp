@@ -125,6 +125,14 @@ int run(const http::DaemonConfig& config) {
     } stop_queue{queue};
     if (context) service.device_bytes.store(context->allocated_bytes());
 
+    // Another replica's deletions and mesh uploads reach this daemon's render queue as its own do (the
+    // routes tell the queue of those made here; telling it twice costs nothing).
+    scene::Subscription forget = store.on_change([&queue](const scene::StoreEvent& event) {
+        if (event.kind == scene::StoreEvent::Kind::deleted) queue.forget_scene(event.name);
+        if (event.kind == scene::StoreEvent::Kind::mesh || event.kind == scene::StoreEvent::Kind::missed)
+            queue.forget_cached_frames();
+    });
+
     http::WsServer ws(service);
     // WebSocket upgrades on the HTTP port go to the same endpoint (one port suffices behind a proxy).
     http::ApiServer api(service, [&ws](http::UpgradePtr upgrade) { ws.adopt(std::move(upgrade)); });

@@ -94,11 +94,13 @@ public:
     }
 
     // Revision `revision` of scene `id` is committed (by anyone, on any replica): a viewer of that scene
-    // gets its frame unless it has asked for or rendered that revision already. Safe from any thread.
-    void scene_changed(const std::string& id, uint64_t revision) {
-        net::post(ws_.get_executor(), [self = shared_from_this(), id, revision] {
-            if (!self->viewing_ || self->closing_ || id != self->scene_id_) return;
-            if (revision <= self->submitted_revision_ || self->want_frame_) return;
+    // gets its frame unless it has asked for or rendered that revision already. nullopt: announcements
+    // may have been lost, every viewer gets a frame of what is current. Safe from any thread.
+    void scene_changed(std::optional<std::pair<std::string, uint64_t>> revision) {
+        net::post(ws_.get_executor(), [self = shared_from_this(), revision] {
+            if (!self->viewing_ || self->closing_ || self->want_frame_) return;
+            if (revision && (revision->first != self->scene_id_ || revision->second <= self->submitted_revision_))
+                return;
             self->idle_timer_.cancel();
             self->newer_message_->store(true);  // a refinement level in flight gives way
             self->wanted_seq_ = nullptr;        // nobody on this session asked: no seq to echo
@@ -476,7 +478,6 @@ struct SessionRegistry {
     std::mutex mutex;
     std::set<WsSession*> live;
     std::vector<std::weak_ptr<WsSession>> refs;
-    bool stopped = false;  // no more posts to sessions: their io_context is stopping
 };
 
 struct WsServer::Impl {
@@ -489,6 +490,7 @@ struct WsServer::Impl {
     net::steady_timer accept_retry{ioc};
     bool started = false;
     std::atomic<bool> stopped{false};
+    std::optional<scene::Subscription> edits;  // committed revisions, pushed to the sessions viewing them
 
     explicit Impl(Service& s) : service(s) {}
 
@@ -549,18 +551,20 @@ void WsServer::start() {
     impl_->started = true;
     // Every committed revision (from this daemon or, with a shared store, any replica) goes to each
     // session, which keeps it only if it views that scene: a few hundred sessions at most.
-    impl_->service.store().on_change([registry = impl_->registry](const std::string& id, uint64_t revision) {
+    impl_->edits.emplace(impl_->service.store().on_change([registry = impl_->registry](const scene::StoreEvent& event) {
+        using Kind = scene::StoreEvent::Kind;
+        if (event.kind != Kind::revision && event.kind != Kind::missed) return;
         // Released after the lock: a last reference's destructor takes the registry's lock itself.
         std::vector<std::shared_ptr<WsSession>> told;
         std::lock_guard lock(registry->mutex);
-        if (registry->stopped) return;
         for (const auto& ref : registry->refs) {
             if (auto session = ref.lock()) {
-                session->scene_changed(id, revision);
+                if (event.kind == Kind::missed) session->scene_changed(std::nullopt);
+                else session->scene_changed(std::pair{event.name, event.revision});
                 told.push_back(std::move(session));
             }
         }
-    });
+    }));
     impl_->accept();
     for (int i = 0; i < 2; ++i) impl_->threads.emplace_back([this] { impl_->ioc.run(); });
 }
@@ -573,10 +577,7 @@ void WsServer::adopt(UpgradePtr upgrade) {
 void WsServer::stop() {
     if (impl_->stopped || !impl_->started) return;
     impl_->stopped = true;
-    {
-        std::lock_guard lock(impl_->registry->mutex);
-        impl_->registry->stopped = true;
-    }
+    impl_->edits.reset();  // no more posts to sessions: their io_context is stopping
     net::post(impl_->ioc, [this] {
         beast::error_code ignored;
         impl_->acceptor.close(ignored);

@@ -29,6 +29,21 @@ std::string text_of(uint64_t number) {
     return std::to_string(number);
 }
 
+// A payload of refract_notify() (pg_schema.cpp) as an event; nullopt for one this build does not know.
+std::optional<StoreEvent> parse_notification(std::string_view payload) {
+    const size_t space = payload.find(' ');
+    if (space == std::string_view::npos) return std::nullopt;
+    const std::string_view kind = payload.substr(0, space), rest = payload.substr(space + 1);
+    if (kind == "deleted") return StoreEvent{StoreEvent::Kind::deleted, std::string(rest), 0};
+    if (kind == "mesh") return StoreEvent{StoreEvent::Kind::mesh, std::string(rest), 0};
+    const size_t split = rest.find(' ');
+    uint64_t revision = 0;
+    if (kind != "revision" || split == std::string_view::npos ||
+        std::from_chars(rest.data() + split + 1, rest.data() + rest.size(), revision).ec != std::errc())
+        return std::nullopt;
+    return StoreEvent{StoreEvent::Kind::revision, std::string(rest.substr(0, split)), revision};
+}
+
 }  // namespace
 
 PgSceneStore::PgSceneStore(const std::string& url, protocol::Limits limits, mesh::MeshLimits mesh_limits)
@@ -284,10 +299,13 @@ std::shared_ptr<const IndexGrid> PgSceneStore::grid(const std::string& name) con
 }
 
 void PgSceneStore::listen() {
-    while (!stopping_) {
+    for (bool first = true; !stopping_;) {
         try {
             pg::Connection connection(pool_.url());
             connection.exec("LISTEN refract_scenes", "listening for edits");
+            // Whatever was announced while this connection was down is lost: say so.
+            if (!first) publish({StoreEvent::Kind::missed, {}, 0});
+            first = false;
             while (!stopping_) {
                 pollfd fd{PQsocket(connection.raw()), POLLIN, 0};
                 if (::poll(&fd, 1, 250) < 0) continue;
@@ -295,14 +313,9 @@ void PgSceneStore::listen() {
                     throw StoreError(503, std::string("lost the notification connection: ") +
                                               PQerrorMessage(connection.raw()));
                 while (PGnotify* note = PQnotifies(connection.raw())) {
-                    std::string_view payload = note->extra;
-                    size_t space = payload.find(' ');
-                    uint64_t revision = 0;
-                    if (space != std::string_view::npos)
-                        std::from_chars(payload.data() + space + 1, payload.data() + payload.size(), revision);
-                    std::string id(payload.substr(0, space));
+                    std::optional<StoreEvent> event = parse_notification(note->extra);
                     PQfreemem(note);
-                    if (revision > 0) publish(id, revision);
+                    if (event) publish(*event);
                 }
             }
         } catch (const std::exception& e) {

@@ -15,8 +15,8 @@ constexpr std::string_view kMigrationLock = "SELECT pg_advisory_xact_lock(735241
 // Version 1. The revision rules live in the database, so no writer (another replica, a script) can
 // break them: ids as the daemon accepts them (lower case only, so ids differing in case cannot both
 // exist), revisions in [1, 2^53 - 1], a new scene at 1 and each update exactly one more than the row
-// held. Every committed revision is announced on channel refract_scenes as "id revision" (NOTIFY
-// payloads are small: never the document), to every replica's viewers.
+// held. Every committed change is announced on channel refract_scenes, to every replica: "revision ID N",
+// "deleted ID", "mesh NAME" (NOTIFY payloads are small: never the document).
 constexpr std::array<std::string_view, kSchemaVersion> kMigrations = {R"sql(
 CREATE TABLE scenes (
     id text PRIMARY KEY CONSTRAINT scene_id_format CHECK (id ~ '^[a-z0-9-]{1,32}$'),
@@ -37,13 +37,6 @@ BEGIN
 END $$;
 CREATE TRIGGER scenes_revision BEFORE INSERT OR UPDATE ON scenes
     FOR EACH ROW EXECUTE FUNCTION refract_scene_revision();
-CREATE FUNCTION refract_scene_notify() RETURNS trigger LANGUAGE plpgsql AS $$
-BEGIN
-    PERFORM pg_notify('refract_scenes', NEW.id || ' ' || NEW.revision);
-    RETURN NULL;
-END $$;
-CREATE TRIGGER scenes_notify AFTER INSERT OR UPDATE ON scenes
-    FOR EACH ROW EXECUTE FUNCTION refract_scene_notify();
 CREATE TABLE meshes (
     name text PRIMARY KEY CONSTRAINT mesh_name_format
         CHECK (name ~ '^[A-Za-z0-9_.-]{1,64}$' AND name NOT IN ('.', '..')),
@@ -56,6 +49,21 @@ CREATE TABLE grids (
     data bytea NOT NULL,
     version bigint NOT NULL DEFAULT 1
 );
+CREATE FUNCTION refract_notify() RETURNS trigger LANGUAGE plpgsql AS $$
+BEGIN
+    IF TG_TABLE_NAME = 'meshes' THEN
+        PERFORM pg_notify('refract_scenes', 'mesh ' || NEW.name);
+    ELSIF TG_OP = 'DELETE' THEN
+        PERFORM pg_notify('refract_scenes', 'deleted ' || OLD.id);
+    ELSE
+        PERFORM pg_notify('refract_scenes', 'revision ' || NEW.id || ' ' || NEW.revision);
+    END IF;
+    RETURN NULL;
+END $$;
+CREATE TRIGGER scenes_notify AFTER INSERT OR UPDATE OR DELETE ON scenes
+    FOR EACH ROW EXECUTE FUNCTION refract_notify();
+CREATE TRIGGER meshes_notify AFTER INSERT OR UPDATE ON meshes
+    FOR EACH ROW EXECUTE FUNCTION refract_notify();
 )sql"};
 
 }  // namespace

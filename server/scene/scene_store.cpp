@@ -239,7 +239,7 @@ SceneSnapshot SceneStore::create(const std::string& id, const nlohmann::json& do
     }
     persist_scene(entry->current);
     scenes_[entry->current.id] = entry;
-    publish(entry->current.id, entry->current.revision);
+    publish({StoreEvent::Kind::revision, entry->current.id, entry->current.revision});
     return entry->current;
 }
 
@@ -277,9 +277,12 @@ bool SceneStore::remove(const std::string& id) {
         std::lock_guard lock(mutex_);
         scenes_.erase(id);
     }
-    std::lock_guard assets(asset_mutex_);
-    fs::remove(grid_path(id), ec);
-    grids_.erase(id);
+    {
+        std::lock_guard assets(asset_mutex_);
+        fs::remove(grid_path(id), ec);
+        grids_.erase(id);
+    }
+    publish({StoreEvent::Kind::deleted, id});
     return true;
 }
 
@@ -313,7 +316,7 @@ EditResult SceneStore::patch(const std::string& id, const nlohmann::json& merge_
         std::lock_guard edit(entry->edit_mutex);
         result = apply(entry, merge_patch, if_match);
     }
-    if (result.changed) publish(id, result.after.revision);
+    if (result.changed) publish({StoreEvent::Kind::revision, id, result.after.revision});
     return result;
 }
 
@@ -328,6 +331,7 @@ MeshEntry SceneStore::put_mesh(const std::string& name, const std::string& obj_t
     fs::path report_path = data_dir_ / "meshes" / (name + ".json");
     write_file_atomically(report_path, report.data(), report.size());
     meshes_[name] = std::move(parsed);  // a new pointer: the renderer sees the re-upload and re-voxelizes
+    publish({StoreEvent::Kind::mesh, name});
     return entry;
 }
 
@@ -391,7 +395,7 @@ EditResult SceneStore::put_index_grid(const std::string& scene_id, IndexGrid gri
         result.changed = true;
     }
     edit.unlock();
-    publish(scene_id, result.after.revision);
+    publish({StoreEvent::Kind::revision, scene_id, result.after.revision});
     return result;
 }
 

@@ -123,19 +123,26 @@ Assets Store::assets() const {
     return assets;
 }
 
-void Store::on_change(SceneChanged listener) {
+Subscription Store::on_change(StoreListener listener) const {
     std::lock_guard lock(listeners_mutex_);
-    listeners_.push_back(std::move(listener));
+    listeners_.emplace(next_listener_, std::move(listener));
+    return Subscription(this, next_listener_++);
 }
 
-void Store::publish(const std::string& id, uint64_t revision) const {
+Subscription::~Subscription() {
+    if (!store_) return;
+    std::lock_guard lock(store_->listeners_mutex_);
+    store_->listeners_.erase(id_);
+}
+
+void Store::publish(const StoreEvent& event) const {
     std::lock_guard lock(listeners_mutex_);
-    for (const auto& listener : listeners_) {
+    for (const auto& [id, listener] : listeners_) {
         try {
-            listener(id, revision);
+            listener(event);
         } catch (const std::exception& e) {
             // A viewer that cannot be told must not turn a committed edit into a failed request.
-            std::cerr << "refractd: change listener for scene '" << id << "' failed: " << e.what() << "\n";
+            std::cerr << "refractd: change listener for '" << event.name << "' failed: " << e.what() << "\n";
         }
     }
 }

@@ -5,12 +5,14 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "mesh/mesh.h"
@@ -79,9 +81,34 @@ std::string strip_upload_prefix(const std::string& name);
 // Eight random hex digits: the id of a scene created without one.
 std::string random_hex_id();
 
-// Called with a scene's id and revision once that revision is committed (by this process or, for a
-// shared store, by any replica).
-using SceneChanged = std::function<void(const std::string& id, uint64_t revision)>;
+// What a store announces once it is committed (by this process or, for a shared store, by any replica):
+// a new revision of a scene, a scene's deletion, or a new version of an uploaded mesh (which changes
+// frames without a new revision); or that announcements may have been lost (a shared store's listener
+// reconnected), so whatever was cached may be stale.
+struct StoreEvent {
+    enum class Kind { revision, deleted, mesh, missed };
+    Kind kind = Kind::revision;
+    std::string name;       // the scene's id, or the mesh's name
+    uint64_t revision = 0;  // Kind::revision only
+};
+using StoreListener = std::function<void(const StoreEvent&)>;
+
+class Store;
+
+// A registered listener; unregisters it on destruction, after any call in progress has returned.
+class Subscription {
+public:
+    Subscription(const Store* store, uint64_t id) : store_(store), id_(id) {}
+    ~Subscription();
+    Subscription(Subscription&& other) noexcept : store_(std::exchange(other.store_, nullptr)), id_(other.id_) {}
+    Subscription& operator=(Subscription&&) = delete;
+    Subscription(const Subscription&) = delete;
+    Subscription& operator=(const Subscription&) = delete;
+
+private:
+    const Store* store_;
+    uint64_t id_;
+};
 
 class Store {
 public:
@@ -123,16 +150,19 @@ public:
     // Lookups for the renderer (called on the render thread).
     Assets assets() const;
 
-    // Registers `listener` for every committed revision from now on; listeners live as long as the store.
-    void on_change(SceneChanged listener);
+    // Registers `listener` for every event until the subscription goes.
+    [[nodiscard]] Subscription on_change(StoreListener listener) const;
 
 protected:
-    // Tells every listener that `revision` of scene `id` is committed. Never throws.
-    void publish(const std::string& id, uint64_t revision) const;
+    // Tells every listener. Never throws.
+    void publish(const StoreEvent& event) const;
 
 private:
-    mutable std::mutex listeners_mutex_;
-    std::vector<SceneChanged> listeners_;
+    friend class Subscription;
+
+    mutable std::mutex listeners_mutex_;  // held while listeners run: unsubscribing waits for them
+    mutable std::map<uint64_t, StoreListener> listeners_;
+    mutable uint64_t next_listener_ = 0;
 };
 
 }  // namespace refract::scene
