@@ -948,6 +948,103 @@ TEST(Daemon, WebSocketPushesRefinementLevelsUntilTheCap) {
     expect_alive(daemon);
 }
 
+// A played animation: its frames come in order with their place in it, from the animation's
+// documents, and the scene itself never changes; stop (or any edit) ends it, bad plays change nothing.
+TEST(Daemon, WebSocketPlaysKeyframesIntoTheViewerAndStops) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "played");
+    const json before = get_json(client, "/api/scenes/" + id);
+    WsClient ws(daemon.ws_port(), "/api/scenes/" + id + "/ws");
+    ws.send({{"seq", 1}, {"refine", 0}});
+    ws.read_frame();
+
+    // Bad plays: each refused with a pointer into the message.
+    const std::pair<json, std::string> bad[] = {
+        {{{"type", "play"}}, "/keyframes"},
+        {{{"type", "play"}, {"keyframes", json::array()}}, "/keyframes"},
+        {{{"type", "play"}, {"keyframes", {{{"time", 1}, {"patch", json::object()}}, {{"time", 0}, {"patch", json::object()}}}}},
+         "/keyframes/1/time"},
+        {{{"type", "play"}, {"keyframes", {{{"time", 0}, {"patch", {{"light", {{"intensity", -1}}}}}}}}},
+         "/keyframes/0/patch/light/intensity"},
+        {{{"type", "play"}, {"fps", 0}, {"keyframes", {{{"time", 0}, {"patch", json::object()}}}}}, "/fps"},
+        {{{"type", "play"}, {"fps", 61}, {"keyframes", {{{"time", 0}, {"patch", json::object()}}}}}, "/fps"},
+        {{{"type", "play"}, {"patch", {{"light", {{"intensity", 9.0}}}}}, {"keyframes", {{{"time", 0}, {"patch", json::object()}}}}},
+         "/patch"},
+        {{{"type", "stop"}, {"patch", {{"light", {{"intensity", 9.0}}}}}}, "/patch"},
+    };
+    for (const auto& [message, pointer] : bad) {
+        json m = message;
+        m["seq"] = 2;
+        ws.send(m);
+        auto [is_text, payload] = ws.read();
+        ASSERT_TRUE(is_text);
+        const json error = json::parse(payload);
+        EXPECT_EQ(error["type"], "error") << m.dump();
+        EXPECT_EQ(error["pointer"], pointer) << m.dump();
+    }
+    ws.send({{"seq", 2}, {"type", "rewind"}});
+    EXPECT_EQ(json::parse(ws.read().second)["type"], "error");
+
+    // Half a second at 10 frames/s: frames 0 to 5, the light's intensity from 2 to 60 and its colour red.
+    ws.send({{"seq", 3},
+             {"type", "play"},
+             {"fps", 10},
+             {"keyframes",
+              {{{"time", 0}, {"patch", {{"light", {{"intensity", 2.0}}}}}},
+               {{"time", 0.5}, {"patch", {{"light", {{"intensity", 60.0}, {"color", {1.0, 0.0, 0.0}}}}}}}}}});
+    int64_t last_index = -1;
+    std::string first_png, last_png;
+    for (;;) {
+        auto [header, png] = ws.read_frame();
+        ASSERT_TRUE(header.contains("play")) << header.dump();
+        EXPECT_EQ(header["seq"], 3);
+        EXPECT_EQ(header["revision"], 1);
+        const json& play = header["play"];
+        EXPECT_EQ(play["frames"], 6);
+        EXPECT_GT(play["frame"].get<int64_t>(), last_index);  // in order; late frames may be skipped
+        last_index = play["frame"].get<int64_t>();
+        EXPECT_DOUBLE_EQ(play["time"].get<double>(), static_cast<double>(last_index) / 10.0);
+        if (first_png.empty()) {
+            EXPECT_EQ(last_index, 0);
+            first_png = png;
+        }
+        last_png = png;
+        if (play["last"].get<bool>()) break;
+    }
+    EXPECT_EQ(last_index, 5);
+    EXPECT_NE(first_png, last_png);
+    EXPECT_EQ(get_json(client, "/api/scenes/" + id), before);  // played, never stored
+
+    // A long play, stopped after its first frame: "stopped" says how far it got, and no played frame follows.
+    ws.send({{"seq", 4},
+             {"type", "play"},
+             {"fps", 2},
+             {"keyframes", {{{"time", 0}, {"patch", json::object()}}, {{"time", 60}, {"patch", {{"light", {{"intensity", 9.0}}}}}}}}});
+    auto [played, played_png] = ws.read_frame();
+    EXPECT_EQ(played["play"]["frame"], 0);
+    ws.send({{"seq", 5}, {"type", "stop"}});
+    json stopped;
+    for (int messages = 0; stopped.is_null(); ++messages) {
+        ASSERT_LT(messages, 6);
+        auto [is_text, payload] = ws.read();
+        if (!is_text) continue;
+        const json m = json::parse(payload);
+        if (m["type"] == "stopped") stopped = m;
+        else EXPECT_EQ(m["type"], "frame");
+    }
+    EXPECT_EQ(stopped["seq"], 5);
+    EXPECT_EQ(stopped["play_seq"], 4);
+    EXPECT_GE(stopped["frames"], 1);
+    ws.send({{"seq", 6}, {"patch", {{"light", {{"intensity", 7.0}}}}}});
+    auto [edited, edited_png] = ws.read_frame();
+    EXPECT_EQ(edited["seq"], 6);
+    EXPECT_EQ(edited["revision"], 2);
+    EXPECT_FALSE(edited.contains("play"));
+    expect_alive(daemon);
+}
+
 TEST(Daemon, FrameQueryTakesABudgetAndARefinementLevel) {
     TempDir dir;
     Daemon daemon(dir.path() / "data");

@@ -156,7 +156,34 @@ TEST_F(RendererTest, RefinementLevelsAreDeterministicHoweverTheyAreReached) {
     EXPECT_THROW(direct.render("b", doc, no_assets, yielding), Superseded);
     const FrameResult after = direct.render("b", doc, no_assets, {Quality::still, kDefaultBudgetMs, 3});
     EXPECT_EQ(after.png, frames[2]);
-    EXPECT_EQ(after.rerun & kVoxelize, 0u);
+    EXPECT_EQ(after.rerun & kVoxelize, 0u) << pass_names(after.rerun);
+}
+
+// A refinement step runs in parts (passes::kWorkPart photons or pixels, a submission each) and asks
+// whether to give way after each: the parts make the same bytes as one submission, and giving way after
+// the first part leaves no trace in the level asked for next.
+TEST_F(RendererTest, RefinementStepsGiveWayBetweenPartsAndKeepTheirBytes) {
+    using passes::kWorkPart;
+    // Level 2 adds a photon batch: 2 parts of photons, then a check before the view (one part: 32 x 32).
+    // Level 17 adds an eye-ray sample: a 512 x 256 image is 2 parts of pixels.
+    const SceneDocument photons = small({{"photons", {{"count", 2 * kWorkPart}}}});
+    const SceneDocument pixels = small({{"image", {{"width", 512}, {"height", kWorkPart / 256}}}});
+    for (const auto& [doc, level, checks] : {std::tuple{photons, 2u, 2}, std::tuple{pixels, kMaxPhotonBatches + 1, 1}}) {
+        SCOPED_TRACE(level);
+        Renderer whole(*context), parted(*context), yielded(*context);
+        const FrameResult reference = whole.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level});
+        parted.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level - 1});
+        int asked = 0;
+        const FrameResult in_parts = parted.render(
+            "a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level, [&] { return ++asked, false; }});
+        EXPECT_EQ(asked, checks);
+        EXPECT_EQ(in_parts.png, reference.png);
+        // Giving way at the first chance: no frame; the level asked for again is the same bytes.
+        yielded.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level - 1});
+        EXPECT_THROW(yielded.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level, [] { return true; }}),
+                     Superseded);
+        EXPECT_EQ(yielded.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level}).png, reference.png);
+    }
 }
 
 // Interactive frames deposit photons into a coarser radiance grid.// Interactive frames deposit photons into a coarser radiance grid. With 4096 photons and a 32-pixel

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "http/upgrade.h"
+#include "protocol/animation.h"
 
 namespace refract::http {
 
@@ -36,6 +37,7 @@ constexpr size_t kMaxSessions = 256;                  // open connections, hands
 constexpr size_t kMaxQueuedErrors = 64;               // unsent error messages per session
 constexpr auto kIdleBeforeStill = std::chrono::milliseconds(250);
 constexpr size_t kMaxSeqBytes = 256;                  // a string `seq`; it is echoed in every answer
+constexpr int64_t kMaxPlayFps = 60;                   // frames per second a played animation may ask for
 
 // The value of `name` in a query string ("a=1&token=x"), decoded; empty when absent.
 std::string query_value(std::string_view query, std::string_view name) {
@@ -98,7 +100,8 @@ public:
     // may have been lost, every viewer gets a frame of what is current. Safe from any thread.
     void scene_changed(std::optional<std::pair<std::string, uint64_t>> revision) {
         net::post(ws_.get_executor(), [self = shared_from_this(), revision] {
-            if (!self->viewing_ || self->closing_ || self->want_frame_) return;
+            // A played animation is its own scene's frames; edits show once it stops.
+            if (!self->viewing_ || self->closing_ || self->want_frame_ || self->play_) return;
             if (revision && (revision->first != self->scene_id_ || revision->second <= self->submitted_revision_))
                 return;
             self->idle_timer_.cancel();
@@ -123,6 +126,23 @@ public:
     }
 
 private:
+    // An animation played into this viewer (protocol/animation.h): its frames are rendered from the
+    // animation's documents, never stored; the scene's own document is untouched.
+    struct Play {
+        protocol::Animation animation;
+        double fps = 24.0;
+        uint64_t frames = 1;  // frame i shows time i / fps, up to the last keyframe
+        uint64_t id = 0;
+        std::chrono::steady_clock::time_point start;
+        uint64_t next = 0;      // the first frame not yet rendered
+        uint64_t rendered = 0;  // frames pushed
+        json seq;
+    };
+    struct PlayedFrame {
+        uint64_t play = 0, index = 0, frames = 0;
+        double time = 0.0;
+    };
+
     struct Outgoing {
         bool binary = false;
         std::shared_ptr<const std::string> text;          // text messages
@@ -247,6 +267,11 @@ private:
             }
             seq = given;
         }
+        const json type = message.contains("type") ? message["type"] : json("edit");
+        if (type != "edit" && type != "play" && type != "stop") {
+            service_.metrics().record_ws_message(true);
+            return send_error(seq, "type must be \"edit\" (the default), \"play\" or \"stop\"");
+        }
         scene::Quality quality = scene::Quality::interactive;
         if (message.contains("quality")) {
             const json& q = message["quality"];
@@ -277,6 +302,19 @@ private:
             }
             refine_to = static_cast<uint32_t>(r.get<uint64_t>());
         }
+        // A played animation, checked whole against the scene as it is now.
+        std::optional<Play> play;
+        if (type == "play") {
+            try {
+                play = start_play(message, seq);
+            } catch (const protocol::ValidationError& e) {
+                service_.metrics().record_ws_message(true);
+                return send_error(seq, e.what(), e.pointer());  // a pointer into the message
+            }
+        } else if (type == "stop" && message.contains("patch")) {
+            service_.metrics().record_ws_message(true);
+            return send_error(seq, "stop takes no patch", "/patch");
+        }
         if (message.contains("patch")) {
             try {
                 service_.store().patch(scene_id_, message["patch"]);
@@ -291,6 +329,10 @@ private:
         service_.metrics().record_ws_message(false);
         budget_ms_ = budget_ms;
         refine_to_ = refine_to;
+        // Any message ends the animation playing (latest wins); `stop` asks for nothing more.
+        if (play_) stop_play(seq);
+        if (type == "stop") return;
+        play_ = std::move(play);
         // Latest wins: remember only the newest request; the frame after the one in flight renders it.
         // Any message stops refinement: the frame it asks for comes next.
         idle_timer_.cancel();
@@ -317,12 +359,12 @@ private:
         if (rendered.quality == scene::Quality::still) {
             if (rendered.level >= refine_to_) return;
             wanted_seq_ = seq;
-            // A level gives way halfway when anything else waits for the render thread: this session's
-            // next message (which waits here, one frame in flight a session), or another frame.
+            // A level gives way after any part of its work when this session's next message waits (here:
+            // one frame in flight a session) or another frame does that is not a refinement level.
             newer_message_ = std::make_shared<std::atomic<bool>>(false);
             wanted_options_ = {scene::Quality::still, budget_ms_, rendered.level + 1,
                                [newer = newer_message_, &queue = service_.queue()] {
-                                   return newer->load() || queue.queued() > 0;
+                                   return newer->load() || queue.queued_ahead_of_refinement() > 0;
                                }};
             want_frame_ = true;
             return submit_frame();
@@ -352,14 +394,42 @@ private:
             return send_error(wanted_seq_, "the scene was deleted");
         }
         submitted_revision_ = std::max(submitted_revision_, snapshot->revision);
-        scene::FrameRequest request{snapshot->id, snapshot->revision, snapshot->document, wanted_options_};
+        scene::FrameRequest request{snapshot->id, snapshot->revision, snapshot->document, wanted_options_, {}};
+        std::optional<PlayedFrame> played;
+        if (play_) {
+            // Played in real time: the frame due now, skipping those the renderer could not keep up with;
+            // a frame not yet due waits for its time.
+            const auto elapsed = std::chrono::steady_clock::now() - play_->start;
+            const auto due_now = static_cast<uint64_t>(std::chrono::duration<double>(elapsed).count() * play_->fps);
+            const uint64_t index = std::min(std::max(play_->next, due_now), play_->frames - 1);
+            const auto due = play_->start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                std::chrono::duration<double>(static_cast<double>(index) / play_->fps));
+            if (due > std::chrono::steady_clock::now()) {
+                timer_.expires_at(due);
+                timer_.async_wait([self = shared_from_this()](beast::error_code ec) {
+                    if (!ec) self->submit_frame();
+                });
+                return;
+            }
+            const double time = static_cast<double>(index) / play_->fps;
+            try {
+                request.document = play_->animation.at(time);
+            } catch (const protocol::ValidationError& e) {
+                want_frame_ = false;
+                const json seq = play_->seq;
+                play_.reset();
+                return send_error(seq, "the animation's document at " + std::to_string(time) + " s: " + e.what());
+            }
+            request.playback = std::to_string(play_->id);
+            played = PlayedFrame{play_->id, index, play_->frames, time};
+        }
         json seq = wanted_seq_;
         scene::FrameOptions options = wanted_options_;
         auto self = shared_from_this();
         bool accepted = service_.queue().submit(
-            std::move(request), [self, seq, options](const scene::FrameOutcome& outcome) {
+            std::move(request), [self, seq, options, played](const scene::FrameOutcome& outcome) {
                 net::post(self->ws_.get_executor(),
-                          [self, seq, options, outcome] { self->on_frame(seq, options, outcome); });
+                          [self, seq, options, played, outcome] { self->on_frame(seq, options, outcome, played); });
             });
         if (!accepted) {
             // Queue full: try again shortly rather than dropping the newest state.
@@ -373,9 +443,11 @@ private:
         want_frame_ = false;
     }
 
-    void on_frame(const json& seq, const scene::FrameOptions& options, const scene::FrameOutcome& outcome) {
+    void on_frame(const json& seq, const scene::FrameOptions& options, const scene::FrameOutcome& outcome,
+                  const std::optional<PlayedFrame>& played) {
         in_flight_ = false;
         if (closing_) return;
+        if (played && (!play_ || play_->id != played->play)) return submit_frame();  // stopped meanwhile
         const scene::Quality quality = options.quality;
         if (outcome.status == scene::FrameOutcome::Status::superseded) {
             // Refinement gave way to a newer request, which is queued; it resumes after that request's frame.
@@ -398,12 +470,55 @@ private:
                            {"photons", frame.photons},
                            {"refine", refine_to_}};
             if (quality == scene::Quality::interactive) header["budget_ms"] = options.budget_ms;
+            if (played) {
+                const bool last = played->index + 1 == played->frames;
+                header["play"] = {{"frame", played->index}, {"frames", played->frames}, {"time", played->time},
+                                  {"last", last}};
+                ++play_->rendered;
+                play_->next = played->index + 1;
+                if (last) play_.reset();
+                else want_frame_ = true;
+            }
             // A slow reader gets the newest frame only: an unsent older one is dropped, never queued.
             pending_frame_ = {std::make_shared<const std::string>(dump_json(header)), outcome.frame};
             write_next();
-            refine_after(seq, options, outcome.revision);
+            if (!played) refine_after(seq, options, outcome.revision);
         }
         submit_frame();
+    }
+
+    // The play a `play` message asks for. Throws ValidationError with a pointer into the message.
+    Play start_play(const json& message, const json& seq) {
+        if (message.contains("patch")) throw protocol::ValidationError("/patch", "play takes no patch");
+        if (!message.contains("keyframes")) throw protocol::ValidationError("/keyframes", "play needs keyframes");
+        double fps = 24.0;
+        if (message.contains("fps")) {
+            const json& f = message["fps"];
+            if (!f.is_number_unsigned() || f.get<uint64_t>() < 1 || f.get<uint64_t>() > kMaxPlayFps)
+                throw protocol::ValidationError("/fps", "must be an integer in [1, " + std::to_string(kMaxPlayFps) + "]");
+            fps = static_cast<double>(f.get<uint64_t>());
+        }
+        auto current = service_.store().get(scene_id_);
+        if (!current) throw protocol::ValidationError("", "the scene was deleted");
+        try {
+            protocol::Animation animation(current->document, message["keyframes"], service_.store().limits());
+            const auto frames = static_cast<uint64_t>(std::floor(animation.duration() * fps)) + 1;
+            return Play{std::move(animation), fps, frames, ++plays_, std::chrono::steady_clock::now(), 0, 0, seq};
+        } catch (const protocol::ValidationError& e) {
+            std::string pointer = "/keyframes";
+            pointer += e.pointer();
+            throw protocol::ValidationError(pointer, e.rule());
+        }
+    }
+
+    // Ends the animation playing, telling the viewer how far it got; `seq` is the message that ended it.
+    void stop_play(const json& seq) {
+        json stopped = {{"type", "stopped"}, {"seq", seq}, {"play_seq", play_->seq}, {"frames", play_->rendered}};
+        play_.reset();
+        want_frame_ = false;
+        pending_frame_.reset();  // an unsent played frame: the viewer asked for no more of them
+        outbox_.push_back({false, std::make_shared<const std::string>(dump_json(stopped)), nullptr});
+        write_next();
     }
 
     void write_next() {
@@ -464,6 +579,8 @@ private:
     uint32_t refine_to_ = scene::kMaxRefinementLevel;      // the last refinement level pushed
     // Set by a message that arrives while a refinement level renders: the level gives way to it.
     std::shared_ptr<std::atomic<bool>> newer_message_ = std::make_shared<std::atomic<bool>>(false);
+    std::optional<Play> play_;  // the animation playing, if any
+    uint64_t plays_ = 0;        // plays started: each play's frames are keyed apart in the render queue
 
     bool writing_ = false;
     Outgoing current_;

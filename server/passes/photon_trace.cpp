@@ -80,14 +80,20 @@ void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumu
 }
 
 void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
-                             const PhotonAccumulators& accum, uint32_t photon_count, bool sampled_deposits) const {
-    const auto groups = vk::linear_groups(photon_count, TRANSPORT_GROUP_SIZE);
+                             const PhotonAccumulators& accum, uint32_t photon_count, bool sampled_deposits,
+                             const BetweenParts& between) const {
     const vk::ComputePipeline& pipeline = (sampled_deposits ? sampled_ : exact_)(in.variant);
     const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, accum.stats),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP, accum.light_map)};
-    pipeline.dispatch(recorder.get(), transport_bindings(in, own), nullptr, 0, groups.x, groups.y);
+    // Photons take their indices from a queue in order, so parts of the dispatch trace consecutive ranges.
+    const uint32_t part = between ? kWorkPart : photon_count;
+    for (uint32_t first = 0; first < photon_count; first += part) {
+        if (first > 0) between();
+        const auto groups = vk::linear_groups(std::min(part, photon_count - first), TRANSPORT_GROUP_SIZE);
+        pipeline.dispatch(recorder.get(), transport_bindings(in, own), nullptr, 0, groups.x, groups.y);
+    }
 }
 
 }  // namespace refract::passes

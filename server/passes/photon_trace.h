@@ -39,9 +39,10 @@ public:
     explicit PhotonTracePass(vk::Context& context);
     // Traces `photon_count` photons into the accumulators (under dispersive transport each parts into a
     // path per channel where it first meets a gradient of n); `sampled_deposits`: one deposit per radiance
-    // voxel of path instead of one per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS).
+    // voxel of path instead of one per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS). With `between`,
+    // in parts of kWorkPart photons, `between` running after each part but the last.
     void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const PhotonAccumulators& accum,
-                uint32_t photon_count, bool sampled_deposits) const;
+                uint32_t photon_count, bool sampled_deposits, const BetweenParts& between = {}) const;
 
 private:
     TransportPipeline exact_, sampled_;

@@ -1,5 +1,7 @@
 #include "passes/view.h"
 
+#include <algorithm>
+
 #include "transport.h"
 #include "view_spv.h"
 
@@ -25,7 +27,7 @@ ViewPass::ViewPass(vk::Context& context)
 
 void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, const vk::Image3D& radiance,
                       const vk::Image3D& flux, const vk::Image3D& floor_map, const ViewOutputs& out,
-                      uint32_t width, uint32_t height, bool adaptive) const {
+                      uint32_t width, uint32_t height, bool adaptive, const BetweenParts& between) const {
     // Only the view's counters restart (steps and its two pixel queues, adjacent): the photon pass's
     // counters belong to the last photon run.
     static_assert(offsetof(shaders::PhotonStats, queue_taken) + 4 * QUEUE_VIEW_PIXELS ==
@@ -51,8 +53,14 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
     const auto bindings = transport_bindings(in, own);
     const vk::ComputePipeline& view = pipeline_(in.variant);
     if (!adaptive) {
-        view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_ALL},
-                      vk::group_count(width, VIEW_GROUP_SIZE), vk::group_count(height, VIEW_GROUP_SIZE));
+        // Pixels come from a queue in order (take_from_queue): parts of the group rows trace consecutive ones.
+        const uint32_t columns = vk::group_count(width, VIEW_GROUP_SIZE), rows = vk::group_count(height, VIEW_GROUP_SIZE);
+        const uint32_t part = between ? std::max(1u, kWorkPart / (columns * VIEW_GROUP_SIZE * VIEW_GROUP_SIZE)) : rows;
+        for (uint32_t first = 0; first < rows; first += part) {
+            if (first > 0) between();
+            view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_ALL}, columns,
+                          std::min(part, rows - first));
+        }
         return;
     }
     view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_COARSE},

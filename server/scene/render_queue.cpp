@@ -1,5 +1,6 @@
 #include "scene/render_queue.h"
 
+#include <algorithm>
 #include <exception>
 #include <iostream>
 
@@ -27,6 +28,10 @@ std::string RenderQueue::key_of(const FrameRequest& request) {
     key += '|';  // appended: GCC 12 reports a false -Wrestrict for "|" + std::string (its bug 105329)
     key += request.options.quality == Quality::interactive ? std::to_string(request.options.budget_ms)
                                                            : std::to_string(request.options.level);
+    if (!request.playback.empty()) {
+        key += "|play:";
+        key += request.playback;
+    }
     return key;
 }
 
@@ -49,7 +54,7 @@ bool RenderQueue::submit(FrameRequest request, FrameCallback done) {
 
     // A frame of this revision (or newer) with the same size and quality exists: answer with it.
     auto cached = last_frame_.find(request.scene_id);
-    if (cached != last_frame_.end() && cached->second.key == key &&
+    if (request.playback.empty() && cached != last_frame_.end() && cached->second.key == key &&
         cached->second.revision >= request.revision) {
         FrameOutcome outcome{
             FrameOutcome::Status::ok, {}, cached->second.revision, cached->second.frame, true};
@@ -61,7 +66,7 @@ bool RenderQueue::submit(FrameRequest request, FrameCallback done) {
     ++waiters_;
 
     // The frame being rendered already covers this revision: wait for it instead of rendering again.
-    if (in_flight_ && in_flight_key_ == key && !in_flight_stale_ &&
+    if (request.playback.empty() && in_flight_ && in_flight_key_ == key && !in_flight_stale_ &&
         in_flight_->request.revision >= request.revision) {
         in_flight_->waiters.push_back(std::move(done));
         return true;
@@ -71,7 +76,7 @@ bool RenderQueue::submit(FrameRequest request, FrameCallback done) {
     if (inserted) {
         pending.request = std::move(request);
         order_.push_back(key);
-    } else if (request.revision > pending.request.revision) {
+    } else if (request.revision > pending.request.revision || !request.playback.empty()) {
         pending.request = std::move(request);  // latest wins; the key keeps its place in the round-robin
     }
     pending.waiters.push_back(std::move(done));
@@ -135,9 +140,12 @@ void RenderQueue::forget_cached_frames() {
     if (in_flight_) in_flight_stale_ = true;
 }
 
-size_t RenderQueue::queued() const {
+size_t RenderQueue::queued_ahead_of_refinement() const {
     std::lock_guard lock(mutex_);
-    return pending_.size();
+    return static_cast<size_t>(std::count_if(pending_.begin(), pending_.end(), [](const auto& entry) {
+        const FrameOptions& o = entry.second.request.options;
+        return o.quality == Quality::interactive || o.level <= 1;
+    }));
 }
 
 size_t RenderQueue::waiting() const {
@@ -231,7 +239,7 @@ void RenderQueue::run() {
 
         lock.lock();
         std::vector<FrameCallback> waiters = std::move(in_flight_->waiters);
-        if (outcome.frame && !in_flight_stale_)
+        if (outcome.frame && !in_flight_stale_ && request.playback.empty())
             last_frame_[request.scene_id] = Rendered{in_flight_key_, outcome.revision, outcome.frame};
         in_flight_.reset();
         waiters_ -= waiters.size();

@@ -28,6 +28,10 @@ struct FrameRequest {
     uint64_t revision = 0;
     protocol::SceneDocument document;  // the document at `revision`, image size already overridden
     FrameOptions options;  // quality, frame-time budget, refinement level
+    // Non-empty for a frame of an animation played into a viewer: its document is not the stored
+    // revision's, so it is keyed by this tag, never answered from or kept as the scene's cached frame,
+    // and shared with no other waiter.
+    std::string playback;
 };
 
 // What a waiter gets. `frame` is set on success; otherwise `status` says why and `error` in words.
@@ -86,8 +90,10 @@ public:
     void stop();
 
     size_t waiting() const;
-    // Requests queued behind the frame being rendered (all scenes).
-    size_t queued() const;
+    // Requests queued behind the frame being rendered (all scenes) that a refinement level gives way to:
+    // all but other refinement levels (still frames past level 1), which take their turns whole, so
+    // that two scenes refining at once both progress.
+    size_t queued_ahead_of_refinement() const;
     uint64_t frames_rendered() const { return frames_rendered_.load(); }
 
 private:

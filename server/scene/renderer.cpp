@@ -209,30 +209,24 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
                     passes = kView;
                 }
             }
-            auto run = [&](PassSet these) {
-                const RunStats stats = resident.gpu->run(these, document, world, grid.get(), run_options);
-                frame.rerun |= stats.ran;
-                for (const auto& [name, ms] : stats.gpu_ms) add_timing(frame.timings, name, ms);
-                frame.photons_traced += stats.photons_entered;
-                photon_steps += stats.photon_steps;
-            };
-            if (step > 1 && passes == kPhotons && options.give_way) {
-                // Two submissions, so that waiting work can come between them.
-                run_options.limit = kAllPasses & ~(kView | kToneMap);
-                run(kPhotons);
-                if (options.give_way()) {
-                    // What the GPU holds now: this document, its photons one batch past its frame.
-                    resident.document = document;
-                    resident.mesh = mesh;
-                    resident.grid = grid;
-                    resident.interactive.reset();
-                    resident.level = 0;
-                    throw Superseded();
-                }
-                run_options.limit = kAllPasses;
-                passes = kView;
+            // A step past the first runs in parts and gives way between them when other work waits.
+            if (step > 1) run_options.give_way = options.give_way;
+            RunStats stats;
+            try {
+                stats = resident.gpu->run(passes, document, world, grid.get(), run_options);
+            } catch (const Superseded&) {
+                // What the GPU holds now: this document, with part of a step the frame does not hold.
+                resident.document = document;
+                resident.mesh = mesh;
+                resident.grid = grid;
+                resident.interactive.reset();
+                resident.level = 0;
+                throw;
             }
-            run(passes);
+            frame.rerun |= stats.ran;
+            for (const auto& [name, ms] : stats.gpu_ms) add_timing(frame.timings, name, ms);
+            frame.photons_traced += stats.photons_entered;
+            photon_steps += stats.photon_steps;
         }
         frame.mean_steps_per_photon =
             frame.photons_traced ? static_cast<double>(photon_steps) / static_cast<double>(frame.photons_traced) : 0.0;

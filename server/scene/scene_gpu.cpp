@@ -178,9 +178,28 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         if (imported) grid_values_.write(grid_asset->n.data(), count * sizeof(float));
     }
 
-    // One submission for every stale pass; each pass is bracketed by timestamps.
-    const VkCommandBuffer cmd = recorder_.begin();
+    // One submission for every stale pass (a refinement step: one per part of its photons and view, so
+    // that it can give way after any); each pass is bracketed by timestamps.
+    VkCommandBuffer cmd = recorder_.begin();
     timer_.reset(cmd);
+    std::vector<std::pair<std::string, double>> earlier_ms;  // pass times of this run's earlier submissions
+    auto submit_part = [&] {
+        recorder_.submit_and_wait();
+        for (auto& timing : timer_.read()) earlier_ms.push_back(std::move(timing));
+        if (options.give_way()) throw Superseded();
+        cmd = recorder_.begin();
+        timer_.reset(cmd);
+        recorder_.compute_barrier();  // the parts before wrote what the next reads and adds to
+    };
+    // Between two parts of the pass timed as `scope`.
+    auto between_parts = [&](const char* scope) -> passes::BetweenParts {
+        if (!options.give_way) return {};
+        return [&, scope] {
+            timer_.end(cmd);
+            submit_part();
+            timer_.begin(cmd, scope);
+        };
+    };
     // Uploads the recorded commands read; they live until the submission completes.
     std::optional<passes::VoxelizeUploads> uploads;
     vk::Buffer coverage_upload;
@@ -235,18 +254,21 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                                      grid_.coarsened(options.radiance_factor));
             recorder_.compute_barrier();
         }
-        kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count, options.sampled_deposits);
+        kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count, options.sampled_deposits,
+                                 between_parts("photons"));
         recorder_.compute_barrier();
         kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, grey(), radiance_, flux_, floor_map_);
         recorder_.compute_barrier();
         kit_.lit_pyramid.record(recorder_, params_buffer_, flux_, accum_->lit_blocks, index_field_.extent());
         recorder_.compute_barrier();
         timer_.end(cmd);
+        if (options.give_way && (stale & kView)) submit_part();
     }
     if (stale & kView) {
         timer_.begin(cmd, "view");
         kit_.view.record(recorder_, inputs, radiance_, flux_, floor_map_,
-                         {hdr_, accum_->stats, accum_->lit_blocks, refine_}, width_, height_, options.adaptive_view);
+                         {hdr_, accum_->stats, accum_->lit_blocks, refine_}, width_, height_, options.adaptive_view,
+                         between_parts("view"));
         recorder_.compute_barrier();
         timer_.end(cmd);
     }
@@ -262,7 +284,13 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
 
     RunStats stats;
     stats.ran = stale;
-    stats.gpu_ms = timer_.read();
+    // One entry per pass: the parts of a pass split over submissions summed.
+    for (auto& timing : timer_.read()) earlier_ms.push_back(std::move(timing));
+    for (const auto& [name, ms] : earlier_ms) {
+        auto same = std::find_if(stats.gpu_ms.begin(), stats.gpu_ms.end(), [&](const auto& t) { return t.first == name; });
+        if (same == stats.gpu_ms.end()) stats.gpu_ms.emplace_back(name, ms);
+        else same->second += ms;
+    }
     if (stale & (kPhotons | kView)) {
         shaders::PhotonStats counters{};
         accum_->stats.read(&counters, sizeof(counters));

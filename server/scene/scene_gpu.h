@@ -3,6 +3,7 @@
 // tests and the CLI use it directly to read intermediate volumes back.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -73,6 +74,11 @@ struct RunOptions {
     // a jittered sample into the frame's running mean of s + 1 samples. Runs must come in order.
     uint32_t photon_batch = 0;
     uint32_t view_sample = 0;
+    // Set for refinement steps: the photon and view dispatches then run in parts of about
+    // passes::kWorkPart photons or pixels, a submission each, and this is asked after each; when it says
+    // other work waits, the run stops there (Superseded), and what its photon and view passes hold is
+    // partial: the caller must run them again (the renderer drops the refinement level).
+    std::function<bool()> give_way;
 };
 
 // Device memory a scene of this size holds (bytes), for budgets before allocating.
