@@ -357,6 +357,8 @@ TEST_F(ScaleOut, ConnectionsCutMidEditNeitherLoseNorInventAnEdit) {
     }
     stop = true;
     cutter.join();
+    // A server process told to end a moment ago may still be closing its connection.
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
     json scene;
     for (auto deadline = Clock::now() + std::chrono::seconds(10); Clock::now() < deadline && scene.is_null();)
         scene = get_scene(client, "cut");

@@ -1,5 +1,7 @@
 #include "scene/pg_connection.h"
 
+#include <poll.h>
+
 #include <charconv>
 #include <cstring>
 
@@ -9,6 +11,9 @@ namespace {
 
 // SQLSTATE classes libpq reports (PostgreSQL manual, appendix A).
 constexpr std::string_view kUniqueViolation = "23505";
+// Classes that mean the server, not the statement, failed: 08 connection exception, 57 operator
+// intervention (a terminated backend, a shutdown), 53 insufficient resources (too many connections).
+constexpr std::string_view kUnavailableClasses[] = {"08", "57", "53"};
 
 std::string trimmed(const char* message) {
     std::string text = message ? message : "";
@@ -63,6 +68,13 @@ std::string Connection::describe() const {
     return std::string("database ") + (db ? db : "?") + " on " + (host ? host : "?") + ":" + (port ? port : "?");
 }
 
+bool Connection::still_open() const {
+    // An idle connection is sent nothing but a goodbye (the FATAL a terminated server process sends
+    // before it closes) or the close itself: anything to read means it is going.
+    pollfd fd{PQsocket(conn_.get()), POLLIN, 0};
+    return PQstatus(conn_.get()) == CONNECTION_OK && ::poll(&fd, 1, 0) == 0;
+}
+
 bool Connection::reusable() const {
     return PQstatus(conn_.get()) == CONNECTION_OK && PQtransactionStatus(conn_.get()) == PQTRANS_IDLE;
 }
@@ -103,6 +115,10 @@ Result Connection::checked(Result result, const std::string& doing) const {
     const char* state = PQresultErrorField(result.raw(), PG_DIAG_SQLSTATE);
     std::string why = trimmed(PQresultErrorMessage(result.raw()));
     if (state && kUniqueViolation == state) throw StoreError(409, doing + ": " + why);
+    for (std::string_view unavailable : kUnavailableClasses)
+        if (state && std::string_view(state).substr(0, 2) == unavailable)
+            throw StoreError(503, "scene store unavailable while " + doing + ": PostgreSQL (" + describe() +
+                                      "): " + why);
     throw StoreError(500, "PostgreSQL refused " + doing + ": " + why);
 }
 
@@ -129,10 +145,11 @@ Pool::Lease Pool::acquire() {
     if (!returned_.wait_for(lock, std::chrono::seconds(10), [&] { return !idle_.empty() || open_ < max_size_; }))
         throw StoreError(503, "scene store busy: all " + std::to_string(max_size_) +
                                   " PostgreSQL connections in use for 10 s");
-    if (!idle_.empty()) {
+    while (!idle_.empty()) {
         std::unique_ptr<Connection> connection = std::move(idle_.back());
         idle_.pop_back();
-        return Lease(*this, std::move(connection));
+        if (connection->still_open()) return Lease(*this, std::move(connection));
+        --open_;
     }
     ++open_;
     lock.unlock();

@@ -62,6 +62,10 @@ public:
 
     // False once the server has gone or a transaction was left open: the pool drops it.
     bool reusable() const;
+    // For an idle connection, without waiting: false when the server has sent it anything, which is
+    // only ever a goodbye (a restart, a terminated server process); a pool would otherwise learn it
+    // only when the next statement fails.
+    bool still_open() const;
     PGconn* raw() const { return conn_.get(); }
     // The server process serving this connection and when it started (together they name it even
     // after the process is gone and its pid reused); still known after the connection is lost.
@@ -98,7 +102,8 @@ public:
         std::unique_ptr<Connection> connection_;
     };
 
-    // An idle connection, or a new one; waits while `max_size` are borrowed (StoreError(503) after 10 s).
+    // An idle connection that is still open, or a new one; waits while `max_size` are borrowed
+    // (StoreError(503) after 10 s).
     Lease acquire();
     const std::string& url() const { return url_; }
 
