@@ -84,7 +84,9 @@ public:
         std::vector<char*> argv;
         for (auto& arg : args) argv.push_back(arg.data());
         argv.push_back(nullptr);
-        if (posix_spawnp(&pid_, "haproxy", nullptr, nullptr, argv.data(), environ) != 0)
+        // Debian puts it in /usr/sbin, which a non-root PATH may lack.
+        if (posix_spawnp(&pid_, "haproxy", nullptr, nullptr, argv.data(), environ) != 0 &&
+            posix_spawn(&pid_, "/usr/sbin/haproxy", nullptr, nullptr, argv.data(), environ) != 0)
             throw std::runtime_error("cannot start haproxy (REFRACT_TEST_SERVICES=1 bash scripts/install-deps.sh)");
         auto client = client_for(port_);
         for (auto deadline = Clock::now() + std::chrono::seconds(20); Clock::now() < deadline;) {

@@ -8,6 +8,7 @@ Usage: validate_manifests.py SOURCE_DIR   (ctest: deploy_manifests)
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -164,7 +165,9 @@ class Manifests(unittest.TestCase):
             k8s_cfg.write(HAPROXY_K8S_CFG)
             k8s_cfg.flush()
             for config in (os.path.join(SOURCE, "deploy/haproxy/haproxy.cfg"), k8s_cfg.name):
-                check = subprocess.run(["haproxy", "-c", "-f", config], env=env, capture_output=True, text=True)
+                # Debian puts it in /usr/sbin, which a non-root PATH may lack.
+                haproxy = shutil.which("haproxy") or "/usr/sbin/haproxy"
+                check = subprocess.run([haproxy, "-c", "-f", config], env=env, capture_output=True, text=True)
                 self.assertEqual(check.returncode, 0, check.stdout + check.stderr)
 
 
