@@ -199,7 +199,8 @@ function onBinary(blob) {
   const meta = state.frameMeta || {};
   state.frameMeta = null;
   const inf = state.inflight;
-  const answers = inf && (meta.seq === undefined || meta.seq === null || meta.seq >= inf.seq);
+  // A frame with a null seq answers nobody here: the daemon pushed it for another client's edit.
+  const answers = inf && (meta.seq === undefined || (meta.seq !== null && meta.seq >= inf.seq));
   const quality = meta.quality || (answers ? inf.quality : 'still');
   if (answers) {
     if (inf.patch) state.confirmed = S.applyMergePatch(state.confirmed, inf.patch);
