@@ -609,6 +609,36 @@ async function main() {
     assert((await sceneOnServer(sceneId)).revision === back.revision, 'a broken import changed the scene');
   });
 
+  await check('keyframes played into the view, the scene unchanged; bad keyframes reported', async () => {
+    const before = await sceneOnServer(sceneId);
+    const played0 = await page.evaluate(() => window.refract.playedFrames);
+    // One second of a light swinging across (24 frames/s): the client shows each frame as it comes.
+    const keys = [{ time: 0, patch: { light: { position: [2.5, 2.5, 1], direction: [-2.5, -3, -1] } } },
+                  { time: 1, patch: { light: { position: [-2.5, 2.5, 1], direction: [2.5, -3, -1] } } }];
+    await page.setInputFiles('#keyframes-file', { name: 'swing.json', mimeType: 'application/json',
+      buffer: Buffer.from(JSON.stringify(keys)) });
+    await waitFor(page, () => window.refract.playing() !== null && window.refract.playedFrames > 0 &&
+      document.getElementById('play-stop').hidden === false);
+    await shot(page, '07e-playing.png');
+    await waitFor(page, () => window.refract.playing() === null);
+    const played = await page.evaluate(() => window.refract.playedFrames);
+    const last = await page.evaluate(() => window.refract.lastMeta);
+    assert(played - played0 >= 2, `only ${played - played0} played frames drawn`);
+    const note = await page.evaluate(() => document.getElementById('scene-file-status').textContent);
+    assert(/Played swing\.json: 25 frames/.test(note) || last.play === undefined, `status "${note}"`);
+    await waitSettled(page, -1);
+    const after = await sceneOnServer(sceneId);
+    assert(after.revision === before.revision, `playing changed the scene: r${before.revision} -> r${after.revision}`);
+    // Keyframes out of order: the daemon's pointer is shown at the control, nothing plays.
+    const errors0 = await page.evaluate(() => window.refract.errors);
+    await page.setInputFiles('#keyframes-file', { name: 'backwards.json', mimeType: 'application/json',
+      buffer: Buffer.from(JSON.stringify([{ time: 1, patch: {} }, { time: 0, patch: {} }])) });
+    await waitFor(page, (n) => window.refract.errors > n, errors0);
+    const err = await page.evaluate(() => window.refract.lastError);
+    assert(err.pointer === '/keyframes/1/time', `play error pointer ${err.pointer}`);
+    assert(await page.evaluate(() => window.refract.playing()) === null, 'a refused play is still shown as playing');
+  });
+
   await check('the dispersion example and its Abbe number control', async () => {
     await applyExample(page, 'dispersion');
     const applied = await sceneOnServer(sceneId);

@@ -372,8 +372,14 @@ class SceneFileField extends Field {
     this.exportButton = h('button', { type: 'button', id: 'scene-export', text: 'Export JSON' });
     this.status = h('p', { class: 'note', id: 'scene-file-status', 'aria-live': 'polite' });
     this.exportButton.addEventListener('click', () => hooks.exportScene(this));
+    // An animation (keyframes: a list of {time, patch}, as `refract animate` takes) played into this view.
+    const play = filePicker('keyframes-file', '.json,application/json', 'Play keyframes…', (f) => hooks.playKeyframes(f, this));
+    this.playFile = play.input;
+    this.stopButton = h('button', { type: 'button', id: 'play-stop', text: 'Stop', hidden: true });
+    this.stopButton.addEventListener('click', () => hooks.stopPlay());
     this.describe(this.file);
-    this.el.append(this.label, h('div', { class: 'row' }, this.file, picker.label, this.exportButton), this.status, this.error);
+    this.el.append(this.label, h('div', { class: 'row' }, this.file, picker.label, this.exportButton),
+      h('div', { class: 'row' }, this.playFile, play.label, this.stopButton), this.status, this.error);
   }
 }
 

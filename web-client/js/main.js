@@ -63,6 +63,7 @@ const state = {
   example: null,          // { name, doc }: the example the scene still is
   meshBounds: {},         // uploaded mesh name -> bounds in its own units
   ticker: null,
+  playing: null,          // { seq, name, field, at }: keyframes playing into this view (at: the last frame's place)
 };
 
 // Named one-shot timers (debounces); `settled` below waits for all of them.
@@ -97,6 +98,8 @@ const hooks = {
   lastInteractiveDraw: null,
   dims: 0,             // times the frame shown was dimmed for a pending one
   downloads: 0,
+  playedFrames: 0,     // frames of played animations drawn
+  playing: () => state.playing?.name ?? null,
   busy: () => Boolean(state.inflight || state.pendingQuality || state.replacing),
   // Connected, nothing in flight or queued or about to be, and the last frame is a decoded still.
   settled: () => hooks.connected && !state.inflight && !state.pendingQuality && !state.replacing &&
@@ -114,7 +117,7 @@ function view() {
 }
 
 const controls = buildControls($('controls'), (patch, final) => edit(patch, final), {
-  upload: uploadMesh, meshPatch, loadExample, importScene, exportScene,
+  upload: uploadMesh, meshPatch, loadExample, importScene, exportScene, playKeyframes, stopPlay,
 });
 
 // Queues an edit (or, with a null patch, just a frame) and sends it when the link is free.
@@ -192,7 +195,9 @@ function onText(data) {
   let msg;
   try { msg = JSON.parse(data); } catch { return; }
   if (msg.type === 'frame') state.frameMeta = msg;
+  else if (msg.type === 'error' && state.playing && msg.seq === state.playing.seq) playFailed(msg);
   else if (msg.type === 'error') onServerError(msg);
+  else if (msg.type === 'stopped') endPlay(`Stopped after ${msg.frames} frame${msg.frames === 1 ? '' : 's'}.`);
 }
 
 function onBinary(blob) {
@@ -221,6 +226,11 @@ function onBinary(blob) {
     const consistent = meta.revision === expected || (ours && expected !== null && meta.revision === expected + 1);
     state.confirmedRevision = meta.revision;
     if (!consistent && expected !== null) resync();  // someone else edited the scene
+  }
+  if (meta.play && state.playing) {
+    hooks.playedFrames++;
+    state.playing.at = meta.play;
+    if (meta.play.last) endPlay(`Played ${state.playing.name}: ${meta.play.frames} frames.`);
   }
   state.lastFrame = { revision: state.confirmedRevision, quality };
   state.lastPng = blob;
@@ -373,6 +383,9 @@ function updateProgress() {
     text = $('conn').textContent;
   } else if (state.replacing) {
     text = 'Loading the scene…';
+  } else if (state.playing) {
+    const at = state.playing.at;
+    text = at ? `Playing ${at.frame + 1}/${at.frames} · ${at.time.toFixed(2)} s` : 'Starting the animation…';
   } else if (inf) {
     const waited = now - inf.sentAt;
     text = inf.quality === 'still' ? `Rendering still… ${duration(waited)}` : `Rendering preview… ${duration(waited)}`;
@@ -709,6 +722,46 @@ async function importScene(file, field) {
     field.status.textContent = '';
     sceneError(field, file.name, e);
   }
+}
+
+// Plays keyframes into this view over the WebSocket: the daemon renders the animation's frames in real
+// time without changing the scene. Any edit (or Stop) ends it; the live scene's frame then comes back.
+async function playKeyframes(file, field) {
+  field.clearError();
+  let keyframes;
+  try { keyframes = JSON.parse(await file.text()); } catch (e) {
+    return sceneError(field, file.name, new Error(`not JSON (${e.message})`));
+  }
+  await untilIdle();
+  const ws = state.ws;
+  if (!ws || ws.readyState !== WebSocket.OPEN) return sceneError(field, file.name, new Error('not connected'));
+  const seq = ++state.seq;
+  ws.send(JSON.stringify({ seq, type: 'play', fps: 24, keyframes, quality: 'interactive' }));
+  state.playing = { seq, name: file.name, field, at: null };
+  field.status.textContent = `Playing ${file.name}…`;
+  field.stopButton.hidden = false;
+  updateProgress();
+}
+
+function stopPlay() {
+  if (!state.playing || state.ws?.readyState !== WebSocket.OPEN) return;
+  state.ws.send(JSON.stringify({ seq: ++state.seq, type: 'stop' }));
+}
+
+function endPlay(note) {
+  const play = state.playing;
+  if (!play) return;
+  state.playing = null;
+  play.field.stopButton.hidden = true;
+  play.field.status.textContent = note;
+  requestFrame('still');  // back to the scene as it is
+  updateProgress();
+}
+
+function playFailed(msg) {
+  const play = state.playing;
+  endPlay('');
+  sceneError(play.field, play.name, { message: msg.error, pointer: msg.pointer });
 }
 
 function download(blob, fileName) {
