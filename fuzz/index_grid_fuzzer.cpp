@@ -11,7 +11,7 @@
 
 #include "fuzz_check.h"
 #include "scene/index_grid_file.h"
-#include "scene/scene_store.h"
+#include "scene/store.h"
 
 using namespace refract::scene;
 

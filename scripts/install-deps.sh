@@ -6,12 +6,16 @@ export DEBIAN_FRONTEND=noninteractive
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
+# REFRACT_RUNTIME_ONLY=1: only what the built binaries need to run (the container image's final stage).
+runtime=(libvulkan1 mesa-vulkan-drivers libpng16-16 libpq5 curl ca-certificates)
+
 packages=(
   build-essential cmake pkg-config git ca-certificates curl
   libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
   glslang-tools
   libcpp-httplib-dev nlohmann-json3-dev libpng-dev libglm-dev libgtest-dev
   libboost1.81-dev
+  libpq-dev  # the shared PostgreSQL store (refractd --store postgresql://...); no server needed to build
   assimp-testmodels
   clang lld libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer (libclang_rt.fuzzer) and lld's --gc-sections
 )
@@ -20,6 +24,17 @@ if [ "${REFRACT_NO_BROWSER:-0}" != "1" ]; then
   packages+=(chromium)
   # A machine may already carry Node.js from elsewhere (whose nodejs bundles npm); only add Debian's when absent.
   command -v npm >/dev/null 2>&1 || packages+=(nodejs npm)
+fi
+
+# Services only the tests start (a throwaway PostgreSQL cluster and HAProxy, tests/scale/), and PyYAML for
+# the deploy/ manifests check (tests/deploy/): scripts/test.sh
+# asks for them, the README's first command does not, so a new user's machine runs no database.
+if [ "${REFRACT_TEST_SERVICES:-0}" = "1" ]; then
+  packages+=(postgresql haproxy python3-yaml)
+fi
+
+if [ "${REFRACT_RUNTIME_ONLY:-0}" = "1" ]; then
+  packages=("${runtime[@]}")
 fi
 
 missing=()

@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
 # The README's second command (and all that .ci/run does): install, build with warnings as errors, run
-# every test (unit, GPU on lavapipe with validation, daemon integration, browser end-to-end), then the
-# unit tests and the daemon's integration tests (against an instrumented refractd) once more under
-# AddressSanitizer + UndefinedBehaviorSanitizer with leak checking, then each libFuzzer target briefly.
+# every test (unit, GPU on lavapipe with validation, daemon integration, scale-out on PostgreSQL and
+# HAProxy, browser end-to-end), then the unit tests and the daemon's integration tests (against an
+# instrumented refractd) once more under AddressSanitizer + UndefinedBehaviorSanitizer with leak
+# checking, then each libFuzzer target briefly.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/install-deps.sh
+# The test services (PostgreSQL, HAProxy) are installed here only; tests/scale/with_postgres.sh starts and
+# removes a throwaway cluster for the scale-out test (ctest's scale_out), which starts HAProxy itself.
+REFRACT_TEST_SERVICES=1 bash scripts/install-deps.sh
 npm --prefix tests/e2e ci --no-audit --no-fund --loglevel=error
 REFRACT_CMAKE_ARGS="-DREFRACT_WERROR=ON" REFRACT_NO_BROWSER=0 bash scripts/build.sh
 

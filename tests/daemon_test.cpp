@@ -23,6 +23,7 @@
 #include <thread>
 
 #include "daemon/harness.h"
+#include "daemon/ws_client.h"
 #include "http/daemon_config.h"
 #include "http/examples.h"
 #include "http/metrics.h"
@@ -72,6 +73,34 @@ TEST(DaemonConfig, ParsesFlagsAndRejectsNonsense) {
     EXPECT_THROW(http::parse_command_line({"--port"}, defaults), http::ConfigError);
     EXPECT_THROW(http::parse_command_line({"--port", "9000", "--ws-port", "9000"}, defaults),
                  http::ConfigError);
+}
+
+TEST(DaemonConfig, ListensBeyondLoopbackOnlyWithATokenOrWhenToldToBeOpen) {
+    http::DaemonConfig defaults;
+    for (const char* loopback : {"127.0.0.1", "127.1.2.3", "::1", "localhost"})
+        EXPECT_NO_THROW(http::parse_command_line({"--bind", loopback}, defaults)) << loopback;
+    EXPECT_THROW(http::parse_command_line({"--bind", "0.0.0.0"}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--bind", "::"}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--bind", "10.0.0.7"}, defaults), http::ConfigError);
+    EXPECT_NO_THROW(http::parse_command_line({"--bind", "0.0.0.0", "--token", "t"}, defaults));
+    EXPECT_TRUE(http::parse_command_line({"--bind", "0.0.0.0", "--open"}, defaults).config.open);
+
+    TempDir dir;
+    const std::string token_file = (dir.path() / "token").string();
+    std::ofstream(token_file) << "s3cret\n";
+    EXPECT_EQ(http::parse_command_line({"--bind", "::", "--token-file", token_file}, defaults).config.token, "s3cret");
+    std::ofstream(token_file, std::ios::trunc) << "\n";
+    EXPECT_THROW(http::parse_command_line({"--token-file", token_file}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--token-file", (dir.path() / "none").string()}, defaults),
+                 http::ConfigError);
+}
+
+TEST(DaemonConfig, TheSharedStoreTakesAPostgresqlUrl) {
+    http::DaemonConfig defaults;
+    EXPECT_EQ(http::parse_command_line({"--store", "postgresql://u@db:5432/refract"}, defaults).config.store,
+              "postgresql://u@db:5432/refract");
+    EXPECT_THROW(http::parse_command_line({"--store", "/var/lib/refract"}, defaults), http::ConfigError);
+    EXPECT_THROW(http::parse_command_line({"--store", "mysql://db/refract"}, defaults), http::ConfigError);
 }
 
 TEST(DaemonHttp, IfMatchAcceptsQuotedAndBareRevisions) {
@@ -771,49 +800,23 @@ TEST(Daemon, PostFrameAppliesTheEditAndAnswersThePngInOneRoundTrip) {
     EXPECT_EQ(get_json(client, "/api/scenes/" + id)["revision"], 2);
 }
 
-// A synchronous Beast WebSocket client with a receive timeout, for the tests only.
-class WsClient {
-public:
-    WsClient(uint16_t port, const std::string& target) {
-        namespace net = boost::asio;
-        net::ip::tcp::endpoint endpoint(net::ip::make_address("127.0.0.1"), port);
-        ws_.next_layer().connect(endpoint);
-        timeval timeout{60, 0};
-        ::setsockopt(ws_.next_layer().native_handle(), SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
-        ws_.handshake("127.0.0.1:" + std::to_string(port), target);
-    }
-    void send(const json& message) { send_raw(message.dump()); }
-    // A text message as given, valid UTF-8 or not.
-    void send_raw(const std::string& text) {
-        ws_.text(true);
-        ws_.write(boost::asio::buffer(text));
-    }
-    // (is_text, payload)
-    std::pair<bool, std::string> read() {
-        boost::beast::flat_buffer buffer;
-        ws_.read(buffer);
-        return {ws_.got_text(), boost::beast::buffers_to_string(buffer.data())};
-    }
-    // The next frame: its header and PNG; error messages on the way are collected.
-    std::pair<json, std::string> read_frame(std::vector<json>* errors = nullptr) {
-        for (;;) {
-            auto [text, payload] = read();
-            if (!text) throw std::runtime_error("binary message without a header");
-            json header = json::parse(payload);
-            if (header["type"] == "error") {
-                if (errors) errors->push_back(header);
-                continue;
-            }
-            auto [png_is_text, png] = read();
-            if (png_is_text) throw std::runtime_error("frame header not followed by the PNG");
-            return {header, png};
-        }
-    }
-
-private:
-    boost::asio::io_context ioc_;
-    boost::beast::websocket::stream<boost::asio::ip::tcp::socket> ws_{ioc_};
-};
+TEST(Daemon, AWebSocketViewerGetsAFrameOfAnotherClientsEdit) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "together");
+    WsClient viewer(daemon.ws_port(), "/api/scenes/" + id + "/ws");
+    viewer.send({{"seq", 0}, {"refine", 0}});
+    EXPECT_EQ(viewer.read_frame().first["revision"], 1);
+    auto edited = client.Patch("/api/scenes/" + id, json{{"light", {{"intensity", 3.0}}}}.dump(),
+                               "application/merge-patch+json");
+    ASSERT_TRUE(edited);
+    ASSERT_EQ(edited->status, 200) << edited->body;
+    auto [header, png] = viewer.read_frame();
+    EXPECT_EQ(header["revision"], 2);
+    EXPECT_EQ(header["seq"], nullptr);  // pushed: nobody on this session asked
+    EXPECT_FALSE(png.empty());
+}
 
 TEST(Daemon, WebSocketCoalescesEditsLatestWins) {
     TempDir dir;

@@ -19,6 +19,7 @@
 #include "mesh/mesh.h"
 #include "scene/render_queue.h"
 #include "scene/renderer.h"
+#include "scene/pg_scene_store.h"
 #include "scene/scene_store.h"
 #include "vk/context.h"
 
@@ -51,8 +52,20 @@ int run(const http::DaemonConfig& config) {
     protocol::Limits limits{config.max_resolution, config.max_photons, config.max_image};
     mesh::MeshLimits mesh_limits;
     mesh_limits.max_bytes = config.max_body;
-    scene::SceneStore store(config.data_dir, limits, mesh_limits);
-    if (store.size() == 0) store.create("default", kFirstScene);
+    std::unique_ptr<scene::Store> store_owner;
+    if (config.store.empty())
+        store_owner = std::make_unique<scene::SceneStore>(config.data_dir, limits, mesh_limits);
+    else
+        store_owner = std::make_unique<scene::PgSceneStore>(config.store, limits, mesh_limits);
+    scene::Store& store = *store_owner;
+    if (store.size() == 0) {
+        try {
+            store.create("default", kFirstScene);
+        } catch (const scene::StoreError& e) {
+            // Replicas sharing a store start together: one of them creates the scene.
+            if (e.status() != 409) throw;
+        }
+    }
 
     // The device: a daemon without one still serves documents, health says why frames cannot render.
     http::DeviceStatus device;
@@ -112,6 +125,14 @@ int run(const http::DaemonConfig& config) {
     } stop_queue{queue};
     if (context) service.device_bytes.store(context->allocated_bytes());
 
+    // Another replica's deletions and mesh uploads reach this daemon's render queue as its own do (the
+    // routes tell the queue of those made here; telling it twice costs nothing).
+    scene::Subscription forget = store.on_change([&queue](const scene::StoreEvent& event) {
+        if (event.kind == scene::StoreEvent::Kind::deleted) queue.forget_scene(event.name);
+        if (event.kind == scene::StoreEvent::Kind::mesh || event.kind == scene::StoreEvent::Kind::missed)
+            queue.forget_cached_frames();
+    });
+
     http::WsServer ws(service);
     // WebSocket upgrades on the HTTP port go to the same endpoint (one port suffices behind a proxy).
     http::ApiServer api(service, [&ws](http::UpgradePtr upgrade) { ws.adopt(std::move(upgrade)); });
@@ -121,7 +142,13 @@ int run(const http::DaemonConfig& config) {
     std::fprintf(stderr, "refractd %s: http://%s:%u  ws://%s:%u  device: %s  data: %s  scenes: %zu\n",
                  REFRACT_VERSION, config.bind.c_str(), unsigned{config.port}, config.bind.c_str(),
                  unsigned{config.effective_ws_port()}, device.error.empty() ? device.name.c_str() : "none",
-                 config.data_dir.c_str(), store.size());
+                 config.store.empty() ? config.data_dir.c_str() : store.location().c_str(), store.size());
+
+    if (!http::is_loopback(config.bind) && config.token.empty())
+        std::fprintf(stderr,
+                     "refractd: WARNING: OPEN TO THE NETWORK: listening on %s with no token (--open): anyone who "
+                     "reaches this address can read, edit and delete every scene\n",
+                     config.bind.c_str());
 
     int signal_number = 0;
     sigwait(&stop_signals, &signal_number);

@@ -285,7 +285,15 @@ struct ApiServer::Impl {
     }
 
     void route(const char* method, const std::string& pattern, Handler handler) {
-        server.route(method, pattern, std::move(handler));
+        // A store that cannot answer (a shared database gone away: 503) fails the request with its reason
+        // wherever in a route it is asked.
+        server.route(method, pattern, [handler = std::move(handler)](const Request& req, Response& res) {
+            try {
+                handler(req, res);
+            } catch (const scene::StoreError& e) {
+                send_error(res, e.status(), e.what());
+            }
+        });
     }
 
     // 202: the edit is committed (its revision and ETag say which) but no frame comes with it; the client
@@ -298,8 +306,13 @@ struct ApiServer::Impl {
     }
 
     void routes() {
-        route("GET", "/api/health",
-              [this](const Request&, Response& res) { send_json(res, 200, service.health()); });
+        route("GET", "/api/health", [this](const Request& req, Response& res) {
+            json health = service.health();
+            // Behind a proxy (which adds X-Forwarded-For, as deploy/haproxy does) the WebSocket port is
+            // not reachable: upgrades go through the proxy's one port, which the HTTP port also serves.
+            if (req.has_header("X-Forwarded-For")) health["ws_on_http_port"] = true;
+            send_json(res, 200, health);
+        });
 
         route("GET", "/metrics", [this](const Request& req, Response& res) {
             if (!authorize(req, res)) return;

@@ -1,6 +1,9 @@
 #include "http/daemon_config.h"
 
+#include <arpa/inet.h>
+
 #include <charconv>
+#include <fstream>
 #include <limits>
 #include <sstream>
 
@@ -31,7 +34,25 @@ uint64_t parse_unsigned(const std::string& flag, const std::string& text, uint64
     return value;
 }
 
+// The token in `path` (a mounted Secret): its first line, without the newline editors add.
+std::string read_token_file(const std::string& path) {
+    std::ifstream in(path);
+    std::string token;
+    if (!in || !std::getline(in, token)) throw ConfigError("--token-file " + path + " cannot be read");
+    while (!token.empty() && (token.back() == '\r' || token.back() == ' ')) token.pop_back();
+    if (token.empty()) throw ConfigError("--token-file " + path + " holds no token on its first line");
+    return token;
+}
+
 }  // namespace
+
+bool is_loopback(const std::string& address) {
+    if (address == "localhost") return true;
+    in_addr v4{};
+    if (::inet_pton(AF_INET, address.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+    in6_addr v6{};
+    return ::inet_pton(AF_INET6, address.c_str(), &v6) == 1 && IN6_IS_ADDR_LOOPBACK(&v6);
+}
 
 CommandLine parse_command_line(const std::vector<std::string>& args, DaemonConfig defaults) {
     CommandLine result;
@@ -65,8 +86,16 @@ CommandLine parse_command_line(const std::vector<std::string>& args, DaemonConfi
             c.device = next();
         } else if (flag == "--data-dir") {
             c.data_dir = next();
+        } else if (flag == "--store") {
+            c.store = next();
+            if (c.store.rfind("postgresql://", 0) != 0 && c.store.rfind("postgres://", 0) != 0)
+                throw ConfigError("--store takes a postgresql:// URL (without it, scenes are kept under --data-dir)");
         } else if (flag == "--token") {
             c.token = next();
+        } else if (flag == "--token-file") {
+            c.token = read_token_file(next());
+        } else if (flag == "--open") {
+            c.open = true;
         } else if (flag == "--web-root") {
             c.web_root = next();
         } else if (flag == "--examples-dir") {
@@ -94,6 +123,11 @@ CommandLine parse_command_line(const std::vector<std::string>& args, DaemonConfi
         }
     }
     if (c.ws_port != 0 && c.ws_port == c.port) throw ConfigError("--ws-port must differ from --port");
+    // Beyond loopback anyone on the network could edit scenes and spend the device: that takes a token,
+    // or saying explicitly that the daemon is meant to be open.
+    if (!result.help && !is_loopback(c.bind) && c.token.empty() && !c.open)
+        throw ConfigError("--bind " + c.bind + " listens beyond this machine without a token: give --token T or "
+                          "--token-file FILE (or --open to serve without one)");
     if (c.ws_port == 0 && c.port == 65535) throw ConfigError("--port 65535 needs an explicit --ws-port");
     return result;
 }
@@ -109,8 +143,12 @@ std::string usage_text(const DaemonConfig& d) {
         << "  --device NAME          use the Vulkan device whose name contains NAME (or REFRACT_DEVICE)\n"
         << "  --data-dir DIR         where scenes, meshes and index grids persist (default " << d.data_dir
         << ")\n"
+        << "  --store URL            keep scenes, meshes and grids in PostgreSQL (postgresql://USER@HOST:PORT/DB),\n"
+        << "                         shared by every replica given the same URL; --data-dir is then unused\n"
         << "  --token T              require 'Authorization: Bearer T' (or ?token=T) on everything but\n"
         << "                         /api/health and static files\n"
+        << "  --token-file FILE      the token from the first line of FILE (a mounted secret)\n"
+        << "  --open                 allow --bind beyond loopback without a token (refused otherwise)\n"
         << "  --web-root DIR         static files served at / (default " << d.web_root << ")\n"
         << "  --examples-dir DIR     example scenes (NAME.json) served at /api/examples (default "
         << d.examples_dir << ")\n"

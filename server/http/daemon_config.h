@@ -15,7 +15,9 @@ struct DaemonConfig {
     uint16_t ws_port = 0;  // 0: port + 1
     std::string device;    // substring of the device name; empty: REFRACT_DEVICE or the best device
     std::string data_dir = "./refract-data";
+    std::string store;      // postgresql:// URL of the shared store; empty: the embedded store in data_dir
     std::string token;      // non-empty: Bearer token required by everything but /api/health and static files
+    bool open = false;      // --open: serve beyond loopback without a token (said loudly at start)
     std::string web_root;   // static files served at /
     std::string examples_dir;  // example scene documents served at /api/examples
     size_t max_scenes = 8;  // scenes whose GPU state stays resident (LRU)
@@ -42,6 +44,9 @@ struct CommandLine {
     DaemonConfig config;
     bool help = false;
 };
+
+// True for an address only this machine can reach (127.0.0.0/8, ::1, localhost).
+bool is_loopback(const std::string& address);
 
 // Parses argv (without argv[0]); `defaults` supplies the web root baked in at build time. Throws ConfigError.
 CommandLine parse_command_line(const std::vector<std::string>& args, DaemonConfig defaults);

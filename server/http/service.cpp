@@ -23,7 +23,7 @@ bool equal_constant_time(const std::string& given, const std::string& expected) 
 
 }  // namespace
 
-Service::Service(const DaemonConfig& config, scene::SceneStore& store, scene::RenderQueue& queue,
+Service::Service(const DaemonConfig& config, scene::Store& store, scene::RenderQueue& queue,
                  Metrics& metrics, DeviceStatus device)
     : config_(config), store_(store), queue_(queue), metrics_(metrics), device_(std::move(device)) {}
 
@@ -37,8 +37,19 @@ bool Service::authorized(const std::string& authorization, const std::string& to
 }
 
 Gauges Service::gauges() const {
+    std::string ignored;
+    return read_gauges(ignored);
+}
+
+Gauges Service::read_gauges(std::string& store_error) const {
     Gauges g;
-    g.scenes = store_.size();
+    try {
+        g.scenes = store_.size();
+    } catch (const scene::StoreError& e) {
+        // A shared store's database is away: health says so instead of failing, so that a proxy keeps
+        // sending requests here and each gets the 503 and its reason.
+        store_error = e.what();
+    }
     g.scenes_resident = scenes_resident.load();
     g.device_bytes = device_bytes.load();
     g.render_waiting = queue_.waiting();
@@ -49,7 +60,8 @@ Gauges Service::gauges() const {
 }
 
 nlohmann::json Service::health() const {
-    Gauges g = gauges();
+    std::string store_error;
+    Gauges g = read_gauges(store_error);
     nlohmann::json device = nullptr;
     if (device_.error.empty()) {
         device = {{"name", device_.name},
@@ -59,7 +71,7 @@ nlohmann::json Service::health() const {
                   {"api_version", device_.api_version}};
     }
     nlohmann::json health = {
-        {"status", device_.error.empty() && store_.quarantined().empty() ? "ok" : "degraded"},
+        {"status", device_.error.empty() && store_.quarantined().empty() && store_error.empty() ? "ok" : "degraded"},
         {"version", REFRACT_VERSION},
         {"device", device},
         {"uptime_s", g.uptime_s},
@@ -81,6 +93,7 @@ nlohmann::json Service::health() const {
         {"auth", !config_.token.empty()},
     };
     if (!device_.error.empty()) health["device_error"] = device_.error;
+    if (!store_error.empty()) health["store_error"] = store_error;
     if (!store_.quarantined().empty()) {
         nlohmann::json files = nlohmann::json::array();
         for (const auto& file : store_.quarantined())

@@ -13,7 +13,7 @@
 #include "http/daemon_config.h"
 #include "http/metrics.h"
 #include "scene/render_queue.h"
-#include "scene/scene_store.h"
+#include "scene/store.h"
 
 namespace refract::http {
 
@@ -27,11 +27,11 @@ struct DeviceStatus {
 // The state both front ends borrow; it owns nothing but the device description and the gauges.
 class Service {
 public:
-    Service(const DaemonConfig& config, scene::SceneStore& store, scene::RenderQueue& queue, Metrics& metrics,
+    Service(const DaemonConfig& config, scene::Store& store, scene::RenderQueue& queue, Metrics& metrics,
             DeviceStatus device);
 
     const DaemonConfig& config() const { return config_; }
-    scene::SceneStore& store() { return store_; }
+    scene::Store& store() { return store_; }
     scene::RenderQueue& queue() { return queue_; }
     Metrics& metrics() { return metrics_; }
 
@@ -51,8 +51,11 @@ public:
     std::atomic<size_t> ws_sessions{0};
 
 private:
+    // The gauges, with why the store could not be read (empty when it could).
+    Gauges read_gauges(std::string& store_error) const;
+
     const DaemonConfig& config_;
-    scene::SceneStore& store_;
+    scene::Store& store_;
     scene::RenderQueue& queue_;
     Metrics& metrics_;
     DeviceStatus device_;

@@ -1,6 +1,7 @@
 // One of the two translation units that include Boost.Beast (it compiles slowly).
 #include "http/ws_server.h"
 
+#include <algorithm>
 #include <atomic>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
@@ -94,6 +95,24 @@ public:
                       });
     }
 
+    // Revision `revision` of scene `id` is committed (by anyone, on any replica): a viewer of that scene
+    // gets its frame unless it has asked for or rendered that revision already. nullopt: announcements
+    // may have been lost, every viewer gets a frame of what is current. Safe from any thread.
+    void scene_changed(std::optional<std::pair<std::string, uint64_t>> revision) {
+        net::post(ws_.get_executor(), [self = shared_from_this(), revision] {
+            // A played animation is its own scene's frames; edits show once it stops.
+            if (!self->viewing_ || self->closing_ || self->want_frame_ || self->play_) return;
+            if (revision && (revision->first != self->scene_id_ || revision->second <= self->submitted_revision_))
+                return;
+            self->idle_timer_.cancel();
+            self->newer_message_->store(true);  // a refinement level in flight gives way
+            self->wanted_seq_ = nullptr;        // nobody on this session asked: no seq to echo
+            self->wanted_options_ = {scene::Quality::interactive, self->budget_ms_, 1};
+            self->want_frame_ = true;
+            self->submit_frame();
+        });
+    }
+
     // Drops the connection (daemon shutdown); safe from any thread.
     void close() {
         net::post(ws_.get_executor(), [self = shared_from_this()] {
@@ -181,14 +200,23 @@ private:
         if (!service_.authorized(authorization, query_value(query, "token")))
             return refuse(bhttp::status::unauthorized, "missing or wrong bearer token");
         scene_id_ = scene_of_path(path_);
-        if (scene_id_.empty() || !service_.store().get(scene_id_))
-            return refuse(bhttp::status::not_found, "no scene at " + path_);
+        std::optional<scene::SceneSnapshot> viewed;
+        try {
+            if (!scene_id_.empty()) viewed = service_.store().get(scene_id_);
+        } catch (const scene::StoreError& e) {
+            return refuse(bhttp::status::service_unavailable, e.what());
+        }
+        if (!viewed) return refuse(bhttp::status::not_found, "no scene at " + path_);
+        // Edits are pushed from here on: an announcement of this revision or an older one that arrives
+        // late (another replica's NOTIFY) is not news to this viewer.
+        submitted_revision_ = viewed->revision;
 
         beast::get_lowest_layer(ws_).expires_never();
         ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
         ws_.read_message_max(kMaxMessageBytes);
         ws_.async_accept(req, [self = shared_from_this()](beast::error_code accept_ec) {
             if (accept_ec) return;
+            self->viewing_ = true;
             self->log(101);
             self->read_message();
         });
@@ -321,7 +349,12 @@ private:
     // pushes only the frames asked for.
     void refine_after(const json& seq, const scene::FrameOptions& rendered, uint64_t revision) {
         if (want_frame_ || closing_ || refine_to_ == 0) return;
-        auto current = service_.store().get(scene_id_);
+        std::optional<scene::SceneSnapshot> current;
+        try {
+            current = service_.store().get(scene_id_);
+        } catch (const scene::StoreError&) {
+            return;  // the store is away: refinement waits for the next message
+        }
         if (!current || current->revision != revision) return;
         if (rendered.quality == scene::Quality::still) {
             if (rendered.level >= refine_to_) return;
@@ -348,11 +381,19 @@ private:
 
     void submit_frame() {
         if (in_flight_ || !want_frame_ || closing_) return;
-        auto snapshot = service_.store().get(scene_id_);
+        std::optional<scene::SceneSnapshot> snapshot;
+        try {
+            snapshot = service_.store().get(scene_id_);
+        } catch (const scene::StoreError& e) {
+            // A shared store's database is away: the session stays open and the next message retries.
+            want_frame_ = false;
+            return send_error(wanted_seq_, e.what());
+        }
         if (!snapshot) {
             want_frame_ = false;
             return send_error(wanted_seq_, "the scene was deleted");
         }
+        submitted_revision_ = std::max(submitted_revision_, snapshot->revision);
         scene::FrameRequest request{snapshot->id, snapshot->revision, snapshot->document, wanted_options_, {}};
         std::optional<PlayedFrame> played;
         if (play_) {
@@ -528,6 +569,8 @@ private:
     std::string scene_id_;
 
     bool closing_ = false;
+    bool viewing_ = false;            // the handshake is done: edits of scene_id_ are pushed
+    uint64_t submitted_revision_ = 0;  // the newest revision this session has rendered or is rendering
     bool in_flight_ = false;
     bool want_frame_ = false;
     json wanted_seq_ = nullptr;
@@ -564,6 +607,7 @@ struct WsServer::Impl {
     net::steady_timer accept_retry{ioc};
     bool started = false;
     std::atomic<bool> stopped{false};
+    std::optional<scene::Subscription> edits;  // committed revisions, pushed to the sessions viewing them
 
     explicit Impl(Service& s) : service(s) {}
 
@@ -622,6 +666,22 @@ void WsServer::start() {
                                  std::to_string(c.effective_ws_port()) + ": " + ec.message());
     impl_->work.emplace(impl_->ioc.get_executor());
     impl_->started = true;
+    // Every committed revision (from this daemon or, with a shared store, any replica) goes to each
+    // session, which keeps it only if it views that scene: a few hundred sessions at most.
+    impl_->edits.emplace(impl_->service.store().on_change([registry = impl_->registry](const scene::StoreEvent& event) {
+        using Kind = scene::StoreEvent::Kind;
+        if (event.kind != Kind::revision && event.kind != Kind::missed) return;
+        // Released after the lock: a last reference's destructor takes the registry's lock itself.
+        std::vector<std::shared_ptr<WsSession>> told;
+        std::lock_guard lock(registry->mutex);
+        for (const auto& ref : registry->refs) {
+            if (auto session = ref.lock()) {
+                if (event.kind == Kind::missed) session->scene_changed(std::nullopt);
+                else session->scene_changed(std::pair{event.name, event.revision});
+                told.push_back(std::move(session));
+            }
+        }
+    }));
     impl_->accept();
     for (int i = 0; i < 2; ++i) impl_->threads.emplace_back([this] { impl_->ioc.run(); });
 }
@@ -634,6 +694,7 @@ void WsServer::adopt(UpgradePtr upgrade) {
 void WsServer::stop() {
     if (impl_->stopped || !impl_->started) return;
     impl_->stopped = true;
+    impl_->edits.reset();  // no more posts to sessions: their io_context is stopping
     net::post(impl_->ioc, [this] {
         beast::error_code ignored;
         impl_->acceptor.close(ignored);

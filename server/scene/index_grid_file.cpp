@@ -3,7 +3,7 @@
 #include <cstring>
 #include <initializer_list>
 
-#include "scene/scene_store.h"
+#include "scene/store.h"
 
 namespace refract::scene {
 namespace {

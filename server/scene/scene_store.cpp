@@ -13,7 +13,6 @@
 #include <cstring>
 #include <fstream>
 #include <iostream>
-#include <random>
 #include <sstream>
 
 namespace refract::scene {
@@ -29,8 +28,6 @@ constexpr std::string_view kTempMarker = "~tmp.";
 bool is_temp_file(const fs::path& path) {
     return path.filename().string().find(kTempMarker) != std::string::npos;
 }
-constexpr uint32_t kMinGridSide = 2;
-constexpr uint32_t kMaxGridSide = 512;
 
 std::string errno_text() {
     return std::strerror(errno);
@@ -49,33 +46,12 @@ void fsync_directory(const fs::path& dir) {
     if (d.fd >= 0) ::fsync(d.fd);
 }
 
-std::string random_hex_id() {
-    static std::mutex mutex;
-    static std::mt19937_64 engine{std::random_device{}()};
-    std::lock_guard lock(mutex);
-    std::ostringstream out;
-    out << std::hex << (engine() & 0xffffffffull);
-    std::string id = out.str();
-    return std::string(8 - id.size(), '0') + id;
-}
-
 std::string read_text_file(const fs::path& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw StoreError(500, "cannot read " + path.string());
     std::ostringstream text;
     text << in.rdbuf();
     return text.str();
-}
-
-std::string strip_upload_prefix(const std::string& name) {
-    constexpr std::string_view prefix = "upload:";
-    if (name.compare(0, prefix.size(), prefix) == 0) return name.substr(prefix.size());
-    return name;
-}
-
-uint64_t next_revision(uint64_t revision) {
-    if (revision >= kMaxRevision) throw StoreError(409, "the scene is at the highest revision, 2^53 - 1");
-    return revision + 1;
 }
 
 }  // namespace
@@ -113,91 +89,6 @@ void write_file_atomically(const fs::path& path, const void* bytes, size_t size)
     }
     fsync_directory(path.parent_path());
 }
-
-void validate_index_grid(const IndexGrid& grid) {
-    for (uint32_t side : {grid.nx, grid.ny, grid.nz}) {
-        if (side < kMinGridSide || side > kMaxGridSide)
-            throw StoreError(400, "index grid sides must be between " + std::to_string(kMinGridSide) +
-                                      " and " + std::to_string(kMaxGridSide));
-    }
-    // Bounds the renderer's float coordinates hold: within a kilometre of the origin (a scene's box is
-    // metres across), voxels at least a micrometre.
-    constexpr double kMaxCoordinate = 1e3, kMinVoxel = 1e-6;
-    const uint32_t sides[3] = {grid.nx, grid.ny, grid.nz};
-    for (size_t axis = 0; axis < 3; ++axis) {
-        const double lo = grid.bounds.min[axis], hi = grid.bounds.max[axis];
-        if (!std::isfinite(lo) || !std::isfinite(hi) || !(lo < hi))
-            throw StoreError(400, "index grid bounds need finite min < max on every axis");
-        if (std::abs(lo) > kMaxCoordinate || std::abs(hi) > kMaxCoordinate || (hi - lo) / sides[axis] < kMinVoxel)
-            throw StoreError(400, "index grid bounds must lie within 1000 m of the origin, with voxels of at least 1 um");
-    }
-    if (!has_cubic_voxels(grid))
-        throw StoreError(400, "index grid voxels must be cubic (within 1%): (max - min) / side the same on every axis");
-    if (grid.n.size() != size_t{grid.nx} * grid.ny * grid.nz)
-        throw StoreError(400,
-                         "index grid holds " + std::to_string(grid.n.size()) + " values, expected nx*ny*nz");
-    for (size_t i = 0; i < grid.n.size(); ++i) {
-        float n = grid.n[i];
-        if (!std::isfinite(n) || n < 1.0f || n > 4.0f) {
-            std::ostringstream message;
-            message << "index grid value " << i << " is " << n
-                    << "; every value must be finite and in [1, 4]";
-            throw StoreError(400, message.str());
-        }
-    }
-}
-
-bool valid_scene_id(const std::string& id) {
-    if (id.empty() || id.size() > 32) return false;
-    for (char c : id) {
-        bool ok = (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-';
-        if (!ok) return false;
-    }
-    return true;
-}
-
-bool valid_mesh_name(const std::string& name) {
-    if (name.empty() || name.size() > 64 || name == "." || name == "..") return false;
-    for (char c : name) {
-        bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
-                  c == '.' || c == '-';
-        if (!ok) return false;
-    }
-    return true;
-}
-
-nlohmann::json to_json(const mesh::MeshReport& report) {
-    return {
-        {"vertices", report.vertices},
-        {"triangles", report.triangles},
-        {"boundary_edges", report.boundary_edges},
-        {"non_manifold_edges", report.non_manifold_edges},
-        {"degenerate_triangles", report.degenerate_triangles},
-        {"watertight", report.watertight()},
-        {"bounds",
-         {{"min", {report.min.x, report.min.y, report.min.z}},
-          {"max", {report.max.x, report.max.y, report.max.z}}}},
-    };
-}
-
-namespace {
-
-mesh::MeshReport report_from_json(const nlohmann::json& j) {
-    mesh::MeshReport report;
-    report.vertices = j.at("vertices").get<size_t>();
-    report.triangles = j.at("triangles").get<size_t>();
-    report.boundary_edges = j.at("boundary_edges").get<size_t>();
-    report.non_manifold_edges = j.value("non_manifold_edges", size_t{0});
-    report.degenerate_triangles = j.value("degenerate_triangles", size_t{0});
-    const auto& bounds = j.at("bounds");
-    for (int axis = 0; axis < 3; ++axis) {
-        report.min[axis] = bounds.at("min").at(static_cast<size_t>(axis)).get<float>();
-        report.max[axis] = bounds.at("max").at(static_cast<size_t>(axis)).get<float>();
-    }
-    return report;
-}
-
-}  // namespace
 
 SceneStore::SceneStore(fs::path data_dir, protocol::Limits limits, mesh::MeshLimits mesh_limits)
     : data_dir_(std::move(data_dir)), limits_(limits), mesh_limits_(mesh_limits) {
@@ -348,6 +239,7 @@ SceneSnapshot SceneStore::create(const std::string& id, const nlohmann::json& do
     }
     persist_scene(entry->current);
     scenes_[entry->current.id] = entry;
+    publish({StoreEvent::Kind::revision, entry->current.id, entry->current.revision});
     return entry->current;
 }
 
@@ -385,9 +277,12 @@ bool SceneStore::remove(const std::string& id) {
         std::lock_guard lock(mutex_);
         scenes_.erase(id);
     }
-    std::lock_guard assets(asset_mutex_);
-    fs::remove(grid_path(id), ec);
-    grids_.erase(id);
+    {
+        std::lock_guard assets(asset_mutex_);
+        fs::remove(grid_path(id), ec);
+        grids_.erase(id);
+    }
+    publish({StoreEvent::Kind::deleted, id});
     return true;
 }
 
@@ -416,8 +311,13 @@ EditResult SceneStore::patch(const std::string& id, const nlohmann::json& merge_
                              std::optional<uint64_t> if_match) {
     std::shared_ptr<Entry> entry = find(id);
     if (!entry) throw StoreError(404, "scene '" + id + "' does not exist");
-    std::lock_guard edit(entry->edit_mutex);
-    return apply(entry, merge_patch, if_match);
+    EditResult result;
+    {
+        std::lock_guard edit(entry->edit_mutex);
+        result = apply(entry, merge_patch, if_match);
+    }
+    if (result.changed) publish({StoreEvent::Kind::revision, id, result.after.revision});
+    return result;
 }
 
 MeshEntry SceneStore::put_mesh(const std::string& name, const std::string& obj_text) {
@@ -431,6 +331,7 @@ MeshEntry SceneStore::put_mesh(const std::string& name, const std::string& obj_t
     fs::path report_path = data_dir_ / "meshes" / (name + ".json");
     write_file_atomically(report_path, report.data(), report.size());
     meshes_[name] = std::move(parsed);  // a new pointer: the renderer sees the re-upload and re-voxelizes
+    publish({StoreEvent::Kind::mesh, name});
     return entry;
 }
 
@@ -474,7 +375,7 @@ EditResult SceneStore::put_index_grid(const std::string& scene_id, IndexGrid gri
     validate_index_grid(grid);
     std::shared_ptr<Entry> entry = find(scene_id);
     if (!entry) throw StoreError(404, "scene '" + scene_id + "' does not exist");
-    std::lock_guard edit(entry->edit_mutex);
+    std::unique_lock edit(entry->edit_mutex);
     if (entry->deleted) throw StoreError(404, "scene '" + scene_id + "' does not exist");
     {
         // The grid is written before the scene points at it: a crash in between leaves the old revision.
@@ -493,6 +394,8 @@ EditResult SceneStore::put_index_grid(const std::string& scene_id, IndexGrid gri
         entry->current = result.after;
         result.changed = true;
     }
+    edit.unlock();
+    publish({StoreEvent::Kind::revision, scene_id, result.after.revision});
     return result;
 }
 
@@ -511,13 +414,6 @@ std::shared_ptr<const IndexGrid> SceneStore::grid(const std::string& name) const
         std::cerr << "refractd: cannot load stored index grid " << path << ": " << e.what() << "\n";
         throw RenderError("stored index grid '" + name + "' cannot be read: " + e.what());
     }
-}
-
-Assets SceneStore::assets() const {
-    Assets assets;
-    assets.mesh = [this](const std::string& name) { return mesh(name); };
-    assets.grid = [this](const std::string& name) { return grid(name); };
-    return assets;
 }
 
 }  // namespace refract::scene

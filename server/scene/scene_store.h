@@ -1,6 +1,6 @@
-// The daemon's scene store: every scene document with its revision, the uploaded meshes and the imported
-// index grids, each persisted under the data directory before an edit is acknowledged.
-// Thread-safe: any HTTP or WebSocket thread may call it. It never renders and never touches Vulkan.
+// The embedded scene store, the daemon's default: every scene document with its revision, the uploaded
+// meshes and the imported index grids, each persisted under the data directory before an edit is
+// acknowledged. One daemon per data directory (it is locked).
 #pragma once
 
 #include <cstdint>
@@ -14,64 +14,11 @@
 #include <string>
 #include <vector>
 
-#include "mesh/mesh.h"
-#include "protocol/scene_document.h"
-#include "scene/renderer.h"
+#include "scene/store.h"
 
 namespace refract::scene {
 
-// A scene as one revision: what the render queue renders and what GET answers.
-struct SceneSnapshot {
-    std::string id;
-    uint64_t revision = 0;
-    protocol::SceneDocument document;
-};
-
-// The outcome of an accepted edit: the document before and after, and the revision now current.
-struct EditResult {
-    protocol::SceneDocument before;
-    SceneSnapshot after;
-    bool changed = false;  // false: the edit was a no-op and the revision did not move
-};
-
-// Why the store refused a request; `status` is the HTTP status that fits (404, 409, 412, 400, 500).
-class StoreError : public std::runtime_error {
-public:
-    StoreError(int status, const std::string& message) : std::runtime_error(message), status_(status) {}
-    int status() const { return status_; }
-
-private:
-    int status_;
-};
-
-// A stored file the store could not read at start: moved aside (never deleted or overwritten) and
-// reported by health and metrics until an operator repairs or removes it.
-struct QuarantinedFile {
-    std::string scene_id;  // the scene whose file it was; its id stays taken
-    std::string path;      // where the file is now
-    std::string error;     // why it could not be read
-};
-
-// The highest revision the store hands out: JSON numbers stay exact in every client up to 2^53 - 1.
-constexpr uint64_t kMaxRevision = (uint64_t{1} << 53) - 1;
-
-struct MeshEntry {
-    std::string name;
-    mesh::MeshReport report;
-};
-
-// Validation of an imported index grid, in the words a user needs; throws StoreError(400).
-void validate_index_grid(const IndexGrid& grid);
-
-// True for a name usable as a scene id ([a-z0-9-]{1,32}) or as a mesh name ([A-Za-z0-9_.-]{1,64}, not
-// "." or "..").
-bool valid_scene_id(const std::string& id);
-bool valid_mesh_name(const std::string& name);
-
-// A report as the JSON the API answers with.
-nlohmann::json to_json(const mesh::MeshReport& report);
-
-class SceneStore {
+class SceneStore final : public Store {
 public:
     // Opens (creating if needed) the data directory, locks it against a second daemon (StoreError(409)
     // naming the holder's pid) and loads every persisted scene, quarantining those it cannot read.
@@ -82,38 +29,36 @@ public:
 
     // Creates a scene from a (possibly partial) document. `id` empty: a random one. Throws
     // protocol::ValidationError, StoreError (400 bad id, 409 taken).
-    SceneSnapshot create(const std::string& id, const nlohmann::json& document);
-    std::optional<SceneSnapshot> get(const std::string& id) const;
-    std::vector<SceneSnapshot> list() const;
-    size_t size() const;
+    SceneSnapshot create(const std::string& id, const nlohmann::json& document) override;
+    std::optional<SceneSnapshot> get(const std::string& id) const override;
+    std::vector<SceneSnapshot> list() const override;
+    size_t size() const override;
     // Deletes a scene and its index grid; false when unknown.
-    bool remove(const std::string& id);
+    bool remove(const std::string& id) override;
 
     // Applies a merge patch atomically. `if_match`: the revision the client edited (412 otherwise).
     // Throws protocol::ValidationError (nothing changes), StoreError (404, 412, 500).
     EditResult patch(const std::string& id, const nlohmann::json& merge_patch,
-                     std::optional<uint64_t> if_match = std::nullopt);
+                     std::optional<uint64_t> if_match = std::nullopt) override;
 
     // Parses, inspects and stores an OBJ upload, replacing one of the same name. Throws mesh::MeshError,
     // StoreError(400) for a bad name.
-    MeshEntry put_mesh(const std::string& name, const std::string& obj_text);
-    std::vector<MeshEntry> list_meshes() const;
+    MeshEntry put_mesh(const std::string& name, const std::string& obj_text) override;
+    std::vector<MeshEntry> list_meshes() const override;
     // The mesh named `name` (with or without the "upload:" prefix); nullptr when unknown; RenderError
     // saying why when it is stored but cannot be read.
-    std::shared_ptr<const mesh::Mesh> mesh(const std::string& name) const;
+    std::shared_ptr<const mesh::Mesh> mesh(const std::string& name) const override;
 
     // Stores `grid` under the scene's id and points the scene at it (a new revision). Throws StoreError.
-    EditResult put_index_grid(const std::string& scene_id, IndexGrid grid);
+    EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) override;
     // The grid stored for scene `name`; nullptr when unknown, RenderError when it cannot be read.
-    std::shared_ptr<const IndexGrid> grid(const std::string& name) const;
+    std::shared_ptr<const IndexGrid> grid(const std::string& name) const override;
 
     // The scene files found unreadable at start, moved to <data dir>/quarantine.
-    const std::vector<QuarantinedFile>& quarantined() const { return quarantined_; }
+    const std::vector<QuarantinedFile>& quarantined() const override { return quarantined_; }
 
-    // Lookups for the renderer (called on the render thread).
-    Assets assets() const;
-
-    const protocol::Limits& limits() const { return limits_; }
+    const protocol::Limits& limits() const override { return limits_; }
+    std::string location() const override { return "data dir " + data_dir_.string(); }
     const std::filesystem::path& data_dir() const { return data_dir_; }
 
 private:

@@ -204,7 +204,8 @@ function onBinary(blob) {
   const meta = state.frameMeta || {};
   state.frameMeta = null;
   const inf = state.inflight;
-  const answers = inf && (meta.seq === undefined || meta.seq === null || meta.seq >= inf.seq);
+  // A frame with a null seq answers nobody here: the daemon pushed it for another client's edit.
+  const answers = inf && (meta.seq === undefined || (meta.seq !== null && meta.seq >= inf.seq));
   const quality = meta.quality || (answers ? inf.quality : 'still');
   if (answers) {
     if (inf.patch) state.confirmed = S.applyMergePatch(state.confirmed, inf.patch);
@@ -502,7 +503,9 @@ async function fetchHealth() {
   $('device-name').textContent = type ? `${name} · ${type}` : name;
   $('device-name').parentElement.title = detail ? `Render device: ${name} (${detail})` : `Render device: ${name}`;
   hooks.device = name;
-  state.wsPort = Number(health?.ws_port) || Number(location.port || 80) + 1;
+  // Behind a proxy the daemon says so: upgrades then go through the page's own port.
+  const pagePort = Number(location.port || (location.protocol === 'https:' ? 443 : 80));
+  state.wsPort = health?.ws_on_http_port ? pagePort : Number(health?.ws_port) || pagePort + 1;
   const limits = health?.limits || {};
   controls.setMax('/volume/resolution', Number(limits.max_resolution));
   controls.setMax('/photons/count', Number(limits.max_photons));
