@@ -133,7 +133,9 @@ private:
         double fps = 24.0;
         uint64_t frames = 1;  // frame i shows time i / fps, up to the last keyframe
         uint64_t id = 0;
-        std::chrono::steady_clock::time_point start;
+        // When frame 0 was submitted: the animation's clock starts with its first frame, not with the
+        // message (a refinement level in flight then would otherwise skip the frames it outlasted).
+        std::optional<std::chrono::steady_clock::time_point> start;
         uint64_t next = 0;      // the first frame not yet rendered
         uint64_t rendered = 0;  // frames pushed
         json seq;
@@ -399,10 +401,11 @@ private:
         if (play_) {
             // Played in real time: the frame due now, skipping those the renderer could not keep up with;
             // a frame not yet due waits for its time.
-            const auto elapsed = std::chrono::steady_clock::now() - play_->start;
+            if (!play_->start) play_->start = std::chrono::steady_clock::now();
+            const auto elapsed = std::chrono::steady_clock::now() - *play_->start;
             const auto due_now = static_cast<uint64_t>(std::chrono::duration<double>(elapsed).count() * play_->fps);
             const uint64_t index = std::min(std::max(play_->next, due_now), play_->frames - 1);
-            const auto due = play_->start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+            const auto due = *play_->start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                                 std::chrono::duration<double>(static_cast<double>(index) / play_->fps));
             if (due > std::chrono::steady_clock::now()) {
                 timer_.expires_at(due);
@@ -503,7 +506,7 @@ private:
         try {
             protocol::Animation animation(current->document, message["keyframes"], service_.store().limits());
             const auto frames = static_cast<uint64_t>(std::floor(animation.duration() * fps)) + 1;
-            return Play{std::move(animation), fps, frames, ++plays_, std::chrono::steady_clock::now(), 0, 0, seq};
+            return Play{std::move(animation), fps, frames, ++plays_, std::nullopt, 0, 0, seq};
         } catch (const protocol::ValidationError& e) {
             std::string pointer = "/keyframes";
             pointer += e.pointer();
