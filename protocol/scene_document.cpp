@@ -137,13 +137,13 @@ public:
 
     SceneDocument document(const json& root) {
         SceneDocument d;
-        check_object(root, "", {"camera", "image", "light", "object", "medium", "volume", "photons", "floor",
-                                "environment"},
+        check_object(root, "", {"camera", "image", "lights", "objects", "light", "object", "medium", "volume",
+                                "photons", "floor", "environment"},
                      "must be a JSON object");
         read_camera(root, d.camera);
         read_image(root, d.image);
-        read_light(root, d.light);
-        read_object(root, d.object);
+        d.lights = collection<Light>(root, "lights", "light", kMaxLights, &Reader::read_light);
+        d.objects = collection<Object>(root, "objects", "object", kMaxObjects, &Reader::read_object);
         read_medium(root, d.medium);
         read_volume(root, d.volume);
         read_photons(root, d.photons);
@@ -376,10 +376,41 @@ private:
         im.exposure = number(*j, base, "exposure", im.exposure, kExposure);
     }
 
-    void read_light(const json& root, Light& l) const {
-        const std::string base = "/light";
-        if (const json* j = section(root, "", "light",
-                                    {"type", "position", "direction", "color", "intensity", "cone_deg"})) {
+    // A collection (`plural`: {NAME: member}) or, in the older form, its one member (`singular`), which
+    // is then named `singular`. Absent: the default collection of one.
+    template <class T>
+    std::map<std::string, T> collection(const json& root, const char* plural, const char* singular, size_t most,
+                                        void (Reader::*read)(const json&, const std::string&, T&) const) const {
+        const auto one = root.find(singular);
+        const auto many = root.find(plural);
+        if (one != root.end() && many != root.end())
+            fail(child("", singular), std::string("give either /") + singular + " (one) or /" + plural + ", not both");
+        if (many == root.end()) {
+            T member{};
+            (this->*read)(one == root.end() ? json::object() : *one, child("", singular), member);
+            return {{singular, std::move(member)}};
+        }
+        const std::string base = child("", plural);
+        if (!many->is_object()) fail(base, "must be a JSON object of named members");
+        const std::string count_rule = most == 1 ? "must hold exactly one member (scenes of several are not rendered yet)"
+                                                 : "must hold 1 to " + std::to_string(most) + " members";
+        if (many->empty() || many->size() > most) fail(base, count_rule);
+        std::map<std::string, T> members;
+        for (const auto& [name, value] : many->items()) {
+            const std::string pointer = child(base, name);
+            if (!valid_name(name)) fail(pointer, "a name must be 1 to 64 characters of [A-Za-z0-9_.-]");
+            T member{};
+            (this->*read)(value, pointer, member);
+            members.emplace(name, std::move(member));
+        }
+        return members;
+    }
+
+    void read_light(const json& light, const std::string& base, Light& l) const {
+        check_object(light, base, {"type", "position", "direction", "color", "intensity", "cone_deg"},
+                     "must be a JSON object");
+        {
+            const json* j = &light;
             l.type = enumeration(*j, base, "type", l.type,
                                  {{"point", LightType::point},
                                   {"spot", LightType::spot},
@@ -391,17 +422,18 @@ private:
             l.cone_deg = number(*j, base, "cone_deg", l.cone_deg, kCone);
         }
         if (l.type != LightType::point && length(l.direction) < kTiny) {
-            fail_blaming({{"/light/direction", "must be a non-zero vector for spot and directional lights"},
-                          {"/light/type", "a spot or directional light needs a non-zero /light/direction"}});
+            fail_blaming({{child(base, "direction"), "must be a non-zero vector for spot and directional lights"},
+                          {child(base, "type"), "a spot or directional light needs a non-zero " + child(base, "direction")}});
         }
     }
 
-    void read_object(const json& root, Object& o) const {
-        const std::string base = "/object";
-        if (const json* j = section(root, "", "object",
-                                    {"mesh", "position", "rotation_deg", "scale", "index_field", "ior",
-                                     "maxwell_n0", "abbe", "fresnel", "film", "extinction", "scattering", "phase",
-                                     "grid"})) {
+    void read_object(const json& object, const std::string& base, Object& o) const {
+        check_object(object, base,
+                     {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "abbe", "fresnel",
+                      "film", "extinction", "scattering", "phase", "grid"},
+                     "must be a JSON object");
+        {
+            const json* j = &object;
             static constexpr const char* kMeshRule =
                 "must be \"sphere\", \"cube\", \"torus\", \"prism\" or \"upload:NAME\" with NAME 1..64 characters of "
                 "[A-Za-z0-9_.-]";
@@ -443,8 +475,8 @@ private:
             }
         }
         if (o.index_field == IndexFieldKind::grid && o.grid.empty()) {
-            fail_blaming({{"/object/grid", "must name a stored grid when /object/index_field is \"grid\""},
-                          {"/object/index_field", "\"grid\" requires a non-empty /object/grid"}});
+            fail_blaming({{child(base, "grid"), "must name a stored grid when " + child(base, "index_field") + " is \"grid\""},
+                          {child(base, "index_field"), "\"grid\" requires a non-empty " + child(base, "grid")}});
         }
     }
 
@@ -566,6 +598,67 @@ json phase_json(const Phase& p) {
     return {{"model", name(p.model)}, {"g", p.g}};
 }
 
+json light_json(const Light& l) {
+    return {{"type", name(l.type)},     {"position", vec(l.position)}, {"direction", vec(l.direction)},
+            {"color", vec(l.color)},    {"intensity", l.intensity},     {"cone_deg", l.cone_deg}};
+}
+
+json object_json(const Object& o) {
+    return {{"mesh", o.mesh},
+            {"position", vec(o.position)},
+            {"rotation_deg", vec(o.rotation_deg)},
+            {"scale", o.scale},
+            {"index_field", name(o.index_field)},
+            {"ior", o.ior},
+            {"maxwell_n0", o.maxwell_n0},
+            {"abbe", o.abbe},
+            {"fresnel", o.fresnel},
+            {"film", {{"ior", o.film.ior}, {"top_nm", o.film.top_nm}, {"bottom_nm", o.film.bottom_nm}}},
+            {"extinction", vec(o.extinction)},
+            {"scattering", vec(o.scattering)},
+            {"phase", phase_json(o.phase)},
+            {"grid", o.grid}};
+}
+
+// A patch in the older form edits the one member of a collection through its singular name: rewritten
+// here to the collection's form, `renamed` maps the member's pointer back to the name the patch used.
+struct OlderForm {
+    json patch;
+    std::vector<std::pair<std::string, std::string>> renamed;  // {"/lights/NAME", "/light"}
+    std::vector<std::string> replaced;  // collections the patch replaces whole (removed before it applies)
+};
+
+template <class T>
+void rewrite_member(OlderForm& form, const char* singular, const char* plural, const std::map<std::string, T>& members,
+                    const json& defaults) {
+    const auto one = form.patch.find(singular);
+    if (one == form.patch.end()) return;
+    const std::string pointer = child("", singular);
+    const auto many = form.patch.find(plural);
+    if (many != form.patch.end() && many->is_null()) {
+        // Removing the collection and giving the one member replaces the collection by a collection of
+        // that member, named as a document in the older form names it (a whole document in that form,
+        // put over one in this form, is such a patch).
+        json member = *one;
+        form.patch.erase(one);
+        form.patch[plural] = {{singular, member.is_null() ? defaults : std::move(member)}};
+        form.replaced.emplace_back(plural);
+        form.renamed.emplace_back(child(child("", plural), singular), pointer);
+        return;
+    }
+    if (many != form.patch.end())
+        throw ValidationError(pointer, std::string("give either /") + singular + " (one) or /" + plural + ", not both");
+    if (members.size() != 1)
+        throw ValidationError(pointer, "the scene has " + std::to_string(members.size()) + " " + plural +
+                                           ": edit one as /" + plural + "/NAME");
+    const std::string& key = members.begin()->first;
+    // null reset the section to its defaults in the older form; in a collection it would remove the member.
+    json member = one->is_null() ? defaults : *one;
+    form.patch.erase(one);
+    form.patch[plural] = {{key, std::move(member)}};
+    form.renamed.emplace_back(child(child("", plural), key), pointer);
+}
+
 }  // namespace
 
 SceneDocument parse_scene(const json& j, const Limits& limits) {
@@ -579,6 +672,9 @@ json to_json(const SceneDocument& d) {
                    {"margin", d.volume.margin}};
     if (d.volume.bounds)
         volume["bounds"] = {{"min", vec(d.volume.bounds->min)}, {"max", vec(d.volume.bounds->max)}};
+    json lights = json::object(), objects = json::object();
+    for (const auto& [key, light] : d.lights) lights[key] = light_json(light);
+    for (const auto& [key, object] : d.objects) objects[key] = object_json(object);
     return {
         {"camera",
          {{"position", vec(d.camera.position)},
@@ -586,28 +682,8 @@ json to_json(const SceneDocument& d) {
           {"up", vec(d.camera.up)},
           {"fov_deg", d.camera.fov_deg}}},
         {"image", {{"width", d.image.width}, {"height", d.image.height}, {"exposure", d.image.exposure}}},
-        {"light",
-         {{"type", name(d.light.type)},
-          {"position", vec(d.light.position)},
-          {"direction", vec(d.light.direction)},
-          {"color", vec(d.light.color)},
-          {"intensity", d.light.intensity},
-          {"cone_deg", d.light.cone_deg}}},
-        {"object",
-         {{"mesh", d.object.mesh},
-          {"position", vec(d.object.position)},
-          {"rotation_deg", vec(d.object.rotation_deg)},
-          {"scale", d.object.scale},
-          {"index_field", name(d.object.index_field)},
-          {"ior", d.object.ior},
-          {"maxwell_n0", d.object.maxwell_n0},
-          {"abbe", d.object.abbe},
-          {"fresnel", d.object.fresnel},
-          {"film", {{"ior", d.object.film.ior}, {"top_nm", d.object.film.top_nm}, {"bottom_nm", d.object.film.bottom_nm}}},
-          {"extinction", vec(d.object.extinction)},
-          {"scattering", vec(d.object.scattering)},
-          {"phase", phase_json(d.object.phase)},
-          {"grid", d.object.grid}}},
+        {"lights", std::move(lights)},
+        {"objects", std::move(objects)},
         {"medium",
          {{"ior", d.medium.ior},
           {"extinction", vec(d.medium.extinction)},
@@ -629,9 +705,28 @@ json to_json(const SceneDocument& d) {
 }
 
 SceneDocument apply_merge_patch(const SceneDocument& current, const json& patch, const Limits& limits) {
+    OlderForm form{patch, {}};
+    if (patch.is_object()) {
+        rewrite_member(form, "light", "lights", current.lights, light_json(Light{}));
+        rewrite_member(form, "object", "objects", current.objects, object_json(Object{}));
+    }
     json merged = to_json(current);
-    merged.merge_patch(patch);  // RFC 7396: objects merge recursively, null deletes, anything else replaces
-    return Reader(limits, &patch).document(merged);
+    for (const std::string& collection : form.replaced) merged.erase(collection);
+    merged.merge_patch(form.patch);  // RFC 7396: objects merge recursively, null deletes, anything else replaces
+    try {
+        return Reader(limits, &form.patch).document(merged);
+    } catch (const ValidationError& e) {
+        for (const auto& [member, older] : form.renamed) {
+            const std::string& p = e.pointer();
+            if (p.compare(0, member.size(), member) == 0 && (p.size() == member.size() || p[member.size()] == '/')) {
+                std::string rule = e.rule();  // it may name a sibling by its pointer
+                for (size_t at = rule.find(member); at != std::string::npos; at = rule.find(member, at))
+                    rule.replace(at, member.size(), older);
+                throw ValidationError(older + p.substr(member.size()), rule);
+            }
+        }
+        throw;
+    }
 }
 
 }  // namespace refract::protocol

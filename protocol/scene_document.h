@@ -3,7 +3,9 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -147,16 +149,27 @@ struct Environment {
     bool operator==(const Environment&) const = default;
 };
 
+// How many lights and objects a scene may hold. Several objects are not rendered yet: a scene holds one.
+inline constexpr size_t kMaxLights = 8;
+inline constexpr size_t kMaxObjects = 1;
+
 struct SceneDocument {
     Camera camera;
     Image image;
-    Light light;
-    Object object;
+    // Keyed by name (1..64 characters of [A-Za-z0-9_.-]), so that a merge patch edits, adds or removes
+    // one by its key. A document in the older form, with one `light` and one `object`, means a
+    // collection of one under the names "light" and "object".
+    std::map<std::string, Light> lights{{"light", Light{}}};
+    std::map<std::string, Object> objects{{"object", Object{}}};
     Medium medium;
     Volume volume;
     Photons photons;
     Floor floor;
     Environment environment;
+
+    // The scene's object (a scene holds one until several objects render).
+    Object& object() { return objects.begin()->second; }
+    const Object& object() const { return objects.begin()->second; }
 
     bool operator==(const SceneDocument&) const = default;
 };

@@ -17,9 +17,10 @@ layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform image3D flux;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform image3D floor_map;
 
 // A refinement batch joins the running mean of the batches before it (refinement.x = 1/batches); the
-// first replaces whatever the images held.
+// first replaces whatever the images held. Each light after the first adds its share of the batch.
 vec4 batch_mean(vec4 before, vec4 batch) {
     float weight = params.refinement.x;
+    if (params.light_set.y > 0u) return before + weight * batch;
     return weight < 1.0 ? mix(before, batch, weight) : batch;
 }
 

@@ -33,16 +33,22 @@ float unlit_cell(vec3 p) {
 
 const float kPi = 3.14159265358979;
 
-// Irradiance straight from the light at a floor point (normal +y), without occlusion.
+// Irradiance straight from every light at a floor point (normal +y), without occlusion.
 vec3 direct_irradiance(vec3 x) {
-    if (params.models.z == LIGHT_DIRECTIONAL)
-        return params.light_power.rgb * max(0.0, -params.light_direction.y);
-    vec3 l = params.light_position.xyz - x;
-    float r2 = dot(l, l);
-    vec3 to_light = l / sqrt(r2);
-    if (params.models.z == LIGHT_SPOT && dot(-to_light, params.light_direction.xyz) < params.light_position.w)
-        return vec3(0.0);
-    return params.light_power.rgb * max(0.0, to_light.y) / r2;
+    vec3 irradiance = vec3(0.0);
+    for (uint k = 0u; k < params.light_set.x; ++k) {
+        LightParams light = params.lights[k];
+        if (light.type.x == LIGHT_DIRECTIONAL) {
+            irradiance += light.power.rgb * max(0.0, -light.direction.y);
+            continue;
+        }
+        vec3 l = light.position.xyz - x;
+        float r2 = dot(l, l);
+        vec3 to_light = l / sqrt(r2);
+        if (light.type.x == LIGHT_SPOT && dot(-to_light, light.direction.xyz) < light.position.w) continue;
+        irradiance += light.power.rgb * max(0.0, to_light.y) / r2;
+    }
+    return irradiance;
 }
 
 vec3 floor_radiance(vec3 x) {

@@ -22,19 +22,19 @@ TEST(Animation, NumbersMoveLinearlyBetweenKeyframesAndHoldOutsideThem) {
         {"time": 3, "patch": {"light": {"intensity": 30, "position": [4, 2, -2]}, "image": {"exposure": 2}}}])"));
     EXPECT_EQ(a.keyframes(), 2u);
     EXPECT_DOUBLE_EQ(a.duration(), 3.0);
-    EXPECT_DOUBLE_EQ(a.at(0.0).light.intensity, 10.0);  // before the first keyframe: the first
-    EXPECT_DOUBLE_EQ(a.at(1.5).light.intensity, 15.0);
+    EXPECT_DOUBLE_EQ(a.at(0.0).lights.at("light").intensity, 10.0);  // before the first keyframe: the first
+    EXPECT_DOUBLE_EQ(a.at(1.5).lights.at("light").intensity, 15.0);
     EXPECT_DOUBLE_EQ(a.at(2.0).image.exposure, 1.0);
-    EXPECT_EQ(a.at(2.5).light.position, (Vec3{3.0, 2.0, -1.5}));
-    EXPECT_DOUBLE_EQ(a.at(9.0).light.intensity, 30.0);  // after the last: the last
+    EXPECT_EQ(a.at(2.5).lights.at("light").position, (Vec3{3.0, 2.0, -1.5}));
+    EXPECT_DOUBLE_EQ(a.at(9.0).lights.at("light").intensity, 30.0);  // after the last: the last
 }
 
 TEST(Animation, PatchesAccumulateFromKeyframeToKeyframe) {
     const Animation a(base(), json::parse(R"([
         {"time": 0, "patch": {"object": {"ior": 1.3}}},
         {"time": 1, "patch": {"light": {"intensity": 5}}}])"));
-    EXPECT_DOUBLE_EQ(a.at(1.0).object.ior, 1.3);  // the second keyframe keeps the first one's patch
-    EXPECT_DOUBLE_EQ(a.at(1.0).light.intensity, 5.0);
+    EXPECT_DOUBLE_EQ(a.at(1.0).object().ior, 1.3);  // the second keyframe keeps the first one's patch
+    EXPECT_DOUBLE_EQ(a.at(1.0).lights.at("light").intensity, 5.0);
 }
 
 TEST(Animation, WholeNumbersNamesAndSwitchesHoldUntilTheNextKeyframe) {
@@ -43,11 +43,11 @@ TEST(Animation, WholeNumbersNamesAndSwitchesHoldUntilTheNextKeyframe) {
         {"time": 1, "patch": {"image": {"width": 300}, "object": {"mesh": "cube"}, "floor": {"enabled": false}}}])"));
     const SceneDocument mid = a.at(0.9);
     EXPECT_EQ(mid.image.width, 100u);
-    EXPECT_EQ(mid.object.mesh, "sphere");
+    EXPECT_EQ(mid.object().mesh, "sphere");
     EXPECT_TRUE(mid.floor.enabled);
     const SceneDocument end = a.at(1.0);
     EXPECT_EQ(end.image.width, 300u);
-    EXPECT_EQ(end.object.mesh, "cube");
+    EXPECT_EQ(end.object().mesh, "cube");
     EXPECT_FALSE(end.floor.enabled);
 }
 
@@ -55,8 +55,8 @@ TEST(Animation, ATurnAboutOneAxisKeepsEveryDegree) {
     const Animation a(base(), json::parse(R"([
         {"time": 0, "patch": {"object": {"rotation_deg": [10, 0, 0]}}},
         {"time": 2, "patch": {"object": {"rotation_deg": [10, 720, 0]}}}])"));
-    EXPECT_EQ(a.at(0.5).object.rotation_deg, (Vec3{10.0, 180.0, 0.0}));
-    EXPECT_EQ(a.at(1.5).object.rotation_deg, (Vec3{10.0, 540.0, 0.0}));
+    EXPECT_EQ(a.at(0.5).object().rotation_deg, (Vec3{10.0, 180.0, 0.0}));
+    EXPECT_EQ(a.at(1.5).object().rotation_deg, (Vec3{10.0, 540.0, 0.0}));
 }
 
 // Rotation matrix R = Rz(c) Ry(b) Rx(a) (mesh::transformed), written out independently of the code.
@@ -87,7 +87,7 @@ TEST(Animation, ATurnAboutSeveralAxesFollowsTheShortestArcAtAConstantRate) {
     const double total = angle_between(from, to);
     ASSERT_NEAR(total, 120.0, 1e-9);
     for (const double u : {0.25, 0.5, 0.75}) {
-        const Vec3 r = a.at(u).object.rotation_deg;
+        const Vec3 r = a.at(u).object().rotation_deg;
         EXPECT_NEAR(angle_between(from, r), u * total, 1e-6) << u;
         EXPECT_NEAR(angle_between(r, to), (1.0 - u) * total, 1e-6) << u;
     }
@@ -97,7 +97,7 @@ TEST(Animation, ALightTurnsAtAConstantRate) {
     const Animation a(base(), json::parse(R"([
         {"time": 0, "patch": {"light": {"direction": [1, 0, 0]}}},
         {"time": 1, "patch": {"light": {"direction": [0, 0, 3]}}}])"));
-    const Vec3 d = a.at(1.0 / 3.0).light.direction;  // a third of 90 degrees
+    const Vec3 d = a.at(1.0 / 3.0).lights.at("light").direction;  // a third of 90 degrees
     EXPECT_NEAR(d[0], std::cos(std::acos(-1.0) / 6.0), 1e-12);
     EXPECT_NEAR(d[1], 0.0, 1e-12);
     EXPECT_NEAR(d[2], std::sin(std::acos(-1.0) / 6.0), 1e-12);

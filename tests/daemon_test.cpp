@@ -231,7 +231,7 @@ TEST(DaemonSceneStore, EditsPersistAndRejectedEditsChangeNothing) {
     auto one = reopened.get("one");
     ASSERT_TRUE(one);
     EXPECT_EQ(one->revision, 2u);
-    EXPECT_EQ(one->document.light.intensity, 5.0);
+    EXPECT_EQ(one->document.lights.at("light").intensity, 5.0);
     EXPECT_FALSE(fs::exists(dir.path() / "scenes" / "one.json~tmp.1.2"));
 }
 
@@ -257,8 +257,8 @@ TEST(DaemonSceneStore, MeshesAndGridsAreValidatedStoredAndReplaced) {
     grid.nx = grid.ny = grid.nz = 4;
     grid.n.assign(64, 1.33f);
     auto edit = store.put_index_grid("g", grid);
-    EXPECT_EQ(edit.after.document.object.index_field, protocol::IndexFieldKind::grid);
-    EXPECT_EQ(edit.after.document.object.grid, "g");
+    EXPECT_EQ(edit.after.document.object().index_field, protocol::IndexFieldKind::grid);
+    EXPECT_EQ(edit.after.document.object().grid, "g");
     EXPECT_EQ(edit.after.revision, 2u);
     ASSERT_TRUE(store.grid("g"));
     EXPECT_EQ(store.grid("g")->n[5], 1.33f);
@@ -432,7 +432,7 @@ struct SteppedRenderer {
         changed.notify_all();
         changed.wait(lock, [&] { return allowed > 0; });
         --allowed;
-        if (request.document.object.mesh == "upload:missing") throw scene::RenderError("unknown mesh");
+        if (request.document.object().mesh == "upload:missing") throw scene::RenderError("unknown mesh");
         scene::FrameResult frame;
         frame.png = {1, 2, 3};
         frame.rerun = scene::kView;
@@ -558,7 +558,7 @@ TEST(DaemonRenderQueue, UnrenderableScenesAndMissingDevicesAreReported) {
     renderer.allow(1);
     scene::RenderQueue queue([&](const scene::FrameRequest& r) { return renderer.render(r); }, {});
     auto request = request_for("a", 1);
-    request.document.object.mesh = "upload:missing";
+    request.document.object().mesh = "upload:missing";
     auto outcome = queue.render_and_wait(request, std::chrono::seconds(10));
     EXPECT_EQ(outcome->status, scene::FrameOutcome::Status::unrenderable);
 
@@ -690,7 +690,7 @@ TEST(Daemon, LightEditChangesTheFrame) {
     json answer = json::parse(edit->body);
     EXPECT_EQ(answer["revision"], 2);
     EXPECT_EQ(answer["invalidated"], json({"photons", "view", "tone_map"}));
-    EXPECT_EQ(answer["scene"]["light"]["intensity"], 80.0);
+    EXPECT_EQ(answer["scene"]["lights"]["light"]["intensity"], 80.0);
     EXPECT_EQ(edit->get_header_value("ETag"), "\"2\"");
 
     auto after = get_frame(client, id);
@@ -783,7 +783,7 @@ TEST(Daemon, PostFrameAppliesTheEditAndAnswersThePngInOneRoundTrip) {
     ASSERT_EQ(res->status, 200) << res->body;
     EXPECT_TRUE(is_png(res->body));
     EXPECT_EQ(res->get_header_value("X-Refract-Revision"), "2");
-    EXPECT_EQ(get_json(client, "/api/scenes/" + id)["scene"]["light"]["intensity"], 42.0);
+    EXPECT_EQ(get_json(client, "/api/scenes/" + id)["scene"]["lights"]["light"]["intensity"], 42.0);
 
     auto invalid = client.Post("/api/scenes/" + id + "/frame.png", json{{"photons", {{"count", -1}}}}.dump(),
                                kMergePatch);
@@ -1254,8 +1254,8 @@ TEST(Daemon, IndexFieldUploadBecomesTheScenesGrid) {
     ASSERT_EQ(res->status, 200) << res->body;
     json answer = json::parse(res->body);
     EXPECT_EQ(answer["revision"], 2);
-    EXPECT_EQ(answer["scene"]["object"]["index_field"], "grid");
-    EXPECT_EQ(answer["scene"]["object"]["grid"], id);
+    EXPECT_EQ(answer["scene"]["objects"]["object"]["index_field"], "grid");
+    EXPECT_EQ(answer["scene"]["objects"]["object"]["grid"], id);
 
     values[3] = std::numeric_limits<float>::infinity();
     std::string bad(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));
@@ -1566,8 +1566,8 @@ TEST(Daemon, KillNineLosesNoAcknowledgedRevision) {
     auto after = snapshot_scenes(client);
     EXPECT_EQ(after, before);
     EXPECT_EQ(after["alpha"]["revision"], 7);
-    EXPECT_EQ(after["alpha"]["scene"]["light"]["intensity"], 99.0);
-    EXPECT_EQ(get_json(client, "/api/scenes/gamma")["scene"]["object"]["index_field"], "grid");
+    EXPECT_EQ(after["alpha"]["scene"]["lights"]["light"]["intensity"], 99.0);
+    EXPECT_EQ(get_json(client, "/api/scenes/gamma")["scene"]["objects"]["object"]["index_field"], "grid");
 }
 
 TEST(Daemon, SigintStopsCleanlyWhileAWebSocketIsOpen) {
@@ -1901,7 +1901,7 @@ TEST(DaemonHostile, AnEditWithoutItsFrameIsAnsweredAsApplied) {
         saw_applied = true;
         json answer = json::parse(res->body);
         EXPECT_EQ(answer["revision"], revision + 1);
-        EXPECT_EQ(answer["scene"]["light"]["intensity"], 2.0 + attempt);
+        EXPECT_EQ(answer["scene"]["lights"]["light"]["intensity"], 2.0 + attempt);
         EXPECT_TRUE(answer["frame_error"].is_string());
         EXPECT_FALSE(res->get_header_value("Retry-After").empty());
         // The client knows its edit is in: repeating it with the old tag is a conflict, fetching works.

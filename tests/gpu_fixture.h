@@ -35,7 +35,7 @@ protected:
     // The object's world mesh as the renderer builds it (built-ins and procedural lenses only).
     static mesh::Mesh world_mesh(const protocol::SceneDocument& d) {
         const auto base = scene::base_mesh(d, nullptr);
-        if (!base) throw std::runtime_error("test scene names an upload: " + d.object.mesh);
+        if (!base) throw std::runtime_error("test scene names an upload: " + d.object().mesh);
         return scene::world_mesh(d, *base);
     }
 

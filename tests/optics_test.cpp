@@ -908,5 +908,126 @@ TEST_F(EnergyTest, RadianceConvergesWithPhotonCount) {
     EXPECT_GT(coarse.noise / fine.noise, 1.3);
 }
 
+// Several lights share the photons in proportion to the flux each sends toward the grid, so every
+// photon carries the same flux whichever light it leaves; and each light's light ends up in the radiance
+// grid as if it shone alone. Three lights of three pure colours (a spot, a point and a directional light)
+// around the refracting, reflecting sphere in fog: each colour channel of the three-light run holds one
+// light's fluence only, and must match that light's own run (with its share of the photons, so the same
+// flux per photon, and another seed) within their photon noise, block by block and over the grid.
+TEST_F(EnergyTest, ThreeLightsSharePhotonsByPowerAndAddUp) {
+    const json lights = {{"red", {{"type", "spot"}, {"color", {1, 0, 0}}, {"intensity", 20}}},
+                         {"green", {{"type", "point"}, {"position", {-1.5, 2.0, 0.5}}, {"color", {0, 1, 0}}, {"intensity", 5}}},
+                         {"blue", {{"type", "directional"}, {"direction", {0.3, -1.0, 0.2}}, {"color", {0, 0, 1}}, {"intensity", 1.5}}}};
+    const json base = {{"photons", {{"count", 1 << 16}}}, {"volume", {{"resolution", 32}}}, {"image", {{"width", 8}, {"height", 8}}}};
+    json all = base;
+    all["lights"] = lights;
+    const auto trio = photons(protocol::parse_scene(all));
+    const auto& per_light = trio->light_params();
+    ASSERT_EQ(per_light.size(), 3u);
+    EXPECT_EQ(trio->channels(), uint32_t{CHANNELS_RGB});  // lights of different colours cannot share one fluence
+    // Shares in proportion to power: the same flux per photon (each channel's mean) to the rounding of the
+    // share (half a photon of the smallest).
+    uint32_t smallest = ~0u, total = 0;
+    for (const auto& p : per_light) {
+        smallest = std::min(smallest, p.photon_info.x);
+        total += p.photon_info.x;
+    }
+    EXPECT_NEAR(static_cast<double>(total), double{1 << 16}, 1.5);
+    const auto mean_flux = [](const shaders::TransportParams& p) {
+        return (static_cast<double>(p.photon_flux.x) + static_cast<double>(p.photon_flux.y) + static_cast<double>(p.photon_flux.z)) / 3.0;
+    };
+    for (const auto& p : per_light)
+        EXPECT_NEAR(mean_flux(p) / mean_flux(per_light[0]), 1.0, 1.0 / smallest) << "light " << p.light_set.y;
+
+    const auto together = trio->read_radiance();
+    // document.lights is ordered by name: blue, green, red.
+    const std::pair<const char*, int> channel_of[] = {{"blue", 2}, {"green", 1}, {"red", 0}};
+    for (size_t k = 0; k < 3; ++k) {
+        const auto [name, c] = channel_of[k];
+        json alone = base;
+        alone["lights"] = {{name, lights[name]}};
+        alone["photons"]["count"] = per_light[k].photon_info.x;
+        const auto single = photons(protocol::parse_scene(alone));
+        ASSERT_EQ(single->grid(), trio->grid());
+        const auto own = single->read_radiance();
+        ASSERT_EQ(own.size(), together.size());
+        const glm::uvec3 dims(trio->params().radiance_grid);
+        const double side = static_cast<double>(trio->grid().voxel_size);
+        // The fluence one photon adds crossing a voxel (as in DirectLightMatchesPhotons), per run.
+        const double per_crossing = static_cast<double>(single->params().photon_flux[c]) / (side * side);
+        ASSERT_GT(per_crossing, 0.0);
+        constexpr uint32_t kBlock = 6;
+        double worst = 0.0, sum_alone = 0.0, sum_together = 0.0, other_channels = 0.0;
+        for (uint32_t bz = 0; bz < dims.z; bz += kBlock)
+            for (uint32_t by = 0; by < dims.y; by += kBlock)
+                for (uint32_t bx = 0; bx < dims.x; bx += kBlock) {
+                    double fa = 0.0, fb = 0.0;
+                    for (uint32_t z = bz; z < std::min(bz + kBlock, dims.z); ++z)
+                        for (uint32_t y = by; y < std::min(by + kBlock, dims.y); ++y)
+                            for (uint32_t x = bx; x < std::min(bx + kBlock, dims.x); ++x) {
+                                const size_t i = (size_t{z} * dims.y + y) * dims.x + x;
+                                fa += static_cast<double>(own[i][c]);
+                                fb += static_cast<double>(together[i][c]);
+                                for (int o = 0; o < 3; ++o)
+                                    if (o != c) other_channels += std::abs(static_cast<double>(own[i][o]));
+                            }
+                    sum_alone += fa;
+                    sum_together += fb;
+                    const double sigma = per_crossing * std::sqrt(fa / per_crossing + fb / per_crossing + 2.0);
+                    worst = std::max(worst, std::abs(fb - fa) / sigma);
+                }
+        const double sigma_total = std::sqrt(2.0 * per_crossing / std::max(sum_alone, 1e-30));
+        std::printf("three lights, %s alone (%u photons): grid total %+.5f (sigma %.5f), worst block %.2f sigma\n", name,
+                    per_light[k].photon_info.x, sum_together / sum_alone - 1.0, sigma_total, worst);
+        EXPECT_EQ(other_channels, 0.0) << name;  // a pure colour stays in its channel
+        EXPECT_LT(worst, 5.0) << name;
+        EXPECT_NEAR(sum_together / sum_alone, 1.0, 5.0 * sigma_total) << name;
+    }
+}
+
+// The viewing pass lights the floor by every light in closed form: looking straight down through an
+// empty grid (an index-matched object, clear medium), the centre pixel is the floor's albedo / pi times
+// the sum of the lights' irradiance there, each by its own law (inverse square and cosine, a spot's cone,
+// a directional light's cosine).
+TEST_F(EnergyTest, FloorUnderSeveralLightsTakesEachLightsIrradiance) {
+    const json clear = {{"ior", 1.0}, {"extinction", {0, 0, 0}}, {"scattering", {0, 0, 0}}};
+    json object = clear;
+    object["fresnel"] = false;
+    const json patch = {
+        {"camera", {{"position", {0, 5, 0}}, {"target", {0, -1, 0}}, {"up", {0, 0, -1}}, {"fov_deg", 10}}},
+        {"image", {{"width", 9}, {"height", 9}}},
+        {"medium", clear},
+        {"objects", {{"object", object}}},
+        {"floor", {{"checker", false}, {"albedo", {0.8, 0.8, 0.8}}}},
+        {"photons", {{"count", 4096}}},
+        {"volume", {{"resolution", 32}}},
+        {"lights",
+         {{"spot", {{"type", "spot"}, {"position", {2, 3, 1}}, {"direction", {-2, -3, -1}}, {"color", {1, 0.5, 0.25}}, {"intensity", 20}}},
+          {"point", {{"type", "point"}, {"position", {-1.5, 2.0, 0.5}}, {"color", {0.2, 1, 0.4}}, {"intensity", 5}}},
+          {"sun", {{"type", "directional"}, {"direction", {0.3, -1.0, 0.2}}, {"color", {0.3, 0.3, 1}}, {"intensity", 1.5}}},
+          {"away", {{"type", "spot"}, {"position", {0, 3, 0}}, {"direction", {1, 0, 0}}, {"cone_deg", 20}, {"intensity", 50}}}}}};
+    const auto doc = protocol::parse_scene(patch);
+    scene::SceneGpu gpu(kit());
+    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+    const glm::dvec3 x(0.0, -1.0, 0.0);
+    glm::dvec3 expected(0.0);
+    const auto colour = [](const protocol::Light& l) { return glm::dvec3(l.color[0], l.color[1], l.color[2]) * l.intensity; };
+    for (const char* name : {"spot", "point"}) {
+        const auto& l = doc.lights.at(name);
+        const glm::dvec3 to_light = glm::dvec3(l.position[0], l.position[1], l.position[2]) - x;
+        const double r2 = glm::dot(to_light, to_light);
+        expected += colour(l) * (to_light.y / std::sqrt(r2)) / r2;  // the spot's axis points at the centre
+    }
+    const auto& sun = doc.lights.at("sun");
+    const glm::dvec3 d = glm::normalize(glm::dvec3(sun.direction[0], sun.direction[1], sun.direction[2]));
+    expected += colour(sun) * -d.y;
+    expected *= 0.8 / kPi;
+    const glm::vec4 centre = gpu.read_hdr()[4 * 9 + 4];
+    const glm::dvec3 measured(centre);
+    std::printf("floor under four lights: centre pixel (%.6f, %.6f, %.6f), expected (%.6f, %.6f, %.6f)\n", measured.r,
+                measured.g, measured.b, expected.r, expected.g, expected.b);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(measured[c], expected[c], 1e-4 * expected[c]) << "channel " << c;
+}
+
 }  // namespace
 }  // namespace refract

@@ -39,24 +39,24 @@ SceneDocument customised() {
     d.camera.up = {0.0, 0.0, 1.0};
     d.camera.fov_deg = 55.5;
     d.image = {800, 600, -1.5};
-    d.light.type = LightType::directional;
-    d.light.position = {-3.0, 4.0, 5.0};
-    d.light.direction = {0.0, -1.0, 0.1};
-    d.light.color = {1.0, 0.9, 0.8};
-    d.light.intensity = 3.3;
-    d.light.cone_deg = 90.0;
-    d.object.mesh = "upload:bunny_v2.obj";
-    d.object.position = {0.5, 0.25, -0.125};
-    d.object.rotation_deg = {10.0, 20.0, 30.0};
-    d.object.scale = 0.7;
-    d.object.index_field = IndexFieldKind::grid;
-    d.object.ior = 1.0 / 3.0 + 1.0;
-    d.object.maxwell_n0 = 2.5;
-    d.object.abbe = 36.4;
-    d.object.extinction = {0.1, 0.2, 0.3};
-    d.object.scattering = {0.1, 0.1, 0.1};
-    d.object.phase = {PhaseModel::schlick, -0.4};
-    d.object.grid = "lens-01";
+    d.lights.at("light").type = LightType::directional;
+    d.lights.at("light").position = {-3.0, 4.0, 5.0};
+    d.lights.at("light").direction = {0.0, -1.0, 0.1};
+    d.lights.at("light").color = {1.0, 0.9, 0.8};
+    d.lights.at("light").intensity = 3.3;
+    d.lights.at("light").cone_deg = 90.0;
+    d.object().mesh = "upload:bunny_v2.obj";
+    d.object().position = {0.5, 0.25, -0.125};
+    d.object().rotation_deg = {10.0, 20.0, 30.0};
+    d.object().scale = 0.7;
+    d.object().index_field = IndexFieldKind::grid;
+    d.object().ior = 1.0 / 3.0 + 1.0;
+    d.object().maxwell_n0 = 2.5;
+    d.object().abbe = 36.4;
+    d.object().extinction = {0.1, 0.2, 0.3};
+    d.object().scattering = {0.1, 0.1, 0.1};
+    d.object().phase = {PhaseModel::schlick, -0.4};
+    d.object().grid = "lens-01";
     d.medium.ior = 1.33;
     d.medium.extinction = {0.0, 0.0, 0.0};
     d.medium.scattering = {0.0, 0.0, 0.0};
@@ -68,8 +68,8 @@ SceneDocument customised() {
     d.volume.margin = 0.0;
     d.photons = {12345, 4294967295u, 17};
     d.floor = {false, -2.5, {0.1, 0.5, 1.0}, false, 1.0};
-    d.object.fresnel = false;
-    d.object.film = {1.38, 99.6, 5000.0};
+    d.object().fresnel = false;
+    d.object().film = {1.38, 99.6, 5000.0};
     d.environment = {EnvironmentKind::uniform, {0.5, 0.25, 1000.0}, 1e6};
     return d;
 }
@@ -80,10 +80,10 @@ TEST(SceneDocument, EmptyObjectGivesDefaults) {
     const SceneDocument d = parse_scene(json::object());
     EXPECT_EQ(d, SceneDocument{});
     // A glass sphere in light fog under a spot light, seen from the front.
-    EXPECT_EQ(d.object.mesh, "sphere");
-    EXPECT_EQ(d.object.index_field, IndexFieldKind::uniform);
-    EXPECT_DOUBLE_EQ(d.object.ior, 1.5);
-    EXPECT_EQ(d.light.type, LightType::spot);
+    EXPECT_EQ(d.object().mesh, "sphere");
+    EXPECT_EQ(d.object().index_field, IndexFieldKind::uniform);
+    EXPECT_DOUBLE_EQ(d.object().ior, 1.5);
+    EXPECT_EQ(d.lights.at("light").type, LightType::spot);
     EXPECT_GT(d.medium.extinction[0], 0.0);
     EXPECT_EQ(d.medium.phase.model, PhaseModel::henyey_greenstein);
     EXPECT_GT(d.camera.position[2], 0.0);
@@ -103,8 +103,8 @@ TEST(SceneDocument, MissingFieldsKeepDefaultsBesideGivenOnes) {
     const SceneDocument d =
         parse_scene(json::parse(R"({"light": {"intensity": 7}, "object": {"phase": {"g": 0.5}}})"));
     SceneDocument expected;
-    expected.light.intensity = 7.0;
-    expected.object.phase.g = 0.5;
+    expected.lights.at("light").intensity = 7.0;
+    expected.object().phase.g = 0.5;
     EXPECT_EQ(d, expected);
 }
 
@@ -126,53 +126,57 @@ TEST(SceneDocument, RoundTripCustomisedThroughText) {
 TEST(SceneDocument, RoundTripEveryEnumValue) {
     for (LightType t : {LightType::point, LightType::spot, LightType::directional}) {
         SceneDocument d;
-        d.light.type = t;
+        d.lights.at("light").type = t;
         EXPECT_EQ(parse_scene(to_json(d)), d);
     }
     for (PhaseModel m : {PhaseModel::isotropic, PhaseModel::schlick, PhaseModel::henyey_greenstein}) {
         SceneDocument d;
-        d.object.phase.model = m;
+        d.object().phase.model = m;
         d.medium.phase.model = m;
         EXPECT_EQ(parse_scene(to_json(d)), d);
     }
     for (IndexFieldKind k :
          {IndexFieldKind::uniform, IndexFieldKind::luneburg, IndexFieldKind::maxwell, IndexFieldKind::grid}) {
         SceneDocument d;
-        d.object.index_field = k;
-        d.object.grid = "g";
+        d.object().index_field = k;
+        d.object().grid = "g";
         EXPECT_EQ(parse_scene(to_json(d)), d);
     }
     for (const char* mesh : {"sphere", "cube", "torus", "prism", "upload:A-z_0.9"}) {
         SceneDocument d;
-        d.object.mesh = mesh;
+        d.object().mesh = mesh;
         EXPECT_EQ(parse_scene(to_json(d)), d);
     }
 }
 
 TEST(SceneDocument, ToJsonEmitsEveryField) {
     const json j = to_json(SceneDocument{});
+    // Lights and objects in the collection form, the default scene's one of each named as the older form's.
     const std::vector<std::pair<std::string, std::vector<std::string>>> expected = {
-        {"camera", {"position", "target", "up", "fov_deg"}},
-        {"image", {"width", "height", "exposure"}},
-        {"light", {"type", "position", "direction", "color", "intensity", "cone_deg"}},
-        {"object",
+        {"/camera", {"position", "target", "up", "fov_deg"}},
+        {"/image", {"width", "height", "exposure"}},
+        {"/lights/light", {"type", "position", "direction", "color", "intensity", "cone_deg"}},
+        {"/objects/object",
          {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "abbe", "fresnel", "film",
           "extinction", "scattering", "phase", "grid"}},
-        {"medium", {"ior", "extinction", "scattering", "phase"}},
-        {"volume", {"resolution", "smoothing", "octree_epsilon", "margin"}},
-        {"photons", {"count", "seed", "max_bounces"}},
-        {"floor", {"enabled", "height", "albedo", "checker", "checker_size"}},
-        {"environment", {"type", "color", "intensity"}},
+        {"/medium", {"ior", "extinction", "scattering", "phase"}},
+        {"/volume", {"resolution", "smoothing", "octree_epsilon", "margin"}},
+        {"/photons", {"count", "seed", "max_bounces"}},
+        {"/floor", {"enabled", "height", "albedo", "checker", "checker_size"}},
+        {"/environment", {"type", "color", "intensity"}},
     };
     ASSERT_EQ(j.size(), expected.size());
+    EXPECT_EQ(j["lights"].size(), 1u);
+    EXPECT_EQ(j["objects"].size(), 1u);
     for (const auto& [section, fields] : expected) {
-        ASSERT_TRUE(j.contains(section)) << section;
-        EXPECT_EQ(j[section].size(), fields.size()) << section;
-        for (const auto& f : fields) EXPECT_TRUE(j[section].contains(f)) << section << "." << f;
+        const json::json_pointer at(section);
+        ASSERT_TRUE(j.contains(at)) << section;
+        EXPECT_EQ(j[at].size(), fields.size()) << section;
+        for (const auto& f : fields) EXPECT_TRUE(j[at].contains(f)) << section << "." << f;
     }
     EXPECT_FALSE(j["volume"].contains("bounds"));
     EXPECT_EQ(j["medium"]["phase"]["model"], "henyey-greenstein");
-    EXPECT_EQ(j["light"]["type"], "spot");
+    EXPECT_EQ(j["lights"]["light"]["type"], "spot");
     EXPECT_EQ(j["image"]["width"], 512);
 
     const json c = to_json(customised());
@@ -258,26 +262,26 @@ TEST(MergePatch, NestedMergeKeepsSiblings) {
     const SceneDocument d = apply_merge_patch(
         current, json::parse(R"({"light": {"intensity": 5}, "object": {"phase": {"g": 0.25}}})"));
     SceneDocument expected = customised();
-    expected.light.intensity = 5.0;
-    expected.object.phase.g = 0.25;
+    expected.lights.at("light").intensity = 5.0;
+    expected.object().phase.g = 0.25;
     EXPECT_EQ(d, expected);
-    EXPECT_EQ(d.object.phase.model, PhaseModel::schlick);  // sibling inside the nested object kept
+    EXPECT_EQ(d.object().phase.model, PhaseModel::schlick);  // sibling inside the nested object kept
     EXPECT_EQ(current, before);
 }
 
 TEST(MergePatch, NullDeletesAndFieldReturnsToDefault) {
     const SceneDocument current = customised();
     SceneDocument d = apply_merge_patch(current, json::parse(R"({"light": {"intensity": null}})"));
-    EXPECT_DOUBLE_EQ(d.light.intensity, Light{}.intensity);
-    EXPECT_EQ(d.light.type, LightType::directional);  // the rest of the section kept
+    EXPECT_DOUBLE_EQ(d.lights.at("light").intensity, Light{}.intensity);
+    EXPECT_EQ(d.lights.at("light").type, LightType::directional);  // the rest of the section kept
 
     d = apply_merge_patch(current, json::parse(R"({"camera": null})"));
     EXPECT_EQ(d.camera, Camera{});
-    EXPECT_EQ(d.light, current.light);
+    EXPECT_EQ(d.lights.at("light"), current.lights.at("light"));
 
     d = apply_merge_patch(current, json::parse(R"({"object": {"phase": {"model": null}}})"));
-    EXPECT_EQ(d.object.phase.model, Phase{}.model);
-    EXPECT_DOUBLE_EQ(d.object.phase.g, -0.4);
+    EXPECT_EQ(d.object().phase.model, Phase{}.model);
+    EXPECT_DOUBLE_EQ(d.object().phase.g, -0.4);
 
     // Deleting a member that is not there is a no-op, even under a name the document does not know.
     EXPECT_EQ(apply_merge_patch(current, json::parse(R"({"camera": {"no_such_field": null}})")), current);
@@ -352,6 +356,125 @@ TEST(MergePatch, CrossFieldErrorsBlameTheEditedValue) {
             parse_scene(json::parse(R"({"medium": {"extinction": [1, 1, 1], "scattering": [1, 1, 2]}})"));
         }),
         "/medium/scattering/2");
+}
+
+// ---- collections of lights and objects ----------------------------------------------------------------
+
+TEST(Collections, OlderFormLoadsAsACollectionOfOneAndIsStoredInTheNewForm) {
+    const SceneDocument d = parse_scene(json::parse(R"({"light": {"intensity": 7}, "object": {"ior": 1.7}})"));
+    ASSERT_EQ(d.lights.size(), 1u);
+    ASSERT_EQ(d.objects.size(), 1u);
+    EXPECT_DOUBLE_EQ(d.lights.at("light").intensity, 7.0);
+    EXPECT_DOUBLE_EQ(d.objects.at("object").ior, 1.7);
+    const json stored = to_json(d);
+    EXPECT_FALSE(stored.contains("light"));
+    EXPECT_FALSE(stored.contains("object"));
+    EXPECT_DOUBLE_EQ(stored["lights"]["light"]["intensity"].get<double>(), 7.0);
+    EXPECT_EQ(parse_scene(stored), d);
+    // The same scene written in the new form is the same document.
+    EXPECT_EQ(parse_scene(json::parse(R"({"lights": {"light": {"intensity": 7}}, "objects": {"object": {"ior": 1.7}}})")), d);
+}
+
+TEST(Collections, MergePatchesAddEditRenameAndRemoveOneLightByItsKey) {
+    const SceneDocument one;
+    SceneDocument two = apply_merge_patch(one, json::parse(R"({"lights": {"fill": {"type": "point", "intensity": 3}}})"));
+    ASSERT_EQ(two.lights.size(), 2u);
+    EXPECT_EQ(two.lights.at("light"), one.lights.at("light"));  // the other light is untouched
+    EXPECT_EQ(two.lights.at("fill").type, LightType::point);
+    EXPECT_DOUBLE_EQ(two.lights.at("fill").intensity, 3.0);
+    EXPECT_EQ(two.lights.at("fill").color, Light{}.color);  // fields not given take defaults
+
+    const SceneDocument edited = apply_merge_patch(two, json::parse(R"({"lights": {"fill": {"intensity": 4}}})"));
+    EXPECT_DOUBLE_EQ(edited.lights.at("fill").intensity, 4.0);
+    EXPECT_EQ(edited.lights.at("fill").type, LightType::point);
+    EXPECT_EQ(edited.lights.at("light"), one.lights.at("light"));
+
+    // A rename is an add and a remove in one patch.
+    const SceneDocument renamed = apply_merge_patch(
+        edited, json{{"lights", {{"fill", nullptr}, {"rim", to_json(edited)["lights"]["fill"]}}}});
+    EXPECT_FALSE(renamed.lights.contains("fill"));
+    EXPECT_EQ(renamed.lights.at("rim"), edited.lights.at("fill"));
+
+    const SceneDocument removed = apply_merge_patch(renamed, json::parse(R"({"lights": {"rim": null}})"));
+    EXPECT_EQ(removed, one);
+}
+
+TEST(Collections, OlderFormPatchesEditTheOneMemberWhateverItsName) {
+    SceneDocument d = apply_merge_patch(SceneDocument{}, json::parse(R"({"lights": {"light": null, "key": {"intensity": 9}}})"));
+    ASSERT_EQ(d.lights.size(), 1u);
+    d = apply_merge_patch(d, json::parse(R"({"light": {"intensity": 2}})"));
+    EXPECT_DOUBLE_EQ(d.lights.at("key").intensity, 2.0);
+    // null reset the section in the older form, and still does.
+    d = apply_merge_patch(d, json::parse(R"({"light": {"type": "point"}})"));
+    d = apply_merge_patch(d, json::parse(R"({"light": null})"));
+    EXPECT_EQ(d.lights.at("key"), Light{});
+    // Errors name the field as the patch wrote it.
+    try {
+        (void)apply_merge_patch(d, json::parse(R"({"light": {"type": "spot", "direction": [0, 0, 0]}})"));
+        ADD_FAILURE() << "accepted a spot light without a direction";
+    } catch (const ValidationError& e) {
+        EXPECT_EQ(e.pointer(), "/light/direction");
+        EXPECT_EQ(e.rule().find("/lights/"), std::string::npos) << e.rule();
+    }
+}
+
+TEST(Collections, AWholeDocumentInTheOlderFormReplacesTheCollections) {
+    // What a client sends to turn a scene into one loaded from an older file: remove what the file
+    // lacks (the collections), give what it has (one light, one object).
+    const SceneDocument two = apply_merge_patch(SceneDocument{}, json::parse(R"({"lights": {"fill": {"type": "point"}}})"));
+    const SceneDocument d = apply_merge_patch(
+        two, json::parse(R"({"lights": null, "objects": null, "light": {"intensity": 3}, "object": {"ior": 1.2}})"));
+    ASSERT_EQ(d.lights.size(), 1u);
+    EXPECT_DOUBLE_EQ(d.lights.at("light").intensity, 3.0);
+    EXPECT_DOUBLE_EQ(d.objects.at("object").ior, 1.2);
+    EXPECT_EQ(rejected_pointer([&] {
+                  (void)apply_merge_patch(two, json::parse(R"({"lights": null, "light": {"intensity": -3}})"));
+              }),
+              "/light/intensity");
+}
+
+TEST(Collections, BadCollectionsAreRejectedWithTheirPointerAndChangeNothing) {
+    SceneDocument two = apply_merge_patch(SceneDocument{}, json::parse(R"({"lights": {"fill": {"type": "point"}}})"));
+    const SceneDocument before = two;
+    json nine = json::object();
+    for (int i = 0; i < 9; ++i) nine["l" + std::to_string(i)] = json::object();
+    json eight = nine;
+    eight.erase("l8");
+    EXPECT_EQ(parse_scene(json{{"lights", eight}}).lights.size(), kMaxLights);
+    const std::vector<std::pair<json, std::string>> documents = {
+        {json{{"lights", nine}}, "/lights"},
+        {json::parse(R"({"lights": {}})"), "/lights"},
+        {json::parse(R"({"lights": []})"), "/lights"},
+        {json::parse(R"({"lights": {"a b": {}}})"), "/lights/a b"},
+        {json::parse(R"({"lights": {"": {}}})"), "/lights/"},
+        {json::parse(R"({"lights": {"..": {}}})"), "/lights/.."},
+        {json{{"lights", {{std::string(65, 'x'), json::object()}}}}, "/lights/" + std::string(65, 'x')},
+        {json::parse(R"({"lights": {"key": 5}})"), "/lights/key"},
+        {json::parse(R"({"lights": {"key": {"intensity": -1}}})"), "/lights/key/intensity"},
+        {json::parse(R"({"lights": {"key": {"wattage": 1}}})"), "/lights/key/wattage"},
+        {json::parse(R"({"light": {}, "lights": {"key": {}}})"), "/light"},
+        {json::parse(R"({"object": {}, "objects": {"glass": {}}})"), "/object"},
+        {json::parse(R"({"objects": {"a": {}, "b": {}}})"), "/objects"},
+        {json::parse(R"({"objects": {"a": {"mesh": "teapot"}}})"), "/objects/a/mesh"},
+        {json::parse(R"({"objects": {"a/b": {}}})"), "/objects/a~1b"},
+    };
+    for (const auto& [document, pointer] : documents) {
+        SCOPED_TRACE(document.dump());
+        EXPECT_EQ(rejected_pointer([&] { (void)parse_scene(document); }), pointer);
+    }
+    const std::vector<std::pair<json, std::string>> patches = {
+        {json{{"lights", nine}}, "/lights"},
+        {json::parse(R"({"lights": {"light": null, "fill": null}})"), "/lights"},
+        {json::parse(R"({"light": {"intensity": 1}})"), "/light"},  // which of the two?
+        {json::parse(R"({"lights": {"fill": {"cone_deg": 0}}})"), "/lights/fill/cone_deg"},
+        {json::parse(R"({"lights": {"new one": {}}})"), "/lights/new one"},
+        {json::parse(R"({"objects": {"second": {}}})"), "/objects"},
+    };
+    for (const auto& [patch, pointer] : patches) {
+        SCOPED_TRACE(patch.dump());
+        EXPECT_EQ(rejected_pointer([&] { (void)apply_merge_patch(two, patch); }), pointer);
+        EXPECT_EQ(two, before);
+    }
 }
 
 // ---- limits ---------------------------------------------------------------------------------------------

@@ -670,14 +670,14 @@ TEST_F(ViewTest, BallLensInFogFocusesTheBeamPastTheSphere) {
     const auto fluence = gpu.read_radiance();
     const auto& grid = gpu.grid();
     const glm::ivec3 dims(static_cast<int>(grid.dims.x), static_cast<int>(grid.dims.y), static_cast<int>(grid.dims.z));
-    const double h = grid.voxel_size, radius = doc.object.scale;
-    const dvec3 centre = vec(doc.object.position), light = vec(doc.light.position);
+    const double h = grid.voxel_size, radius = doc.object().scale;
+    const dvec3 centre = vec(doc.object().position), light = vec(doc.lights.at("light").position);
     const dvec3 axis = glm::normalize(centre - light);
-    const double s = glm::length(centre - light), n = doc.object.ior;
+    const double s = glm::length(centre - light), n = doc.object().ior;
     const double f = n * radius / (2.0 * (n - 1.0)), paraxial = 1.0 / (1.0 / f - 1.0 / s);
     const double sigma_t = (doc.medium.extinction[0] + doc.medium.extinction[1] + doc.medium.extinction[2]) / 3.0;
-    const double intensity = doc.light.intensity * (doc.light.color[0] + doc.light.color[1] + doc.light.color[2]) / 3.0;
-    const double cos_cone = std::cos((doc.light.cone_deg - 1.0) * kPi / 180.0);
+    const double intensity = doc.lights.at("light").intensity * (doc.lights.at("light").color[0] + doc.lights.at("light").color[1] + doc.lights.at("light").color[2]) / 3.0;
+    const double cos_cone = std::cos((doc.lights.at("light").cone_deg - 1.0) * kPi / 180.0);
 
     double brightest = 0.0, brightest_front = 0.0, best_gain = 0.0;
     dvec3 brightest_at{0.0}, gain_at{0.0};
@@ -735,10 +735,10 @@ bool inside_torus(const protocol::Object& o, dvec3 x) {
 
 // Does the straight path from the light to floor point x pass through the torus (its shadow footprint)?
 bool in_torus_shadow(const SceneDocument& doc, dvec3 x) {
-    const dvec3 light = vec(doc.light.position);
+    const dvec3 light = vec(doc.lights.at("light").position);
     const double len = glm::length(x - light);
     for (double t = 0.0; t < len; t += 0.005)
-        if (inside_torus(doc.object, light + (x - light) * (t / len))) return true;
+        if (inside_torus(doc.object(), light + (x - light) * (t / len))) return true;
     return false;
 }
 
@@ -765,9 +765,9 @@ TEST_F(ViewTest, TorusCastsACausticOnTheFloor) {
     const int texels = static_cast<int>(gpu.floor_map_side());
     const double texel = static_cast<double>(p.floor_map.z) / texels, floor_y = doc.floor.height;
     const double map_x = p.floor_map.x, map_z = p.floor_map.y;
-    const dvec3 light = vec(doc.light.position), spot_axis = glm::normalize(vec(doc.light.direction));
-    const double cos_cone = std::cos(doc.light.cone_deg * kPi / 180.0);
-    const double intensity = doc.light.intensity * (doc.light.color[0] + doc.light.color[1] + doc.light.color[2]) / 3.0;
+    const dvec3 light = vec(doc.lights.at("light").position), spot_axis = glm::normalize(vec(doc.lights.at("light").direction));
+    const double cos_cone = std::cos(doc.lights.at("light").cone_deg * kPi / 180.0);
+    const double intensity = doc.lights.at("light").intensity * (doc.lights.at("light").color[0] + doc.lights.at("light").color[1] + doc.lights.at("light").color[2]) / 3.0;
     const dvec3 grid_lo(grid.origin), grid_hi(grid.max_corner());
     auto centre_of = [&](int i, int j) {
         return dvec3(map_x + (i + 0.5) * texel, floor_y, map_z + (j + 0.5) * texel);

@@ -38,7 +38,7 @@ constexpr double kVolumeSpec = 0.02;
 // A document that runs only what a volume test needs (tiny frame, few photons: never run here).
 SceneDocument volume_document(const std::string& mesh, uint32_t resolution, double smoothing) {
     SceneDocument d;
-    d.object.mesh = mesh;
+    d.object().mesh = mesh;
     d.volume.resolution = resolution;
     d.volume.smoothing = smoothing;
     d.image.width = 8;
@@ -385,7 +385,7 @@ TEST_F(VolumeTest, BunnyVoxelizesToItsVolumeAlsoRotatedAndMoved) {
 
 TEST_F(VolumeTest, UniformObjectIsIorInsideAndMediumOutside) {
     SceneDocument doc = volume_document("sphere", 64, 0.75);
-    doc.object.ior = 1.5;
+    doc.object().ior = 1.5;
     doc.medium.ior = 1.33;
     const mesh::Mesh world = world_mesh(doc);
     const Volume v = build(doc, world);
@@ -400,7 +400,7 @@ TEST_F(VolumeTest, UniformObjectIsIorInsideAndMediumOutside) {
     const double h = v.h();
     const double reach = (0.5 * std::sqrt(3.0) + std::sqrt(3.0) * (std::ceil(3.0 * 0.75) + 1.0)) * h;
     size_t inside = 0, outside = 0;
-    const float n_object = static_cast<float>(doc.object.ior), n_medium = static_cast<float>(doc.medium.ior);
+    const float n_object = static_cast<float>(doc.object().ior), n_medium = static_cast<float>(doc.medium.ior);
     v.for_each([&](uint32_t x, uint32_t y, uint32_t z, size_t i) {
         const double r = glm::length(v.centre(x, y, z));
         const glm::vec4 f = v.field[i];
@@ -462,8 +462,8 @@ TEST_F(VolumeTest, FlatInterfaceWidthMatchesSigma) {
         SCOPED_TRACE(sigma);
         SceneDocument doc = volume_document("cube", 64, sigma);
         doc.volume.bounds = protocol::Bounds{{-2.0, -2.0, -2.0}, {2.0, 2.0, 2.0}};
-        doc.object.scale = 0.96875;
-        doc.object.ior = 1.5;
+        doc.object().scale = 0.96875;
+        doc.object().ior = 1.5;
         doc.medium.ior = 1.1;
         const Volume v = build(doc);
         ASSERT_EQ(v.grid.voxel_size, 0.0625f);
@@ -584,22 +584,22 @@ void expect_lens(const Volume& v, const glm::dvec3& centre, double radius, doubl
 
 TEST_F(VolumeTest, LuneburgAndMaxwellFieldsMatchTheirProfiles) {
     SceneDocument doc = volume_document("sphere", 64, 0.75);
-    doc.object.position = {0.2, -0.1, 0.3};
-    doc.object.scale = 0.8;
+    doc.object().position = {0.2, -0.1, 0.3};
+    doc.object().scale = 0.8;
     doc.medium.ior = 1.0;
     const glm::dvec3 centre(0.2, -0.1, 0.3);
     const double radius = 0.8;
     {
         SCOPED_TRACE("luneburg");
-        doc.object.index_field = IndexFieldKind::luneburg;
+        doc.object().index_field = IndexFieldKind::luneburg;
         const Volume v = build(doc);
         expect_lens(v, centre, radius, 1.0, [](double q) { return std::sqrt(2.0 - q); },
                     [](double q) { return -0.5 / std::sqrt(2.0 - q); });
     }
     {
         SCOPED_TRACE("maxwell");
-        doc.object.index_field = IndexFieldKind::maxwell;
-        doc.object.maxwell_n0 = 2.0;
+        doc.object().index_field = IndexFieldKind::maxwell;
+        doc.object().maxwell_n0 = 2.0;
         const Volume v = build(doc);
         expect_lens(v, centre, radius, 1.0, [](double q) { return 2.0 / (1.0 + q); },
                     [](double q) { return -2.0 / ((1.0 + q) * (1.0 + q)); });

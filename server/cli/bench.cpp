@@ -138,7 +138,7 @@ mesh::Mesh world_of(const protocol::SceneDocument& d, const std::map<std::string
         if (it == uploads.end()) throw std::runtime_error("bench: scene needs --mesh " + name + "=FILE.obj");
         return it->second;
     });
-    if (!base) throw std::runtime_error("bench: unknown mesh " + d.object.mesh);
+    if (!base) throw std::runtime_error("bench: unknown mesh " + d.object().mesh);
     return scene::world_mesh(d, *base);
 }
 

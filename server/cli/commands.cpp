@@ -56,7 +56,7 @@ mesh::Mesh world_mesh(const Loaded& loaded) {
         if (it == loaded.meshes.end()) throw std::runtime_error("the scene names upload:" + name + ": pass --mesh " + name + "=FILE.obj");
         return it->second;
     });
-    if (!base) throw std::runtime_error("unknown mesh " + loaded.document.object.mesh);
+    if (!base) throw std::runtime_error("unknown mesh " + loaded.document.object().mesh);
     return scene::world_mesh(loaded.document, *base);
 }
 

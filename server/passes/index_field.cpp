@@ -29,7 +29,7 @@ void IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol::Scene
                             const vk::Buffer& grid_values, const vk::Image3D& index_field,
                             const vk::Image3D& coverage_image) const {
     using protocol::IndexFieldKind;
-    const auto& object = document.object;
+    const auto& object = document.object();
     uint32_t kind = INDEX_KIND_UNIFORM;
     float n_object = static_cast<float>(object.ior);
     switch (object.index_field) {

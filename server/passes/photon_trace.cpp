@@ -1,6 +1,7 @@
 #include "passes/photon_trace.h"
 
 #include <algorithm>
+#include <cstddef>
 
 #include "passes/transport_params.h"
 #include "photon_trace_spv.h"
@@ -76,11 +77,21 @@ PhotonTracePass::PhotonTracePass(vk::Context& context)
                      kSampledWalks) {}
 
 void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey) {
+    recorder.fill(accum.stats, 0);
+    recorder.fill(accum.exits, 0);
     if (!grey) recorder.fill(accum.red_green, 0);
     recorder.fill(accum.flux, 0);
     recorder.fill(accum.floor, 0);
-    recorder.fill(accum.stats, 0);
-    recorder.fill(accum.exits, 0);
+    recorder.transfer_to_compute_barrier();
+}
+
+void clear_for_next_light(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey) {
+    if (!grey) recorder.fill(accum.red_green, 0);
+    recorder.fill(accum.flux, 0);
+    recorder.fill(accum.floor, 0);
+    const uint32_t none = 0;
+    recorder.update(accum.stats, offsetof(shaders::PhotonStats, queue_taken) + QUEUE_PHOTONS * sizeof(uint32_t), &none,
+                    sizeof(none));
     recorder.transfer_to_compute_barrier();
 }
 

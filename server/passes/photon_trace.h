@@ -33,6 +33,9 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
 
 // Zeroes the sums, counters and exits before a frame's direct light and photons add to them.
 void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey);
+// Clears the radiance and floor sums and the photon queue for the next light's photons; the statistics
+// and photon exits go on.
+void clear_for_next_light(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey);
 
 class PhotonTracePass {
 public:

@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 namespace refract::passes {
 
@@ -70,11 +71,31 @@ std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims) {
 }
 
 uint32_t transport_channels(const protocol::SceneDocument& document) {
-    if (document.object.abbe > 0.0) return CHANNELS_DISPERSIVE;
+    if (document.object().abbe > 0.0) return CHANNELS_DISPERSIVE;
     auto grey = [](const auto& rgb) { return rgb[0] == rgb[1] && rgb[1] == rgb[2]; };
-    return grey(document.medium.extinction) && grey(document.object.extinction) && !film_reflects(document)
+    return grey(document.medium.extinction) && grey(document.object().extinction) && !film_reflects(document) &&
+                   lights_share_colour(document)
                ? CHANNELS_GREY
                : CHANNELS_RGB;
+}
+
+bool lights_share_colour(const protocol::SceneDocument& document) {
+    // Grey transport keeps one fluence and gives it the first light's colour (grey_colour): right only if
+    // every light that shines has that colour up to a factor.
+    const protocol::Vec3* first = nullptr;
+    for (const auto& [name, light] : document.lights) {
+        const auto& c = light.color;
+        if (light.intensity <= 0.0 || c[0] + c[1] + c[2] <= 0.0) continue;
+        if (first == nullptr) {
+            first = &c;
+            continue;
+        }
+        const auto& f = *first;
+        const double a = f[0] + f[1] + f[2], b = c[0] + c[1] + c[2];
+        for (size_t i = 0; i < 3; ++i)
+            if (std::abs(f[i] * b - c[i] * a) > 1e-9 * a * b) return false;
+    }
+    return true;
 }
 
 uint32_t photon_exit_count(uint32_t photons, uint32_t channels) {
@@ -99,18 +120,18 @@ glm::vec3 dispersion_scales(double abbe) {
 }
 
 bool fresnel_reflects(const protocol::SceneDocument& document) {
-    return document.object.fresnel && document.object.index_field == protocol::IndexFieldKind::uniform &&
-           std::abs(document.object.ior - document.medium.ior) > 1e-4;
+    return document.object().fresnel && document.object().index_field == protocol::IndexFieldKind::uniform &&
+           std::abs(document.object().ior - document.medium.ior) > 1e-4;
 }
 
 bool film_reflects(const protocol::SceneDocument& document) {
-    const auto& film = document.object.film;
+    const auto& film = document.object().film;
     return fresnel_reflects(document) && (film.top_nm > 0.0 || film.bottom_nm > 0.0);
 }
 
 bool any_scattering(const protocol::SceneDocument& document) {
     const auto& m = document.medium.scattering;
-    const auto& o = document.object.scattering;
+    const auto& o = document.object().scattering;
     return std::max({m[0], m[1], m[2], o[0], o[1], o[2]}) > 0.0;
 }
 
@@ -119,7 +140,7 @@ uint32_t photon_bounces(const protocol::SceneDocument& document, uint32_t cap) {
 }
 
 float octree_epsilon(const protocol::SceneDocument& document) {
-    const glm::vec3 scales = dispersion_scales(document.object.abbe);
+    const glm::vec3 scales = dispersion_scales(document.object().abbe);
     return static_cast<float>(document.volume.octree_epsilon) / std::max({scales.r, scales.g, scales.b, 1.0f});
 }
 
@@ -133,42 +154,35 @@ glm::vec2 view_sample_offset(uint32_t index) {
     return glm::vec2(radical_inverse(index, 2), radical_inverse(index, 3)) - 0.5f;
 }
 
-shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
-                                               const scene::GridGeometry& grid, const TransportOptions& options) {
-    shaders::TransportParams p{};
-    p.grid_origin = glm::vec4(grid.origin, grid.voxel_size);
-    p.grid_dims = glm::uvec4(grid.dims.x, grid.dims.y, grid.dims.z, options.max_level);
+namespace {
 
-    const auto& medium = document.medium;
-    const auto& object = document.object;
-    p.medium_extinction = glm::vec4(vec(medium.extinction), static_cast<float>(medium.ior));
-    p.medium_scattering = glm::vec4(vec(medium.scattering), static_cast<float>(medium.phase.g));
-    p.object_extinction = glm::vec4(vec(object.extinction), static_cast<float>(object.ior));
-    p.object_scattering = glm::vec4(vec(object.scattering), static_cast<float>(object.phase.g));
+shaders::LightParams light_params(const protocol::Light& light) {
+    shaders::LightParams l{};
+    uint32_t type = LIGHT_POINT;
+    if (light.type == LightType::spot) type = LIGHT_SPOT;
+    if (light.type == LightType::directional) type = LIGHT_DIRECTIONAL;
+    l.position = glm::vec4(vec(light.position), std::cos(glm::radians(static_cast<float>(light.cone_deg))));
+    l.direction = glm::vec4(glm::normalize(vec(light.direction)), 0.0f);
+    l.power = glm::vec4(vec(light.color) * static_cast<float>(light.intensity), 0.0f);
+    l.type = glm::uvec4(type, 0u, 0u, 0u);
+    return l;
+}
 
-    // Light and its photon emitter.
-    const auto& light = document.light;
-    const glm::vec3 light_position = vec(light.position);
-    const glm::vec3 light_direction = glm::normalize(vec(light.direction));
-    const float cos_spot = std::cos(glm::radians(static_cast<float>(light.cone_deg)));
-    const glm::vec3 power = vec(light.color) * static_cast<float>(light.intensity);
-    uint32_t light_type = LIGHT_POINT;
-    if (light.type == LightType::spot) light_type = LIGHT_SPOT;
-    if (light.type == LightType::directional) light_type = LIGHT_DIRECTIONAL;
-    const uint32_t bounces = photon_bounces(document, options.bounce_cap);
-    p.models = glm::uvec4(phase_model(medium.phase.model), phase_model(object.phase.model), light_type, bounces);
-    p.dispersion = glm::vec4(dispersion_scales(object.abbe), 0.0f);
-    p.light_position = glm::vec4(light_position, cos_spot);
-    p.light_direction = glm::vec4(light_direction, 0.0f);
-    p.light_power = glm::vec4(power, 0.0f);
+// A light's photon emitter around the grid (a cone from a point or spot light, a rectangle across a
+// directional light's beam) and the flux it sends through it (W per channel).
+struct Emitter {
+    glm::vec4 axis, u, v, origin;
+    glm::vec3 flux;
+};
 
-    const uint32_t photons = document.photons.count;
+Emitter emitter_for(const shaders::LightParams& light, const scene::GridGeometry& grid) {
     const glm::vec3 centre = 0.5f * (grid.origin + grid.max_corner());
     const float bound_radius = 0.5f * glm::length(grid.max_corner() - grid.origin);
-    glm::vec3 flux(0.0f);
-    if (light_type == LIGHT_DIRECTIONAL) {
+    const glm::vec3 power(light.power);
+    Emitter e{};
+    if (light.type.x == LIGHT_DIRECTIONAL) {
         // A rectangle perpendicular to the light covering the grid's projection, just in front of it.
-        const glm::vec3 d = light_direction;
+        const glm::vec3 d(light.direction);
         const glm::vec3 u = unit_across(d);
         const glm::vec3 v = glm::cross(d, u);
         glm::vec3 lo(1e30f), hi(-1e30f);
@@ -178,55 +192,90 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
             hi = glm::max(hi, s);
         }
         const float before = lo.z - 0.01f * bound_radius;
-        p.emit_axis = glm::vec4(d, 1.0f);
-        p.emit_u = glm::vec4((hi.x - lo.x) * u, 0.0f);
-        p.emit_v = glm::vec4((hi.y - lo.y) * v, 0.0f);
-        p.emit_origin = glm::vec4(centre + lo.x * u + lo.y * v + before * d, 1.0f);
-        flux = power * (hi.x - lo.x) * (hi.y - lo.y) / static_cast<float>(photons);
-    } else {
-        // A cone from the light around the grid's bounding sphere (the whole sphere of directions when
-        // the light is inside it); a spot's own cone when that is the smaller, contained one.
-        const glm::vec3 to_centre = centre - light_position;
-        const float distance = glm::length(to_centre);
-        glm::vec3 axis(0.0f, -1.0f, 0.0f);
-        float cos_cone = -1.0f;
-        if (distance > bound_radius * 1.0001f) {
-            axis = to_centre / distance;
-            cos_cone = std::sqrt(1.0f - (bound_radius / distance) * (bound_radius / distance));
-        }
-        if (light_type == LIGHT_SPOT) {
-            const float spot_half = std::acos(cos_spot);
-            const float bound_half = std::acos(cos_cone);
-            const float between = std::acos(std::clamp(glm::dot(axis, light_direction), -1.0f, 1.0f));
-            if (between + spot_half <= bound_half) {
-                axis = light_direction;
-                cos_cone = cos_spot;
-            }
-        }
-        p.emit_axis = glm::vec4(axis, cos_cone);
-        const glm::vec3 u = unit_across(axis);
-        p.emit_u = glm::vec4(u, 0.0f);
-        p.emit_v = glm::vec4(glm::cross(axis, u), 0.0f);
-        p.emit_origin = glm::vec4(light_position, 1.0f);
-        const float solid_angle = 2.0f * std::numbers::pi_v<float> * (1.0f - cos_cone);
-        flux = power * solid_angle / static_cast<float>(photons);
+        e.axis = glm::vec4(d, 1.0f);
+        e.u = glm::vec4((hi.x - lo.x) * u, 0.0f);
+        e.v = glm::vec4((hi.y - lo.y) * v, 0.0f);
+        e.origin = glm::vec4(centre + lo.x * u + lo.y * v + before * d, 1.0f);
+        e.flux = power * (hi.x - lo.x) * (hi.y - lo.y);
+        return e;
     }
-    const float reference = std::max({flux.r, flux.g, flux.b, 1e-30f});
-    p.photon_flux = glm::vec4(flux, reference);
+    // A cone from the light around the grid's bounding sphere (the whole sphere of directions when the
+    // light is inside it); a spot's own cone when that is the smaller, contained one.
+    const glm::vec3 light_position(light.position);
+    const float cos_spot = light.position.w;
+    const glm::vec3 to_centre = centre - light_position;
+    const float distance = glm::length(to_centre);
+    glm::vec3 axis(0.0f, -1.0f, 0.0f);
+    float cos_cone = -1.0f;
+    if (distance > bound_radius * 1.0001f) {
+        axis = to_centre / distance;
+        cos_cone = std::sqrt(1.0f - (bound_radius / distance) * (bound_radius / distance));
+    }
+    if (light.type.x == LIGHT_SPOT) {
+        const float spot_half = std::acos(cos_spot);
+        const float bound_half = std::acos(cos_cone);
+        const float between = std::acos(std::clamp(glm::dot(axis, glm::vec3(light.direction)), -1.0f, 1.0f));
+        if (between + spot_half <= bound_half) {
+            axis = glm::vec3(light.direction);
+            cos_cone = cos_spot;
+        }
+    }
+    e.axis = glm::vec4(axis, cos_cone);
+    const glm::vec3 u = unit_across(axis);
+    e.u = glm::vec4(u, 0.0f);
+    e.v = glm::vec4(glm::cross(axis, u), 0.0f);
+    e.origin = glm::vec4(light_position, 1.0f);
+    e.flux = power * (2.0f * std::numbers::pi_v<float> * (1.0f - cos_cone));
+    return e;
+}
+
+}  // namespace
+
+std::vector<uint32_t> photon_shares(uint32_t photons, const std::vector<double>& powers) {
+    double total = 0.0;
+    for (double p : powers) total += p;
+    std::vector<uint32_t> shares(powers.size(), 0u);
+    if (shares.empty()) return shares;
+    if (!(total > 0.0)) {
+        shares[0] = photons;  // nothing is lit: the first light's photons carry no flux
+        return shares;
+    }
+    for (size_t i = 0; i < powers.size(); ++i)
+        if (powers[i] > 0.0)
+            shares[i] = std::max(1u, static_cast<uint32_t>(std::llround(static_cast<double>(photons) * powers[i] / total)));
+    return shares;
+}
+
+std::vector<shaders::TransportParams> make_transport_params(const protocol::SceneDocument& document,
+                                                            const scene::GridGeometry& grid,
+                                                            const TransportOptions& options) {
+    shaders::TransportParams p{};
+    p.grid_origin = glm::vec4(grid.origin, grid.voxel_size);
+    p.grid_dims = glm::uvec4(grid.dims.x, grid.dims.y, grid.dims.z, options.max_level);
+
+    const auto& medium = document.medium;
+    const auto& object = document.object();
+    p.medium_extinction = glm::vec4(vec(medium.extinction), static_cast<float>(medium.ior));
+    p.medium_scattering = glm::vec4(vec(medium.scattering), static_cast<float>(medium.phase.g));
+    p.object_extinction = glm::vec4(vec(object.extinction), static_cast<float>(object.ior));
+    p.object_scattering = glm::vec4(vec(object.scattering), static_cast<float>(object.phase.g));
+
+    // The lights: all of them for the viewing pass, and below, per light, its photons.
+    static_assert(TRANSPORT_MAX_LIGHTS == protocol::kMaxLights);
+    std::vector<shaders::LightParams> lights;
+    for (const auto& named : document.lights) lights.push_back(light_params(named.second));
+    for (size_t i = 0; i < lights.size(); ++i) p.lights[i] = lights[i];
+    p.light_set = glm::uvec4(static_cast<uint32_t>(lights.size()), 0u, 0u, 0u);
+    const uint32_t bounces = photon_bounces(document, options.bounce_cap);
+    p.models = glm::uvec4(phase_model(medium.phase.model), phase_model(object.phase.model), LIGHT_POINT, bounces);
+    p.dispersion = glm::vec4(dispersion_scales(object.abbe), 0.0f);
     // A guard against photons that never finish, not a budget: a random walk's free paths each take
     // their own steps, so the guard grows with the bounces allowed.
     const uint32_t max_steps = 4 * (grid.dims.x + grid.dims.y + grid.dims.z) * (1 + bounces);
-    // Each refinement batch draws its own photons: another seed (a Weyl step, so batches never repeat one).
-    const uint32_t seed = document.photons.seed + options.photon_batch * 0x9e3779b9u;
-    p.photon_info = glm::uvec4(photons, seed, max_steps, options.fixed_step ? 1u : 0u);
-    // Fixed-point scales chosen so no voxel or texel sum can overflow 2^31 even if every photon
-    // deposited its full weight into it: a voxel crossing is at most sqrt(3) voxel lengths, and a net
-    // flux deposit is |d|_1 <= sqrt(3) times that (transport.h), so 3 x scale per photon at most.
-    const double n = static_cast<double>(photons);
-    p.stepping = glm::vec4(options.shell_step, 0.02f, power_of_two_below(2147483647.0 / (4.0 * n)),
-                           power_of_two_below(2147483647.0 / n));
 
-    // Floor and the caustic map's footprint: where the grid's shadow (and the grid itself) falls.
+    // Floor and the caustic map's footprint: where the grid's shadow under any light (and the grid
+    // itself) falls.
+    const glm::vec3 centre = 0.5f * (grid.origin + grid.max_corner());
     const auto& floor = document.floor;
     const float floor_height = static_cast<float>(floor.height);
     p.floor_plane = glm::vec4(floor_height, static_cast<float>(floor.checker_size), floor.enabled ? 1.0f : 0.0f,
@@ -237,20 +286,24 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     for (const auto& c : corners(grid)) {
         lo = glm::min(lo, glm::vec2(c.x, c.z));
         hi = glm::max(hi, glm::vec2(c.x, c.z));
-        glm::vec3 hit;
-        bool lands = false;
-        if (light_type == LIGHT_DIRECTIONAL) {
-            if (light_direction.y < -1e-4f && c.y > floor_height) {
-                hit = c + light_direction * ((c.y - floor_height) / -light_direction.y);
+        for (const auto& light : lights) {
+            const glm::vec3 light_position(light.position), light_direction(light.direction);
+            glm::vec3 hit;
+            bool lands = false;
+            if (light.type.x == LIGHT_DIRECTIONAL) {
+                if (light_direction.y < -1e-4f && c.y > floor_height) {
+                    hit = c + light_direction * ((c.y - floor_height) / -light_direction.y);
+                    lands = true;
+                }
+            } else if (light_position.y > c.y + 1e-4f && c.y > floor_height) {
+                hit = light_position +
+                      (c - light_position) * ((light_position.y - floor_height) / (light_position.y - c.y));
                 lands = true;
             }
-        } else if (light_position.y > c.y + 1e-4f && c.y > floor_height) {
-            hit = light_position + (c - light_position) * ((light_position.y - floor_height) / (light_position.y - c.y));
-            lands = true;
-        }
-        if (lands) {
-            lo = glm::min(lo, glm::vec2(hit.x, hit.z));
-            hi = glm::max(hi, glm::vec2(hit.x, hit.z));
+            if (lands) {
+                lo = glm::min(lo, glm::vec2(hit.x, hit.z));
+                hi = glm::max(hi, glm::vec2(hit.x, hit.z));
+            }
         }
     }
     // Refracted light spreads past the straight shadow (behind a focus, say): leave room around it.
@@ -295,11 +348,6 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     const auto lit = lit_pyramid_offsets(grid.dims);
     static_assert(LIT_LEVELS == 4);
     p.lit_offsets = glm::uvec4(lit[0], lit[1], lit[2], lit[3]);
-    // Direct light from UNBENT_MIN_DISTANCE radiance voxels (plus one, for the voxel's own extent) from a
-    // point or spot light on: every voxel it reaches takes unbent deposits (transport.h).
-    const float near = light_type == LIGHT_DIRECTIONAL ? 0.0f : (UNBENT_MIN_DISTANCE + 1.0f) * static_cast<float>(options.radiance_factor);
-    p.direct_light = glm::vec4(static_cast<float>(light_map_texels(grid, photons)), near, 0.0f,
-                               options.direct_light && scatters ? 1.0f : 0.0f);
     // A film's thickness goes from its top value at the object's top to its bottom value at its bottom
     // (the built-in meshes reach scale above and below position).
     const auto to_voxel_y = [&](double y) { return (static_cast<float>(y) - grid.origin.y) / grid.voxel_size; };
@@ -315,7 +363,55 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     const glm::vec3 horizon = uniform_environment ? vec(environment.color) : glm::vec3(0.045f, 0.050f, 0.060f);
     p.sky_zenith = glm::vec4(zenith * intensity, 0.0f);
     p.sky_horizon = glm::vec4(horizon * intensity, 0.0f);
-    return p;
+
+    // Each light's photons: a share of the count in proportion to the flux it sends through its emitter.
+    std::vector<Emitter> emitters;
+    std::vector<double> powers;
+    for (const auto& light : lights) {
+        emitters.push_back(emitter_for(light, grid));
+        const glm::vec3 f = emitters.back().flux;
+        powers.push_back((static_cast<double>(f.r) + static_cast<double>(f.g) + static_cast<double>(f.b)) / 3.0);
+    }
+    const std::vector<uint32_t> shares = photon_shares(document.photons.count, powers);
+    std::vector<shaders::TransportParams> per_light;
+    for (size_t i = 0; i < lights.size(); ++i) {
+        const uint32_t photons = shares[i];
+        if (photons == 0) continue;
+        shaders::TransportParams q = p;
+        const shaders::LightParams& light = lights[i];
+        const Emitter& e = emitters[i];
+        q.light_set.y = static_cast<uint32_t>(per_light.size());
+        q.models.z = light.type.x;
+        q.light_position = light.position;
+        q.light_direction = light.direction;
+        q.light_power = light.power;
+        q.emit_axis = e.axis;
+        q.emit_u = e.u;
+        q.emit_v = e.v;
+        q.emit_origin = e.origin;
+        const glm::vec3 flux = e.flux / static_cast<float>(photons);
+        q.photon_flux = glm::vec4(flux, std::max({flux.r, flux.g, flux.b, 1e-30f}));
+        // Each refinement batch draws its own photons: another seed (a Weyl step, so batches never repeat
+        // one), and so does each light.
+        const uint32_t seed = document.photons.seed + options.photon_batch * 0x9e3779b9u +
+                              static_cast<uint32_t>(i) * 0x632be5abu;
+        q.photon_info = glm::uvec4(photons, seed, max_steps, options.fixed_step ? 1u : 0u);
+        // Fixed-point scales chosen so no voxel or texel sum can overflow 2^31 even if every photon
+        // deposited its full weight into it: a voxel crossing is at most sqrt(3) voxel lengths, and a net
+        // flux deposit is |d|_1 <= sqrt(3) times that (transport.h), so 3 x scale per photon at most.
+        const double n = static_cast<double>(photons);
+        q.stepping = glm::vec4(options.shell_step, 0.02f, power_of_two_below(2147483647.0 / (4.0 * n)),
+                               power_of_two_below(2147483647.0 / n));
+        // Direct light from UNBENT_MIN_DISTANCE radiance voxels (plus one, for the voxel's own extent) from
+        // a point or spot light on: every voxel it reaches takes unbent deposits (transport.h).
+        const float near = light.type.x == LIGHT_DIRECTIONAL
+                               ? 0.0f
+                               : (UNBENT_MIN_DISTANCE + 1.0f) * static_cast<float>(options.radiance_factor);
+        q.direct_light = glm::vec4(static_cast<float>(light_map_texels(grid, photons)), near, 0.0f,
+                                   options.direct_light && scatters ? 1.0f : 0.0f);
+        per_light.push_back(q);
+    }
+    return per_light;
 }
 
 }  // namespace refract::passes

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <vector>
 
 #include "protocol/scene_document.h"
 #include "scene/grid_geometry.h"
@@ -28,14 +29,26 @@ struct TransportOptions {
 // over the pixel's square, so any number of samples covers it evenly).
 glm::vec2 view_sample_offset(uint32_t index);
 
-shaders::TransportParams make_transport_params(const protocol::SceneDocument& document,
-                                               const scene::GridGeometry& grid, const TransportOptions& options);
+// The frame's parameters, once per light whose photons run (each with its light_* and emit_* fields,
+// photon_flux, photon_info, stepping and direct_light; TransportParams::light_set.y numbers them), in the
+// order of document.lights; the first also serves the viewing pass. Never empty.
+std::vector<shaders::TransportParams> make_transport_params(const protocol::SceneDocument& document,
+                                                            const scene::GridGeometry& grid,
+                                                            const TransportOptions& options);
+
+// Photons per light out of `photons`, in proportion to the flux each sends through its emitter
+// (`powers`, W): one at least for a light that sends any, none for one that sends none; all for the
+// first when none sends any. A share rounds, so the total may differ from `photons` by under one per light.
+std::vector<uint32_t> photon_shares(uint32_t photons, const std::vector<double>& powers);
 
 // How the colour channels travel (CHANNELS_*, TRANSPORT_CONSTANT_CHANNELS): dispersive where the object
 // has an Abbe number; else grey where extinction is the same in every channel, in the medium and in the
 // object, and no film colours what it reflects (photons then keep their colour from emission to
 // deposit); else RGB.
 uint32_t transport_channels(const protocol::SceneDocument& document);
+
+// Whether every light that shines has the same colour up to a factor (grey transport needs it).
+bool lights_share_colour(const protocol::SceneDocument& document);
 
 // Photon exits a frame records (RunOptions::record_photon_exits) for `photons` emission samples: one per
 // sample and channel under dispersive transport, else one per sample.

@@ -28,7 +28,7 @@ std::shared_ptr<const mesh::Mesh> builtin(const std::string& name) {
 }  // namespace
 
 std::shared_ptr<const mesh::Mesh> base_mesh(const protocol::SceneDocument& document, const MeshLookup& uploads) {
-    const auto& object = document.object;
+    const auto& object = document.object();
     if (object.index_field == protocol::IndexFieldKind::luneburg ||
         object.index_field == protocol::IndexFieldKind::maxwell)
         return builtin("sphere");
@@ -37,7 +37,7 @@ std::shared_ptr<const mesh::Mesh> base_mesh(const protocol::SceneDocument& docum
 }
 
 mesh::Mesh world_mesh(const protocol::SceneDocument& document, const mesh::Mesh& base) {
-    const auto& object = document.object;
+    const auto& object = document.object();
     return mesh::transformed(base, static_cast<float>(object.scale), vec(object.rotation_deg), vec(object.position));
 }
 

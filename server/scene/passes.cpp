@@ -19,8 +19,8 @@ std::string pass_names(PassSet passes) {
 
 PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol::SceneDocument& after) {
     PassSet stale = 0;
-    const auto& a = before.object;
-    const auto& b = after.object;
+    const auto& a = before.object();
+    const auto& b = after.object();
     // Geometry and the grid: everything.
     if (a.mesh != b.mesh || a.position != b.position || a.rotation_deg != b.rotation_deg || a.scale != b.scale ||
         !(before.volume.resolution == after.volume.resolution) || before.volume.smoothing != after.volume.smoothing ||
@@ -38,7 +38,7 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     // What photons see: the light, their number, extinction (Beer-Lambert), whether the boundary reflects
     // (and through what film) and where the floor stops them;
     // and whether they deposit at all (only where something scatters).
-    if (!(before.light == after.light) || !(before.photons == after.photons) || a.extinction != b.extinction ||
+    if (!(before.lights == after.lights) || !(before.photons == after.photons) || a.extinction != b.extinction ||
         a.fresnel != b.fresnel || !(a.film == b.film) ||
         before.medium.extinction != after.medium.extinction || before.floor.enabled != after.floor.enabled ||
         before.floor.height != after.floor.height || passes::any_scattering(before) != passes::any_scattering(after))

@@ -115,7 +115,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
                              const Assets& assets, const FrameOptions& options) {
     const auto start = Clock::now();
     const Quality quality = options.quality;
-    const auto& object = requested.object;
+    const auto& object = requested.object();
 
     // Resolve assets first: an unknown name must not touch resident state.
     std::shared_ptr<const mesh::Mesh> mesh;

@@ -116,7 +116,7 @@ void SceneGpu::allocate_frame(uint32_t width, uint32_t height) {
 RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, const mesh::Mesh& object_world,
                        const IndexGrid* grid_asset, const RunOptions& options) {
     using protocol::IndexFieldKind;
-    const bool imported = document.object.index_field == IndexFieldKind::grid;
+    const bool imported = document.object().index_field == IndexFieldKind::grid;
     // Only a rebuilt volume can move the grid: otherwise keep the resident one.
     const bool rebuild = (stale & kVoxelize) || !(built_ & kVoxelize);
     GridGeometry grid = grid_;
@@ -162,16 +162,21 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     transport_options.photon_batch = options.photon_batch;
     transport_options.view_sample = options.view_sample;
     transport_options.bounce_cap = options.bounce_cap;
-    params_ = passes::make_transport_params(document, grid_, transport_options);
-    params_.flags.x = options.record_photon_exits ? 1u : 0u;
-    if (accum_) {
-        auto halves = [](VkDeviceAddress a) { return glm::uvec2(static_cast<uint32_t>(a), static_cast<uint32_t>(a >> 32)); };
-        params_.radiance_sums = glm::uvec4(halves(accum_->red_green.address()), halves(accum_->flux.address()));
+    light_params_ = passes::make_transport_params(document, grid_, transport_options);
+    while (params_buffers_.size() < light_params_.size())
+        params_buffers_.emplace_back(kit_.context, sizeof(shaders::TransportParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                     vk::MemoryUse::upload, "transport params");
+    for (size_t i = 0; i < light_params_.size(); ++i) {
+        shaders::TransportParams& params = light_params_[i];
+        params.flags.x = options.record_photon_exits ? 1u : 0u;
+        if (accum_) {
+            auto halves = [](VkDeviceAddress a) { return glm::uvec2(static_cast<uint32_t>(a), static_cast<uint32_t>(a >> 32)); };
+            params.radiance_sums = glm::uvec4(halves(accum_->red_green.address()), halves(accum_->flux.address()));
+        }
+        params_buffers_[i].write(&params, sizeof(params));
     }
-    if (!params_buffer_.get())
-        params_buffer_ = vk::Buffer(kit_.context, sizeof(params_), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-                                    vk::MemoryUse::upload, "transport params");
-    params_buffer_.write(&params_, sizeof(params_));
+    const shaders::TransportParams& params = light_params_.front();
+    const vk::Buffer& params_buffer = params_buffers_.front();  // the first light's, and every pass's but photons'
 
     // Grid values for the index-field pass: the imported field, or a placeholder it never reads.
     if (stale & kIndexField) {
@@ -246,24 +251,33 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         recorder_.compute_barrier();
         timer_.end(cmd);
     }
-    const passes::TransportInputs inputs{params_buffer_, index_field_, coverage_image_, levels_,
-                                         kit_.linear_sampler.get(),
-                                         {channels_, params_.flags.y == COVERAGE_FETCH || params_.flags.z == COVERAGE_FETCH,
-                                          passes::fresnel_reflects(document), passes::film_reflects(document)}};
+    const passes::TransportVariant variant{channels_, params.flags.y == COVERAGE_FETCH || params.flags.z == COVERAGE_FETCH,
+                                           passes::fresnel_reflects(document), passes::film_reflects(document)};
+    auto inputs_for = [&](const vk::Buffer& light_params) {
+        return passes::TransportInputs{light_params, index_field_, coverage_image_, levels_, kit_.linear_sampler.get(), variant};
+    };
+    const passes::TransportInputs inputs = inputs_for(params_buffer);
     if (stale & kPhotons) {
         timer_.begin(cmd, "photons");
         passes::clear_photon_accumulators(recorder_, *accum_, grey());
-        if (params_.direct_light.w > 0.5f) {
-            kit_.direct_light.record(recorder_, inputs, *accum_, static_cast<uint32_t>(params_.direct_light.x),
-                                     grid_.coarsened(options.radiance_factor));
+        // Light by light: each one's sums hold its own unbent light (transport.h), so each is resolved into
+        // the radiance grid and floor map, the first replacing this batch's share and the rest adding theirs.
+        for (size_t i = 0; i < light_params_.size(); ++i) {
+            const shaders::TransportParams& light = light_params_[i];
+            const passes::TransportInputs light_inputs = inputs_for(params_buffers_[i]);
+            if (i > 0) passes::clear_for_next_light(recorder_, *accum_, grey());
+            if (light.direct_light.w > 0.5f) {
+                kit_.direct_light.record(recorder_, light_inputs, *accum_, static_cast<uint32_t>(light.direct_light.x),
+                                         grid_.coarsened(options.radiance_factor));
+                recorder_.compute_barrier();
+            }
+            kit_.photon_trace.record(recorder_, light_inputs, *accum_, light.photon_info.x, options.sampled_deposits,
+                                     bounces > 0, between_parts("photons"));
+            recorder_.compute_barrier();
+            kit_.radiance_resolve.record(recorder_, params_buffers_[i], *accum_, grey(), radiance_, flux_, floor_map_);
             recorder_.compute_barrier();
         }
-        kit_.photon_trace.record(recorder_, inputs, *accum_, document.photons.count, options.sampled_deposits,
-                                 bounces > 0, between_parts("photons"));
-        recorder_.compute_barrier();
-        kit_.radiance_resolve.record(recorder_, params_buffer_, *accum_, grey(), radiance_, flux_, floor_map_);
-        recorder_.compute_barrier();
-        kit_.lit_pyramid.record(recorder_, params_buffer_, flux_, accum_->lit_blocks, index_field_.extent());
+        kit_.lit_pyramid.record(recorder_, params_buffer, flux_, accum_->lit_blocks, index_field_.extent());
         recorder_.compute_barrier();
         timer_.end(cmd);
         if (options.give_way && (stale & kView)) submit_part();
@@ -278,7 +292,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     }
     if (stale & kToneMap) {
         timer_.begin(cmd, "tone_map");
-        kit_.tone_map.record(recorder_, params_buffer_, hdr_, ldr_, width_, height_);
+        kit_.tone_map.record(recorder_, params_buffer, hdr_, ldr_, width_, height_);
         timer_.end(cmd);
     }
     recorder_.to_host_barrier();
@@ -367,7 +381,7 @@ std::vector<uint32_t> SceneGpu::read_lit_pyramid() const { return read_buffer<ui
 std::vector<glm::vec4> SceneGpu::read_radiance() const {
     if (!grey()) return read_image<glm::vec4>(radiance_);
     // Grey transport: the light's colour times the channels' mean, as the viewing pass shades it.
-    const glm::vec3 colour = shaders::grey_colour(params_.photon_flux);
+    const glm::vec3 colour = shaders::grey_colour(params().photon_flux);
     std::vector<glm::vec4> out = read_flux();
     for (glm::vec4& v : out) v = glm::vec4(colour * v.w, 0.0f);
     return out;
@@ -376,7 +390,7 @@ std::vector<glm::vec4> SceneGpu::read_floor_map() const { return widen(read_imag
 
 std::vector<glm::vec4> SceneGpu::read_floor_irradiance() const {
     std::vector<glm::vec4> map = read_floor_map();
-    const auto& p = params_;
+    const auto& p = params();
     const float texel = p.floor_map.z / static_cast<float>(floor_texels_);
     for (uint32_t j = 0; j < floor_texels_; ++j)
         for (uint32_t i = 0; i < floor_texels_; ++i) {
@@ -384,15 +398,18 @@ std::vector<glm::vec4> SceneGpu::read_floor_irradiance() const {
                               p.floor_map.y + (static_cast<float>(j) + 0.5f) * texel);
             // Mirrors direct_irradiance() in shaders/view.comp.
             glm::vec3 direct(0.0f);
-            if (p.models.z == LIGHT_DIRECTIONAL) {
-                direct = glm::vec3(p.light_power) * std::max(0.0f, -p.light_direction.y);
-            } else {
-                const glm::vec3 l = glm::vec3(p.light_position) - x;
+            for (uint32_t k = 0; k < p.light_set.x; ++k) {
+                const shaders::LightParams& light = p.lights[k];
+                if (light.type.x == LIGHT_DIRECTIONAL) {
+                    direct += glm::vec3(light.power) * std::max(0.0f, -light.direction.y);
+                    continue;
+                }
+                const glm::vec3 l = glm::vec3(light.position) - x;
                 const float r2 = glm::dot(l, l);
                 const glm::vec3 to_light = l / std::sqrt(r2);
-                const bool in_cone = p.models.z != LIGHT_SPOT ||
-                                     glm::dot(-to_light, glm::vec3(p.light_direction)) >= p.light_position.w;
-                if (in_cone) direct = glm::vec3(p.light_power) * std::max(0.0f, to_light.y) / r2;
+                const bool in_cone = light.type.x != LIGHT_SPOT ||
+                                     glm::dot(-to_light, glm::vec3(light.direction)) >= light.position.w;
+                if (in_cone) direct += glm::vec3(light.power) * std::max(0.0f, to_light.y) / r2;
             }
             glm::vec4& texel_value = map[size_t{j} * floor_texels_ + i];
             texel_value = glm::vec4(glm::max(glm::vec3(texel_value) + direct, glm::vec3(0.0f)), 0.0f);

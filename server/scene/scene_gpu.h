@@ -125,7 +125,9 @@ public:
     std::vector<glm::vec4> read_hdr() const;
     std::vector<uint32_t> read_ldr() const;
     std::vector<shaders::PhotonExit> read_photon_exits() const;
-    const shaders::TransportParams& params() const { return params_; }
+    // The last run's parameters: the first light's (which the viewing pass reads), and every light's.
+    const shaders::TransportParams& params() const { return light_params_.front(); }
+    const std::vector<shaders::TransportParams>& light_params() const { return light_params_; }
     uint32_t floor_map_side() const { return floor_texels_; }
 
 private:
@@ -144,13 +146,13 @@ private:
     bool sampled_deposits_ = false;  // how the photons in the radiance grid were deposited (RunOptions)
     uint32_t bounces_ = 0;           // how often they could scatter (passes::photon_bounces)
     uint32_t channels_ = CHANNELS_RGB;
-    shaders::TransportParams params_{};
+    std::vector<shaders::TransportParams> light_params_{shaders::TransportParams{}};
     // Volume (voxelize, index field, octree)
     vk::Buffer coverage_, scratch_, grid_values_, pyramid_, levels_;
     vk::Image3D index_field_, coverage_image_;
     // Transport (photons, resolve)
     std::optional<passes::PhotonAccumulators> accum_;
-    vk::Buffer params_buffer_, exits_;
+    std::vector<vk::Buffer> params_buffers_;  // one per entry of light_params_
     vk::Image3D radiance_, flux_, floor_map_;  // radiance_: per-channel fluence, coloured transport only
     // Frame
     vk::Buffer hdr_, ldr_, refine_;

@@ -90,6 +90,18 @@ REFRACT_SHADERS_BEGIN
 #define LIGHT_SPOT 1u
 #define LIGHT_DIRECTIONAL 2u
 
+// The most lights a scene holds (protocol::kMaxLights). Each light's photons run the direct-light, photon
+// and resolve passes with their own TransportParams (the light_* and emit_* fields, photon_flux,
+// photon_info, stepping, direct_light), and the resolve adds each light's share into the radiance grid
+// and floor map; the viewing pass lights the floor from every light in TransportParams::lights.
+#define TRANSPORT_MAX_LIGHTS 8
+struct LightParams {
+    vec4 position;   // xyz world; w: cos of the spot half-angle
+    vec4 direction;  // xyz: spot axis or directional travel direction (unit); w: unused
+    vec4 power;      // rgb: intensity x colour (W/sr or W/m^2); w: unused
+    uvec4 type;      // x: LIGHT_*; yzw: unused
+};
+
 // Specialization constant of the photon, resolve and viewing passes: how the three colour channels
 // travel (CHANNELS_*).
 //  - Grey: extinction is the same in every channel and nothing disperses, so a photon's colour never
@@ -198,6 +210,10 @@ struct TransportParams {
                               // (reference channel), y: the shell's midpoint, where rays reflect; z, w: the
                               // heights (voxels) where a film has its top and bottom thickness
     vec4 film;                // x: the film's index, y: its thickness at the top, z: at the bottom (nm); w: unused
+    uvec4 light_set;          // x: the scene's lights (in lights[]), y: the one whose photons these parameters
+                              // trace (light_*, emit_*; the resolve of light 0 replaces a batch, the others'
+                              // add to it); zw: unused
+    LightParams lights[TRANSPORT_MAX_LIGHTS];
 };
 
 // The unit direction light travels at world point x as if nothing were in its way: the net flux
@@ -292,7 +308,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == 37 * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == (38 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 80);
