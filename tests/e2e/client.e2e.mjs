@@ -117,9 +117,13 @@ const canvasChange = (page) => page.evaluate(() => {
   return changed / (now.length / 4);
 });
 
+// The scene as the daemon stores it, plus its one light and one object (when it has one) as `light` and
+// `object`, as the older form names them.
 async function sceneOnServer(id) {
   const r = await api('GET', `/api/scenes/${encodeURIComponent(id)}`);
   assert(r.status === 200, `GET /api/scenes/${id} -> ${r.status} ${JSON.stringify(r.json)}`);
+  const only = (members) => (members && Object.keys(members).length === 1 ? Object.values(members)[0] : undefined);
+  r.json.scene = { ...r.json.scene, light: only(r.json.scene.lights), object: only(r.json.scene.objects) };
   return r.json;
 }
 
@@ -142,7 +146,7 @@ async function downloadFrom(page, selector) {
 // The scene document without the image size (which follows the browser window).
 const canonical = (v) => (Array.isArray(v) ? v.map(canonical) : v && typeof v === 'object'
   ? Object.fromEntries(Object.keys(v).sort().map((k) => [k, canonical(v[k])])) : v);
-const sceneOnly = (doc) => JSON.stringify(canonical({ ...doc, image: { ...doc.image, width: 0, height: 0 } }));
+const sceneOnly = ({ light, object, ...doc }) => JSON.stringify(canonical({ ...doc, image: { ...doc.image, width: 0, height: 0 } }));
 
 // ---- the checks ----------------------------------------------------------------------------------
 
@@ -225,6 +229,50 @@ async function main() {
     assert(info.sceneId === sceneId, `client uses scene ${info.sceneId}, expected ${sceneId}`);
     assert(info.conn === 'live', `connection state ${info.conn}`);
     await shot(page, '01-first-frame.png');
+  });
+
+  await check('the outliner adds a light, edits and renames it, and removes it', async () => {
+    await waitSettled(page);
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await snapshotCanvas(page);
+    await page.click('#light-add');
+    await waitSettled(page, rev0);
+    let server = (await sceneOnServer(sceneId)).scene;
+    const names = Object.keys(server.lights);
+    assert(names.length === 2 && names.includes('light2'), `lights after Add: ${names}`);
+    const lit = await canvasChange(page);
+    assert(lit > 0.005, `a second light changed only ${(lit * 100).toFixed(2)}% of the pixels`);
+    await shot(page, '02a-second-light.png');
+    // The panel now edits the new light: its intensity slider writes /lights/light2/intensity.
+    const picked = await page.evaluate(() => document.getElementById('ctl-light-member').value);
+    assert(picked === 'light2', `the outliner shows ${picked}`);
+    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    await page.fill('#ctl-light-intensity-num', '30');
+    await page.press('#ctl-light-intensity-num', 'Enter');
+    await waitSettled(page, rev1);
+    server = (await sceneOnServer(sceneId)).scene;
+    assert(server.lights.light2.intensity === 30 && server.lights.light.intensity !== 30,
+      `intensities ${server.lights.light.intensity} / ${server.lights.light2.intensity}`);
+    // A bad name is refused at the control; a good one renames.
+    await page.fill('#light-name', 'no spaces');
+    await page.click('#light-rename');
+    const refused = await page.evaluate(() => document.getElementById('ctl-light-member-error').textContent);
+    assert(/name/.test(refused), `bad name message: "${refused}"`);
+    const rev2 = await page.evaluate(() => window.refract.lastRevision);
+    await page.fill('#light-name', 'fill');
+    await page.click('#light-rename');
+    await waitSettled(page, rev2);
+    server = (await sceneOnServer(sceneId)).scene;
+    assert(JSON.stringify(Object.keys(server.lights)) === '["fill","light"]' && server.lights.fill.intensity === 30,
+      `lights after Rename: ${JSON.stringify(server.lights)}`);
+    const rev3 = await page.evaluate(() => window.refract.lastRevision);
+    await page.click('#light-remove');
+    await waitSettled(page, rev3);
+    server = (await sceneOnServer(sceneId)).scene;
+    assert(JSON.stringify(Object.keys(server.lights)) === '["light"]', `lights after Remove: ${Object.keys(server.lights)}`);
+    const removeDisabled = await page.evaluate(() => document.getElementById('light-remove').disabled);
+    assert(removeDisabled, 'the last light can be removed');
+    log(`Add changed ${(lit * 100).toFixed(1)}% of the pixels; renamed and removed`);
   });
 
   await check('shift-drag moves the light: new revision, different pixels', async () => {

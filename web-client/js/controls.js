@@ -28,6 +28,7 @@ export const SECTIONS = [
   },
   {
     id: 'light', title: 'Light', controls: [
+      { kind: 'members', member: 'light', label: 'Lights (the panel edits the one chosen)', canAdd: true },
       { kind: 'select', ptr: '/light/type', label: 'Light type',
         options: [['point', 'Point'], ['spot', 'Spot'], ['directional', 'Directional']] },
       { kind: 'range', ptr: '/light/intensity', label: 'Intensity', min: 0, max: 200, step: 0.5 },
@@ -38,6 +39,7 @@ export const SECTIONS = [
   },
   {
     id: 'object', title: 'Object', controls: [
+      { kind: 'members', member: 'object', label: 'Objects (scenes of several are not rendered yet)', canAdd: false },
       { kind: 'select', ptr: '/object/index_field', label: 'Index field',
         options: [['uniform', 'Uniform'], ['luneburg', 'Luneburg lens'], ['maxwell', 'Maxwell fish-eye']] },
       { kind: 'range', ptr: '/object/ior', label: 'Index of refraction', min: 1, max: 4, step: 0.01,
@@ -445,9 +447,45 @@ class MeshField extends Field {
   }
 }
 
+// The outliner of one collection (lights or objects): which member the panel edits; lights can be added,
+// removed (all but the last) and renamed.
+class MembersField extends Field {
+  constructor(spec, emit, hooks) {
+    const kind = spec.member;
+    const id = `ctl-${kind}-member`;
+    super(spec, [`/${kind}s`], spec.label, id);
+    const members = hooks.members;
+    this.kind = kind;
+    this.hooks = members;
+    this.select = h('select', { id });
+    this.select.addEventListener('change', () => members.select(kind, this.select.value));
+    this.addButton = h('button', { type: 'button', id: `${kind}-add`, text: 'Add', hidden: !spec.canAdd });
+    this.removeButton = h('button', { type: 'button', id: `${kind}-remove`, text: 'Remove', hidden: !spec.canAdd });
+    this.addButton.addEventListener('click', () => members.add(kind));
+    this.removeButton.addEventListener('click', () => members.remove(kind));
+    this.name = h('input', { type: 'text', id: `${kind}-name`, 'aria-label': `New name for the ${kind}`, maxlength: 64 });
+    this.renameButton = h('button', { type: 'button', id: `${kind}-rename`, text: 'Rename' });
+    const rename = () => { this.clearError(); members.rename(kind, this.name.value.trim(), this); };
+    this.renameButton.addEventListener('click', rename);
+    this.name.addEventListener('keydown', (e) => { if (e.key === 'Enter') { e.preventDefault(); rename(); } });
+    this.describe(this.select, this.name);
+    this.el.append(this.label, h('div', { class: 'row' }, this.select, this.addButton, this.removeButton),
+      h('div', { class: 'row' }, this.name, this.renameButton), this.error);
+  }
+  update(doc) {
+    const names = Object.keys(doc[`${this.kind}s`] || {}).sort();
+    const chosen = this.hooks.selected(this.kind);
+    if (names.join('/') !== [...this.select.options].map((o) => o.value).join('/'))
+      this.select.replaceChildren(...names.map((n) => h('option', { value: n, text: n })));
+    if (!isEditing(this.select)) this.select.value = chosen ?? '';
+    if (!isEditing(this.name)) this.name.value = chosen ?? '';
+    this.removeButton.disabled = names.length < 2;
+  }
+}
+
 const KINDS = {
   range: RangeField, select: SelectField, checkbox: CheckboxField, color: ColorField, rgb: RgbField,
-  fog: FogField, example: ExampleField, mesh: MeshField, file: SceneFileField, vec3: Vec3Field,
+  fog: FogField, example: ExampleField, mesh: MeshField, file: SceneFileField, vec3: Vec3Field, members: MembersField,
 };
 
 // Builds the panel into `form`. `onEdit(patch, final, field)` is called for every user edit.

@@ -64,6 +64,7 @@ const state = {
   meshBounds: {},         // uploaded mesh name -> bounds in its own units
   ticker: null,
   playing: null,          // { seq, name, field, at }: keyframes playing into this view (at: the last frame's place)
+  selected: { light: null, object: null },  // the light and object the panel edits (null: the first by name)
 };
 
 // Named one-shot timers (debounces); `settled` below waits for all of them.
@@ -116,13 +117,67 @@ function view() {
   return doc;
 }
 
+// The document as the panel shows it: the selected light and object as `light` and `object`.
+function panel() {
+  return S.panelDocument(view(), state.selected);
+}
+
 const controls = buildControls($('controls'), (patch, final) => edit(patch, final), {
   upload: uploadMesh, meshPatch, loadExample, importScene, exportScene, playKeyframes, stopPlay,
+  members: { selected: selectedMember, select: selectMember, add: addMember, remove: removeMember, rename: renameMember },
 });
+
+// ---- the outliner: which light and object the panel edits, and adding, removing, renaming lights -------
+
+const NEW_LIGHT = { type: 'point', position: [-2, 2.5, 1.5], intensity: 10 };
+
+function selectedMember(kind) {
+  return S.selectedName(view(), kind, state.selected[kind]);
+}
+
+function selectMember(kind, name) {
+  state.selected[kind] = name;
+  controls.clearErrors();
+  controls.update(panel(), { force: true });
+  updateLightMarker();
+}
+
+function addMember(kind) {
+  const name = S.freeName(view(), kind, kind);
+  edit({ [S.COLLECTIONS[kind]]: { [name]: NEW_LIGHT } }, true);
+  selectMember(kind, name);
+  announce(`Added the ${kind} ${name}`);
+}
+
+function removeMember(kind) {
+  const name = selectedMember(kind);
+  if (!name || S.memberNames(view(), kind).length < 2) return;
+  edit({ [S.COLLECTIONS[kind]]: { [name]: null } }, true);
+  selectMember(kind, null);
+  announce(`Removed the ${kind} ${name}`);
+}
+
+// A rename is one patch: the member under its new name, null under its old one.
+function renameMember(kind, to, field) {
+  const from = selectedMember(kind);
+  if (!from || to === from) return;
+  if (!/^[A-Za-z0-9_.-]{1,64}$/.test(to) || to === '.' || to === '..') {
+    field.setError('A name is 1 to 64 letters, digits, “_”, “.” or “-”.');
+    return;
+  }
+  if (S.memberNames(view(), kind).includes(to)) {
+    field.setError(`There is already a ${kind} named “${to}”.`);
+    return;
+  }
+  const plural = S.COLLECTIONS[kind];
+  edit({ [plural]: { [from]: null, [to]: view()[plural][from] } }, true);
+  selectMember(kind, to);
+  announce(`Renamed the ${kind} ${from} to ${to}`);
+}
 
 // Queues an edit (or, with a null patch, just a frame) and sends it when the link is free.
 function edit(patch, final) {
-  if (patch) state.pending = S.composePatches(state.pending, patch);
+  if (patch) state.pending = S.composePatches(state.pending, S.memberPatch(patch, view(), state.selected));
   state.pendingQuality = final ? 'still' : 'interactive';
   if (patch) scheduleViewUpdate();
   pump();
@@ -135,7 +190,7 @@ function scheduleViewUpdate() {
   viewUpdateQueued = true;
   requestAnimationFrame(() => {
     viewUpdateQueued = false;
-    controls.update(view());
+    controls.update(panel());
     updateLightMarker();
     checkExample();
   });
@@ -320,13 +375,14 @@ function onServerError(msg) {
   // Without a pointer it was not a validation error (e.g. the frame could not be rendered): the edit
   // may have been stored, so ask the daemon what the scene is now.
   if (msg.pointer === undefined || msg.pointer === null) resync();
-  controls.update(view());
+  controls.update(panel());
   updateLightMarker();
   updateProgress();
   pump();
 }
 
-function reportError(message, pointer, seq = null) {
+function reportError(message, daemonPointer, seq = null) {
+  const pointer = daemonPointer && S.panelPointer(daemonPointer, view(), state.selected);
   hooks.lastError = { error: message, pointer: pointer ?? null, seq };
   hooks.errors++;
   const field = controls.fieldFor(pointer);
@@ -552,7 +608,7 @@ function adoptScene(id, got) {
   setSceneId(id);
   state.confirmed = got.scene;
   state.confirmedRevision = typeof got.revision === 'number' ? got.revision : null;
-  controls.update(view(), { force: true });
+  controls.update(panel(), { force: true });
   updateLightMarker();
 }
 
@@ -563,7 +619,7 @@ function resync() {
       if (state.inflight) return;  // our edit is under way; its answer will tell us the revision
       state.confirmed = got.scene;
       state.confirmedRevision = got.revision;
-      controls.update(view());
+      controls.update(panel());
       updateLightMarker();
       if (state.lastFrame?.revision !== got.revision) requestFrame('still');
     } catch { /* the next frame or reconnect tries again */ }
@@ -577,7 +633,7 @@ async function refreshMeshes() {
     const names = items.map((m) => (typeof m === 'string' ? m : m?.name)).filter(Boolean).sort();
     for (const m of items) if (m?.name && m.bounds) state.meshBounds[m.name] = m.bounds;
     controls.mesh.setMeshes(names);
-    controls.mesh.update(view());
+    controls.mesh.update(panel());
   } catch { /* the built-in meshes still work */ }
 }
 
@@ -597,7 +653,7 @@ function boundsOf(mesh) {
 function meshPatch(mesh) {
   const bounds = boundsOf(mesh);
   if (controls.mesh.keepUnits.checked || !bounds) return { object: { mesh } };
-  const { scale, position } = S.fitObject(bounds, OBJECT_SIZE, view().object?.rotation_deg);
+  const { scale, position } = S.fitObject(bounds, OBJECT_SIZE, panel().object?.rotation_deg);
   return { object: { mesh, scale, position } };
 }
 
@@ -627,7 +683,7 @@ async function uploadMesh(file, field) {
       (fitted ? `; scaled by ${patch.object.scale} to fit ${OBJECT_SIZE} m and centred.` : '; in its own units.'),
     patch.object.mesh);
     edit(patch, true);
-    controls.mesh.update(view());
+    controls.mesh.update(panel());
   } catch (e) {
     field.setStatus('');
     const message = `${file.name}: ${e.message}`;
@@ -673,7 +729,7 @@ async function replaceScene(getDoc) {
     state.confirmed = got.scene;
     state.confirmedRevision = got.revision;
     controls.clearErrors();
-    controls.update(view(), { force: true });
+    controls.update(panel(), { force: true });
     updateLightMarker();
     return got;
   } finally {
@@ -926,7 +982,7 @@ function zoomCamera(factor, final) {
 
 // Aims the camera at the object and sets its distance so the whole object fits the view.
 function frameObject() {
-  const doc = view();
+  const doc = panel();
   const object = doc.object || {};
   const bounds = boundsOf(object.mesh) || BUILTIN_BOUNDS.sphere;
   const { center, radius } = S.placedBounds(bounds, object);
@@ -938,7 +994,7 @@ function frameObject() {
 }
 
 function moveLight(dAz, dEl, final) {
-  const doc = view();
+  const doc = panel();
   const target = cameraOf(doc).target;
   const light = doc.light || {};
   const position = S.roundVec(S.orbit(light.position || [2, 3, 1], target, dAz, dEl, 3));
@@ -970,7 +1026,7 @@ function imageRect() {
 
 function updateLightMarker() {
   const marker = $('light-marker');
-  const doc = view();
+  const doc = panel();
   if (!doc.camera || !doc.light?.position) { marker.hidden = true; return; }
   const image = doc.image || {};
   const aspect = (image.width || canvas.width) / (image.height || canvas.height);

@@ -26,8 +26,8 @@ export function applyMergePatch(target, patch) {
   return out;
 }
 
-// One merge patch with the effect of applying `first` and then `second` (we never send nulls,
-// so the corner cases around deletion do not arise).
+// One merge patch with the effect of applying `first` and then `second` (nulls remove whole lights, which
+// are added back whole, so merging into a removed member does not arise).
 export function composePatches(first, second) {
   if (!first) return deepClone(second);
   if (!second) return deepClone(first);
@@ -39,12 +39,17 @@ export function composePatches(first, second) {
   return out;
 }
 
-// Drops every leaf of `patch` that already has that value in `base`; returns null when nothing is left.
+// Drops every leaf of `patch` that already has that value in `base` (a null, a removal, is kept only where
+// `base` has the member); returns null when nothing is left.
 export function prunePatch(base, patch) {
   if (!isObject(patch)) return deepEqual(base, patch) ? null : deepClone(patch);
   const out = {};
   for (const [key, value] of Object.entries(patch)) {
     const baseValue = isObject(base) ? base[key] : undefined;
+    if (value === null) {
+      if (baseValue !== undefined) out[key] = null;
+      continue;
+    }
     const kept = isObject(value) && isObject(baseValue) ? prunePatch(baseValue, value)
       : deepEqual(baseValue, value) ? null : deepClone(value);
     if (kept !== null) out[key] = kept;
@@ -244,4 +249,61 @@ export function linearToHex(rgb) {
     const s = Math.round(linearToSrgb(Math.max(0, Math.min(1, Number(c) || 0))) * 255);
     return s.toString(16).padStart(2, '0');
   }).join('');
+}
+
+// ---- lights and objects ----------------------------------------------------------------------------
+// A scene's lights and objects are collections keyed by name. The panel shows one of each, the
+// selection, under the older form's singular names ('/light', '/object'), so its controls and the light
+// marker need not know names; edits and error pointers are translated at the edges.
+
+export const COLLECTIONS = { light: 'lights', object: 'objects' };
+
+export function memberNames(doc, kind) {
+  return Object.keys((isObject(doc) && doc[COLLECTIONS[kind]]) || {}).sort();
+}
+
+// The selected member's name: `wanted` if the scene has it, else its first by name (null: none).
+export function selectedName(doc, kind, wanted) {
+  const names = memberNames(doc, kind);
+  return names.includes(wanted) ? wanted : (names[0] ?? null);
+}
+
+// `doc` with `light` and `object` set to the selected members.
+export function panelDocument(doc, selection) {
+  const out = { ...doc };
+  for (const [kind, plural] of Object.entries(COLLECTIONS)) {
+    const name = selectedName(doc, kind, selection[kind]);
+    out[kind] = name === null ? {} : doc[plural][name];
+  }
+  return out;
+}
+
+// A patch written against the panel document as a patch of the scene: '/light/...' edits the selected light.
+export function memberPatch(patch, doc, selection) {
+  if (!isObject(patch)) return patch;
+  let out = patch;
+  for (const [kind, plural] of Object.entries(COLLECTIONS)) {
+    if (!(kind in out)) continue;
+    const name = selectedName(doc, kind, selection[kind]);
+    const { [kind]: member, ...rest } = out;
+    out = name === null ? rest : composePatches(rest, { [plural]: { [name]: member } });
+  }
+  return out;
+}
+
+// An error pointer into the selected member as the panel names it ('/lights/key/intensity' ->
+// '/light/intensity'); any other pointer unchanged.
+export function panelPointer(pointer, doc, selection) {
+  const tokens = parsePointer(pointer);
+  for (const [kind, plural] of Object.entries(COLLECTIONS)) {
+    if (tokens[0] === plural && tokens.length >= 2 && tokens[1] === selectedName(doc, kind, selection[kind]))
+      return ['', kind, ...tokens.slice(2)].map((t) => t.replace(/~/g, '~0').replace(/\//g, '~1')).join('/');
+  }
+  return pointer;
+}
+
+// A name for a new member: `base` followed by the first number not taken.
+export function freeName(doc, kind, base) {
+  const names = new Set(memberNames(doc, kind));
+  for (let i = 2; ; ++i) if (!names.has(`${base}${i}`)) return `${base}${i}`;
 }
