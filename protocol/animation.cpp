@@ -89,6 +89,7 @@ json direction_between(const json& a, const json& b, double u) {
 
 // Document a at u = 0 to document b at u = 1 (both to_json forms of valid documents).
 json between(const json& a, const json& b, double u, const std::string& key) {
+    if (a == b) return a;  // what the keyframes leave alone stays exactly as it is
     if (a.is_object() && b.is_object()) {
         json out = json::object();
         for (const auto& [k, v] : a.items()) out[k] = b.contains(k) ? between(v, b[k], u, k) : v;

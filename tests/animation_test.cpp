@@ -103,6 +103,24 @@ TEST(Animation, ALightTurnsAtAConstantRate) {
     EXPECT_NEAR(d[2], std::sin(std::acos(-1.0) / 6.0), 1e-12);
 }
 
+// Keyframes address lights by name: each named light moves on its own, a light a keyframe adds appears
+// from that keyframe on, and one it removes stays until then.
+TEST(Animation, NamedLightsMoveOnTheirOwnAndAppearOrLeaveAtTheirKeyframe) {
+    const Animation a(base(), json::parse(R"([
+        {"time": 0, "patch": {"lights": {"fill": {"type": "point", "position": [0, 2, 0], "intensity": 4}}}},
+        {"time": 2, "patch": {"lights": {"fill": {"position": [2, 2, 0]}, "rim": {"type": "point", "intensity": 1}}}},
+        {"time": 4, "patch": {"lights": {"fill": null}}}])"));
+    const SceneDocument mid = a.at(1.0);
+    EXPECT_EQ(mid.lights.at("fill").position, (Vec3{1.0, 2.0, 0.0}));
+    EXPECT_EQ(mid.lights.at("light"), base().lights.at("light"));  // untouched by the keyframes
+    EXPECT_FALSE(mid.lights.contains("rim"));
+    const SceneDocument later = a.at(3.0);
+    EXPECT_TRUE(later.lights.contains("rim"));
+    EXPECT_TRUE(later.lights.contains("fill"));
+    EXPECT_EQ(later.lights.at("fill").position, (Vec3{2.0, 2.0, 0.0}));
+    EXPECT_FALSE(a.at(4.0).lights.contains("fill"));
+}
+
 struct BadKeyframes {
     const char* name;
     json keyframes;
@@ -129,6 +147,11 @@ TEST(Animation, BadKeyframesAreRefusedWithTheirPointer) {
         {"unknown field", json::parse(R"([{"time": 0, "patch": {}, "ease": "in"}])"), "/0/ease"},
         {"invalid patch", json::parse(R"([{"time": 0, "patch": {}}, {"time": 1, "patch": {"object": {"ior": -2}}}])"),
          "/1/patch/object/ior"},
+        {"light with a bad name",
+         json::parse(R"([{"time": 0, "patch": {"lights": {"no spaces": {}}}}])"), "/0/patch/lights/no spaces"},
+        {"older-form light of several",
+         json::parse(R"([{"time": 0, "patch": {"lights": {"fill": {}}}}, {"time": 1, "patch": {"light": {"intensity": 2}}}])"),
+         "/1/patch/light"},
     };
     for (const auto& c : cases) {
         try {
