@@ -206,7 +206,7 @@ TEST(ScaleOutStart, ASchemaOfANewerVersionIsRefused) {
     auto [status, output] =
         run_refractd({"--store", url, "--port", std::to_string(free_port())}, std::chrono::seconds(30));
     EXPECT_EQ(status, 1) << output;
-    EXPECT_NE(output.find("schema is version 99, newer than this refractd's 1; refusing to start"), std::string::npos)
+    EXPECT_NE(output.find("schema is version 99, newer than this refractd's 2; refusing to start"), std::string::npos)
         << output;
 }
 

@@ -72,7 +72,8 @@ std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims) {
 uint32_t transport_channels(const protocol::SceneDocument& document) {
     if (document.object.abbe > 0.0) return CHANNELS_DISPERSIVE;
     auto grey = [](const auto& rgb) { return rgb[0] == rgb[1] && rgb[1] == rgb[2]; };
-    return grey(document.medium.extinction) && grey(document.object.extinction) && !film_reflects(document)
+    return grey(document.medium.extinction) && grey(document.object.extinction) && !film_reflects(document) &&
+                   !environment_lights(document)
                ? CHANNELS_GREY
                : CHANNELS_RGB;
 }
@@ -211,7 +212,30 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
         const float solid_angle = 2.0f * std::numbers::pi_v<float> * (1.0f - cos_cone);
         flux = power * solid_angle / static_cast<float>(photons);
     }
-    const float reference = std::max({flux.r, flux.g, flux.b, 1e-30f});
+    // An environment that lights the scene sends photons into the grid through a disc around its bounding
+    // sphere, facing the direction each comes from. The photons split between the light and the
+    // environment in proportion to the power each sends towards the grid (the channels' mean), so every
+    // photon carries about the same flux.
+    const EnvironmentLight* lighting = options.environment;
+    float reference = std::max({flux.r, flux.g, flux.b, 1e-30f});
+    const float rotation = glm::radians(static_cast<float>(document.environment.rotation_deg));
+    p.environment_frame = glm::vec4(std::cos(rotation), std::sin(rotation), bound_radius, 0.0f);
+    if (lighting && lighting->lights()) {
+        const double radius = static_cast<double>(bound_radius);
+        const double disc_power = std::numbers::pi * radius * radius * lighting->sampled;
+        const double light_power = static_cast<double>(flux.r + flux.g + flux.b) / 3.0 * photons;
+        const uint32_t from_environment = std::clamp(
+            static_cast<uint32_t>(std::lround(photons * disc_power / (disc_power + light_power))), 1u, photons);
+        if (photons > from_environment)
+            flux *= static_cast<float>(photons) / static_cast<float>(photons - from_environment);
+        const double environment_flux = disc_power / from_environment;
+        reference = std::max({flux.r, flux.g, flux.b, static_cast<float>(environment_flux * lighting->channel_ratio)});
+        // Environment photons carry their pixel's colour over its mean times this, at most channel_ratio.
+        p.environment = glm::uvec4(lighting->width, lighting->height, from_environment,
+                                   document.environment.type == protocol::EnvironmentKind::image ? 1u : 0u);
+        p.environment_frame.w = static_cast<float>(environment_flux / static_cast<double>(reference));
+        p.environment_light = glm::vec4(lighting->floor_irradiance, 0.0f);
+    }
     p.photon_flux = glm::vec4(flux, reference);
     // A guard against photons that never finish, not a budget: a random walk's free paths each take
     // their own steps, so the guard grows with the bounces allowed.

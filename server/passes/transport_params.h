@@ -5,6 +5,7 @@
 
 #include <array>
 
+#include "passes/environment_light.h"
 #include "protocol/scene_document.h"
 #include "scene/grid_geometry.h"
 #include "transport.h"
@@ -22,6 +23,7 @@ struct TransportOptions {
     uint32_t photon_batch = 0;  // progressive refinement: which batch of photons (0: the document's seed)
     uint32_t view_sample = 0;   // progressive refinement: which eye-ray sample per pixel (0: the centre)
     uint32_t bounce_cap = protocol::kMaxBounces;  // most of photons.max_bounces taken (interactive: fewer)
+    const EnvironmentLight* environment = nullptr;  // the document's environment (nullptr: lights nothing)
 };
 
 // The sub-pixel offset of eye-ray sample `index` (0: the pixel centre; then a Halton (2, 3) sequence
@@ -33,8 +35,8 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
 
 // How the colour channels travel (CHANNELS_*, TRANSPORT_CONSTANT_CHANNELS): dispersive where the object
 // has an Abbe number; else grey where extinction is the same in every channel, in the medium and in the
-// object, and no film colours what it reflects (photons then keep their colour from emission to
-// deposit); else RGB.
+// object, no film colours what it reflects and no environment lights the scene (photons then keep the
+// light's colour from emission to deposit); else RGB.
 uint32_t transport_channels(const protocol::SceneDocument& document);
 
 // Photon exits a frame records (RunOptions::record_photon_exits) for `photons` emission samples: one per
