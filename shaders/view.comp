@@ -269,7 +269,9 @@ void shade(uvec2 pixel) {
         vec3 end = marches ? to_world(ray.p) : position;
         vec3 end_d = marches ? ray.d : d;
         if (any(greaterThan(transmittance, vec3(0.0)))) {
-            bool sees_floor = on_floor || (floor_on && end_d.y < 0.0 && end.y > params.floor_plane.x);
+            // A ray that left the grid through its bottom face where the floor lies in that face ends on
+            // the floor, whichever of the two the march's rounding found first.
+            bool sees_floor = on_floor || (floor_on && end_d.y < 0.0 && end.y > params.floor_plane.x - 1e-3 * h);
             vec3 floor_point = on_floor ? end : end + end_d * ((end.y - params.floor_plane.x) / -end_d.y);
             pixel_radiance += transmittance * (sees_floor ? floor_radiance(floor_point) : sky(end_d));
         }
