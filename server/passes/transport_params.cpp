@@ -99,9 +99,29 @@ glm::vec3 dispersion_scales(double abbe) {
     return scales;
 }
 
+double surface_index(const protocol::SceneDocument& document) {
+    const auto& object = document.object;
+    switch (object.index_field) {
+        case protocol::IndexFieldKind::uniform: return object.ior;
+        case protocol::IndexFieldKind::luneburg: return 1.0;  // sqrt(2 - (r / R)^2) at r = R
+        case protocol::IndexFieldKind::maxwell: return 0.5 * object.maxwell_n0;  // n0 / (1 + (r / R)^2) at r = R
+        case protocol::IndexFieldKind::grid: break;
+    }
+    return document.medium.ior;
+}
+
 bool fresnel_reflects(const protocol::SceneDocument& document) {
-    return document.object.fresnel && document.object.index_field == protocol::IndexFieldKind::uniform &&
-           std::abs(document.object.ior - document.medium.ior) > 1e-4;
+    if (!document.object.fresnel) return false;
+    const double surface = surface_index(document), medium = document.medium.ior;
+    switch (document.object.index_field) {
+        case protocol::IndexFieldKind::uniform: return std::abs(surface - medium) > 1e-4;
+        // n rises inwards from its surface value, so the shell's midpoint is crossed at the outer boundary
+        // only (never inside) where the surface lies above the medium.
+        case protocol::IndexFieldKind::luneburg:
+        case protocol::IndexFieldKind::maxwell: return surface > medium + 1e-4;
+        case protocol::IndexFieldKind::grid: break;  // no boundary: the field is given everywhere
+    }
+    return false;
 }
 
 bool film_reflects(const protocol::SceneDocument& document) {
@@ -327,7 +347,8 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     // A film's thickness goes from its top value at the object's top to its bottom value at its bottom
     // (the built-in meshes reach scale above and below position).
     const auto to_voxel_y = [&](double y) { return (static_cast<float>(y) - grid.origin.y) / grid.voxel_size; };
-    p.shell = glm::vec4(static_cast<float>(object.ior), static_cast<float>(0.5 * (object.ior + medium.ior)),
+    const double surface = surface_index(document);
+    p.shell = glm::vec4(static_cast<float>(surface), static_cast<float>(0.5 * (surface + medium.ior)),
                         to_voxel_y(object.position[1] + object.scale), to_voxel_y(object.position[1] - object.scale));
     p.film = glm::vec4(static_cast<float>(object.film.ior), static_cast<float>(object.film.top_nm),
                        static_cast<float>(object.film.bottom_nm), 0.0f);

@@ -56,9 +56,14 @@ float octree_epsilon(const protocol::SceneDocument& document);
 // nothing scatters (PHOTON_CONSTANT_RANDOM_WALKS is on when this is not 0).
 uint32_t photon_bounces(const protocol::SceneDocument& document, uint32_t cap);
 
-// Whether the object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL): Fresnel on, a uniform object (graded
-// fields have no flat index either side of a shell to reflect between; fresnel.glsl) and an index step
-// at its boundary.
+// The object's index just inside its outer boundary: the uniform object's, a Luneburg lens's 1, a Maxwell
+// fish-eye's n0 / 2; the medium's for an imported grid (no boundary).
+double surface_index(const protocol::SceneDocument& document);
+
+// Whether the object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL): Fresnel on and an index step at its
+// boundary. A graded field (Luneburg, Maxwell) reflects at its outer boundary only, where its surface
+// index lies above the medium's: n then rises inwards away from the shell's midpoint, which is crossed
+// nowhere inside (fresnel.glsl). Imported grids never reflect.
 bool fresnel_reflects(const protocol::SceneDocument& document);
 
 // Whether that boundary carries a thin film (TRANSPORT_CONSTANT_FILM): it reflects and has a thickness.

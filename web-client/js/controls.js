@@ -47,7 +47,7 @@ export const SECTIONS = [
       { kind: 'range', ptr: '/object/abbe', label: 'Dispersion: Abbe number (0 = none; glass 30-60)',
         min: 0, max: 0.2, step: 0.002, ...INVERSE_SLIDER },
       { kind: 'checkbox', ptr: '/object/fresnel', label: 'Fresnel reflection at the surface',
-        showIf: (doc) => (doc.object?.index_field ?? 'uniform') === 'uniform' },
+        showIf: (doc) => ['uniform', 'maxwell'].includes(doc.object?.index_field ?? 'uniform') },
       { kind: 'range', ptr: '/object/film/top_nm', label: 'Thin film: thickness at the top (nm; 0 = none)',
         min: 0, max: 2000, step: 5, showIf: (doc) => doc.object?.fresnel !== false },
       { kind: 'range', ptr: '/object/film/bottom_nm', label: 'Thin film: thickness at the bottom (nm)',
