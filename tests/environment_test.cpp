@@ -260,5 +260,43 @@ TEST_F(EnvironmentGpuTest, AMarkedDirectionAppearsWhereTheCameraSaysIt) {
     }
 }
 
+// The same texel seen in a mirror: the flat top face of a cube of index 4 (its other faces outside the
+// grid; the face on a voxel boundary, so its smoothed shell's normal is exactly +y) reflects the camera's
+// central ray, tilted 45 degrees down, into the texel's direction, so the texel appears at the frame's
+// centre, weighted by the face's Fresnel reflectance at 45 degrees.
+TEST_F(EnvironmentGpuTest, AMarkedDirectionAppearsWhereItsMirrorImageShouldBe) {
+    constexpr uint32_t kWidth = 64, kHeight = 32, kU = 20, kV = 8;
+    image::EnvironmentMap map = constant_map(kWidth, kHeight, 0.01f);
+    for (int c = 0; c < 3; ++c) map.rgb[3 * (kV * kWidth + kU) + static_cast<size_t>(c)] = 100.0f;
+    const double theta = kPi * (kV + 0.5) / kHeight, phi = 2.0 * kPi * (kU + 0.5) / kWidth;
+    const glm::dvec3 towards(std::sin(theta) * std::cos(phi), std::cos(theta), std::sin(theta) * std::sin(phi));
+    const glm::dvec3 looking(towards.x, -towards.y, towards.z);  // the mirror image about the face
+    const glm::dvec3 eye = -2.0 * looking;                           // looking at the face's point (0, 0, 0)
+    const auto doc = open_scene({{"environment", {{"type", "image"}, {"image", "marked"}}},
+                                 {"floor", {{"enabled", false}}},
+                                 {"object", {{"mesh", "cube"}, {"ior", 4.0}, {"scale", 2.0}, {"position", {0, -2, 0}}}},
+                                 {"volume", {{"resolution", 64}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 0.5, 1}}}}}},
+                                 {"camera", {{"position", {eye.x, eye.y, eye.z}}, {"target", {0, 0, 0}}, {"fov_deg", 40.0}}},
+                                 {"image", {{"width", 64}, {"height", 64}}}});
+    scene::SceneGpu gpu(kit());
+    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, {}, &map);
+    const double incidence = std::acos(std::abs(looking.y));
+    const double ct = std::sqrt(1.0 - std::pow(std::sin(incidence) / 4.0, 2.0)), ci = std::cos(incidence);
+    const double rs = (ci - 4.0 * ct) / (ci + 4.0 * ct), rp = (4.0 * ci - ct) / (4.0 * ci + ct);
+    const double reflected = 100.0 * (rs * rs + rp * rp) / 2.0;
+    const auto hdr = gpu.read_hdr();
+    double sx = 0.0, sy = 0.0, weight = 0.0;
+    for (uint32_t y = 0; y < 64; ++y)
+        for (uint32_t x = 0; x < 64; ++x)
+            if (static_cast<double>(hdr[y * 64 + x].g) > 0.5 * reflected) {
+                sx += x + 0.5;
+                sy += y + 0.5;
+                ++weight;
+            }
+    ASSERT_GT(weight, 20.0) << "reflected radiance " << reflected;
+    EXPECT_NEAR(sx / weight, 32.0, 1.0);
+    EXPECT_NEAR(sy / weight, 32.0, 1.0);
+}
+
 }  // namespace
 }  // namespace refract
