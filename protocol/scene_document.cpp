@@ -508,7 +508,8 @@ private:
 
     void read_environment(const json& root, Environment& e) const {
         const std::string base = "/environment";
-        const json* j = section(root, "", "environment", {"type", "color", "intensity", "image", "rotation_deg"});
+        const json* j =
+            section(root, "", "environment", {"type", "color", "intensity", "image", "rotation_deg", "lights"});
         if (j == nullptr) return;
         e.type = enumeration(*j, base, "type", e.type,
                              {{"sky", EnvironmentKind::sky}, {"uniform", EnvironmentKind::uniform},
@@ -521,6 +522,7 @@ private:
             e.image = *image;
         }
         e.rotation_deg = number(*j, base, "rotation_deg", e.rotation_deg, kRotation);
+        e.lights = boolean(*j, base, "lights", e.lights);
         if (e.type == EnvironmentKind::image && e.image.empty()) {
             fail_blaming({{"/environment/image", "must name an environment when /environment/type is \"image\""},
                           {"/environment/type", "\"image\" requires a non-empty /environment/image"}});
@@ -649,7 +651,8 @@ json to_json(const SceneDocument& d) {
           {"color", vec(d.environment.color)},
           {"intensity", d.environment.intensity},
           {"image", d.environment.image},
-          {"rotation_deg", d.environment.rotation_deg}}},
+          {"rotation_deg", d.environment.rotation_deg},
+          {"lights", d.environment.lights}}},
     };
 }
 

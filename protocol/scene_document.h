@@ -149,6 +149,9 @@ struct Environment {
     // type image; "" otherwise.
     std::string image;
     double rotation_deg = 0.0;  // turns the image about the vertical axis (+y), counter-clockwise from above
+    // A uniform or image environment lights the scene (photons, the floor's irradiance); false: it is a
+    // backdrop only, like the sky (a studio backdrop behind a dark stage; not physical).
+    bool lights = true;
 
     bool operator==(const Environment&) const = default;
 };

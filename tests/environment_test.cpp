@@ -136,6 +136,12 @@ TEST(EnvironmentLightTest, AUniformEnvironmentsTablesHoldItsRadianceAndPower) {
     EXPECT_NEAR(open.floor_irradiance.g, kPi * 0.5, 1e-5);
     doc.floor.enabled = true;
     EXPECT_NEAR(passes::make_environment_light(doc, nullptr).sampled, 2.0 * kPi * 0.5, 1e-9);  // the upper half
+    doc.environment.lights = false;  // a backdrop only: the map stays, its power goes
+    const auto backdrop = passes::make_environment_light(doc, nullptr);
+    EXPECT_FALSE(backdrop.lights());
+    EXPECT_EQ(backdrop.width, 1u);
+    EXPECT_EQ(backdrop.floor_irradiance.g, 0.0f);
+    doc.environment.lights = true;
     doc.environment.type = protocol::EnvironmentKind::sky;
     EXPECT_FALSE(passes::make_environment_light(doc, nullptr).lights());
 }

@@ -66,6 +66,7 @@ TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
         {"sky", {{"environment", {{"intensity", 2.0}}}}, kView | kToneMap},
         {"environment that lights", {{"environment", {{"type", "uniform"}, {"intensity", 2.0}}}},
          kPhotons | kView | kToneMap},
+        {"environment as a backdrop", {{"environment", {{"type", "uniform"}, {"lights", false}}}}, kView | kToneMap},
         {"fresnel", {{"object", {{"fresnel", false}}}}, kPhotons | kView | kToneMap},
         {"film", {{"object", {{"film", {{"top_nm", 300.0}}}}}}, kPhotons | kView | kToneMap},
         {"light", {{"light", {{"position", {-2, 3, 1}}}}}, kPhotons | kView | kToneMap},

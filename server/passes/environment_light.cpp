@@ -9,7 +9,8 @@ namespace refract::passes {
 
 bool environment_lights(const protocol::SceneDocument& document) {
     const auto& environment = document.environment;
-    if (environment.type == protocol::EnvironmentKind::sky || environment.intensity <= 0.0) return false;
+    if (environment.type == protocol::EnvironmentKind::sky || !environment.lights || environment.intensity <= 0.0)
+        return false;
     if (environment.type == protocol::EnvironmentKind::uniform)
         return std::max({environment.color[0], environment.color[1], environment.color[2]}) > 0.0;
     return true;
@@ -18,7 +19,7 @@ bool environment_lights(const protocol::SceneDocument& document) {
 EnvironmentLight make_environment_light(const protocol::SceneDocument& document, const image::EnvironmentMap* image) {
     EnvironmentLight light;
     const auto& environment = document.environment;
-    if (!environment_lights(document)) {
+    if (environment.type == protocol::EnvironmentKind::sky) {
         light.texels.assign(2, glm::vec4(0.0f));
         return light;
     }
@@ -76,6 +77,10 @@ EnvironmentLight make_environment_light(const protocol::SceneDocument& document,
             light.sampled > 0.0 ? static_cast<float>(cumulative / light.sampled) : 1.0f;
     }
     light.floor_irradiance = glm::vec3(irradiance);
+    if (!environment_lights(document)) {  // a backdrop only: the map without its power
+        light.sampled = 0.0;
+        light.floor_irradiance = glm::vec3(0.0f);
+    }
     return light;
 }
 

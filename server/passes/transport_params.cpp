@@ -240,6 +240,9 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
     float reference = std::max({flux.r, flux.g, flux.b, 1e-30f});
     const float rotation = glm::radians(static_cast<float>(document.environment.rotation_deg));
     p.environment_frame = glm::vec4(std::cos(rotation), std::sin(rotation), bound_radius, 0.0f);
+    if (lighting)
+        p.environment = glm::uvec4(lighting->width, lighting->height, 0u,
+                                   document.environment.type == protocol::EnvironmentKind::image ? 1u : 0u);
     if (lighting && lighting->lights()) {
         const double radius = static_cast<double>(bound_radius);
         const double disc_power = std::numbers::pi * radius * radius * lighting->sampled;
@@ -251,8 +254,7 @@ shaders::TransportParams make_transport_params(const protocol::SceneDocument& do
         const double environment_flux = disc_power / from_environment;
         reference = std::max({flux.r, flux.g, flux.b, static_cast<float>(environment_flux * lighting->channel_ratio)});
         // Environment photons carry their pixel's colour over its mean times this, at most channel_ratio.
-        p.environment = glm::uvec4(lighting->width, lighting->height, from_environment,
-                                   document.environment.type == protocol::EnvironmentKind::image ? 1u : 0u);
+        p.environment.z = from_environment;
         p.environment_frame.w = static_cast<float>(environment_flux / static_cast<double>(reference));
         p.environment_light = glm::vec4(lighting->floor_irradiance, 0.0f);
     }

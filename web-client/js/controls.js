@@ -83,6 +83,8 @@ export const SECTIONS = [
       { kind: 'range', ptr: '/environment/intensity', label: 'Environment intensity', min: 0, max: 20, step: 0.05 },
       { kind: 'range', ptr: '/environment/rotation_deg', label: 'Environment rotation (° about the vertical)',
         min: -180, max: 180, step: 1, showIf: (doc) => doc.environment?.type === 'image' },
+      { kind: 'checkbox', ptr: '/environment/lights', label: 'The environment lights the scene (off: a backdrop only)',
+        showIf: (doc) => ['uniform', 'image'].includes(doc.environment?.type) },
     ],
   },
   {
