@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -84,6 +85,16 @@ TEST(EnvironmentMapTest, HostileFilesAreRefusedWithTheReason) {
     // A header claiming 100k x 100k pixels is refused on its header: 30 GB were never allocated.
     const std::string huge = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 100000\n" + std::string(64, '\0');
     EXPECT_NE(refusal(huge).find("between 1 x 1 and 8192 x 4096"), std::string::npos) << refusal(huge);
+    // The same in an OpenEXR header: a small file's data and display windows widened to 100k x 100k.
+    std::string huge_exr = exr;
+    for (const std::string attribute : {"dataWindow", "displayWindow"}) {
+        const size_t at = huge_exr.find(attribute + std::string(1, '\0') + "box2i");
+        ASSERT_NE(at, std::string::npos) << attribute;
+        const int32_t corner = 99999;  // xMax, yMax after xMin, yMin and the attribute's size
+        for (size_t k : {2u, 3u})
+            std::memcpy(&huge_exr[at + attribute.size() + 7 + 4 + 4 * k], &corner, sizeof corner);
+    }
+    EXPECT_NE(refusal(huge_exr).find("8192"), std::string::npos) << refusal(huge_exr);
     for (float bad : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), -1.0f}) {
         image::EnvironmentMap poisoned = map;
         poisoned.rgb[3 * (7 * 64 + 9) + 2] = bad;

@@ -1,6 +1,7 @@
 #include "image/environment_map.h"
 
 #include <ImfArray.h>
+#include <ImfHeader.h>
 #include <ImfIO.h>
 #include <ImfRgbaFile.h>
 
@@ -120,6 +121,13 @@ private:
 };
 
 EnvironmentMap decode_exr(std::string_view bytes) {
+    // The library reads the header and allocates the line-offset table in the file's constructor, before
+    // check_size could look: its own sanity check refuses larger data windows there.
+    static const bool limited = [] {
+        Imf::Header::setMaxImageSize(static_cast<int>(kMaxEnvironmentWidth), static_cast<int>(kMaxEnvironmentHeight));
+        return true;
+    }();
+    (void)limited;
     try {
         MemoryStream stream(bytes);
         Imf::RgbaInputFile file(stream);

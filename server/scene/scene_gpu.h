@@ -99,8 +99,8 @@ public:
     // `object_world` is the object's mesh in world space, read only when the voxelize pass runs (the
     // grid is fitted to it; an edit that moves the grid makes voxelize stale); ignored for imported
     // grids. `grid_asset` is the imported index grid for index_field == grid; `environment` the map an
-    // image environment names. A new map under the same pointer must come with a new pointer (the
-    // resident copy is kept while both stay). Throws vk::Error on device failures.
+    // image environment names: a changed map must come as a new pointer (the resident copy is kept while
+    // the pointer and the document's environment stay). Throws vk::Error on device failures.
     RunStats run(PassSet stale, const protocol::SceneDocument& document, const mesh::Mesh& object_world,
                  const IndexGrid* grid_asset, const RunOptions& options = {},
                  const image::EnvironmentMap* environment = nullptr);
@@ -156,7 +156,7 @@ private:
     std::optional<passes::PhotonAccumulators> accum_;
     vk::Buffer params_buffer_, exits_;
     vk::Image3D radiance_, flux_, floor_map_;  // radiance_: per-channel fluence, coloured transport only
-    // The environment (passes/environment_light.h), made from these
+    // The environment (passes/environment_light.h) and what it was made from
     passes::EnvironmentLight environment_light_;
     vk::Buffer environment_map_;
     const image::EnvironmentMap* environment_image_ = nullptr;
