@@ -77,9 +77,9 @@ SceneSnapshot PgSceneStore::snapshot(const std::string& id, uint64_t revision, c
 SceneSnapshot PgSceneStore::create(const std::string& id, const nlohmann::json& document) {
     if (!id.empty() && !valid_scene_id(id)) throw StoreError(400, "scene id must match [a-z0-9-]{1,32}");
     protocol::SceneDocument parsed = protocol::parse_scene(document, limits_);
-    check_environment(parsed);
     std::string text = dump(parsed);
     pg::Pool::Lease connection = pool_.acquire();
+    check_environment(parsed, [&](const std::string& name) { return has_environment(*connection, name); });
     for (;;) {
         std::string chosen = id.empty() ? random_hex_id() : id;
         pg::Result inserted = connection->exec(
@@ -138,7 +138,8 @@ EditResult PgSceneStore::patch(const std::string& id, const nlohmann::json& merg
         result.changed = !(result.after.document == current->document);
         if (!result.changed) return result;
         if (!(result.after.document.environment == current->document.environment))
-            check_environment(result.after.document);
+            check_environment(result.after.document,
+                              [&](const std::string& name) { return has_environment(*connection, name); });
         result.after.revision = next_revision(current->revision);
         // Optimistic concurrency: the update takes only if nobody committed since the read. Zero rows
         // means another replica won: with If-Match that is the client's 412, without it we edit the
@@ -281,6 +282,11 @@ EnvironmentEntry PgSceneStore::put_environment(const std::string& name, const st
     std::lock_guard lock(asset_mutex_);
     environments_[name] = {stored.number(0, 0), std::move(decoded)};
     return entry;
+}
+
+bool PgSceneStore::has_environment(pg::Connection& connection, const std::string& name) const {
+    return connection.exec("SELECT 1 FROM environments WHERE name = $1", {{name}}, "looking up environment '" + name + "'")
+               .rows() > 0;
 }
 
 std::vector<EnvironmentEntry> PgSceneStore::list_stored_environments() const {

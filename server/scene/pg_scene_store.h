@@ -52,6 +52,9 @@ private:
     // LISTEN refract_scenes on a connection of its own, publishing each notification; reconnects
     // when the database comes back.
     void listen();
+    // Whether an environment is stored under `name`, asked on a connection the caller already holds (a
+    // second lease from the pool while holding one could wait for ever under load).
+    bool has_environment(pg::Connection& connection, const std::string& name) const;
 
     mutable pg::Pool pool_;
     protocol::Limits limits_;

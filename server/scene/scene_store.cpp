@@ -225,7 +225,7 @@ SceneSnapshot SceneStore::create(const std::string& id, const nlohmann::json& do
     if (!id.empty() && !valid_scene_id(id)) throw StoreError(400, "scene id must match [a-z0-9-]{1,32}");
     auto entry = std::make_shared<Entry>();
     entry->current.document = protocol::parse_scene(document, limits_);
-    check_environment(entry->current.document);
+    check_environment(entry->current.document, [this](const std::string& name) { return has_environment(name); });
     entry->current.revision = 1;
 
     std::lock_guard lock(mutex_);
@@ -304,7 +304,8 @@ EditResult SceneStore::apply(const std::shared_ptr<Entry>& entry, const nlohmann
     result.after.document = protocol::apply_merge_patch(current.document, merge_patch, limits_);
     result.changed = !(result.after.document == current.document);
     if (!result.changed) return result;
-    if (!(result.after.document.environment == current.document.environment)) check_environment(result.after.document);
+    if (!(result.after.document.environment == current.document.environment))
+        check_environment(result.after.document, [this](const std::string& name) { return has_environment(name); });
     result.after.revision = next_revision(current.revision);
     persist_scene(result.after);
     std::lock_guard lock(mutex_);
@@ -404,6 +405,11 @@ EnvironmentEntry SceneStore::put_environment(const std::string& name, const std:
     environments_[name] = std::move(decoded);  // a new pointer: the renderer sees the re-upload
     publish({StoreEvent::Kind::environment, name});
     return entry;
+}
+
+bool SceneStore::has_environment(const std::string& name) const {
+    std::lock_guard lock(asset_mutex_);
+    return environments_.count(name) > 0 || fs::exists(environment_path(name));
 }
 
 std::vector<EnvironmentEntry> SceneStore::list_stored_environments() const {

@@ -84,6 +84,7 @@ private:
     std::filesystem::path mesh_path(const std::string& name) const;
     std::filesystem::path grid_path(const std::string& name) const;
     std::filesystem::path environment_path(const std::string& name) const;
+    bool has_environment(const std::string& name) const;  // uploaded under `name` (not decoded)
     // The reports (NAME.json) under <data dir>/`kind` whose stored file (NAME + `ending`) exists, by name;
     // unreadable ones are skipped with a line on stderr. The caller holds asset_mutex_.
     std::vector<std::pair<std::string, nlohmann::json>> stored_reports(const char* kind,

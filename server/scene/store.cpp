@@ -131,18 +131,14 @@ std::shared_ptr<const image::EnvironmentMap> Store::environment(const std::strin
     return valid_mesh_name(name) ? stored_environment(name) : nullptr;
 }
 
-void Store::check_environment(const protocol::SceneDocument& document) const {
+void check_environment(const protocol::SceneDocument& document,
+                       const std::function<bool(const std::string& name)>& stored) {
     const auto& environment = document.environment;
-    if (environment.type != protocol::EnvironmentKind::image) return;
-    bool known = false;
-    try {
-        known = this->environment(environment.image) != nullptr;
-    } catch (const RenderError&) {
-        known = true;  // stored but unreadable: the render says so, naming the file
-    }
-    if (!known)
-        throw protocol::ValidationError("/environment/image", "no environment named \"" + environment.image +
-                                                                  "\" (GET /api/environments lists them)");
+    if (environment.type != protocol::EnvironmentKind::image || image::built_in_environment(environment.image) ||
+        (valid_mesh_name(environment.image) && stored(environment.image)))
+        return;
+    throw protocol::ValidationError("/environment/image", "no environment named \"" + environment.image +
+                                                              "\" (GET /api/environments lists them)");
 }
 
 Assets Store::assets() const {

@@ -71,6 +71,12 @@ struct EnvironmentEntry {
 };
 
 
+// Throws protocol::ValidationError at /environment/image when `document` names an environment that is
+// neither built in nor `stored(name)`: a store's create and patch call it before anything is written.
+// Existence only: a stored file that cannot be read is the render's error, which names the file.
+void check_environment(const protocol::SceneDocument& document,
+                       const std::function<bool(const std::string& name)>& stored);
+
 // Validation of an imported index grid, in the words a user needs; throws StoreError(400).
 void validate_index_grid(const IndexGrid& grid);
 
@@ -170,9 +176,7 @@ public:
 
     // Lookups for the renderer (called on the render thread).
     Assets assets() const;
-    // Throws protocol::ValidationError at /environment/image when `document` names an environment the
-    // store does not have: create and patch call it before anything is written.
-    void check_environment(const protocol::SceneDocument& document) const;
+
 
     // Registers `listener` for every event until the subscription goes.
     [[nodiscard]] Subscription on_change(StoreListener listener) const;
