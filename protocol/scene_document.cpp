@@ -76,6 +76,7 @@ constexpr Range kFov{1.0, 170.0, true, true, "a number in (1, 170)"};
 constexpr Range kExposure{-20.0, 20.0, false, false, "a number in [-20, 20]"};
 constexpr Range kColor{0.0, 1e3, false, false, "a number in [0, 1e3]"};
 constexpr Range kIntensity{0.0, 1e6, false, false, "a number in [0, 1e6]"};
+constexpr Range kRotation{-360.0, 360.0, false, false, "a number in [-360, 360]"};
 constexpr Range kCone{0.0, 90.0, true, false, "a number in (0, 90]"};
 constexpr Range kScale{0.0, 1e3, true, false, "a number in (0, 1e3]"};
 constexpr Range kIor{1.0, 4.0, false, false, "a number in [1, 4]"};
@@ -537,13 +538,27 @@ private:
         f.checker_size = number(*j, base, "checker_size", f.checker_size, kChecker);
     }
 
-    static void read_environment(const json& root, Environment& e) {
+    void read_environment(const json& root, Environment& e) const {
         const std::string base = "/environment";
-        const json* j = section(root, "", "environment", {"type", "color", "intensity"});
+        const json* j =
+            section(root, "", "environment", {"type", "color", "intensity", "image", "rotation_deg", "lights"});
         if (j == nullptr) return;
-        e.type = enumeration(*j, base, "type", e.type, {{"sky", EnvironmentKind::sky}, {"uniform", EnvironmentKind::uniform}});
+        e.type = enumeration(*j, base, "type", e.type,
+                             {{"sky", EnvironmentKind::sky}, {"uniform", EnvironmentKind::uniform},
+                              {"image", EnvironmentKind::image}});
         e.color = vec3(*j, base, "color", e.color, kColor);
         e.intensity = number(*j, base, "intensity", e.intensity, kIntensity);
+        static constexpr const char* kImageRule = "must be \"\" or a name of 1..64 characters of [A-Za-z0-9_.-]";
+        if (const std::string* image = string_member(*j, base, "image", kImageRule)) {
+            if (!image->empty() && !valid_name(*image)) fail(child(base, "image"), kImageRule);
+            e.image = *image;
+        }
+        e.rotation_deg = number(*j, base, "rotation_deg", e.rotation_deg, kRotation);
+        e.lights = boolean(*j, base, "lights", e.lights);
+        if (e.type == EnvironmentKind::image && e.image.empty()) {
+            fail_blaming({{"/environment/image", "must name an environment when /environment/type is \"image\""},
+                          {"/environment/type", "\"image\" requires a non-empty /environment/image"}});
+        }
     }
 
     const Limits& limits_;
@@ -592,7 +607,17 @@ const char* name(IndexFieldKind k) {
     return "uniform";
 }
 
-const char* name(EnvironmentKind k) { return k == EnvironmentKind::uniform ? "uniform" : "sky"; }
+const char* name(EnvironmentKind k) {
+    switch (k) {
+        case EnvironmentKind::sky:
+            return "sky";
+        case EnvironmentKind::uniform:
+            return "uniform";
+        case EnvironmentKind::image:
+            return "image";
+    }
+    return "sky";
+}
 
 json phase_json(const Phase& p) {
     return {{"model", name(p.model)}, {"g", p.g}};
@@ -700,7 +725,10 @@ json to_json(const SceneDocument& d) {
         {"environment",
          {{"type", name(d.environment.type)},
           {"color", vec(d.environment.color)},
-          {"intensity", d.environment.intensity}}},
+          {"intensity", d.environment.intensity},
+          {"image", d.environment.image},
+          {"rotation_deg", d.environment.rotation_deg},
+          {"lights", d.environment.lights}}},
     };
 }
 

@@ -19,7 +19,7 @@ using Vec3 = std::array<double, 3>;
 enum class LightType { point, spot, directional };
 enum class PhaseModel { isotropic, schlick, henyey_greenstein };
 enum class IndexFieldKind { uniform, luneburg, maxwell, grid };
-enum class EnvironmentKind { sky, uniform };
+enum class EnvironmentKind { sky, uniform, image };
 
 struct Phase {
     PhaseModel model = PhaseModel::isotropic;
@@ -140,11 +140,20 @@ struct Floor {
     bool operator==(const Floor&) const = default;
 };
 
-// What rays that leave the scene see (the backdrop, and what reflections and refractions show).
+// What rays that leave the scene see (the backdrop, and what reflections and refractions show). A
+// uniform or image environment also lights the scene (photons from it, and its irradiance on the floor);
+// the built-in sky is a backdrop only, so scenes without an environment look as they always did.
 struct Environment {
-    EnvironmentKind type = EnvironmentKind::sky;  // the built-in dark sky gradient, or one colour everywhere
+    EnvironmentKind type = EnvironmentKind::sky;  // the built-in dark sky gradient, one colour, or an image
     Vec3 color{1.0, 1.0, 1.0};                    // linear RGB radiance of a uniform environment (W/(m^2 sr))
-    double intensity = 1.0;                       // multiplies either
+    double intensity = 1.0;                       // multiplies any of them
+    // The equirectangular environment named (uploaded with PUT /api/environments/NAME, or built in) for
+    // type image; "" otherwise.
+    std::string image;
+    double rotation_deg = 0.0;  // turns the image about the vertical axis (+y), counter-clockwise from above
+    // A uniform or image environment lights the scene (photons, the floor's irradiance); false: it is a
+    // backdrop only, like the sky (a studio backdrop behind a dark stage; not physical).
+    bool lights = true;
 
     bool operator==(const Environment&) const = default;
 };

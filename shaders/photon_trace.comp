@@ -210,12 +210,23 @@ void main() {
     if (job >= count) return;
     uint i = coherent_order(job, count);
     vec3 origin, direction;
-    vec2 sample_point = stratified(i, count, params.photon_info.y);
-    if (!emit_ray(sample_point, origin, direction)) return;
+    vec3 weight;  // relative to the reference flux
+    // The last environment.z photons come from the environment (transport.h), the others from the light.
+    uint light_photons = count - params.environment.z;
+    bool from_environment = i >= light_photons;
+    vec2 sample_point;
+    if (from_environment) {
+        sample_point = stratified(i - light_photons, params.environment.z, params.photon_info.y);
+        vec2 disc = vec2(to_unit(hash(i ^ hash(params.photon_info.y + 3u))), to_unit(hash(i ^ hash(params.photon_info.y + 4u))));
+        emit_environment_ray(sample_point, disc, origin, direction, weight);
+    } else {
+        sample_point = stratified(i, light_photons, params.photon_info.y);
+        if (!emit_ray(sample_point, origin, direction)) return;
+        weight = params.photon_flux.rgb / params.photon_flux.w;
+    }
     rng_state = hash(i ^ hash(params.photon_info.y));
     uint fresnel_seed = hash(i ^ hash(params.photon_info.y + 2u));
     deposit_phase = i * 2654435769u + hash(params.photon_info.y + 1u);  // 2^32 / the golden ratio
-    vec3 weight = params.photon_flux.rgb / params.photon_flux.w;  // relative to the reference flux
 
     vec3 p = to_voxel(origin);
     vec2 span = grid_interval(p, direction);
@@ -241,15 +252,16 @@ void main() {
     float h = voxel_size();
     float radiance_factor = float(params.radiance_grid.w);
     float path_length = 0.0;  // voxels travelled inside the grid
-    // Unbent until the photon meets a gradient of n (transport.h).
-    bool unbent = true;
+    // Unbent until the photon meets a gradient of n (transport.h); an environment photon never travels
+    // along the light's direction.
+    bool unbent = !from_environment;
     light_in_radiance_voxels = to_voxel(origin) / radiance_factor;
     near_light_squared = params.models.z == LIGHT_DIRECTIONAL ? 0.0 : UNBENT_MIN_DISTANCE * UNBENT_MIN_DISTANCE;
     // Direct light (transport.h): from `near` to the light map's value the direct-light pass counts this
     // photon's light, so it deposits nothing there, and as the map says its path there is straight
     // through the medium, it crosses that span in one step. Steps before it end where it begins.
     float direct_from = params.direct_light.y;
-    float direct_to = params.direct_light.w > 0.5 ? light_map[light_map_texel(sample_point)] : 0.0;
+    float direct_to = params.direct_light.w > 0.5 && !from_environment ? light_map[light_map_texel(sample_point)] : 0.0;
     bool jumped = false;   // the last step crossed the direct span
     bool overlap = false;  // it landed where n varies or on the object: the map was wrong for this photon
     // Where the channels part: the ray before that step, its length, and the path's state then.

@@ -3,12 +3,13 @@
 // The viewing pass: one thread per pixel. Eye rays travel straight outside the grid and follow the ray
 // equation inside it, gathering single scattering (transmittance x scattering x phase x fluence) from
 // the radiance grid, then finish on the floor (lit analytically, plus the photons' floor map of what
-// the grid changes: its shadow and caustics) or the sky. Where a ray crosses the object's boundary the
+// the grid changes: its shadow and caustics) or the environment. Where a ray crosses the object's boundary the
 // reflected part is traced too (fresnel.glsl). Output: linear radiance and a tone-mapped sRGB pixel.
 #include "transport_common.glsl"
 #include "fresnel.glsl"
 #include "phase.h"
 #include "view_tiles.glsl"
+#include "environment.glsl"
 
 layout(local_size_x = VIEW_GROUP_SIZE, local_size_y = VIEW_GROUP_SIZE) in;
 layout(binding = TRANSPORT_BINDING_RADIANCE) uniform sampler3D radiance;
@@ -54,7 +55,7 @@ vec3 direct_irradiance(vec3 x) {
 vec3 floor_radiance(vec3 x) {
     // Unobstructed light plus what the grid changed (shadow, caustics; see photon_trace.comp).
     vec2 m = (x.xz - params.floor_map.xy) / params.floor_map.z;
-    vec3 irradiance = direct_irradiance(x);
+    vec3 irradiance = direct_irradiance(x) + params.environment_light.rgb;
     if (all(greaterThanEqual(m, vec2(0.0))) && all(lessThanEqual(m, vec2(1.0))))
         irradiance = max(irradiance + textureLod(floor_map, vec3(m, 0.5), 0.0).rgb, vec3(0.0));
     vec3 albedo = params.floor_albedo.rgb;
@@ -86,7 +87,12 @@ vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
     return mix(vec3(len), (1.0 - attenuation) / kappa, greaterThan(kappa, vec3(1e-7)));
 }
 
-vec3 sky(vec3 d) { return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0)); }
+// What a ray leaving the scene along d sees: the image environment's map, else the sky's gradient (one
+// colour for a uniform environment).
+vec3 sky(vec3 d) {
+    if (params.environment.w == 1u) return environment_radiance(d);
+    return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0));
+}
 
 // A reflection an eye ray still has to trace (fresnel.glsl): its transmittance carries the reflectance,
 // so everything it gathers is weighted.
@@ -269,7 +275,9 @@ void shade(uvec2 pixel) {
         vec3 end = marches ? to_world(ray.p) : position;
         vec3 end_d = marches ? ray.d : d;
         if (any(greaterThan(transmittance, vec3(0.0)))) {
-            bool sees_floor = on_floor || (floor_on && end_d.y < 0.0 && end.y > params.floor_plane.x);
+            // A ray that left the grid through its bottom face where the floor lies in that face ends on
+            // the floor, whichever of the two the march's rounding found first.
+            bool sees_floor = on_floor || (floor_on && end_d.y < 0.0 && end.y > params.floor_plane.x - 1e-3 * h);
             vec3 floor_point = on_floor ? end : end + end_d * ((end.y - params.floor_plane.x) / -end_d.y);
             pixel_radiance += transmittance * (sees_floor ? floor_radiance(floor_point) : sky(end_d));
         }

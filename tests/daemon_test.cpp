@@ -29,6 +29,7 @@
 #include "http/metrics.h"
 #include "http/service.h"
 #include "http/static_files.h"
+#include "image/environment_map.h"
 #include "scene/passes.h"
 #include "scene/render_queue.h"
 #include "scene/scene_store.h"
@@ -1920,6 +1921,69 @@ TEST(DaemonHostile, AnEditWithoutItsFrameIsAnsweredAsApplied) {
     EXPECT_EQ(normal->status, 200);
     EXPECT_TRUE(is_png(normal->body));
     expect_alive(daemon);
+}
+
+TEST(Daemon, EnvironmentUploadsAreCheckedListedAndLightTheScene) {
+    TempDir dir;
+    image::EnvironmentMap studio{32, 16, std::vector<float>(32 * 16 * 3, 0.8f)};
+    const std::string hdr = image::encode_hdr(studio);
+    {
+        Daemon daemon(dir.path() / "data");
+        auto client = daemon.client();
+        json listed = get_json(client, "/api/environments");
+        ASSERT_EQ(listed["environments"].size(), 1u);
+        EXPECT_EQ(listed["environments"][0], json({{"name", "sky-sun"}, {"width", 256}, {"height", 128}, {"built_in", true}}));
+
+        auto put = client.Put("/api/environments/studio", hdr, "image/vnd.radiance");
+        ASSERT_TRUE(put);
+        ASSERT_EQ(put->status, 201) << put->body;
+        EXPECT_EQ(json::parse(put->body)["width"], 32);
+
+        const std::string huge = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 100000\n" + std::string(64, '\0');
+        const std::pair<std::string, std::string> hostile[] = {
+            {"/api/environments/corrupt", "#?RADIANCE\nno end to this header"},
+            {"/api/environments/truncated", hdr.substr(0, hdr.size() - 100)},
+            {"/api/environments/huge", huge},
+            {"/api/environments/png", "\x89PNG\r\n\x1a\n"},
+            {"/api/environments/sky-sun", hdr},
+            {"/api/environments/a%20b", hdr},
+        };
+        for (const auto& [path, body] : hostile) {
+            auto refused = client.Put(path, body, "application/octet-stream");
+            ASSERT_TRUE(refused) << path;
+            EXPECT_EQ(refused->status, 400) << path << ": " << refused->body;
+            EXPECT_TRUE(json::parse(refused->body)["error"].is_string()) << path;
+        }
+        EXPECT_EQ(get_json(client, "/api/environments")["environments"].size(), 2u);  // sky-sun and studio only
+
+        json document = kSmallScene;
+        document["environment"] = {{"type", "image"}, {"image", "studio"}};
+        std::string id = create_scene(client, "lit", document);
+        auto frame = get_frame(client, id);
+        ASSERT_TRUE(frame && frame->status == 200) << (frame ? frame->body : "");
+
+        // An unknown name is refused at /environment/image, and nothing changes.
+        auto unknown = patch(client, id, {{"environment", {{"image", "nowhere"}}}});
+        ASSERT_TRUE(unknown);
+        EXPECT_EQ(unknown->status, 422);
+        EXPECT_EQ(json::parse(unknown->body)["pointer"], "/environment/image");
+        EXPECT_EQ(get_json(client, "/api/scenes/" + id)["revision"], 1);
+        auto bad_rotation = patch(client, id, {{"environment", {{"rotation_deg", 1e9}}}});
+        ASSERT_TRUE(bad_rotation);
+        EXPECT_EQ(bad_rotation->status, 422);
+        EXPECT_EQ(json::parse(bad_rotation->body)["pointer"], "/environment/rotation_deg");
+
+        // The environment lights the scene: turning it reruns the photons.
+        ASSERT_EQ(patch(client, id, {{"environment", {{"image", "sky-sun"}, {"rotation_deg", 90}}}})->status, 200);
+        auto turned = get_frame(client, id);
+        ASSERT_TRUE(turned && turned->status == 200);
+        EXPECT_NE(turned->get_header_value("X-Refract-Passes").find("photons"), std::string::npos);
+        expect_no_validation_errors(daemon);
+        EXPECT_EQ(daemon.stop(), 0) << daemon.log();
+    }
+    Daemon daemon(dir.path() / "data");  // the upload is stored durably
+    auto client = daemon.client();
+    EXPECT_EQ(get_json(client, "/api/environments")["environments"][1]["name"], "studio");
 }
 
 }  // namespace

@@ -391,5 +391,36 @@ TEST_F(FresnelTest, PhotonsThroughASoapFilmReflectEachChannelsBandAverage) {
     }
 }
 
+// A Maxwell fish-eye of n0 = 3 in air has no shell inside (n rises from 1.5 at its surface to 3 at its
+// centre) but meets the air with a step at its surface: a narrow beam along its axis comes back like a
+// slab's, 2R / (1 + R) with R = ((1.5 - 1) / (1.5 + 1))^2 (the front face and, after the graded
+// inside, the back face, both met near normal incidence: a 0.5-degree spot 3.2 m before the lens is
+// 2.8 cm wide there, two degrees). With Fresnel off nothing comes back; a Luneburg lens, whose surface
+// is index-matched in air, and an imported grid never reflect.
+TEST_F(FresnelTest, AGradedFieldReflectsAtItsOuterBoundaryOnly) {
+    json patch = {{"light", {{"type", "spot"}, {"position", {0, 0, -4}}, {"direction", {0, 0, 1}}, {"cone_deg", 0.5}}},
+                  {"object", {{"mesh", "sphere"}, {"scale", 0.8}, {"index_field", "maxwell"}, {"maxwell_n0", 3.0}}},
+                  {"volume", bounds({-1, -1, -1}, {1, 1, 1}, 96)}};
+    const auto doc = glass_scene(patch);
+    ASSERT_TRUE(passes::fresnel_reflects(doc));
+    double entered = 0.0;
+    const double measured = reflected_share(trace(doc), {0, 0, 1}, &entered);
+    const double r = std::pow((kGlass - 1.0) / (kGlass + 1.0), 2.0), expected = 2.0 * r / (1.0 + r);
+    std::printf("Maxwell n0 = 3, axial beam: reflected %.5f, 2R/(1+R) %.5f, tolerance %.5f (%.0f photons)\n", measured,
+                expected, binomial_tolerance(expected, entered), entered);
+    ASSERT_GT(entered, 60000.0);
+    EXPECT_NEAR(measured, expected, binomial_tolerance(expected, entered));
+
+    patch["object"]["fresnel"] = false;
+    EXPECT_EQ(reflected_share(trace(glass_scene(patch)), {0, 0, 1}), 0.0);
+    patch["object"]["fresnel"] = true;
+    patch["object"]["maxwell_n0"] = 2.0;  // surface index 1: matched
+    EXPECT_FALSE(passes::fresnel_reflects(glass_scene(patch)));
+    patch["object"]["index_field"] = "luneburg";
+    EXPECT_FALSE(passes::fresnel_reflects(glass_scene(patch)));
+    patch["medium"] = {{"ior", 1.33}};  // a Luneburg lens in water would cross the midpoint inside
+    EXPECT_FALSE(passes::fresnel_reflects(glass_scene(patch)));
+}
+
 }  // namespace
 }  // namespace refract

@@ -70,7 +70,7 @@ SceneDocument customised() {
     d.floor = {false, -2.5, {0.1, 0.5, 1.0}, false, 1.0};
     d.object().fresnel = false;
     d.object().film = {1.38, 99.6, 5000.0};
-    d.environment = {EnvironmentKind::uniform, {0.5, 0.25, 1000.0}, 1e6};
+    d.environment = {EnvironmentKind::image, {0.5, 0.25, 1000.0}, 1e6, "sky-sun", -360.0, false};
     return d;
 }
 
@@ -163,7 +163,7 @@ TEST(SceneDocument, ToJsonEmitsEveryField) {
         {"/volume", {"resolution", "smoothing", "octree_epsilon", "margin"}},
         {"/photons", {"count", "seed", "max_bounces"}},
         {"/floor", {"enabled", "height", "albedo", "checker", "checker_size"}},
-        {"/environment", {"type", "color", "intensity"}},
+        {"/environment", {"type", "color", "intensity", "image", "rotation_deg", "lights"}},
     };
     ASSERT_EQ(j.size(), expected.size());
     EXPECT_EQ(j["lights"].size(), 1u);
@@ -610,6 +610,14 @@ std::vector<BadPatch> bad_patches() {
         {"environment intensity above 1e6", json::parse(R"({"environment": {"intensity": 2e6}})"),
          "/environment/intensity"},
         {"unknown environment field", json::parse(R"({"environment": {"map": "sky.hdr"}})"), "/environment/map"},
+        {"environment image without a name", json::parse(R"({"environment": {"type": "image", "image": ""}})"),
+         "/environment/image"},
+        {"environment image name with a slash", json::parse(R"({"environment": {"image": "../sky"}})"),
+         "/environment/image"},
+        {"environment rotation above 360", json::parse(R"({"environment": {"rotation_deg": 361}})"),
+         "/environment/rotation_deg"},
+        {"environment lights not a boolean", json::parse(R"({"environment": {"lights": "yes"}})"),
+         "/environment/lights"},
         {"unknown index field", json::parse(R"({"object": {"index_field": "Uniform"}})"),
          "/object/index_field"},
         {"negative extinction", json::parse(R"({"object": {"extinction": [0.05, -1, 0.05]}})"),

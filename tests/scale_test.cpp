@@ -206,7 +206,7 @@ TEST(ScaleOutStart, ASchemaOfANewerVersionIsRefused) {
     auto [status, output] =
         run_refractd({"--store", url, "--port", std::to_string(free_port())}, std::chrono::seconds(30));
     EXPECT_EQ(status, 1) << output;
-    EXPECT_NE(output.find("schema is version 99, newer than this refractd's 1; refusing to start"), std::string::npos)
+    EXPECT_NE(output.find("schema is version 99, newer than this refractd's 2; refusing to start"), std::string::npos)
         << output;
 }
 
@@ -317,6 +317,42 @@ TEST_F(ScaleOut, MeshesAndIndexGridsUploadedToOneReplicaRenderOnTheOthers) {
     ASSERT_TRUE(frame);
     EXPECT_EQ(frame->status, 200) << frame->body;
     EXPECT_EQ(frame->get_header_value("X-Refract-Revision"), "2");
+}
+
+TEST_F(ScaleOut, EnvironmentsUploadedToOneReplicaLightScenesOnTheOthers) {
+    auto r1 = client_for(replicas_[0]->port());
+    auto r2 = client_for(replicas_[1]->port());
+    auto r3 = client_for(replicas_[2]->port());
+    // A flat 8 x 4 Radiance file: every pixel RGBE (128, 128, 128, 129), radiance 1.
+    auto hdr = [](unsigned char exponent) {
+        std::string bytes = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 8\n";
+        for (int i = 0; i < 32; ++i) bytes += std::string{'\x80', '\x80', '\x80', static_cast<char>(exponent)};
+        return bytes;
+    };
+    auto uploaded = r1.Put("/api/environments/studio", hdr(129), "image/vnd.radiance");
+    ASSERT_TRUE(uploaded);
+    ASSERT_EQ(uploaded->status, 201) << uploaded->body;
+    json document = kSmallScene;
+    document["environment"] = {{"type", "image"}, {"image", "studio"}};
+    auto created = r2.Post("/api/scenes?id=lit", document.dump(), "application/json");
+    ASSERT_TRUE(created);
+    ASSERT_EQ(created->status, 201) << created->body;
+    document["environment"]["image"] = "nowhere";
+    auto refused = r2.Post("/api/scenes?id=unlit", document.dump(), "application/json");
+    ASSERT_TRUE(refused);
+    EXPECT_EQ(refused->status, 422) << refused->body;
+    auto listed = r3.Get("/api/environments");
+    ASSERT_TRUE(listed);
+    EXPECT_NE(listed->body.find("\"studio\""), std::string::npos) << listed->body;
+    auto frame = r3.Get("/api/scenes/lit/frame.png");
+    ASSERT_TRUE(frame);
+    EXPECT_EQ(frame->status, 200) << frame->body;
+    // A re-upload through another replica relights the scene without a new revision.
+    ASSERT_EQ(r2.Put("/api/environments/studio", hdr(130), "image/vnd.radiance")->status, 201);
+    frame = fresh_frame(r3, "lit");
+    ASSERT_TRUE(frame);
+    EXPECT_NE(frame->get_header_value("X-Refract-Passes").find("photons"), std::string::npos)
+        << frame->get_header_value("X-Refract-Passes");
 }
 
 TEST_F(ScaleOut, ConnectionsCutMidEditNeitherLoseNorInventAnEdit) {

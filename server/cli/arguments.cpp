@@ -35,6 +35,7 @@ Commands:
 
 Options for every command:
   --mesh NAME=FILE.obj                    make FILE.obj available to the scene as "upload:NAME"
+  --environment NAME=FILE                 make FILE (.hdr or .exr) available as environment image NAME
   --device NAME                           use the device whose name contains NAME (also REFRACT_DEVICE)
 SCENE.json may be - for the default scene {}.
 )";
@@ -108,15 +109,25 @@ void check_output_dir(const std::string& flag, const std::string& path) {
         throw UsageError(flag + ": '" + existing.string() + "' is not a directory");
 }
 
+// NAME=FILE of an asset flag, FILE readable.
+std::pair<std::string, std::string> named_file(const std::string& flag, const std::string& spec, const char* form) {
+    const auto eq = spec.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
+        throw UsageError(flag + ": '" + spec + "' must be " + form);
+    check_input_file(flag + ":", spec.substr(eq + 1));
+    return {spec.substr(0, eq), spec.substr(eq + 1)};
+}
+
 std::vector<Option> with_common_options(std::vector<Option> options) {
     options.push_back({"--mesh", "", "NAME=FILE.obj",
                        "make FILE.obj available to the scene as \"upload:NAME\"",
                        [](Arguments& a, const std::string& flag, const std::string& spec) {
-                           const auto eq = spec.find('=');
-                           if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
-                               throw UsageError(flag + ": '" + spec + "' must be NAME=FILE.obj");
-                           check_input_file(flag + ":", spec.substr(eq + 1));
-                           a.meshes.emplace_back(spec.substr(0, eq), spec.substr(eq + 1));
+                           a.meshes.push_back(named_file(flag, spec, "NAME=FILE.obj"));
+                       }});
+    options.push_back({"--environment", "", "NAME=FILE",
+                       "make FILE (.hdr or .exr) available to the scene as environment image NAME",
+                       [](Arguments& a, const std::string& flag, const std::string& spec) {
+                           a.environments.push_back(named_file(flag, spec, "NAME=FILE"));
                        }});
     options.push_back({"--device", "", "NAME",
                        "use the device whose name contains NAME (also REFRACT_DEVICE)",

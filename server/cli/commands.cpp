@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/slices.h"
+#include "image/environment_map.h"
 #include "image/png.h"
 #include "mesh/mesh.h"
 #include "protocol/animation.h"
@@ -29,6 +30,7 @@ using nlohmann::json;
 struct Loaded {
     protocol::SceneDocument document;
     std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;
+    std::map<std::string, std::shared_ptr<const image::EnvironmentMap>> environments;
 };
 
 json read_json_file(const std::string& path) {
@@ -46,7 +48,33 @@ Loaded load(const Arguments& args) {
     loaded.document = protocol::parse_scene(args.positional[0] == "-" ? json::object() : read_json_file(args.positional[0]));
     for (const auto& [name, file] : args.meshes)
         loaded.meshes[name] = std::make_shared<mesh::Mesh>(mesh::load_obj_file(file));
+    for (const auto& [name, file] : args.environments) {
+        std::ifstream in(file, std::ios::binary);
+        std::ostringstream bytes;
+        bytes << in.rdbuf();
+        try {
+            loaded.environments[name] = std::make_shared<image::EnvironmentMap>(image::decode_environment(bytes.str()));
+        } catch (const image::EnvironmentError& e) {
+            throw std::runtime_error(file + ": " + e.what());
+        }
+    }
     return loaded;
+}
+
+// The environment image `name`, given by --environment or built in; nullptr when neither has it.
+std::shared_ptr<const image::EnvironmentMap> find_environment(const Loaded& loaded, const std::string& name) {
+    const auto it = loaded.environments.find(name);
+    return it != loaded.environments.end() ? it->second : image::built_in_environment(name);
+}
+
+// The scene's environment image, resolved as the renderer resolves it; nullptr unless it has one.
+std::shared_ptr<const image::EnvironmentMap> environment_of(const Loaded& loaded) {
+    const auto& environment = loaded.document.environment;
+    if (environment.type != protocol::EnvironmentKind::image) return nullptr;
+    auto map = find_environment(loaded, environment.image);
+    if (!map) throw std::runtime_error("the scene names environment " + environment.image + ": pass --environment " +
+                                       environment.image + "=FILE");
+    return map;
 }
 
 // The object's mesh in world space, resolved as the renderer resolves it.
@@ -156,7 +184,8 @@ int trace_command(const Arguments& args) {
     scene::SceneGpu gpu(kit);
     scene::RunOptions options;
     options.limit = scene::kAllPasses & ~scene::kView;
-    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_mesh(loaded), nullptr, options);
+    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_mesh(loaded), nullptr, options,
+                               environment_of(loaded).get());
     write_index_slices(dir, gpu);
     const auto radiance = gpu.read_radiance();
     std::vector<float> fluence(radiance.size());
@@ -196,7 +225,8 @@ int render_command(const Arguments& args) {
     scene::SceneGpu gpu(kit);
     const auto host_start = std::chrono::steady_clock::now();
     const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_mesh(loaded), nullptr,
-                               scene::run_options_for(args.interactive ? scene::Quality::interactive : scene::Quality::still));
+                               scene::run_options_for(args.interactive ? scene::Quality::interactive : scene::Quality::still),
+                               environment_of(loaded).get());
     const auto encode_start = std::chrono::steady_clock::now();
     const auto png = image::encode_png(gpu.read_ldr(), gpu.width(), gpu.height());
     const auto end = std::chrono::steady_clock::now();
@@ -243,6 +273,7 @@ int animate_command(const Arguments& args) {
         return it == loaded.meshes.end() ? nullptr : it->second;
     };
     assets.grid = [](const std::string&) -> std::shared_ptr<const scene::IndexGrid> { return nullptr; };
+    assets.environment = [&](const std::string& name) { return find_environment(loaded, name); };
     std::map<std::string, uint64_t> reruns;  // pass name -> frames that ran it
     const auto start = std::chrono::steady_clock::now();
     for (uint64_t f = 0; f < frames; ++f) {

@@ -125,11 +125,12 @@ int run(const http::DaemonConfig& config) {
     } stop_queue{queue};
     if (context) service.device_bytes.store(context->allocated_bytes());
 
-    // Another replica's deletions and mesh uploads reach this daemon's render queue as its own do (the
+    // Another replica's deletions and mesh and environment uploads reach this daemon's render queue as its own do (the
     // routes tell the queue of those made here; telling it twice costs nothing).
     scene::Subscription forget = store.on_change([&queue](const scene::StoreEvent& event) {
         if (event.kind == scene::StoreEvent::Kind::deleted) queue.forget_scene(event.name);
-        if (event.kind == scene::StoreEvent::Kind::mesh || event.kind == scene::StoreEvent::Kind::missed)
+        if (event.kind == scene::StoreEvent::Kind::mesh || event.kind == scene::StoreEvent::Kind::environment ||
+            event.kind == scene::StoreEvent::Kind::missed)
             queue.forget_cached_frames();
     });
 

@@ -444,6 +444,30 @@ struct ApiServer::Impl {
             }
         });
 
+        route("GET", "/api/environments", [this](const Request& req, Response& res) {
+            if (!authorize(req, res)) return;
+            json list = json::array();
+            for (const auto& entry : service.store().list_environments())
+                list.push_back({{"name", entry.name}, {"width", entry.width}, {"height", entry.height},
+                                {"built_in", entry.built_in}});
+            send_json(res, 200, {{"environments", list}});
+        });
+
+        route("PUT", R"(/api/environments/([^/]+))", [this](const Request& req, Response& res) {
+            if (!authorize(req, res)) return;
+            std::string name = req.matches[1];
+            try {
+                scene::EnvironmentEntry entry = service.store().put_environment(name, req.body);
+                service.queue().forget_cached_frames();
+                send_json(res, 201, {{"name", entry.name}, {"width", entry.width}, {"height", entry.height},
+                                     {"built_in", false}});
+            } catch (const image::EnvironmentError& e) {
+                send_error(res, 400, std::string("unusable environment: ") + e.what());
+            } catch (const scene::StoreError& e) {
+                send_error(res, e.status(), e.what());
+            }
+        });
+
         // Example scenes (logic in http/examples.cpp).
         route("GET", "/api/examples", [this](const Request& req, Response& res) {
             if (authorize(req, res)) send_json(res, 200, examples_index(config().examples_dir));

@@ -74,7 +74,7 @@ uint32_t transport_channels(const protocol::SceneDocument& document) {
     if (document.object().abbe > 0.0) return CHANNELS_DISPERSIVE;
     auto grey = [](const auto& rgb) { return rgb[0] == rgb[1] && rgb[1] == rgb[2]; };
     return grey(document.medium.extinction) && grey(document.object().extinction) && !film_reflects(document) &&
-                   lights_share_colour(document)
+                   lights_share_colour(document) && !environment_lights(document)
                ? CHANNELS_GREY
                : CHANNELS_RGB;
 }
@@ -119,9 +119,29 @@ glm::vec3 dispersion_scales(double abbe) {
     return scales;
 }
 
+double surface_index(const protocol::SceneDocument& document) {
+    const auto& object = document.object();
+    switch (object.index_field) {
+        case protocol::IndexFieldKind::uniform: return object.ior;
+        case protocol::IndexFieldKind::luneburg: return 1.0;  // sqrt(2 - (r / R)^2) at r = R
+        case protocol::IndexFieldKind::maxwell: return 0.5 * object.maxwell_n0;  // n0 / (1 + (r / R)^2) at r = R
+        case protocol::IndexFieldKind::grid: break;
+    }
+    return document.medium.ior;
+}
+
 bool fresnel_reflects(const protocol::SceneDocument& document) {
-    return document.object().fresnel && document.object().index_field == protocol::IndexFieldKind::uniform &&
-           std::abs(document.object().ior - document.medium.ior) > 1e-4;
+    if (!document.object().fresnel) return false;
+    const double surface = surface_index(document), medium = document.medium.ior;
+    switch (document.object().index_field) {
+        case protocol::IndexFieldKind::uniform: return std::abs(surface - medium) > 1e-4;
+        // n rises inwards from its surface value, so the shell's midpoint is crossed at the outer boundary
+        // only (never inside) where the surface lies above the medium.
+        case protocol::IndexFieldKind::luneburg:
+        case protocol::IndexFieldKind::maxwell: return surface > medium + 1e-4;
+        case protocol::IndexFieldKind::grid: break;  // no boundary: the field is given everywhere
+    }
+    return false;
 }
 
 bool film_reflects(const protocol::SceneDocument& document) {
@@ -351,7 +371,8 @@ std::vector<shaders::TransportParams> make_transport_params(const protocol::Scen
     // A film's thickness goes from its top value at the object's top to its bottom value at its bottom
     // (the built-in meshes reach scale above and below position).
     const auto to_voxel_y = [&](double y) { return (static_cast<float>(y) - grid.origin.y) / grid.voxel_size; };
-    p.shell = glm::vec4(static_cast<float>(object.ior), static_cast<float>(0.5 * (object.ior + medium.ior)),
+    const double surface = surface_index(document);
+    p.shell = glm::vec4(static_cast<float>(surface), static_cast<float>(0.5 * (surface + medium.ior)),
                         to_voxel_y(object.position[1] + object.scale), to_voxel_y(object.position[1] - object.scale));
     p.film = glm::vec4(static_cast<float>(object.film.ior), static_cast<float>(object.film.top_nm),
                        static_cast<float>(object.film.bottom_nm), 0.0f);
@@ -364,7 +385,12 @@ std::vector<shaders::TransportParams> make_transport_params(const protocol::Scen
     p.sky_zenith = glm::vec4(zenith * intensity, 0.0f);
     p.sky_horizon = glm::vec4(horizon * intensity, 0.0f);
 
-    // Each light's photons: a share of the count in proportion to the flux it sends through its emitter.
+    // Each light's photons, and the environment's when it lights the scene: shares of the count in
+    // proportion to the flux each sends towards the grid (the channels' mean), so every photon carries
+    // about the same flux. An environment sends its photons into the grid through a disc around the grid's
+    // bounding sphere, facing the direction each comes from; they go with the first dispatch (its last
+    // environment.z photons), as they never travel unbent (transport.h): the store of unbent light stays
+    // that dispatch's light's own.
     std::vector<Emitter> emitters;
     std::vector<double> powers;
     for (const auto& light : lights) {
@@ -372,11 +398,32 @@ std::vector<shaders::TransportParams> make_transport_params(const protocol::Scen
         const glm::vec3 f = emitters.back().flux;
         powers.push_back((static_cast<double>(f.r) + static_cast<double>(f.g) + static_cast<double>(f.b)) / 3.0);
     }
+    const EnvironmentLight* lighting = options.environment;
+    const float bound_radius = 0.5f * glm::length(grid.max_corner() - grid.origin);
+    const float rotation = glm::radians(static_cast<float>(document.environment.rotation_deg));
+    p.environment_frame = glm::vec4(std::cos(rotation), std::sin(rotation), bound_radius, 0.0f);
+    if (lighting)
+        p.environment = glm::uvec4(lighting->width, lighting->height, 0u,
+                                   document.environment.type == protocol::EnvironmentKind::image ? 1u : 0u);
+    const bool environment_photons = lighting && lighting->lights();
+    double environment_power = 0.0;
+    if (environment_photons) {
+        const double radius = static_cast<double>(bound_radius);
+        environment_power = std::numbers::pi * radius * radius * lighting->sampled;
+        powers.push_back(environment_power);
+        p.environment_light = glm::vec4(lighting->floor_irradiance, 0.0f);
+    }
     const std::vector<uint32_t> shares = photon_shares(document.photons.count, powers);
+    const uint32_t from_environment = environment_photons ? shares.back() : 0u;
+    // The dispatch that carries the environment's photons: the first light's that has any (the first
+    // light's when none has).
+    size_t carrier = 0;
+    while (carrier + 1 < lights.size() && shares[carrier] == 0) ++carrier;
     std::vector<shaders::TransportParams> per_light;
     for (size_t i = 0; i < lights.size(); ++i) {
         const uint32_t photons = shares[i];
-        if (photons == 0) continue;
+        const uint32_t environment_share = i == carrier ? from_environment : 0u;
+        if (photons == 0 && environment_share == 0) continue;
         shaders::TransportParams q = p;
         const shaders::LightParams& light = lights[i];
         const Emitter& e = emitters[i];
@@ -389,17 +436,26 @@ std::vector<shaders::TransportParams> make_transport_params(const protocol::Scen
         q.emit_u = e.u;
         q.emit_v = e.v;
         q.emit_origin = e.origin;
-        const glm::vec3 flux = e.flux / static_cast<float>(photons);
-        q.photon_flux = glm::vec4(flux, std::max({flux.r, flux.g, flux.b, 1e-30f}));
+        const glm::vec3 flux = photons > 0 ? e.flux / static_cast<float>(photons) : glm::vec3(0.0f);
+        float reference = std::max({flux.r, flux.g, flux.b, 1e-30f});
+        if (environment_share > 0) {
+            // Environment photons carry their pixel's colour over its mean times this, at most channel_ratio.
+            const double environment_flux = environment_power / environment_share;
+            reference = std::max(reference, static_cast<float>(environment_flux * lighting->channel_ratio));
+            q.environment.z = environment_share;
+            q.environment_frame.w = static_cast<float>(environment_flux / static_cast<double>(reference));
+        }
+        q.photon_flux = glm::vec4(flux, reference);
         // Each refinement batch draws its own photons: another seed (a Weyl step, so batches never repeat
         // one), and so does each light.
         const uint32_t seed = document.photons.seed + options.photon_batch * 0x9e3779b9u +
                               static_cast<uint32_t>(i) * 0x632be5abu;
-        q.photon_info = glm::uvec4(photons, seed, max_steps, options.fixed_step ? 1u : 0u);
+        const uint32_t count = photons + environment_share;
+        q.photon_info = glm::uvec4(count, seed, max_steps, options.fixed_step ? 1u : 0u);
         // Fixed-point scales chosen so no voxel or texel sum can overflow 2^31 even if every photon
         // deposited its full weight into it: a voxel crossing is at most sqrt(3) voxel lengths, and a net
         // flux deposit is |d|_1 <= sqrt(3) times that (transport.h), so 3 x scale per photon at most.
-        const double n = static_cast<double>(photons);
+        const double n = static_cast<double>(count);
         q.stepping = glm::vec4(options.shell_step, 0.02f, power_of_two_below(2147483647.0 / (4.0 * n)),
                                power_of_two_below(2147483647.0 / n));
         // Direct light from UNBENT_MIN_DISTANCE radiance voxels (plus one, for the voxel's own extent) from
@@ -407,8 +463,8 @@ std::vector<shaders::TransportParams> make_transport_params(const protocol::Scen
         const float near = light.type.x == LIGHT_DIRECTIONAL
                                ? 0.0f
                                : (UNBENT_MIN_DISTANCE + 1.0f) * static_cast<float>(options.radiance_factor);
-        q.direct_light = glm::vec4(static_cast<float>(light_map_texels(grid, photons)), near, 0.0f,
-                                   options.direct_light && scatters ? 1.0f : 0.0f);
+        q.direct_light = glm::vec4(static_cast<float>(light_map_texels(grid, std::max(photons, 1u))), near, 0.0f,
+                                   options.direct_light && scatters && photons > 0 ? 1.0f : 0.0f);
         per_light.push_back(q);
     }
     return per_light;

@@ -6,6 +6,7 @@
 #include <array>
 #include <vector>
 
+#include "passes/environment_light.h"
 #include "protocol/scene_document.h"
 #include "scene/grid_geometry.h"
 #include "transport.h"
@@ -23,6 +24,7 @@ struct TransportOptions {
     uint32_t photon_batch = 0;  // progressive refinement: which batch of photons (0: the document's seed)
     uint32_t view_sample = 0;   // progressive refinement: which eye-ray sample per pixel (0: the centre)
     uint32_t bounce_cap = protocol::kMaxBounces;  // most of photons.max_bounces taken (interactive: fewer)
+    const EnvironmentLight* environment = nullptr;  // the document's environment (nullptr: lights nothing)
 };
 
 // The sub-pixel offset of eye-ray sample `index` (0: the pixel centre; then a Halton (2, 3) sequence
@@ -43,8 +45,8 @@ std::vector<uint32_t> photon_shares(uint32_t photons, const std::vector<double>&
 
 // How the colour channels travel (CHANNELS_*, TRANSPORT_CONSTANT_CHANNELS): dispersive where the object
 // has an Abbe number; else grey where extinction is the same in every channel, in the medium and in the
-// object, and no film colours what it reflects (photons then keep their colour from emission to
-// deposit); else RGB.
+// object, no film colours what it reflects and no environment lights the scene (photons then keep the
+// light's colour from emission to deposit); else RGB.
 uint32_t transport_channels(const protocol::SceneDocument& document);
 
 // Whether every light that shines has the same colour up to a factor (grey transport needs it).
@@ -67,9 +69,14 @@ float octree_epsilon(const protocol::SceneDocument& document);
 // nothing scatters (PHOTON_CONSTANT_RANDOM_WALKS is on when this is not 0).
 uint32_t photon_bounces(const protocol::SceneDocument& document, uint32_t cap);
 
-// Whether the object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL): Fresnel on, a uniform object (graded
-// fields have no flat index either side of a shell to reflect between; fresnel.glsl) and an index step
-// at its boundary.
+// The object's index just inside its outer boundary: the uniform object's, a Luneburg lens's 1, a Maxwell
+// fish-eye's n0 / 2; the medium's for an imported grid (no boundary).
+double surface_index(const protocol::SceneDocument& document);
+
+// Whether the object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL): Fresnel on and an index step at its
+// boundary. A graded field (Luneburg, Maxwell) reflects at its outer boundary only, where its surface
+// index lies above the medium's: n then rises inwards away from the shell's midpoint, which is crossed
+// nowhere inside (fresnel.glsl). Imported grids never reflect.
 bool fresnel_reflects(const protocol::SceneDocument& document);
 
 // Whether that boundary carries a thin film (TRANSPORT_CONSTANT_FILM): it reflects and has a thickness.

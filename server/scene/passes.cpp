@@ -48,8 +48,13 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     if (walks && (a.scattering != b.scattering || !(a.phase == b.phase) ||
                   before.medium.scattering != after.medium.scattering || !(before.medium.phase == after.medium.phase)))
         stale |= kPhotons | kView | kToneMap;
-    // Only the viewing pass reads scattering, phase functions, the floor's look, the environment (it lights
-    // nothing: only rays that leave the scene see it), the camera and the image size.
+    // An environment that lights the scene (before or after the edit) sends photons: any change of it
+    // reruns them.
+    if (!(before.environment == after.environment) &&
+        (passes::environment_lights(before) || passes::environment_lights(after)))
+        stale |= kPhotons | kView | kToneMap;
+    // Only the viewing pass reads scattering, phase functions, the floor's look, an environment that lights
+    // nothing (only rays that leave the scene see the sky), the camera and the image size.
     if (!(before.camera == after.camera) || before.image.width != after.image.width ||
         before.image.height != after.image.height || a.scattering != b.scattering ||
         !(a.phase == b.phase) || before.medium.scattering != after.medium.scattering ||

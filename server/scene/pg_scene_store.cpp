@@ -36,6 +36,7 @@ std::optional<StoreEvent> parse_notification(std::string_view payload) {
     const std::string_view kind = payload.substr(0, space), rest = payload.substr(space + 1);
     if (kind == "deleted") return StoreEvent{StoreEvent::Kind::deleted, std::string(rest), 0};
     if (kind == "mesh") return StoreEvent{StoreEvent::Kind::mesh, std::string(rest), 0};
+    if (kind == "environment") return StoreEvent{StoreEvent::Kind::environment, std::string(rest), 0};
     const size_t split = rest.find(' ');
     uint64_t revision = 0;
     if (kind != "revision" || split == std::string_view::npos ||
@@ -78,6 +79,7 @@ SceneSnapshot PgSceneStore::create(const std::string& id, const nlohmann::json& 
     protocol::SceneDocument parsed = protocol::parse_scene(document, limits_);
     std::string text = dump(parsed);
     pg::Pool::Lease connection = pool_.acquire();
+    check_environment(parsed, [&](const std::string& name) { return has_environment(*connection, name); });
     for (;;) {
         std::string chosen = id.empty() ? random_hex_id() : id;
         pg::Result inserted = connection->exec(
@@ -135,6 +137,9 @@ EditResult PgSceneStore::patch(const std::string& id, const nlohmann::json& merg
         result.after.document = protocol::apply_merge_patch(current->document, merge_patch, limits_);
         result.changed = !(result.after.document == current->document);
         if (!result.changed) return result;
+        if (!(result.after.document.environment == current->document.environment))
+            check_environment(result.after.document,
+                              [&](const std::string& name) { return has_environment(*connection, name); });
         result.after.revision = next_revision(current->revision);
         // Optimistic concurrency: the update takes only if nobody committed since the read. Zero rows
         // means another replica won: with If-Match that is the client's 412, without it we edit the
@@ -260,6 +265,44 @@ std::shared_ptr<const mesh::Mesh> PgSceneStore::mesh(const std::string& name_or_
     if (!valid_mesh_name(name)) return nullptr;
     return load_asset(meshes_, {"meshes", "name", "obj", "mesh"}, name,
                       [this](const std::string& obj) { return mesh::parse_obj(obj, mesh_limits_); });
+}
+
+EnvironmentEntry PgSceneStore::put_environment(const std::string& name, const std::string& bytes) {
+    if (!valid_mesh_name(name)) throw StoreError(400, "environment name must match [A-Za-z0-9_.-]{1,64}");
+    if (image::built_in_environment(name)) throw StoreError(400, "\"" + name + "\" is a built-in environment");
+    auto decoded = std::make_shared<const image::EnvironmentMap>(image::decode_environment(bytes));
+    EnvironmentEntry entry{name, decoded->width, decoded->height, false};
+    pg::Pool::Lease connection = pool_.acquire();
+    pg::Result stored = connection->exec(
+        "INSERT INTO environments (name, data, width, height) VALUES ($1, $2, $3, $4) ON CONFLICT (name) DO UPDATE "
+        "SET data = EXCLUDED.data, width = EXCLUDED.width, height = EXCLUDED.height, "
+        "version = environments.version + 1 RETURNING version",
+        {{name}, {bytes, true}, {std::to_string(entry.width)}, {std::to_string(entry.height)}},
+        "storing environment '" + name + "'");
+    std::lock_guard lock(asset_mutex_);
+    environments_[name] = {stored.number(0, 0), std::move(decoded)};
+    return entry;
+}
+
+bool PgSceneStore::has_environment(pg::Connection& connection, const std::string& name) const {
+    return connection.exec("SELECT 1 FROM environments WHERE name = $1", {{name}}, "looking up environment '" + name + "'")
+               .rows() > 0;
+}
+
+std::vector<EnvironmentEntry> PgSceneStore::list_stored_environments() const {
+    pg::Pool::Lease connection = pool_.acquire();
+    pg::Result rows = connection->exec("SELECT name, width, height FROM environments ORDER BY name", {},
+                                       "listing environments");
+    std::vector<EnvironmentEntry> all;
+    for (int i = 0; i < rows.rows(); ++i)
+        all.push_back({rows.text(i, 0), static_cast<uint32_t>(rows.number(i, 1)), static_cast<uint32_t>(rows.number(i, 2)),
+                       false});
+    return all;
+}
+
+std::shared_ptr<const image::EnvironmentMap> PgSceneStore::stored_environment(const std::string& name) const {
+    return load_asset(environments_, {"environments", "name", "data", "environment"}, name,
+                      [](const std::string& bytes) { return image::decode_environment(bytes); });
 }
 
 EditResult PgSceneStore::put_index_grid(const std::string& scene_id, IndexGrid grid) {

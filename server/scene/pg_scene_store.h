@@ -33,6 +33,9 @@ public:
     MeshEntry put_mesh(const std::string& name, const std::string& obj_text) override;
     std::vector<MeshEntry> list_meshes() const override;
     std::shared_ptr<const mesh::Mesh> mesh(const std::string& name) const override;
+    EnvironmentEntry put_environment(const std::string& name, const std::string& bytes) override;
+    std::vector<EnvironmentEntry> list_stored_environments() const override;
+    std::shared_ptr<const image::EnvironmentMap> stored_environment(const std::string& name) const override;
     EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) override;
     std::shared_ptr<const IndexGrid> grid(const std::string& name) const override;
     const std::vector<QuarantinedFile>& quarantined() const override { return no_quarantine_; }
@@ -49,6 +52,9 @@ private:
     // LISTEN refract_scenes on a connection of its own, publishing each notification; reconnects
     // when the database comes back.
     void listen();
+    // Whether an environment is stored under `name`, asked on a connection the caller already holds (a
+    // second lease from the pool while holding one could wait for ever under load).
+    bool has_environment(pg::Connection& connection, const std::string& name) const;
 
     mutable pg::Pool pool_;
     protocol::Limits limits_;
@@ -73,6 +79,7 @@ private:
     mutable std::mutex asset_mutex_;
     mutable std::map<std::string, Cached<mesh::Mesh>> meshes_;
     mutable std::map<std::string, Cached<IndexGrid>> grids_;
+    mutable std::map<std::string, Cached<image::EnvironmentMap>> environments_;
 
     std::atomic<bool> stopping_{false};
     std::thread listener_;

@@ -64,6 +64,33 @@ CREATE TRIGGER scenes_notify AFTER INSERT OR UPDATE OR DELETE ON scenes
     FOR EACH ROW EXECUTE FUNCTION refract_notify();
 CREATE TRIGGER meshes_notify AFTER INSERT OR UPDATE ON meshes
     FOR EACH ROW EXECUTE FUNCTION refract_notify();
+)sql",
+// Version 2. Uploaded environment maps, as uploaded (.hdr or .exr bytes) with their size; each upload is
+// announced as "environment NAME".
+R"sql(
+CREATE TABLE environments (
+    name text PRIMARY KEY CONSTRAINT environment_name_format
+        CHECK (name ~ '^[A-Za-z0-9_.-]{1,64}$' AND name NOT IN ('.', '..')),
+    data bytea NOT NULL,
+    width integer NOT NULL,
+    height integer NOT NULL,
+    version bigint NOT NULL DEFAULT 1
+);
+CREATE OR REPLACE FUNCTION refract_notify() RETURNS trigger LANGUAGE plpgsql AS $$
+BEGIN
+    IF TG_TABLE_NAME = 'meshes' THEN
+        PERFORM pg_notify('refract_scenes', 'mesh ' || NEW.name);
+    ELSIF TG_TABLE_NAME = 'environments' THEN
+        PERFORM pg_notify('refract_scenes', 'environment ' || NEW.name);
+    ELSIF TG_OP = 'DELETE' THEN
+        PERFORM pg_notify('refract_scenes', 'deleted ' || OLD.id);
+    ELSE
+        PERFORM pg_notify('refract_scenes', 'revision ' || NEW.id || ' ' || NEW.revision);
+    END IF;
+    RETURN NULL;
+END $$;
+CREATE TRIGGER environments_notify AFTER INSERT OR UPDATE ON environments
+    FOR EACH ROW EXECUTE FUNCTION refract_notify();
 )sql"};
 
 }  // namespace

@@ -7,7 +7,7 @@
 namespace refract::scene::pg {
 
 // The schema version this build writes.
-constexpr int kSchemaVersion = 1;
+constexpr int kSchemaVersion = 2;
 
 // Brings the database to kSchemaVersion under an advisory lock (replicas starting together migrate
 // once). Throws StoreError: 503 unreachable, 500 (naming both versions) when the database is newer.

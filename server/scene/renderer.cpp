@@ -74,6 +74,7 @@ struct Renderer::Impl {
         protocol::SceneDocument document;  // as last rendered
         std::shared_ptr<const mesh::Mesh> mesh;
         std::shared_ptr<const IndexGrid> grid;
+        std::shared_ptr<const image::EnvironmentMap> environment;
         uint64_t last_used = 0;
         uint32_t level = 0;                               // refinement level of the resident frame
         FrameBudget budget;                               // this scene's dynamic resolution
@@ -128,6 +129,12 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         mesh = base_mesh(requested, assets.mesh);
         if (!mesh) throw RenderError("mesh '" + object.mesh + "' is not a built-in or an uploaded mesh");
     }
+    std::shared_ptr<const image::EnvironmentMap> environment;
+    if (requested.environment.type == protocol::EnvironmentKind::image) {
+        environment = assets.environment ? assets.environment(requested.environment.image) : nullptr;
+        if (!environment)
+            throw RenderError("environment '" + requested.environment.image + "' is not a built-in or an uploaded one");
+    }
 
     std::unique_lock lock(impl_->mutex);
     auto it = impl_->scenes.find(scene_id);
@@ -136,6 +143,8 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         if (!held) return kAllPasses;
         PassSet stale = passes_invalidated(held->document, next);
         if (held->mesh != mesh || held->grid != grid) stale |= kAllPasses;
+        // A re-uploaded image lights the scene anew.
+        if (held->environment != environment) stale |= kPhotons | kView | kToneMap;
         return stale;
     };
     protocol::SceneDocument document = requested;
@@ -214,12 +223,13 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
             if (step > 1) run_options.give_way = options.give_way;
             RunStats stats;
             try {
-                stats = resident.gpu->run(passes, document, world, grid.get(), run_options);
+                stats = resident.gpu->run(passes, document, world, grid.get(), run_options, environment.get());
             } catch (const Superseded&) {
                 // What the GPU holds now: this document, with part of a step the frame does not hold.
                 resident.document = document;
                 resident.mesh = mesh;
                 resident.grid = grid;
+                resident.environment = environment;
                 resident.interactive.reset();
                 resident.level = 0;
                 throw;
@@ -261,6 +271,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     resident.document = document;
     resident.mesh = mesh;
     resident.grid = grid;
+    resident.environment = environment;
     resident.level = level;
     if (quality == Quality::interactive) {
         const double photons = photon_ms(frame);

@@ -20,6 +20,9 @@
 namespace refract::mesh {
 struct Mesh;
 }
+namespace refract::image {
+struct EnvironmentMap;
+}
 namespace refract::vk {
 class Context;
 }
@@ -48,6 +51,7 @@ inline bool has_cubic_voxels(const IndexGrid& grid) {
 struct Assets {
     std::function<std::shared_ptr<const mesh::Mesh>(const std::string& name)> mesh;
     std::function<std::shared_ptr<const IndexGrid>(const std::string& name)> grid;
+    std::function<std::shared_ptr<const image::EnvironmentMap>(const std::string& name)> environment;
 };
 
 enum class Quality { interactive, still };

@@ -114,7 +114,8 @@ void SceneGpu::allocate_frame(uint32_t width, uint32_t height) {
 }
 
 RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, const mesh::Mesh& object_world,
-                       const IndexGrid* grid_asset, const RunOptions& options) {
+                       const IndexGrid* grid_asset, const RunOptions& options,
+                       const image::EnvironmentMap* environment) {
     using protocol::IndexFieldKind;
     const bool imported = document.object().index_field == IndexFieldKind::grid;
     // Only a rebuilt volume can move the grid: otherwise keep the resident one.
@@ -148,9 +149,6 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     for (PassSet p : {kVoxelize, kIndexField, kOctree, kPhotons, kView})
         if (stale & p) stale |= (kAllPasses & ~(p - 1));
     stale &= options.limit;
-    if (stale & kPhotons)
-        allocate_transport(passes::photon_exit_count(document.photons.count, channels), options.record_photon_exits,
-                           options.radiance_factor, channels);
     allocate_frame(document.image.width, document.image.height);
 
     passes::TransportOptions transport_options;
@@ -162,17 +160,40 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     transport_options.photon_batch = options.photon_batch;
     transport_options.view_sample = options.view_sample;
     transport_options.bounce_cap = options.bounce_cap;
+    // The environment's map, made again when the environment, its image or the floor (which hides what
+    // lies below the horizon from photons) changed; a placeholder texel when it lights nothing, so the
+    // passes always address a buffer.
+    if (!environment_map_.get() || environment != environment_image_ || !(document.environment == environment_document_) ||
+        document.floor.enabled != environment_floor_) {
+        const image::EnvironmentMap* image = document.environment.type == protocol::EnvironmentKind::image ? environment : nullptr;
+        if (document.environment.type == protocol::EnvironmentKind::image && image == nullptr)
+            throw RenderError("environment image '" + document.environment.image + "' is not loaded");
+        environment_light_ = passes::make_environment_light(document, image);
+        const uint64_t bytes = environment_light_.texels.size() * sizeof(glm::vec4);
+        environment_map_ = {};
+        environment_map_ = vk::Buffer(kit_.context, bytes, VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
+                                      vk::MemoryUse::upload, "environment map");
+        environment_map_.write(environment_light_.texels.data(), bytes);
+        environment_image_ = environment;
+        environment_document_ = document.environment;
+        environment_floor_ = document.floor.enabled;
+    }
+    transport_options.environment = &environment_light_;
     light_params_ = passes::make_transport_params(document, grid_, transport_options);
+    uint32_t most_photons = 0;  // of one light's dispatch (with the environment's, for the first)
+    for (const auto& light : light_params_) most_photons = std::max(most_photons, light.photon_info.x);
+    if (stale & kPhotons)
+        allocate_transport(passes::photon_exit_count(most_photons, channels), options.record_photon_exits,
+                           options.radiance_factor, channels);
     while (params_buffers_.size() < light_params_.size())
         params_buffers_.emplace_back(kit_.context, sizeof(shaders::TransportParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                                      vk::MemoryUse::upload, "transport params");
+    auto halves = [](VkDeviceAddress a) { return glm::uvec2(static_cast<uint32_t>(a), static_cast<uint32_t>(a >> 32)); };
     for (size_t i = 0; i < light_params_.size(); ++i) {
         shaders::TransportParams& params = light_params_[i];
         params.flags.x = options.record_photon_exits ? 1u : 0u;
-        if (accum_) {
-            auto halves = [](VkDeviceAddress a) { return glm::uvec2(static_cast<uint32_t>(a), static_cast<uint32_t>(a >> 32)); };
-            params.radiance_sums = glm::uvec4(halves(accum_->red_green.address()), halves(accum_->flux.address()));
-        }
+        if (accum_) params.radiance_sums = glm::uvec4(halves(accum_->red_green.address()), halves(accum_->flux.address()));
+        params.environment_map = glm::uvec4(halves(environment_map_.address()), 0u, 0u);
         params_buffers_[i].write(&params, sizeof(params));
     }
     const shaders::TransportParams& params = light_params_.front();
@@ -411,6 +432,7 @@ std::vector<glm::vec4> SceneGpu::read_floor_irradiance() const {
                                      glm::dot(-to_light, glm::vec3(light.direction)) >= light.position.w;
                 if (in_cone) direct += glm::vec3(light.power) * std::max(0.0f, to_light.y) / r2;
             }
+            direct += glm::vec3(p.environment_light);
             glm::vec4& texel_value = map[size_t{j} * floor_texels_ + i];
             texel_value = glm::vec4(glm::max(glm::vec3(texel_value) + direct, glm::vec3(0.0f)), 0.0f);
         }

@@ -10,7 +10,9 @@
 #include <vector>
 
 #include "mesh/mesh.h"
+#include "image/environment_map.h"
 #include "passes/direct_light.h"
+#include "passes/environment_light.h"
 #include "passes/index_field.h"
 #include "passes/lit_pyramid.h"
 #include "passes/octree.h"
@@ -96,10 +98,12 @@ public:
     // Runs `stale` passes (plus whatever they depend on that was never built) for `document`.
     // `object_world` is the object's mesh in world space, read only when the voxelize pass runs (the
     // grid is fitted to it; an edit that moves the grid makes voxelize stale); ignored for imported
-    // grids. `grid_asset` is the imported index grid for index_field == grid. Throws vk::Error on
-    // device failures.
+    // grids. `grid_asset` is the imported index grid for index_field == grid; `environment` the map an
+    // image environment names: a changed map must come as a new pointer (the resident copy is kept while
+    // the pointer and the document's environment stay). Throws vk::Error on device failures.
     RunStats run(PassSet stale, const protocol::SceneDocument& document, const mesh::Mesh& object_world,
-                 const IndexGrid* grid_asset, const RunOptions& options = {});
+                 const IndexGrid* grid_asset, const RunOptions& options = {},
+                 const image::EnvironmentMap* environment = nullptr);
 
     const GridGeometry& grid() const { return grid_; }
     PassSet built() const { return built_; }
@@ -154,6 +158,12 @@ private:
     std::optional<passes::PhotonAccumulators> accum_;
     std::vector<vk::Buffer> params_buffers_;  // one per entry of light_params_
     vk::Image3D radiance_, flux_, floor_map_;  // radiance_: per-channel fluence, coloured transport only
+    // The environment (passes/environment_light.h) and what it was made from
+    passes::EnvironmentLight environment_light_;
+    vk::Buffer environment_map_;
+    const image::EnvironmentMap* environment_image_ = nullptr;
+    protocol::Environment environment_document_;
+    bool environment_floor_ = false;
     // Frame
     vk::Buffer hdr_, ldr_, refine_;
     vk::CommandRecorder recorder_;

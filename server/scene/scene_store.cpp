@@ -93,7 +93,7 @@ void write_file_atomically(const fs::path& path, const void* bytes, size_t size)
 SceneStore::SceneStore(fs::path data_dir, protocol::Limits limits, mesh::MeshLimits mesh_limits)
     : data_dir_(std::move(data_dir)), limits_(limits), mesh_limits_(mesh_limits) {
     std::error_code ec;
-    for (const char* sub : {"scenes", "meshes", "grids"}) {
+    for (const char* sub : {"scenes", "meshes", "grids", "environments"}) {
         fs::create_directories(data_dir_ / sub, ec);
         if (ec) throw StoreError(500, "cannot create " + (data_dir_ / sub).string() + ": " + ec.message());
     }
@@ -140,9 +140,12 @@ fs::path SceneStore::mesh_path(const std::string& name) const {
 fs::path SceneStore::grid_path(const std::string& name) const {
     return data_dir_ / "grids" / (name + ".grid");
 }
+fs::path SceneStore::environment_path(const std::string& name) const {
+    return data_dir_ / "environments" / (name + ".env");
+}
 
 void SceneStore::load_scenes() {
-    for (const char* sub : {"scenes", "meshes", "grids"}) {
+    for (const char* sub : {"scenes", "meshes", "grids", "environments"}) {
         for (const auto& item : fs::directory_iterator(data_dir_ / sub)) {
             // A temp file is a write that never reached its rename: the previous version stands.
             if (is_temp_file(item.path())) {
@@ -222,6 +225,7 @@ SceneSnapshot SceneStore::create(const std::string& id, const nlohmann::json& do
     if (!id.empty() && !valid_scene_id(id)) throw StoreError(400, "scene id must match [a-z0-9-]{1,32}");
     auto entry = std::make_shared<Entry>();
     entry->current.document = protocol::parse_scene(document, limits_);
+    check_environment(entry->current.document, [this](const std::string& name) { return has_environment(name); });
     entry->current.revision = 1;
 
     std::lock_guard lock(mutex_);
@@ -300,6 +304,8 @@ EditResult SceneStore::apply(const std::shared_ptr<Entry>& entry, const nlohmann
     result.after.document = protocol::apply_merge_patch(current.document, merge_patch, limits_);
     result.changed = !(result.after.document == current.document);
     if (!result.changed) return result;
+    if (!(result.after.document.environment == current.document.environment))
+        check_environment(result.after.document, [this](const std::string& name) { return has_environment(name); });
     result.after.revision = next_revision(current.revision);
     persist_scene(result.after);
     std::lock_guard lock(mutex_);
@@ -335,21 +341,35 @@ MeshEntry SceneStore::put_mesh(const std::string& name, const std::string& obj_t
     return entry;
 }
 
-std::vector<MeshEntry> SceneStore::list_meshes() const {
-    std::lock_guard lock(asset_mutex_);
-    std::vector<MeshEntry> all;
-    for (const auto& item : fs::directory_iterator(data_dir_ / "meshes")) {
+std::vector<std::pair<std::string, nlohmann::json>> SceneStore::stored_reports(const char* kind,
+                                                                                const fs::path& ending) const {
+    std::vector<std::pair<std::string, nlohmann::json>> all;
+    for (const auto& item : fs::directory_iterator(data_dir_ / kind)) {
         const fs::path& path = item.path();
         if (path.extension() != ".json" || is_temp_file(path)) continue;
         std::string name = path.stem().string();
-        if (!valid_mesh_name(name) || !fs::exists(mesh_path(name))) continue;
+        fs::path stored = path;
+        if (!valid_mesh_name(name) || !fs::exists(stored.replace_extension(ending))) continue;
         try {
-            all.push_back({name, report_from_json(nlohmann::json::parse(read_text_file(path)))});
+            all.emplace_back(name, nlohmann::json::parse(read_text_file(path)));
         } catch (const std::exception& e) {
-            std::cerr << "refractd: skipping unreadable mesh report " << path << ": " << e.what() << "\n";
+            std::cerr << "refractd: skipping unreadable report " << path << ": " << e.what() << "\n";
         }
     }
-    std::sort(all.begin(), all.end(), [](const MeshEntry& a, const MeshEntry& b) { return a.name < b.name; });
+    std::sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    return all;
+}
+
+std::vector<MeshEntry> SceneStore::list_meshes() const {
+    std::lock_guard lock(asset_mutex_);
+    std::vector<MeshEntry> all;
+    for (const auto& [name, report] : stored_reports("meshes", ".obj")) {
+        try {
+            all.push_back({name, report_from_json(report)});
+        } catch (const std::exception& e) {
+            std::cerr << "refractd: skipping unreadable mesh report of " << name << ": " << e.what() << "\n";
+        }
+    }
     return all;
 }
 
@@ -368,6 +388,56 @@ std::shared_ptr<const mesh::Mesh> SceneStore::mesh(const std::string& name_or_re
     } catch (const std::exception& e) {
         std::cerr << "refractd: cannot load stored mesh " << path << ": " << e.what() << "\n";
         throw RenderError("stored mesh '" + name + "' cannot be read: " + e.what());
+    }
+}
+
+EnvironmentEntry SceneStore::put_environment(const std::string& name, const std::string& bytes) {
+    if (!valid_mesh_name(name)) throw StoreError(400, "environment name must match [A-Za-z0-9_.-]{1,64}");
+    if (image::built_in_environment(name)) throw StoreError(400, "\"" + name + "\" is a built-in environment");
+    auto decoded = std::make_shared<const image::EnvironmentMap>(image::decode_environment(bytes));
+    EnvironmentEntry entry{name, decoded->width, decoded->height, false};
+    const std::string report = nlohmann::json{{"width", entry.width}, {"height", entry.height}}.dump();
+
+    std::lock_guard lock(asset_mutex_);
+    write_file_atomically(environment_path(name), bytes.data(), bytes.size());
+    fs::path report_path = data_dir_ / "environments" / (name + ".json");
+    write_file_atomically(report_path, report.data(), report.size());
+    environments_[name] = std::move(decoded);  // a new pointer: the renderer sees the re-upload
+    publish({StoreEvent::Kind::environment, name});
+    return entry;
+}
+
+bool SceneStore::has_environment(const std::string& name) const {
+    std::lock_guard lock(asset_mutex_);
+    return environments_.count(name) > 0 || fs::exists(environment_path(name));
+}
+
+std::vector<EnvironmentEntry> SceneStore::list_stored_environments() const {
+    std::lock_guard lock(asset_mutex_);
+    std::vector<EnvironmentEntry> all;
+    for (const auto& [name, report] : stored_reports("environments", ".env")) {
+        try {
+            all.push_back({name, report.at("width").get<uint32_t>(), report.at("height").get<uint32_t>(), false});
+        } catch (const std::exception& e) {
+            std::cerr << "refractd: skipping unreadable environment report of " << name << ": " << e.what() << "\n";
+        }
+    }
+    return all;
+}
+
+std::shared_ptr<const image::EnvironmentMap> SceneStore::stored_environment(const std::string& name) const {
+    std::lock_guard lock(asset_mutex_);
+    auto it = environments_.find(name);
+    if (it != environments_.end()) return it->second;
+    fs::path path = environment_path(name);
+    if (!fs::exists(path)) return nullptr;
+    try {
+        auto loaded = std::make_shared<const image::EnvironmentMap>(image::decode_environment(read_text_file(path)));
+        environments_[name] = loaded;
+        return loaded;
+    } catch (const std::exception& e) {
+        std::cerr << "refractd: cannot load stored environment " << path << ": " << e.what() << "\n";
+        throw RenderError("stored environment '" + name + "' cannot be read: " + e.what());
     }
 }
 

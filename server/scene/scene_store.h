@@ -49,6 +49,11 @@ public:
     // saying why when it is stored but cannot be read.
     std::shared_ptr<const mesh::Mesh> mesh(const std::string& name) const override;
 
+    // Decodes and stores an environment upload as it came (its bytes, and its size in a report beside it).
+    EnvironmentEntry put_environment(const std::string& name, const std::string& bytes) override;
+    std::vector<EnvironmentEntry> list_stored_environments() const override;
+    std::shared_ptr<const image::EnvironmentMap> stored_environment(const std::string& name) const override;
+
     // Stores `grid` under the scene's id and points the scene at it (a new revision). Throws StoreError.
     EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) override;
     // The grid stored for scene `name`; nullptr when unknown, RenderError when it cannot be read.
@@ -78,6 +83,12 @@ private:
     std::filesystem::path scene_path(const std::string& id) const;
     std::filesystem::path mesh_path(const std::string& name) const;
     std::filesystem::path grid_path(const std::string& name) const;
+    std::filesystem::path environment_path(const std::string& name) const;
+    bool has_environment(const std::string& name) const;  // uploaded under `name` (not decoded)
+    // The reports (NAME.json) under <data dir>/`kind` whose stored file (NAME + `ending`) exists, by name;
+    // unreadable ones are skipped with a line on stderr. The caller holds asset_mutex_.
+    std::vector<std::pair<std::string, nlohmann::json>> stored_reports(const char* kind,
+                                                                       const std::filesystem::path& ending) const;
 
     std::filesystem::path data_dir_;
     protocol::Limits limits_;
@@ -90,6 +101,7 @@ private:
     mutable std::mutex asset_mutex_;  // guards the asset caches and serializes asset file writes
     mutable std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes_;  // loaded lazily
     mutable std::map<std::string, std::shared_ptr<const IndexGrid>> grids_;    // loaded lazily
+    mutable std::map<std::string, std::shared_ptr<const image::EnvironmentMap>> environments_;  // loaded lazily
 };
 
 // Writes `bytes` to `path` so that a crash leaves either the old or the new file: temp file, fsync,

@@ -116,10 +116,36 @@ mesh::MeshReport report_from_json(const nlohmann::json& j) {
     return report;
 }
 
+std::vector<EnvironmentEntry> Store::list_environments() const {
+    std::vector<EnvironmentEntry> all;
+    for (const auto& name : image::built_in_environment_names()) {
+        const auto map = image::built_in_environment(name);
+        all.push_back({name, map->width, map->height, true});
+    }
+    for (auto& entry : list_stored_environments()) all.push_back(std::move(entry));
+    return all;
+}
+
+std::shared_ptr<const image::EnvironmentMap> Store::environment(const std::string& name) const {
+    if (auto built_in = image::built_in_environment(name)) return built_in;
+    return valid_mesh_name(name) ? stored_environment(name) : nullptr;
+}
+
+void check_environment(const protocol::SceneDocument& document,
+                       const std::function<bool(const std::string& name)>& stored) {
+    const auto& environment = document.environment;
+    if (environment.type != protocol::EnvironmentKind::image || image::built_in_environment(environment.image) ||
+        (valid_mesh_name(environment.image) && stored(environment.image)))
+        return;
+    throw protocol::ValidationError("/environment/image", "no environment named \"" + environment.image +
+                                                              "\" (GET /api/environments lists them)");
+}
+
 Assets Store::assets() const {
     Assets assets;
     assets.mesh = [this](const std::string& name) { return mesh(name); };
     assets.grid = [this](const std::string& name) { return grid(name); };
+    assets.environment = [this](const std::string& name) { return environment(name); };
     return assets;
 }
 

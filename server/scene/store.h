@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "image/environment_map.h"
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
 #include "scene/renderer.h"
@@ -62,6 +63,20 @@ struct MeshEntry {
     mesh::MeshReport report;
 };
 
+// An uploaded or built-in environment map, as GET /api/environments lists it.
+struct EnvironmentEntry {
+    std::string name;
+    uint32_t width = 0, height = 0;
+    bool built_in = false;
+};
+
+
+// Throws protocol::ValidationError at /environment/image when `document` names an environment that is
+// neither built in nor `stored(name)`: a store's create and patch call it before anything is written.
+// Existence only: a stored file that cannot be read is the render's error, which names the file.
+void check_environment(const protocol::SceneDocument& document,
+                       const std::function<bool(const std::string& name)>& stored);
+
 // Validation of an imported index grid, in the words a user needs; throws StoreError(400).
 void validate_index_grid(const IndexGrid& grid);
 
@@ -86,9 +101,9 @@ std::string random_hex_id();
 // frames without a new revision); or that announcements may have been lost (a shared store's listener
 // reconnected), so whatever was cached may be stale.
 struct StoreEvent {
-    enum class Kind { revision, deleted, mesh, missed };
+    enum class Kind { revision, deleted, mesh, environment, missed };
     Kind kind = Kind::revision;
-    std::string name;       // the scene's id, or the mesh's name
+    std::string name;       // the scene's id, or the mesh's or environment's name
     uint64_t revision = 0;  // Kind::revision only
 };
 using StoreListener = std::function<void(const StoreEvent&)>;
@@ -136,6 +151,18 @@ public:
     // saying why when it is stored but cannot be read.
     virtual std::shared_ptr<const mesh::Mesh> mesh(const std::string& name) const = 0;
 
+    // Decodes and stores an environment upload (.hdr or .exr bytes), replacing one of the same name.
+    // Throws image::EnvironmentError, StoreError(400) for a bad name or a built-in one.
+    virtual EnvironmentEntry put_environment(const std::string& name, const std::string& bytes) = 0;
+    // The uploaded environments (built-in ones are not stored).
+    virtual std::vector<EnvironmentEntry> list_stored_environments() const = 0;
+    // The uploaded environment `name`; nullptr when unknown, RenderError when it cannot be read.
+    virtual std::shared_ptr<const image::EnvironmentMap> stored_environment(const std::string& name) const = 0;
+    // Built-in and uploaded environments, by name.
+    std::vector<EnvironmentEntry> list_environments() const;
+    // The environment named `name`, built in or uploaded; nullptr when unknown.
+    std::shared_ptr<const image::EnvironmentMap> environment(const std::string& name) const;
+
     // Stores `grid` under the scene's id and points the scene at it (a new revision). Throws StoreError.
     virtual EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) = 0;
     // The grid stored for scene `name`; nullptr when unknown, RenderError when it cannot be read.
@@ -149,6 +176,7 @@ public:
 
     // Lookups for the renderer (called on the render thread).
     Assets assets() const;
+
 
     // Registers `listener` for every event until the subscription goes.
     [[nodiscard]] Subscription on_change(StoreListener listener) const;

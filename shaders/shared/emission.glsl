@@ -1,6 +1,7 @@
 // The light's emitter, shared by the photon and direct-light passes: where the ray of emission sample
 // s in [0,1)^2 starts and goes, and the way back from a point to the sample whose ray passes through it.
-// Needs transport_common.glsl (params).
+// Needs transport_common.glsl (params). The environment's emitter is beside it: emit_environment_ray.
+#include "environment.glsl"
 
 // The ray of emission sample s: world origin and unit direction; false outside a spot's cone.
 bool emit_ray(vec2 s, out vec3 origin, out vec3 direction) {
@@ -16,6 +17,49 @@ bool emit_ray(vec2 s, out vec3 origin, out vec3 direction) {
     direction = normalize(cos_t * params.emit_axis.xyz + sin_t * (cos(phi) * params.emit_u.xyz + sin(phi) * params.emit_v.xyz));
     origin = params.emit_origin.xyz;
     return params.models.z != LIGHT_SPOT || dot(direction, params.light_direction.xyz) >= params.light_position.w;
+}
+
+// The first of `count` CDF values (inclusive, ascending) at map.texels[first + k * stride] above s, and
+// where s lies between it and the one before (0..1): what is left of s to draw the next choice with.
+uint draw_from_cdf(EnvironmentTexels map, uint first, uint stride, uint count, uint component, float s, out float rest) {
+    uint lo = 0u, hi = count - 1u;
+    while (lo < hi) {
+        uint mid = (lo + hi) / 2u;
+        if (map.texels[first + mid * stride][component] > s) hi = mid;
+        else lo = mid + 1u;
+    }
+    float before = lo > 0u ? map.texels[first + (lo - 1u) * stride][component] : 0.0;
+    float after = map.texels[first + lo * stride][component];
+    rest = clamp((s - before) / max(after - before, 1e-30), 0.0, 0.99999994);
+    return lo;
+}
+
+// The ray of an environment photon: s.x draws the map's row and, with what is left of it, the polar angle
+// uniformly in cos theta within the row's sampled part; s.y the column and the azimuth within it (so the
+// direction's pdf is the pixel's probability over its solid angle, constant within the pixel). It
+// travels away from that direction, from a point drawn uniformly (disc in [0,1)^2) on the disc that faces
+// it across the grid's bounding sphere. weight: its flux relative to photon_flux.w.
+void emit_environment_ray(vec2 s, vec2 disc, out vec3 origin, out vec3 direction, out vec3 weight) {
+    EnvironmentTexels map = EnvironmentTexels(params.environment_map.xy);
+    uint width = params.environment.x, height = params.environment.y;
+    uint rows = ENVIRONMENT_ROWS_AT(width, height);
+    float rest_v, rest_u;
+    uint v = draw_from_cdf(map, rows, 1u, height, 0u, s.x, rest_v);
+    vec4 row = map.texels[rows + v];
+    uint u = draw_from_cdf(map, v * width, 1u, width, 3u, s.y, rest_u);
+    vec4 texel = map.texels[v * width + u];
+    float cos_theta = mix(row.y, row.z, rest_v);
+    float sin_theta = sqrt(max(0.0, 1.0 - cos_theta * cos_theta));
+    float phi = kTwoPi * (float(u) + rest_u) / float(width);
+    vec3 toward = turn_environment(vec3(sin_theta * cos(phi), cos_theta, sin_theta * sin(phi)), false);
+    direction = -toward;
+    vec3 across = normalize(abs(toward.x) < 0.9 ? cross(toward, vec3(1.0, 0.0, 0.0)) : cross(toward, vec3(0.0, 1.0, 0.0)));
+    vec3 across2 = cross(toward, across);
+    float radius = params.environment_frame.z;
+    float r = radius * sqrt(disc.x), angle = kTwoPi * disc.y;
+    vec3 centre = params.grid_origin.xyz + 0.5 * vec3(params.grid_dims.xyz) * params.grid_origin.w;
+    origin = centre + toward * (1.01 * radius) + r * (cos(angle) * across + sin(angle) * across2);
+    weight = texel.rgb * (3.0 * params.environment_frame.w / max(texel.r + texel.g + texel.b, 1e-30));
 }
 
 // The unit direction of the light's ray through world point x, and how far x lies along it (voxels,

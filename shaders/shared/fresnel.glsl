@@ -22,8 +22,12 @@
 // sphere's curved shell for ever (its r n sin(psi) lets out every ray that got in; the flat rule does
 // not).
 //
-// Graded fields (Luneburg, Maxwell, imported grids) have no flat value either side of a shell to take:
-// Fresnel is off for them (transport_params.cpp, fresnel_reflects), so nothing inside them reflects.
+// Graded fields (Luneburg, Maxwell) have no shell inside, only their outer boundary, where the analytic
+// field meets the medium's index: shell.x is then the field's value there (the surface index), and as n
+// rises inwards from it, the midpoint between it and the medium's is crossed at the boundary only, so
+// nothing inside reflects. Where the surface index is not above the medium's (a Luneburg lens, a
+// fish-eye of n0 <= 2 in air) Fresnel is off (transport_params.cpp, fresnel_reflects); imported grids
+// have no boundary and never reflect.
 //
 // A thin film on the boundary (kFilm) replaces the interface's reflectance by the film's Airy reflectance
 // between the same two indices, averaged over each channel's band (fresnel.h), with the film's thickness

@@ -210,11 +210,31 @@ struct TransportParams {
                               // (reference channel), y: the shell's midpoint, where rays reflect; z, w: the
                               // heights (voxels) where a film has its top and bottom thickness
     vec4 film;                // x: the film's index, y: its thickness at the top, z: at the bottom (nm); w: unused
+    // The environment (passes/environment_light.h). A uniform or image environment lights the scene:
+    // the last environment.z of the photon_info.x photons come from it, and the floor takes its
+    // unoccluded irradiance in closed form (environment_light.rgb; the photons' floor map then holds
+    // what the grid changes, as for the light).
+    uvec4 environment;        // x, y: map width and height; z: photons from the environment; w: 1 = rays
+                              // that leave the scene see the map (an image environment)
+    vec4 environment_frame;   // x, y: cos and sin of the map's rotation about +y; z: radius (m) of the
+                              // disc environment photons start on, around the grid's bounding sphere;
+                              // w: an environment photon's weight per unit of its pixel's colour over
+                              // the colour's mean (relative to photon_flux.w)
+    vec4 environment_light;   // rgb: the environment's irradiance on the open floor (W/m^2); w: unused
+    uvec4 environment_map;    // xy: device address (low, high) of the map (ENVIRONMENT_* below); zw: unused
     uvec4 light_set;          // x: the scene's lights (in lights[]), y: the one whose photons these parameters
                               // trace (light_*, emit_*; the resolve of light 0 replaces a batch, the others'
                               // add to it); zw: unused
     LightParams lights[TRANSPORT_MAX_LIGHTS];
 };
+
+// The environment map as the GPU reads it, by device address: width x height texels, rows from the
+// zenith down, each vec4(rgb radiance x intensity, the inclusive CDF of the photon-sampling weight along
+// its row), then one vec4 per row: (the inclusive CDF over rows, cos theta at the row's top, cos theta at
+// the bottom of its sampled part (0 at the horizon when the floor hides what is below), unused). A
+// pixel's weight is the mean of its colour times its sampled solid angle, so every photon of a pixel
+// carries its colour over that mean times one flux (environment_frame.w).
+#define ENVIRONMENT_ROWS_AT(width, height) ((width) * (height))
 
 // The unit direction light travels at world point x as if nothing were in its way: the net flux
 // direction of photons the object has not bent.
@@ -308,7 +328,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == (38 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == (42 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 80);

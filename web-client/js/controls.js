@@ -49,7 +49,7 @@ export const SECTIONS = [
       { kind: 'range', ptr: '/object/abbe', label: 'Dispersion: Abbe number (0 = none; glass 30-60)',
         min: 0, max: 0.2, step: 0.002, ...INVERSE_SLIDER },
       { kind: 'checkbox', ptr: '/object/fresnel', label: 'Fresnel reflection at the surface',
-        showIf: (doc) => (doc.object?.index_field ?? 'uniform') === 'uniform' },
+        showIf: (doc) => ['uniform', 'maxwell'].includes(doc.object?.index_field ?? 'uniform') },
       { kind: 'range', ptr: '/object/film/top_nm', label: 'Thin film: thickness at the top (nm; 0 = none)',
         min: 0, max: 2000, step: 5, showIf: (doc) => doc.object?.fresnel !== false },
       { kind: 'range', ptr: '/object/film/bottom_nm', label: 'Thin film: thickness at the bottom (nm)',
@@ -79,11 +79,14 @@ export const SECTIONS = [
   },
   {
     id: 'environment', title: 'Environment', controls: [
-      { kind: 'select', ptr: '/environment/type', label: 'Environment (seen past the scene and in reflections)',
-        options: [['sky', 'Dark sky'], ['uniform', 'Uniform colour']] },
+      { kind: 'environment' },
       { kind: 'color', ptr: '/environment/color', label: 'Environment colour',
         showIf: (doc) => doc.environment?.type === 'uniform' },
       { kind: 'range', ptr: '/environment/intensity', label: 'Environment intensity', min: 0, max: 20, step: 0.05 },
+      { kind: 'range', ptr: '/environment/rotation_deg', label: 'Environment rotation (° about the vertical)',
+        min: -180, max: 180, step: 1, showIf: (doc) => doc.environment?.type === 'image' },
+      { kind: 'checkbox', ptr: '/environment/lights', label: 'The environment lights the scene (off: a backdrop only)',
+        showIf: (doc) => ['uniform', 'image'].includes(doc.environment?.type) },
     ],
   },
   {
@@ -483,9 +486,50 @@ class MembersField extends Field {
   }
 }
 
+// Environment picker: the dark sky, a uniform colour or an image (built in or uploaded), plus an upload
+// button for .hdr and .exr files.
+class EnvironmentField extends Field {
+  constructor(spec, emit, hooks) {
+    const id = 'ctl-environment';
+    super(spec, ['/environment/type', '/environment/image'],
+      'Environment (seen past the scene and in reflections; a colour or an image lights the scene too)', id);
+    this.select = h('select', { id }, [['sky', 'Dark sky'], ['uniform', 'Uniform colour']]
+      .map(([v, t]) => h('option', { value: v, text: t })));
+    this.images = h('optgroup', { label: 'Images', hidden: true });
+    this.select.append(this.images);
+    this.select.addEventListener('change', () => {
+      const v = this.select.value;
+      emit(this, { environment: v.startsWith('image:') ? { type: 'image', image: v.slice(6) } : { type: v } }, true);
+    });
+    const picker = filePicker('environment-file', '.hdr,.exr', 'Upload HDR/EXR…', (f) => hooks.uploadEnvironment(f, this));
+    this.status = h('p', { class: 'note', id: 'environment-status', 'aria-live': 'polite' });
+    this.describe(this.select, picker.input);
+    this.el.append(this.label, h('div', { class: 'row' }, this.select, picker.input, picker.label), this.status,
+      this.error);
+  }
+  setImages(names) {
+    const current = this.select.value;
+    this.images.replaceChildren(...names.map((n) => h('option', { value: `image:${n}`, text: n })));
+    this.images.hidden = names.length === 0;
+    if (current) this.select.value = current;
+  }
+  setStatus(text) { this.status.textContent = text; }
+  update(doc) {
+    if (isEditing(this.select)) return;
+    const env = doc.environment || {};
+    const v = env.type === 'image' ? `image:${env.image}` : (env.type || 'sky');
+    if (env.type === 'image' && ![...this.images.children].some((o) => o.value === v)) {
+      this.images.append(h('option', { value: v, text: env.image }));
+      this.images.hidden = false;
+    }
+    this.select.value = v;
+  }
+}
+
 const KINDS = {
   range: RangeField, select: SelectField, checkbox: CheckboxField, color: ColorField, rgb: RgbField,
   fog: FogField, example: ExampleField, mesh: MeshField, file: SceneFileField, vec3: Vec3Field, members: MembersField,
+  environment: EnvironmentField,
 };
 
 // Builds the panel into `form`. `onEdit(patch, final, field)` is called for every user edit.
@@ -509,6 +553,7 @@ export function buildControls(form, onEdit, hooks) {
   return {
     fields,
     mesh: fields.find((f) => f instanceof MeshField),
+    environment: fields.find((f) => f instanceof EnvironmentField),
     example: fields.find((f) => f instanceof ExampleField),
     file: fields.find((f) => f instanceof SceneFileField),
     // Shows `doc` in every control, except those holding a rejected value the user has not fixed yet.

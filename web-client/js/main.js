@@ -123,7 +123,7 @@ function panel() {
 }
 
 const controls = buildControls($('controls'), (patch, final) => edit(patch, final), {
-  upload: uploadMesh, meshPatch, loadExample, importScene, exportScene, playKeyframes, stopPlay,
+  upload: uploadMesh, uploadEnvironment, meshPatch, loadExample, importScene, exportScene, playKeyframes, stopPlay,
   members: { selected: selectedMember, select: selectMember, add: addMember, remove: removeMember, rename: renameMember },
 });
 
@@ -531,7 +531,7 @@ async function api(method, path, body, contentType = 'application/json') {
   const init = { method, headers: {}, cache: 'no-store' };
   if (TOKEN) init.headers.Authorization = `Bearer ${TOKEN}`;
   if (body !== undefined) {
-    init.body = typeof body === 'string' ? body : JSON.stringify(body);
+    init.body = typeof body === 'string' || body instanceof ArrayBuffer ? body : JSON.stringify(body);
     init.headers['Content-Type'] = contentType;
   }
   const res = await fetch(path, init);
@@ -635,6 +635,36 @@ async function refreshMeshes() {
     controls.mesh.setMeshes(names);
     controls.mesh.update(panel());
   } catch { /* the built-in meshes still work */ }
+}
+
+async function refreshEnvironments() {
+  try {
+    const list = await api('GET', '/api/environments');
+    controls.environment.setImages((list?.environments || []).map((e) => e?.name).filter(Boolean));
+    controls.environment.update(view());
+  } catch { /* the sky and a uniform colour still work */ }
+}
+
+// Uploads an .hdr or .exr file as an environment named after it, and lights the scene with it.
+async function uploadEnvironment(file, field) {
+  const name = meshNameFor(file.name);
+  field.clearError();
+  field.setStatus(`Uploading ${file.name}…`);
+  try {
+    const info = await api('PUT', `/api/environments/${encodeURIComponent(name)}`, await file.arrayBuffer(),
+      'application/octet-stream');
+    await refreshEnvironments();
+    field.setStatus(`Uploaded “${name}” (${info?.width} x ${info?.height}).`);
+    edit({ environment: { type: 'image', image: name } }, true);
+    controls.environment.update(view());
+  } catch (e) {
+    field.setStatus('');
+    const message = `${file.name}: ${e.message}`;
+    field.setError(message);
+    hooks.lastError = { error: message, pointer: '/environment/image', seq: null };
+    hooks.errors++;
+    announce(`Upload failed: ${message}`);
+  }
 }
 
 function meshNameFor(fileName) {
@@ -886,6 +916,7 @@ async function connect() {
     return;
   }
   refreshMeshes();
+  refreshEnvironments();
   refreshExamples();
   const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
   const url = `${proto}//${location.hostname}:${state.wsPort}/api/scenes/${encodeURIComponent(state.sceneId)}/ws` +

@@ -1,0 +1,229 @@
+#include "image/environment_map.h"
+
+#include <ImfArray.h>
+#include <ImfHeader.h>
+#include <ImfIO.h>
+#include <ImfRgbaFile.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <numbers>
+
+#define STB_IMAGE_IMPLEMENTATION
+#define STBI_ONLY_HDR
+#define STBI_NO_STDIO
+#include <stb_image.h>
+
+namespace refract::image {
+namespace {
+
+void check_size(int64_t width, int64_t height) {
+    if (width < 1 || height < 1 || width > kMaxEnvironmentWidth || height > kMaxEnvironmentHeight)
+        throw EnvironmentError("the map is " + std::to_string(width) + " x " + std::to_string(height) +
+                               " pixels; environments must be between 1 x 1 and " +
+                               std::to_string(kMaxEnvironmentWidth) + " x " + std::to_string(kMaxEnvironmentHeight));
+}
+
+void check_pixels(const EnvironmentMap& map) {
+    for (size_t i = 0; i < map.rgb.size(); ++i) {
+        const float value = map.rgb[i];
+        if (!std::isfinite(value) || value < 0.0f) {
+            const size_t pixel = i / 3;
+            throw EnvironmentError("pixel (" + std::to_string(pixel % map.width) + ", " +
+                                   std::to_string(pixel / map.width) + ") is " + std::to_string(value) +
+                                   "; radiance must be finite and not negative");
+        }
+    }
+}
+
+bool starts_with(std::string_view bytes, std::string_view prefix) { return bytes.substr(0, prefix.size()) == prefix; }
+
+// stb_image reads past the end of a Radiance file as zeros, so a truncated upload would decode as a map
+// with a black bottom. Its scanlines are walked here first, the way stb_image decodes them (a scanline
+// not marked run-length encoded makes the rest of the image flat RGBE), and a file that ends early is
+// refused.
+void check_hdr_complete(std::string_view bytes, uint32_t width, uint32_t height) {
+    size_t at = bytes.find("\n\n");
+    if (at == std::string_view::npos) throw EnvironmentError("the Radiance header has no end");
+    at = bytes.find('\n', at + 2);  // the resolution line
+    if (at == std::string_view::npos) throw EnvironmentError("the Radiance header has no resolution line");
+    ++at;
+    auto need = [&](size_t count) {
+        if (bytes.size() - at < count) throw EnvironmentError("the Radiance file is truncated");
+    };
+    const size_t pixels = size_t{width} * height;
+    if (width < 8 || width >= 32768) {
+        need(4 * pixels);
+        return;
+    }
+    for (uint32_t row = 0; row < height; ++row) {
+        need(4);
+        const auto byte = [&](size_t i) { return static_cast<unsigned char>(bytes[at + i]); };
+        if (byte(0) != 2 || byte(1) != 2 || (byte(2) & 0x80) != 0) {
+            need(4 * (pixels - size_t{row} * width));
+            return;
+        }
+        at += 4;
+        for (int channel = 0; channel < 4; ++channel) {
+            for (uint32_t filled = 0; filled < width;) {
+                need(1);
+                const uint32_t count = byte(0);
+                const bool run = count > 128;
+                const uint32_t length = run ? count - 128 : count;
+                if (length == 0 || filled + length > width) throw EnvironmentError("a Radiance scanline is corrupt");
+                need(run ? 2 : 1 + length);
+                at += run ? 2 : 1 + length;
+                filled += length;
+            }
+        }
+    }
+}
+
+EnvironmentMap decode_hdr(std::string_view bytes) {
+    if (bytes.size() > static_cast<size_t>(std::numeric_limits<int>::max()))
+        throw EnvironmentError("the file is larger than 2 GiB");
+    const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
+    const int length = static_cast<int>(bytes.size());
+    int width = 0, height = 0, channels = 0;
+    if (!stbi_info_from_memory(data, length, &width, &height, &channels))
+        throw EnvironmentError(std::string("unreadable Radiance header: ") + stbi_failure_reason());
+    check_size(width, height);
+    EnvironmentMap map{static_cast<uint32_t>(width), static_cast<uint32_t>(height), {}};
+    check_hdr_complete(bytes, map.width, map.height);
+    float* pixels = stbi_loadf_from_memory(data, length, &width, &height, &channels, 3);
+    if (pixels == nullptr) throw EnvironmentError(std::string("corrupt Radiance file: ") + stbi_failure_reason());
+    map.rgb.assign(pixels, pixels + size_t{map.width} * map.height * 3);
+    stbi_image_free(pixels);
+    return map;
+}
+
+// The upload as an OpenEXR input stream (the library reads from files or streams, never from memory).
+class MemoryStream : public Imf::IStream {
+public:
+    explicit MemoryStream(std::string_view bytes) : Imf::IStream("upload"), bytes_(bytes) {}
+    bool read(char c[], int n) override {
+        if (n < 0 || bytes_.size() - at_ < static_cast<size_t>(n)) throw EnvironmentError("the OpenEXR file is truncated");
+        std::memcpy(c, bytes_.data() + at_, static_cast<size_t>(n));
+        at_ += static_cast<size_t>(n);
+        return at_ < bytes_.size();
+    }
+    uint64_t tellg() override { return at_; }
+    void seekg(uint64_t position) override {
+        if (position > bytes_.size()) throw EnvironmentError("the OpenEXR file is truncated");
+        at_ = position;
+    }
+
+private:
+    std::string_view bytes_;
+    size_t at_ = 0;
+};
+
+EnvironmentMap decode_exr(std::string_view bytes) {
+    // The library reads the header and allocates the line-offset table in the file's constructor, before
+    // check_size could look: its own sanity check refuses larger data windows there.
+    static const bool limited = [] {
+        Imf::Header::setMaxImageSize(static_cast<int>(kMaxEnvironmentWidth), static_cast<int>(kMaxEnvironmentHeight));
+        return true;
+    }();
+    (void)limited;
+    try {
+        MemoryStream stream(bytes);
+        Imf::RgbaInputFile file(stream);
+        const Imath::Box2i window = file.dataWindow();
+        const int64_t width = int64_t{window.max.x} - window.min.x + 1, height = int64_t{window.max.y} - window.min.y + 1;
+        check_size(width, height);
+        EnvironmentMap map{static_cast<uint32_t>(width), static_cast<uint32_t>(height), {}};
+        Imf::Array2D<Imf::Rgba> pixels(height, width);
+        const size_t row_stride = static_cast<size_t>(width);
+        file.setFrameBuffer(&pixels[0][0] - window.min.x - window.min.y * static_cast<ptrdiff_t>(row_stride), 1, row_stride);
+        file.readPixels(window.min.y, window.max.y);
+        map.rgb.reserve(size_t{map.width} * map.height * 3);
+        for (int64_t y = 0; y < height; ++y)
+            for (int64_t x = 0; x < width; ++x) {
+                const Imf::Rgba& p = pixels[y][x];
+                map.rgb.insert(map.rgb.end(), {float(p.r), float(p.g), float(p.b)});
+            }
+        return map;
+    } catch (const EnvironmentError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw EnvironmentError(std::string("corrupt OpenEXR file: ") + e.what());
+    }
+}
+
+// A clear sky: blue at the zenith paling to the horizon, a darker ground below it, and a sun disc of
+// angular radius 2.5 degrees, 30 degrees above the horizon at azimuth 90 degrees (towards +z), bright
+// enough (about ten times the sky's irradiance on the ground) to cast sharp caustics.
+EnvironmentMap sky_sun() {
+    constexpr uint32_t kWidth = 256, kHeight = 128;
+    constexpr double kPi = std::numbers::pi;
+    const double sun_theta = kPi / 3.0, sun_phi = kPi / 2.0, sun_radius = 2.5 * kPi / 180.0;
+    const double sun[3] = {std::sin(sun_theta) * std::cos(sun_phi), std::cos(sun_theta),
+                           std::sin(sun_theta) * std::sin(sun_phi)};
+    EnvironmentMap map{kWidth, kHeight, {}};
+    map.rgb.reserve(size_t{kWidth} * kHeight * 3);
+    for (uint32_t v = 0; v < kHeight; ++v) {
+        const double theta = kPi * (v + 0.5) / kHeight;
+        for (uint32_t u = 0; u < kWidth; ++u) {
+            const double phi = 2.0 * kPi * (u + 0.5) / kWidth;
+            const double d[3] = {std::sin(theta) * std::cos(phi), std::cos(theta), std::sin(theta) * std::sin(phi)};
+            const double up = d[1];
+            double rgb[3];
+            if (up >= 0.0) {
+                const double t = std::pow(1.0 - up, 3.0);  // 0 at the zenith, 1 at the horizon
+                const double zenith[3] = {0.10, 0.22, 0.55}, horizon[3] = {0.75, 0.80, 0.85};
+                for (int c = 0; c < 3; ++c) rgb[c] = zenith[c] + (horizon[c] - zenith[c]) * t;
+            } else {
+                const double ground[3] = {0.16, 0.14, 0.12};
+                for (int c = 0; c < 3; ++c) rgb[c] = ground[c];
+            }
+            const double cos_to_sun = d[0] * sun[0] + d[1] * sun[1] + d[2] * sun[2];
+            if (cos_to_sun > std::cos(sun_radius)) {
+                const double disc[3] = {2000.0, 1800.0, 1500.0};
+                for (int c = 0; c < 3; ++c) rgb[c] = disc[c];
+            }
+            for (double c : rgb) map.rgb.push_back(static_cast<float>(c));
+        }
+    }
+    return map;
+}
+
+}  // namespace
+
+EnvironmentMap decode_environment(std::string_view bytes) {
+    EnvironmentMap map;
+    if (starts_with(bytes, "#?RADIANCE\n") || starts_with(bytes, "#?RGBE\n")) map = decode_hdr(bytes);
+    else if (starts_with(bytes, std::string_view("\x76\x2f\x31\x01", 4))) map = decode_exr(bytes);
+    else throw EnvironmentError("not a Radiance .hdr (#?RADIANCE) or OpenEXR file");
+    check_pixels(map);
+    return map;
+}
+
+std::string encode_hdr(const EnvironmentMap& map) {
+    std::string out = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y " + std::to_string(map.height) + " +X " +
+                      std::to_string(map.width) + "\n";
+    for (size_t pixel = 0; pixel < size_t{map.width} * map.height; ++pixel) {
+        const float* rgb = &map.rgb[3 * pixel];
+        const float largest = std::max({rgb[0], rgb[1], rgb[2]});
+        if (largest < 1e-32f) {
+            out.append(4, '\0');
+            continue;
+        }
+        int exponent = 0;
+        const float mantissa = std::frexp(largest, &exponent) * 256.0f / largest;
+        for (int c = 0; c < 3; ++c) out.push_back(static_cast<char>(static_cast<unsigned char>(rgb[c] * mantissa)));
+        out.push_back(static_cast<char>(exponent + 128));
+    }
+    return out;
+}
+
+std::vector<std::string> built_in_environment_names() { return {"sky-sun"}; }
+
+std::shared_ptr<const EnvironmentMap> built_in_environment(std::string_view name) {
+    static const auto sky_sun_map = std::make_shared<const EnvironmentMap>(sky_sun());
+    return name == "sky-sun" ? sky_sun_map : nullptr;
+}
+
+}  // namespace refract::image
