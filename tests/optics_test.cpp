@@ -374,6 +374,27 @@ protected:
         return gpu;
     }
     std::unique_ptr<scene::SceneGpu> photons_for(const protocol::SceneDocument& doc) { return photons(doc); }
+    // Sums of component `c` of two radiance grids of `dims` voxels over blocks of kBlock^3 voxels (fewer
+    // at the far sides), one pair per block: where a region's photon noise is compared.
+    static constexpr uint32_t kBlock = 6;
+    static std::vector<std::pair<double, double>> block_sums(const std::vector<glm::vec4>& a, const std::vector<glm::vec4>& b,
+                                                             glm::uvec3 dims, int c) {
+        std::vector<std::pair<double, double>> sums;
+        for (uint32_t bz = 0; bz < dims.z; bz += kBlock)
+            for (uint32_t by = 0; by < dims.y; by += kBlock)
+                for (uint32_t bx = 0; bx < dims.x; bx += kBlock) {
+                    double fa = 0.0, fb = 0.0;
+                    for (uint32_t z = bz; z < std::min(bz + kBlock, dims.z); ++z)
+                        for (uint32_t y = by; y < std::min(by + kBlock, dims.y); ++y)
+                            for (uint32_t x = bx; x < std::min(bx + kBlock, dims.x); ++x) {
+                                const size_t i = (size_t{z} * dims.y + y) * dims.x + x;
+                                fa += static_cast<double>(a[i][c]);
+                                fb += static_cast<double>(b[i][c]);
+                            }
+                    sums.emplace_back(fa, fb);
+                }
+        return sums;
+    }
     // Flux (W) of the floor map in `channel`: the change of floor light the grid causes, summed over the map.
     static double floor_flux(const scene::SceneGpu& gpu, int channel = 0) {
         const auto map = gpu.read_floor_map();
@@ -831,27 +852,15 @@ TEST_F(EnergyTest, DirectLightMatchesPhotons) {
         // region's photon sum varies as its count of such crossings would (Poisson; stratified emission
         // only lowers it). The direct light itself has no noise.
         const double per_crossing = static_cast<double>(pf.x + pf.y + pf.z) / 3.0 / (side * side);
-        constexpr uint32_t kBlock = 6;
         double worst = 0.0, total_a = 0.0, total_b = 0.0;
-        for (uint32_t bz = 0; bz < dims.z; bz += kBlock)
-            for (uint32_t by = 0; by < dims.y; by += kBlock)
-                for (uint32_t bx = 0; bx < dims.x; bx += kBlock) {
-                    double fa = 0.0, fb = 0.0;
-                    for (uint32_t z = bz; z < std::min(bz + kBlock, dims.z); ++z)
-                        for (uint32_t y = by; y < std::min(by + kBlock, dims.y); ++y)
-                            for (uint32_t x = bx; x < std::min(bx + kBlock, dims.x); ++x) {
-                                const size_t i = (size_t{z} * dims.y + y) * dims.x + x;
-                                fa += static_cast<double>(a[i].w);
-                                fb += static_cast<double>(b[i].w);
-                            }
-                    total_a += fa;
-                    total_b += fb;
-                    const double sigma = per_crossing * std::sqrt(std::max(fa, fb) / per_crossing + 1.0);
-                    const double z_score = std::abs(fb - fa) / sigma;
-                    worst = std::max(worst, z_score);
-                    EXPECT_LT(z_score, 5.0) << c.name << " block " << bx << "," << by << "," << bz << ": traced "
-                                            << fa << " direct " << fb;
-                }
+        for (const auto& [fa, fb] : block_sums(a, b, dims, 3)) {
+            total_a += fa;
+            total_b += fb;
+            const double sigma = per_crossing * std::sqrt(std::max(fa, fb) / per_crossing + 1.0);
+            const double z_score = std::abs(fb - fa) / sigma;
+            worst = std::max(worst, z_score);
+            EXPECT_LT(z_score, 5.0) << c.name << ": traced " << fa << " direct " << fb;
+        }
         std::printf("direct light, %s: whole grid %+.5f (sigma %.5f), worst block %.2f sigma, overlaps %llu\n", c.name,
                     total_b / total_a - 1.0, std::sqrt(per_crossing / total_a), worst, static_cast<unsigned long long>(stats.direct_overlaps));
         // Over the whole grid, the photons' noise and what the closed form's quadrature leaves: the
@@ -956,26 +965,16 @@ TEST_F(EnergyTest, ThreeLightsSharePhotonsByPowerAndAddUp) {
         // The fluence one photon adds crossing a voxel (as in DirectLightMatchesPhotons), per run.
         const double per_crossing = static_cast<double>(single->params().photon_flux[c]) / (side * side);
         ASSERT_GT(per_crossing, 0.0);
-        constexpr uint32_t kBlock = 6;
         double worst = 0.0, sum_alone = 0.0, sum_together = 0.0, other_channels = 0.0;
-        for (uint32_t bz = 0; bz < dims.z; bz += kBlock)
-            for (uint32_t by = 0; by < dims.y; by += kBlock)
-                for (uint32_t bx = 0; bx < dims.x; bx += kBlock) {
-                    double fa = 0.0, fb = 0.0;
-                    for (uint32_t z = bz; z < std::min(bz + kBlock, dims.z); ++z)
-                        for (uint32_t y = by; y < std::min(by + kBlock, dims.y); ++y)
-                            for (uint32_t x = bx; x < std::min(bx + kBlock, dims.x); ++x) {
-                                const size_t i = (size_t{z} * dims.y + y) * dims.x + x;
-                                fa += static_cast<double>(own[i][c]);
-                                fb += static_cast<double>(together[i][c]);
-                                for (int o = 0; o < 3; ++o)
-                                    if (o != c) other_channels += std::abs(static_cast<double>(own[i][o]));
-                            }
-                    sum_alone += fa;
-                    sum_together += fb;
-                    const double sigma = per_crossing * std::sqrt(fa / per_crossing + fb / per_crossing + 2.0);
-                    worst = std::max(worst, std::abs(fb - fa) / sigma);
-                }
+        for (const auto& [fa, fb] : block_sums(own, together, dims, c)) {
+            sum_alone += fa;
+            sum_together += fb;
+            const double sigma = per_crossing * std::sqrt(fa / per_crossing + fb / per_crossing + 2.0);
+            worst = std::max(worst, std::abs(fb - fa) / sigma);
+        }
+        for (const auto& v : own)
+            for (int o = 0; o < 3; ++o)
+                if (o != c) other_channels += std::abs(static_cast<double>(v[o]));
         const double sigma_total = std::sqrt(2.0 * per_crossing / std::max(sum_alone, 1e-30));
         std::printf("three lights, %s alone (%u photons): grid total %+.5f (sigma %.5f), worst block %.2f sigma\n", name,
                     per_light[k].photon_info.x, sum_together / sum_alone - 1.0, sigma_total, worst);
