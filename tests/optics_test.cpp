@@ -922,7 +922,8 @@ TEST_F(EnergyTest, RadianceConvergesWithPhotonCount) {
 // grid as if it shone alone. Three lights of three pure colours (a spot, a point and a directional light)
 // around the refracting, reflecting sphere in fog: each colour channel of the three-light run holds one
 // light's fluence only, and must match that light's own run (with its share of the photons, so the same
-// flux per photon, and another seed) within their photon noise, block by block and over the grid.
+// flux per photon) within their photon noise, block by block and over the grid. The first light by name
+// keeps the document's seed, so its channel matches its own run exactly; the others draw other seeds.
 TEST_F(EnergyTest, ThreeLightsSharePhotonsByPowerAndAddUp) {
     const json lights = {{"red", {{"type", "spot"}, {"color", {1, 0, 0}}, {"intensity", 20}}},
                          {"green", {{"type", "point"}, {"position", {-1.5, 2.0, 0.5}}, {"color", {0, 1, 0}}, {"intensity", 5}}},
