@@ -83,11 +83,13 @@ vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
 vec3 sky(vec3 d) { return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0)); }
 
 // A reflection an eye ray still has to trace (fresnel.glsl): its transmittance carries the reflectance,
-// so everything it gathers is weighted.
+// so everything it gathers is weighted. A faint one (FRESNEL_EYE_TRACED_SHARE) is not marched: it takes
+// the floor or sky straight along its direction.
 struct PendingPath {
     Ray ray;
     vec3 transmittance;
     float cutoff;  // see shade
+    bool straight;
 };
 // Paths per pixel: one (one per channel after the white one under dispersion), and with Fresnel up to
 // FRESNEL_EYE_REFLECTIONS reflected ones per channel. A channel traces its reflections before the next
@@ -146,6 +148,15 @@ void shade(uvec2 pixel) {
                 transmittance = next.transmittance;
                 cutoff = next.cutoff;
                 ++channel_paths;
+                if (next.straight) {
+                    // The end of the path below looks up the floor or sky from here, as for a ray that
+                    // misses the grid.
+                    position = to_world(ray.p);
+                    d = ray.d;
+                }
+                radiance_sum = vec3(0.0);
+                on_floor = false;
+                marches = !next.straight;
             } else if (kDispersive && parted && next_channel < 3u) {
                 uint c = next_channel++;
                 ray_contrast = params.dispersion[c];
@@ -154,12 +165,12 @@ void shade(uvec2 pixel) {
                 cutoff = split_cutoff;
                 channel_paths = 1u;
                 ray_step(ray, split_run);
+                radiance_sum = vec3(0.0);
+                on_floor = false;
+                marches = true;
             } else {
                 break;
             }
-            radiance_sum = vec3(0.0);
-            on_floor = false;
-            marches = true;
         }
         uint steps = 0u;
         // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch
@@ -243,9 +254,10 @@ void shade(uvec2 pixel) {
                 // The reflection gets a path of its own unless the pixel has traced all it may or the share
                 // is too small to see (the march's own cut-off below); then the ray takes all of the light
                 // to the stronger side, so none is lost (a white furnace stays white).
-                if (channel_paths + pending_count < kPathsPerChannel &&
-                    max(reflected_share.r, max(reflected_share.g, reflected_share.b)) >= 1e-3) {
-                    pending[pending_count++] = PendingPath(mirrored, reflected_share, cutoff * mean_reflectance);
+                float strongest_share = max(reflected_share.r, max(reflected_share.g, reflected_share.b));
+                if (channel_paths + pending_count < kPathsPerChannel && strongest_share >= 1e-3) {
+                    pending[pending_count++] = PendingPath(mirrored, reflected_share, cutoff * mean_reflectance,
+                                                           strongest_share < FRESNEL_EYE_TRACED_SHARE);
                     transmittance *= 1.0 - reflectance;
                     cutoff *= 1.0 - mean_reflectance;
                 } else if (mean_reflectance > 0.5) {
