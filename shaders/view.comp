@@ -142,21 +142,20 @@ void shade(uvec2 pixel) {
     for (uint path = 0u; path < kPaths; ++path) {
         bool split = false;
         if (path > 0u) {
+            bool straight = false;
             if (kFresnel && pending_count > 0u) {
                 PendingPath next = pending[--pending_count];
                 ray = next.ray;
                 transmittance = next.transmittance;
                 cutoff = next.cutoff;
                 ++channel_paths;
-                if (next.straight) {
+                straight = next.straight;
+                if (straight) {
                     // The end of the path below looks up the floor or sky from here, as for a ray that
                     // misses the grid.
                     position = to_world(ray.p);
                     d = ray.d;
                 }
-                radiance_sum = vec3(0.0);
-                on_floor = false;
-                marches = !next.straight;
             } else if (kDispersive && parted && next_channel < 3u) {
                 uint c = next_channel++;
                 ray_contrast = params.dispersion[c];
@@ -165,12 +164,12 @@ void shade(uvec2 pixel) {
                 cutoff = split_cutoff;
                 channel_paths = 1u;
                 ray_step(ray, split_run);
-                radiance_sum = vec3(0.0);
-                on_floor = false;
-                marches = true;
             } else {
                 break;
             }
+            radiance_sum = vec3(0.0);
+            on_floor = false;
+            marches = !straight;
         }
         uint steps = 0u;
         // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch

@@ -11,8 +11,9 @@
 // kernel's integral over each inside interval; across it each ray stands for the 1/S x 1/S of the plane
 // around it, weighted by the kernel at its own position. BOX: the kernel is the voxel, so the value is
 // its covered fraction. SPLINE: the quadratic B-spline (three voxels wide, variance 1/4 voxel^2): the
-// surface is filtered before it is sampled, so the lattice cannot alias it into the grid (the box's
-// sidelobes fold back as rings in a sphere's caustic; README, "Ring moire in caustics"). Both kernels
+// surface is filtered before it is sampled, and the spline's spectrum is the box's cubed, so little is
+// left for the lattice to alias into the grid (the box's sidelobes fold back as rings in a sphere's
+// caustic; README, "Ring moire in caustics"). Both kernels
 // sum to 1 over the lattice at any offset, so every axis keeps the volume its rays measure.
 // COMBINE: per voxel, the mean of the reliable axes' values; a mean, not a median, keeps that volume.
 #include "volume_build.h"
