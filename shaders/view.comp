@@ -95,11 +95,13 @@ vec3 sky(vec3 d) {
 }
 
 // A reflection an eye ray still has to trace (fresnel.glsl): its transmittance carries the reflectance,
-// so everything it gathers is weighted.
+// so everything it gathers is weighted. A faint one (FRESNEL_EYE_TRACED_SHARE) is not marched: it takes
+// the floor or sky straight along its direction.
 struct PendingPath {
     Ray ray;
     vec3 transmittance;
     float cutoff;  // see shade
+    bool straight;
 };
 // Paths per pixel: one (one per channel after the white one under dispersion), and with Fresnel up to
 // FRESNEL_EYE_REFLECTIONS reflected ones per channel. A channel traces its reflections before the next
@@ -152,12 +154,20 @@ void shade(uvec2 pixel) {
     for (uint path = 0u; path < kPaths; ++path) {
         bool split = false;
         if (path > 0u) {
+            bool straight = false;
             if (kFresnel && pending_count > 0u) {
                 PendingPath next = pending[--pending_count];
                 ray = next.ray;
                 transmittance = next.transmittance;
                 cutoff = next.cutoff;
                 ++channel_paths;
+                straight = next.straight;
+                if (straight) {
+                    // The end of the path below looks up the floor or sky from here, as for a ray that
+                    // misses the grid.
+                    position = to_world(ray.p);
+                    d = ray.d;
+                }
             } else if (kDispersive && parted && next_channel < 3u) {
                 uint c = next_channel++;
                 ray_contrast = params.dispersion[c];
@@ -171,7 +181,7 @@ void shade(uvec2 pixel) {
             }
             radiance_sum = vec3(0.0);
             on_floor = false;
-            marches = true;
+            marches = !straight;
         }
         uint steps = 0u;
         // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch
@@ -255,9 +265,10 @@ void shade(uvec2 pixel) {
                 // The reflection gets a path of its own unless the pixel has traced all it may or the share
                 // is too small to see (the march's own cut-off below); then the ray takes all of the light
                 // to the stronger side, so none is lost (a white furnace stays white).
-                if (channel_paths + pending_count < kPathsPerChannel &&
-                    max(reflected_share.r, max(reflected_share.g, reflected_share.b)) >= 1e-3) {
-                    pending[pending_count++] = PendingPath(mirrored, reflected_share, cutoff * mean_reflectance);
+                float strongest_share = max(reflected_share.r, max(reflected_share.g, reflected_share.b));
+                if (channel_paths + pending_count < kPathsPerChannel && strongest_share >= 1e-3) {
+                    pending[pending_count++] = PendingPath(mirrored, reflected_share, cutoff * mean_reflectance,
+                                                           strongest_share < FRESNEL_EYE_TRACED_SHARE);
                     transmittance *= 1.0 - reflectance;
                     cutoff *= 1.0 - mean_reflectance;
                 } else if (mean_reflectance > 0.5) {

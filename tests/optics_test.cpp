@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <numeric>
 #include <span>
 
@@ -1027,6 +1028,72 @@ TEST_F(EnergyTest, FloorUnderSeveralLightsTakesEachLightsIrradiance) {
     std::printf("floor under four lights: centre pixel (%.6f, %.6f, %.6f), expected (%.6f, %.6f, %.6f)\n", measured.r,
                 measured.g, measured.b, expected.r, expected.g, expected.b);
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(measured[c], expected[c], 1e-4 * expected[c]) << "channel " << c;
+}
+
+// The voxel lattice's imprint on a glass sphere's floor caustic (README, "Ring moire in caustics"). The
+// grid moved sideways under a fixed scene by a whole number m of floor-map texels is the same scene
+// sampled on another lattice, and the floor map moves with the grid (it is placed from the grid's
+// corners and their shadows), so texel x + m of the first map and texel x of the moved one see the same
+// floor. A texel is not a whole number of voxels, so some m move the lattice by about half a voxel and
+// others by about a whole one. Either way the photons leave from other points of the scene (emission is
+// rastered on the grid), so both moved maps differ from the first by photon noise; only the half-voxel
+// move also changes the lattice under the shell. If the lattice added nothing, both differences would be
+// the same noise: imprint / noise = 1 on average. Each mean of squared differences over N texels has a
+// relative standard deviation of sqrt(2 / N), so each RMS 1 / sqrt(2 N) and the ratio 1 / sqrt(N); a
+// photon's bilinear splat shares its noise among at most 2 x 2 texels, so N counts a quarter of the texels
+// the noise reaches. The bar is 1 plus three of those standard deviations.
+//
+// Not met yet, so not run by default: the voxelization no longer aliases the surface (1.47 -> 1.26 at the
+// default smoothing), but the lattice still leaves 1.12-1.17 at 1.0-1.5 voxels (README). Run it with
+// --gtest_also_run_disabled_tests; REFRACT_IMPRINT_SMOOTHING sets volume.smoothing (default 0.75).
+TEST_F(EnergyTest, DISABLED_LatticeLeavesNoImprintOnACausticAboveThePhotonNoise) {
+    const double h = 2.7 / 96.0;
+    const char* smoothing_text = std::getenv("REFRACT_IMPRINT_SMOOTHING");
+    const double smoothing = smoothing_text ? std::atof(smoothing_text) : 0.75;
+    auto scene = [&](double shift) {
+        return protocol::parse_scene(json{
+            {"light", {{"type", "directional"}, {"direction", {-2, -3, -1}}, {"intensity", 1.0}}},
+            {"medium", {{"ior", 1.0}, {"extinction", {0, 0, 0}}, {"scattering", {0, 0, 0}}}},
+            {"object", {{"extinction", {0, 0, 0}}, {"scattering", {0, 0, 0}}}},
+            {"image", {{"width", 8}, {"height", 8}}},
+            {"photons", {{"count", 1 << 18}}},
+            {"volume", {{"resolution", 96}, {"smoothing", smoothing},
+                        {"bounds", {{"min", {-1.35 + shift, -1.35, -1.35}}, {"max", {1.35 + shift, 1.35, 1.35}}}}}}});
+    };
+    const auto first = photons(scene(0.0));
+    const glm::vec4 placement = first->params().floor_map;
+    const double texel = double{placement.z} / double{placement.w};
+    // The fewest texels that move the lattice by `phase` of a voxel, to within a tenth.
+    auto texels_for = [&](double phase) {
+        int m = 1;
+        while (std::abs(std::remainder(m * texel / h - phase, 1.0)) > 0.1) ++m;
+        return m;
+    };
+    const int m_half = texels_for(0.5), m_whole = texels_for(0.0);
+    const auto base = first->read_floor_map();
+    const auto side = static_cast<size_t>(placement.w);
+    auto rms_difference = [&](int m, double* reached) {
+        const auto moved = photons(scene(m * texel))->read_floor_map();
+        double sum = 0.0;
+        for (size_t z = 0; z < side; ++z) {
+            for (size_t x = 0; x + static_cast<size_t>(std::max(m_half, m_whole)) < side; ++x) {
+                const double d = double{base[z * side + x + static_cast<size_t>(m)].r} - double{moved[z * side + x].r};
+                sum += d * d;
+                if (reached && d != 0.0) *reached += 1.0;
+            }
+        }
+        return std::sqrt(sum);
+    };
+    double reached = 0.0;
+    const double noise = rms_difference(m_whole, &reached);
+    const double imprint = rms_difference(m_half, nullptr);
+    ASSERT_GT(noise, 0.0);
+    const double ratio = imprint / noise;
+    const double bar = 1.0 + 3.0 / std::sqrt(reached / 4.0);
+    std::printf("lattice imprint / photon noise on the floor caustic: %.3f (bar %.3f, %.0f texels with noise; grid moved "
+                "%d and %d texels, %.3f and %.3f voxels)\n", ratio, bar, reached, m_half, m_whole, m_half * texel / h,
+                m_whole * texel / h);
+    EXPECT_LT(ratio, bar);
 }
 
 }  // namespace

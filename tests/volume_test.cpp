@@ -102,8 +102,8 @@ glm::dvec3 volume_centroid(const mesh::Mesh& m) {
 // Worst-case relative volume error of the voxelization. Along each ray the inside length is exact; across
 // the column the surface is resolved by S x S rays per voxel, i.e. to within half a ray spacing h/(2S).
 // If every surface element were misplaced by that much in the same direction the volume would change by
-// A h / (2S). (For an axis-aligned box this is exact: each face's position is quantized to the ray grid
-// by the two axes parallel to it, whose median wins.)
+// A h / (2S). (For an axis-aligned box this is the bound: each face's position is quantized to the ray
+// grid by the two axes parallel to it and exact on the third; the mean of the three moves it 2/3 of that.)
 double voxel_volume_tolerance(double area, double volume, double h) { return area * h / (2.0 * kSubsamples) / volume; }
 
 std::vector<uint32_t> reference_levels(const std::vector<float>& n, vk::Extent3 dims, float epsilon, uint32_t max_level);
@@ -177,9 +177,11 @@ TEST_F(VolumeTest, BuiltInShapesVoxelizeToTheirVolumeAt128) {
 
 TEST_F(VolumeTest, SmoothingConservesTotalCoverage) {
     // The normalized Gaussian is symmetric with weights summing to 1, so away from the clamped border the
-    // sum over the grid is unchanged. Torus (2.7 m across) with a 0.5 m margin at 64^3: h = 3.7 m / 64,
-    // the margin is 8.6 voxels, wider than the kernel radius r = ceil(3 sigma) = 6: no covered voxel's
-    // taps reach past the border. Rounding: each output is a float sum of 2r+1 products and a division,
+    // sum over the grid is unchanged; so is the spline that filters the surface before it (it sums to 1
+    // over the lattice at any offset, as the voxel's box does for the sharp grid, and both weigh the same
+    // rays). Torus (2.7 m across) with a 0.5 m margin at 64^3: h = 3.7 m / 64, the margin is 8.6 voxels,
+    // wider than the spline's 1.5 plus the lattice kernel's radius r = ceil(3 lattice_sigma) = 6: no
+    // covered voxel's taps reach past the border. Rounding: each output is a float sum of 2r+1 products and a division,
     // relative error <= (2r+2) 2^-24 per pass, three passes.
     const double sigma = 2.0;
     const double radius = std::ceil(3.0 * sigma);
@@ -199,7 +201,9 @@ TEST_F(VolumeTest, SmoothingConservesTotalCoverage) {
 
     // At the border the taps clamp: the object is taken to continue beyond the grid, which is what a
     // volume.bounds that cuts through it means. A cube cut by the grid's -x face stays exactly full there
-    // after smoothing (all taps read covered voxels), with no false interface at the cut.
+    // after smoothing (all taps read covered voxels), with no false interface at the cut. Filtering
+    // reaches 1.5 voxels (the spline) plus the lattice taps, r' = ceil(3 lattice_sigma(sigma)).
+    const double reach = 1.5 + std::ceil(3.0 * static_cast<double>(passes::VoxelizePass::lattice_sigma(static_cast<float>(sigma))));
     SceneDocument cut = volume_document("cube", 64, sigma);
     cut.volume.bounds = protocol::Bounds{{-0.5, -1.5, -1.5}, {2.5, 1.5, 1.5}};
     const Volume c = build(cut);
@@ -207,8 +211,8 @@ TEST_F(VolumeTest, SmoothingConservesTotalCoverage) {
     size_t checked = 0, not_full = 0;
     c.for_each([&](uint32_t x, uint32_t y, uint32_t z, size_t i) {
         const glm::dvec3 p = c.centre(x, y, z);
-        // Voxels in the cut face's layer whose smoothing taps (r voxels along y and z) all lie well inside.
-        const double inner = 1.0 - (radius + 1.0) * c.h();
+        // Voxels in the cut face's layer whose filter (its reach along y and z) lies well inside.
+        const double inner = 1.0 - (reach + 1.0) * c.h();
         if (x != 0 || std::abs(p.y) > inner || std::abs(p.z) > inner) return;
         ++checked;
         if (c.coverage[i] != 1.0f) ++not_full;
@@ -389,16 +393,18 @@ TEST_F(VolumeTest, UniformObjectIsIorInsideAndMediumOutside) {
     doc.medium.ior = 1.33;
     const mesh::Mesh world = world_mesh(doc);
     const Volume v = build(doc, world);
-    // A voxel is untouched by the surface when its centre is more than half a diagonal from it; the
-    // separable smoothing reaches r = ceil(3 sigma) voxels along each axis (sqrt(3) r in space) and the
-    // central-difference gradient one voxel further. Inside: use the icosphere's closest face plane.
+    // A voxel is untouched by the surface when its centre is farther from it than the filter reaches:
+    // the spline 1.5 voxels and the lattice smoothing r' = ceil(3 lattice_sigma) voxels along each axis
+    // (sqrt(3) times that in space), and the central-difference gradient one voxel further. Inside: use
+    // the icosphere's closest face plane.
     double d_min = 1.0;
     for (const auto& t : world.triangles) {
         const glm::dvec3 a(world.positions[t.x]), b(world.positions[t.y]), c(world.positions[t.z]);
         d_min = std::min(d_min, std::abs(glm::dot(glm::normalize(glm::cross(b - a, c - a)), a)));
     }
     const double h = v.h();
-    const double reach = (0.5 * std::sqrt(3.0) + std::sqrt(3.0) * (std::ceil(3.0 * 0.75) + 1.0)) * h;
+    const double lattice_taps = std::ceil(3.0 * static_cast<double>(passes::VoxelizePass::lattice_sigma(0.75f)));
+    const double reach = std::sqrt(3.0) * (1.5 + lattice_taps + 1.0) * h;
     size_t inside = 0, outside = 0;
     const float n_object = static_cast<float>(doc.object().ior), n_medium = static_cast<float>(doc.medium.ior);
     v.for_each([&](uint32_t x, uint32_t y, uint32_t z, size_t i) {
@@ -455,9 +461,8 @@ TEST_F(VolumeTest, UniformObjectIsIorInsideAndMediumOutside) {
 TEST_F(VolumeTest, FlatInterfaceWidthMatchesSigma) {
     // A cube whose +x face lies exactly on a voxel centre: bounds [-2, 2]^3 at 64^3 give h = 1/16 (exact in
     // binary) and centres at -2 + (i + 1/2)/16; scale 0.96875 = -2 + 47.5/16 puts the faces on the centres
-    // of voxels 16 and 47. That face voxel is covered 1/2 (exactly: along x the inside length is 1/2, and
-    // the y and z columns have 2 of their 4 ray rows inside), so before smoothing the profile along x is
-    // ..., 1, 1, 1/2, 0, 0, ...: a rise of 1/2 at each of the two half-voxel steps around the face.
+    // of voxels 16 and 47. The y and z columns have 2 of their 4 ray rows inside the face voxel, so the
+    // face lies on a row boundary of their rays.
     for (const double sigma : {0.75, 1.5}) {
         SCOPED_TRACE(sigma);
         SceneDocument doc = volume_document("cube", 64, sigma);
@@ -472,23 +477,33 @@ TEST_F(VolumeTest, FlatInterfaceWidthMatchesSigma) {
         const uint32_t face = 47;
         const double n_in = 1.5, n_out = 1.1, jump = n_in - n_out;
 
-        // The discrete kernel: the sampled Gaussian of sigma voxels on r = ceil(3 sigma) taps, normalized.
-        const int radius = static_cast<int>(std::ceil(3.0 * sigma));
+        // The discrete kernel: the sampled Gaussian of s' = lattice_sigma(sigma) voxels on r = ceil(3 s')
+        // taps, normalized; the quadratic B-spline before it reaches 1.5 voxels, so the profile ends within
+        // r + 2 of the face.
+        const double lattice = static_cast<double>(passes::VoxelizePass::lattice_sigma(static_cast<float>(sigma)));
+        const int radius = static_cast<int>(std::ceil(3.0 * lattice));
+        const int reach = radius + 2;
         double weight_sum = 0.0, second = 0.0;
         for (int o = -radius; o <= radius; ++o) {
-            const double w = std::exp(-0.5 * o * o / (sigma * sigma));
+            const double w = std::exp(-0.5 * o * o / (lattice * lattice));
             weight_sum += w;
             second += w * o * o;
         }
-        const double kernel_variance = second / weight_sum;  // ~sigma^2 (truncation trims ~0-1%)
+        const double kernel_variance = second / weight_sum;
 
         // (1) Moments of the drop d_i = n_i - n_{i+1} (at i + 1/2). Convolution adds variances: the kernel's,
-        // plus 1/4 for the two equal half-steps at face -+ 1/2. The mean is the face. Outside r + 1 voxels of
-        // the face the coverage is exactly 0 or 1, so the sums are finite and exact up to float rounding
-        // (n has ~1e-7 error; 2r+2 terms weighted by (r+1.5)^2 / total drop): 1e-3 voxel^2 bounds it.
+        // plus the filtered face's. Along x the coverage at a centre is the spline's integral up to the face,
+        // so its drops are the spline filtered by a voxel (the cubic B-spline) sampled at half-integers:
+        // variance 1/4 + 1/12 = 1/3 exactly (B-splines keep their moments under sampling). The y and z axes
+        // see the face through their rows of rays 1/S apart, a sum over rows for the integral: with the face
+        // on a row boundary that is the spline sampled 1/S apart, 1/(12 S^2) short of it. The coverage is
+        // the mean of the three axes: 1/3 - (2/3) / (12 S^2). The mean is the face. Outside `reach` voxels
+        // of the face the coverage is exactly 0 or 1, so the sums are finite and exact up to float rounding
+        // (n has ~1e-7 error; 2r+6 terms weighted by (r+3.5)^2 / total drop): 1e-3 voxel^2 bounds it.
+        const double face_variance = 1.0 / 3.0 - (2.0 / 3.0) / (12.0 * kSubsamples * kSubsamples);
         double total = 0.0, first = 0.0;
         std::vector<std::pair<double, double>> drops;
-        for (int i = static_cast<int>(face) - radius - 2; i <= static_cast<int>(face) + radius + 1; ++i) {
+        for (int i = static_cast<int>(face) - reach - 2; i <= static_cast<int>(face) + reach + 1; ++i) {
             const double drop = static_cast<double>(v.field[v.at(static_cast<uint32_t>(i), yc, zc)].x) -
                                 static_cast<double>(v.field[v.at(static_cast<uint32_t>(i + 1), yc, zc)].x);
             drops.emplace_back(i + 0.5, drop);
@@ -501,11 +516,11 @@ TEST_F(VolumeTest, FlatInterfaceWidthMatchesSigma) {
         variance /= total;
         EXPECT_NEAR(total, jump, 1e-5);
         EXPECT_NEAR(mean, static_cast<double>(face), 1e-4);
-        EXPECT_NEAR(variance, kernel_variance + 0.25, 1e-3);
+        EXPECT_NEAR(variance, kernel_variance + face_variance, 1e-3);
 
         // (2) The 10%-90% rise distance, by linear interpolation between voxel centres. An ideal step blurred
         // by a Gaussian of s voxels rises 10-90% over 2 x 1.2816 s; here s^2 = kernel variance + 1/4 (the
-        // half-voxel coverage ramp of the face voxel, from (1)). Linear interpolation of samples one voxel
+        // spline's, so s is about sigma). Linear interpolation of samples one voxel
         // apart misreads a value by at most max|n''|/8, which moves a crossing by that over the slope there:
         // for a Gaussian edge max|n''| = jump phi(1)/s^2 and the slope at 10% is jump phi(1.2816)/s, so each
         // end moves at most phi(1) / (8 phi(1.2816) s) and the width twice that.
@@ -515,7 +530,7 @@ TEST_F(VolumeTest, FlatInterfaceWidthMatchesSigma) {
         const double interpolation = 2.0 * phi(1.0) / (8.0 * phi(1.2815516) * s);
         auto crossing = [&](double level) {  // x (voxel index) where n falls through n_out + level * jump
             const double target = n_out + level * jump;
-            for (uint32_t i = face - static_cast<uint32_t>(radius) - 2; i <= face + static_cast<uint32_t>(radius) + 1; ++i) {
+            for (uint32_t i = face - static_cast<uint32_t>(reach) - 2; i <= face + static_cast<uint32_t>(reach) + 1; ++i) {
                 const double a = static_cast<double>(v.field[v.at(i, yc, zc)].x);
                 const double b = static_cast<double>(v.field[v.at(i + 1, yc, zc)].x);
                 if (a >= target && b < target) return i + (a - target) / (a - b);
@@ -524,7 +539,7 @@ TEST_F(VolumeTest, FlatInterfaceWidthMatchesSigma) {
             return 0.0;
         };
         const double width = crossing(0.1) - crossing(0.9);
-        std::cout << "[ info ] sigma " << sigma << ": drop variance " << variance << " (expected " << kernel_variance + 0.25
+        std::cout << "[ info ] sigma " << sigma << ": drop variance " << variance << " (expected " << kernel_variance + face_variance
                   << "), 10-90 width " << width << " voxels (expected " << expected_width << " +- " << interpolation << ")\n";
         EXPECT_NEAR(width, expected_width, interpolation) << "ideal Gaussian step alone: " << 2.0 * 1.2815516 * sigma;
 

@@ -21,14 +21,18 @@ constexpr vk::BindingLayout kVoxelizeLayout[] = {
     {VOXELIZE_BINDING_COVERAGE_Y, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {VOXELIZE_BINDING_COVERAGE_Z, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {VOXELIZE_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {VOXELIZE_BINDING_INTERVALS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {VOXELIZE_BINDING_INTERVAL_COUNTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {VOXELIZE_BINDING_STEPS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
-static_assert(VOXELIZE_MODE_COLUMNS == 0 && VOXELIZE_MODE_COMBINE == 1);
+static_assert(VOXELIZE_MODE_CAST == 0 && VOXELIZE_MODE_GATHER_BOX == 1 && VOXELIZE_MODE_GATHER_SPLINE == 2 &&
+              VOXELIZE_MODE_COMBINE == 3);
 }  // namespace
 
 VoxelizePass::VoxelizePass(vk::Context& context)
     : context_(context),
       voxelize_(context, voxelize_spv, kVoxelizeLayout, sizeof(VoxelizePush),
-                {"voxelize columns", "voxelize combine"}, VOLUME_CONSTANT_MODE) {}
+                {"voxelize cast", "voxelize gather (box)", "voxelize gather (spline)", "voxelize combine"}, VOLUME_CONSTANT_MODE) {}
 
 const vk::ComputePipeline& VoxelizePass::smooth(int radius) {
     static_assert(VOLUME_CONSTANT_MODE == 0 && SMOOTH_CONSTANT_RADIUS == 1);
@@ -40,6 +44,30 @@ const vk::ComputePipeline& VoxelizePass::smooth(int radius) {
         pipeline.emplace(context_, smooth_spv, kLayout, static_cast<uint32_t>(sizeof(SmoothPush)), "smooth", constants);
     }
     return *pipeline;
+}
+
+double VoxelizePass::kernel_variance(double sigma) {
+    if (sigma <= 0.0) return 0.0;
+    const int radius = std::min(static_cast<int>(std::ceil(3.0 * sigma)), SMOOTH_MAX_RADIUS);
+    double sum = 0.0, second = 0.0;
+    for (int o = -radius; o <= radius; ++o) {
+        const double w = std::exp(-0.5 * o * o / (sigma * sigma));
+        sum += w;
+        second += w * o * o;
+    }
+    return second / sum;
+}
+
+float VoxelizePass::lattice_sigma(float sigma) {
+    const double target = kernel_variance(sigma) + 1.0 / 12.0 - 0.25;
+    if (target <= 0.0) return 0.0f;
+    // The kernel's variance grows with its sigma: bisect.
+    double lo = 0.0, hi = static_cast<double>(sigma);
+    for (int i = 0; i < 40; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (kernel_variance(mid) < target ? lo : hi) = mid;
+    }
+    return static_cast<float>(0.5 * (lo + hi));
 }
 
 VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::Mesh& mesh_world,
@@ -102,31 +130,54 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
                                                  vk::MemoryUse::device, "axis coverage");
     }
 
+    // The largest axis's rays: the axes take turns with these buffers.
+    uint64_t most_columns = 0;
+    for (uint32_t axis = 0; axis < 3; ++axis)
+        most_columns = std::max(most_columns, uint64_t{dims[(axis + 1) % 3]} * dims[(axis + 2) % 3]);
+    const uint64_t rays = most_columns * kSubsamples * kSubsamples;
+    uploads.intervals = vk::Buffer(context_, rays * VOXELIZE_MAX_INTERVALS * sizeof(glm::vec2), storage,
+                                   vk::MemoryUse::device, "voxelize intervals");
+    uploads.interval_counts = vk::Buffer(context_, rays * sizeof(int32_t), storage, vk::MemoryUse::device,
+                                         "voxelize interval counts");
+
     const VkCommandBuffer cmd = recorder.get();
     for (const auto& b : uploads.axis_coverage) recorder.fill(b, 0);
+    recorder.fill(scratch, 0);  // the gathers' steps
     recorder.transfer_to_compute_barrier();
-    // With no smoothing the combined coverage is the result; otherwise it goes to scratch first.
-    const bool smoothing = sigma >= 0.05f;
+    // Below a twentieth of a voxel: each voxel's covered fraction, unfiltered. Otherwise the spline filters
+    // the surface and the lattice smooths whatever width is left.
+    const bool filtered = sigma >= 0.05f;
+    const float rest = lattice_sigma(sigma);
+    const bool smoothing = filtered && rest >= 0.05f;
+    const uint32_t gather = filtered ? VOXELIZE_MODE_GATHER_SPLINE : VOXELIZE_MODE_GATHER_BOX;
+    // Without lattice smoothing the combined coverage is the result; otherwise it goes to scratch first.
     const vk::Buffer& combined = smoothing ? scratch : coverage;
-    // Column casts write their axis's coverage through the x binding; the combine reads all three.
+    // Casts and gathers write their axis's coverage through the x binding; the combine reads all three.
     auto bindings = [&](uint32_t axis) {
-        return std::array<vk::Binding, 7>{
+        return std::array<vk::Binding, 10>{
             vk::Binding::storage_buffer(VOXELIZE_BINDING_TRIANGLES, uploads.triangles),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_TILE_RANGES, uploads.tile_ranges[axis]),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_TILE_ITEMS, uploads.tile_items[axis]),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE_X, uploads.axis_coverage[axis]),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE_Y, uploads.axis_coverage[1]),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE_Z, uploads.axis_coverage[2]),
-            vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE, combined)};
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE, combined),
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_INTERVALS, uploads.intervals),
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_INTERVAL_COUNTS, uploads.interval_counts),
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_STEPS, scratch)};
     };
     for (uint32_t axis = 0; axis < 3; ++axis) {
         const uint32_t ua = (axis + 1) % 3, va = (axis + 2) % 3;
         VoxelizePush push{glm::uvec4(dims[0], dims[1], dims[2], 0), axis, kTileSize,
                           (dims[ua] + kTileSize - 1) / kTileSize, 0};
         const auto groups = vk::linear_groups(uint64_t{dims[ua]} * dims[va], VOLUME_GROUP_SIZE);
-        voxelize_[VOXELIZE_MODE_COLUMNS].dispatch(cmd, std::span<const vk::Binding>(bindings(axis)), push, groups.x, groups.y);
+        const auto axis_bindings = bindings(axis);
+        voxelize_[VOXELIZE_MODE_CAST].dispatch(cmd, std::span<const vk::Binding>(axis_bindings), push, groups.x, groups.y);
+        recorder.compute_barrier();
+        // The next axis's cast overwrites the rays this gather reads: the barrier after it orders them.
+        voxelize_[gather].dispatch(cmd, std::span<const vk::Binding>(axis_bindings), push, groups.x, groups.y);
+        recorder.compute_barrier();
     }
-    recorder.compute_barrier();
     const auto voxel_groups = vk::linear_groups(grid.dims.count(), VOLUME_GROUP_SIZE);
     VoxelizePush combine{glm::uvec4(dims[0], dims[1], dims[2], 0), 0, kTileSize, 1, 0};
     voxelize_[VOXELIZE_MODE_COMBINE].dispatch(cmd, std::span<const vk::Binding>(bindings(0)), combine, voxel_groups.x, voxel_groups.y);
@@ -135,10 +186,10 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
         // x: scratch -> coverage, y: coverage -> scratch, z: scratch -> coverage.
         const vk::Buffer* source = &scratch;
         const vk::Buffer* target = &coverage;
-        const int radius = std::min(static_cast<int>(std::ceil(3.0f * sigma)), SMOOTH_MAX_RADIUS);
+        const int radius = std::min(static_cast<int>(std::ceil(3.0f * rest)), SMOOTH_MAX_RADIUS);
         const vk::ComputePipeline& pipeline = smooth(radius);
         SmoothPush push{};
-        for (int o = 0; o <= radius; ++o) push.weights[o] = std::exp(-0.5f * static_cast<float>(o * o) / (sigma * sigma));
+        for (int o = 0; o <= radius; ++o) push.weights[o] = std::exp(-0.5f * static_cast<float>(o * o) / (rest * rest));
         for (uint32_t axis = 0; axis < 3; ++axis) {
             push.dims = glm::uvec4(dims[0], dims[1], dims[2], axis);
             // One invocation per SMOOTH_RUN voxels along the axis (smooth.comp).

@@ -1,6 +1,8 @@
-// Pass 1 (voxelize + smooth): a world-space triangle mesh -> fractional coverage per voxel, Gaussian
-// smoothed. Triangles are binned on the host into tiles of voxel columns per axis; the GPU casts S x S
-// rays per column along each axis (see shaders/voxelize.comp) and smooths separably (smooth.comp).
+// Pass 1 (voxelize + smooth): a world-space triangle mesh -> its occupancy filtered to the Gaussian width
+// volume.smoothing asks for, per voxel. Triangles are binned on the host into tiles of voxel columns per
+// axis; the GPU casts S x S rays per column along each axis, filters the occupancy with a quadratic
+// B-spline before sampling it (see shaders/voxelize.comp) and smooths the rest of the width separably on
+// the lattice (smooth.comp).
 #pragma once
 
 #include <array>
@@ -21,6 +23,7 @@ struct VoxelizeUploads {
     vk::Buffer triangles;
     std::array<vk::Buffer, 3> tile_ranges, tile_items;
     std::array<vk::Buffer, 3> axis_coverage;
+    vk::Buffer intervals, interval_counts;  // one axis's rays at a time
 };
 
 class VoxelizePass {
@@ -28,10 +31,20 @@ public:
     explicit VoxelizePass(vk::Context& context);
 
     // Records voxelization of `mesh_world` into `coverage` (float per voxel; `scratch` is the same size),
-    // smoothing with `sigma` voxels. Returns the uploads the recorded commands use.
+    // filtered to a Gaussian of `sigma` voxels (0: each voxel's covered fraction). Returns the uploads the
+    // recorded commands use.
     VoxelizeUploads record(vk::CommandRecorder& recorder, const mesh::Mesh& mesh_world,
                            const scene::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
                            const vk::Buffer& coverage);
+
+    // The Gaussian (sigma voxels, sampled on ceil(3 sigma) taps each side) left to the lattice once the
+    // B-spline (variance 1/4 voxel^2) has filtered the surface. The shell keeps the width the voxel box
+    // and the lattice Gaussian of `sigma` gave it before (variance 1/12 + that kernel's): the index
+    // field's central differences and trilinear fetches were tuned to it, and a sharper shell bends rays
+    // by worse sampled normals. 0 where the spline alone is that wide.
+    static float lattice_sigma(float sigma);
+    // The variance (voxel^2) of the sampled, normalized Gaussian of `sigma` voxels the lattice smooths with.
+    static double kernel_variance(double sigma);
 
     static constexpr uint32_t kSubsamples = VOXELIZE_SUBSAMPLES;  // S x S rays per voxel column and axis
     // Triangles are binned per tile of kTileSize^2 columns; each ray tests its tile's list. One column

@@ -12,6 +12,14 @@ REFRACT_SHADERS_BEGIN
 // no light is lost: a slab at normal incidence then reflects R + T^2 R, 6e-5 short of 2R / (1 + R), and
 // the rest goes through. Total internal reflection needs no path (the ray equation turns the ray).
 #define FRESNEL_EYE_REFLECTIONS 3u
+// A reflected path whose share of the pixel's light is below this in every channel is not marched: it
+// takes the floor or sky straight along its direction from where it leaves the boundary. That drops what
+// the grid would still do to it (fog it would gather, refraction on the way out, further reflections),
+// so it errs by at most this share of the difference: 1% of a pixel's light. Only the second internal
+// reflection is that faint through glass (T R^2, 0.15% at normal incidence; the front's R and the first
+// internal T R are 4%); in the default scene's still that path cost 17% of the eye-ray steps and about a
+// third of the viewing pass (a pixel's SIMD neighbours waited for its fourth march; docs/benchmarks.md).
+#define FRESNEL_EYE_TRACED_SHARE 0.01f
 
 // The unpolarized reflectance (the mean of s and p) of light meeting an interface from index n1 into index
 // n2 with sin_i the sine of its angle of incidence on the n1 side: 1 beyond the critical angle.

@@ -22,15 +22,22 @@ layout(constant_id = VOLUME_CONSTANT_MODE) const uint kMode = 0u;
 #define VOXELIZE_BINDING_TRIANGLES 0   // 3 x vec4 per triangle, positions in voxel coordinates
 #define VOXELIZE_BINDING_TILE_RANGES 1 // uvec2 (first, count) per tile of the column plane
 #define VOXELIZE_BINDING_TILE_ITEMS 2  // triangle indices, grouped by tile
-#define VOXELIZE_BINDING_COVERAGE_X 3  // per-axis coverage, -1 where that axis's columns were unreliable;
-                                       // COLUMNS binds the cast axis's here
+#define VOXELIZE_BINDING_COVERAGE_X 3  // per-axis filtered occupancy, -1 where that axis's rays were
+                                       // unreliable; GATHER binds the cast axis's here
 #define VOXELIZE_BINDING_COVERAGE_Y 4
 #define VOXELIZE_BINDING_COVERAGE_Z 5
-#define VOXELIZE_BINDING_COVERAGE 6    // combined (median) coverage
+#define VOXELIZE_BINDING_COVERAGE 6    // combined (mean) coverage
+#define VOXELIZE_BINDING_INTERVALS 7   // vec2 (in, out) along the axis, VOXELIZE_MAX_INTERVALS per ray
+#define VOXELIZE_BINDING_INTERVAL_COUNTS 8  // int per ray: its intervals, -1 where its column is unreliable
+#define VOXELIZE_BINDING_STEPS 9       // float per voxel, zero between dispatches: whole weights past a
+                                       // crossing's reach, summed along the column
 #define VOXELIZE_MAX_CROSSINGS 32  // per ray
+#define VOXELIZE_MAX_INTERVALS 8   // inside intervals per ray kept for the gather
 #define VOXELIZE_SUBSAMPLES 4      // S: S x S rays per voxel column and axis
-#define VOXELIZE_MODE_COLUMNS 0u
-#define VOXELIZE_MODE_COMBINE 1u
+#define VOXELIZE_MODE_CAST 0u
+#define VOXELIZE_MODE_GATHER_BOX 1u     // the covered fraction of each voxel (volume.smoothing 0)
+#define VOXELIZE_MODE_GATHER_SPLINE 2u  // the occupancy filtered by a quadratic B-spline
+#define VOXELIZE_MODE_COMBINE 3u
 
 struct VoxelizePush {
     uvec4 dims;    // xyz: grid size; w: unused
