@@ -19,7 +19,7 @@ namespace refract::passes {
 // Work items (photons, pixels) per part of a dispatch split into parts: the passes whose invocations take
 // their work items from a queue in order (take_from_queue) can stop after any part, and a refinement
 // step submits between parts, so that waiting work comes before the rest of it (scene::RunOptions).
-constexpr uint32_t kWorkPart = 65536;
+constexpr uint32_t kWorkPart = 32768;
 // Runs between two parts of a split dispatch; it may submit the command buffer and begin another (the
 // pass records the next part into recorder.get()), or throw to abandon the rest. Empty: no parts.
 using BetweenParts = std::function<void()>;
