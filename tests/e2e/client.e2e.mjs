@@ -275,6 +275,42 @@ async function main() {
     log(`Add changed ${(lit * 100).toFixed(1)}% of the pixels; renamed and removed`);
   });
 
+  await check('alt-drag moves the object across the view, the camera stays', async () => {
+    await waitSettled(page);
+    const before = (await sceneOnServer(sceneId)).scene;
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await snapshotCanvas(page);
+    const box = await page.locator('#view').boundingBox();
+    const cx = box.x + box.width / 2;
+    const cy = box.y + box.height / 2;
+    await page.mouse.move(cx, cy);
+    await page.keyboard.down('Alt');
+    await page.mouse.down();
+    for (let i = 1; i <= 10; ++i) {
+      await page.mouse.move(cx - i * 8, cy);
+      await sleep(30);
+    }
+    await page.mouse.up();
+    await page.keyboard.up('Alt');
+    await waitSettled(page, rev0);
+    const after = (await sceneOnServer(sceneId)).scene;
+    const [p0, p1] = [before.object.position, after.object.position];
+    const c = after.camera;
+    const forward = [0, 1, 2].map((i) => c.target[i] - c.position[i]);
+    const along = [0, 1, 2].reduce((sum, i) => sum + (p1[i] - p0[i]) * forward[i], 0) / Math.hypot(...forward);
+    assert(JSON.stringify(after.camera) === JSON.stringify(before.camera), 'alt-drag moved the camera');
+    assert(p1[0] < p0[0] - 0.05, `object x ${p0[0]} -> ${p1[0]}: not moved left`);
+    assert(Math.abs(along) < 1e-3, `the object moved ${along} m along the view`);
+    const changed = await canvasChange(page);
+    assert(changed > 0.005, `only ${(changed * 100).toFixed(2)}% of the pixels changed`);
+    // Put it back for the checks after this one.
+    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    const back = await api('PATCH', `/api/scenes/${sceneId}`, { object: { position: p0 } }, 'application/merge-patch+json');
+    assert(back.status === 200, `PATCH back: ${back.status}`);
+    await waitSettled(page, rev1);
+    log(`object ${JSON.stringify(p0)} -> ${JSON.stringify(p1)}, ${(changed * 100).toFixed(1)}% pixels changed`);
+  });
+
   await check('shift-drag moves the light: new revision, different pixels', async () => {
     await waitSettled(page);
     const before = await sceneOnServer(sceneId);

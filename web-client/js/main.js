@@ -1033,6 +1033,17 @@ function moveLight(dAz, dEl, final) {
   edit({ light: { position, direction } }, final);
 }
 
+// Moves the chosen object by a pointer's motion (CSS pixels) across the view, at the object's depth.
+function moveObject(dxPixels, dyPixels) {
+  const doc = panel();
+  const rect = imageRect();
+  if (!(rect.width > 0 && rect.height > 0)) return;
+  const position = doc.object?.position || [0, 0, 0];
+  const moved = S.panInView(cameraOf(doc), rect.width / rect.height, position,
+    (2 * dxPixels) / rect.width, (-2 * dyPixels) / rect.height);
+  edit({ object: { position: S.roundVec(moved, 4) } }, false);
+}
+
 function setLightMode(on) {
   state.lightMode = on;
   const btn = $('mode-light');
@@ -1085,7 +1096,9 @@ canvas.addEventListener('pointerdown', (e) => {
   canvas.setPointerCapture(e.pointerId);
   state.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
   if (state.pointers.size === 1) {
-    state.drag = { x: e.clientX, y: e.clientY, light: e.shiftKey || state.lightMode, moved: false };
+    // Alt+drag moves the chosen object across the view, Shift+drag (or light mode) the chosen light.
+    const object = e.altKey;
+    state.drag = { x: e.clientX, y: e.clientY, object, light: !object && (e.shiftKey || state.lightMode), moved: false };
     stage.classList.toggle('dragging-light', state.drag.light);
   } else if (state.pointers.size === 2) {
     const [a, b] = [...state.pointers.values()];
@@ -1113,6 +1126,7 @@ canvas.addEventListener('pointermove', (e) => {
   drag.x = e.clientX;
   drag.y = e.clientY;
   drag.moved = true;
+  if (drag.object) return void moveObject(dx, dy);
   const [ax, ay] = dragAngles(dx, dy);
   if (drag.light) moveLight(ax, -ay, false);
   else orbitCamera(-ax, ay, false);

@@ -218,17 +218,31 @@ export function framePosition(camera, center, radius, aspect, margin = 1.15) {
   return add(center, scale(d, (radius * margin) / Math.sin(narrowest)));
 }
 
+// A camera as in the scene document: its unit axes and tan(vertical fov / 2).
+function cameraBasis(camera) {
+  const forward = normalize(sub(camera.target, camera.position));
+  const right = normalize(cross(forward, camera.up || [0, 1, 0]));
+  return { forward, right, up: cross(right, forward), t: Math.tan(((camera.fov_deg || 40) * DEG) / 2) };
+}
+
 // Projects a world point into normalised device coordinates for a camera as in the scene document.
 // Returns null when the point is behind the camera.
 export function project(camera, aspect, point) {
-  const forward = normalize(sub(camera.target, camera.position));
-  const right = normalize(cross(forward, camera.up || [0, 1, 0]));
-  const up = cross(right, forward);
+  const { forward, right, up, t } = cameraBasis(camera);
   const rel = sub(point, camera.position);
   const z = dot(rel, forward);
   if (z <= 1e-6) return null;
-  const t = Math.tan(((camera.fov_deg || 40) * DEG) / 2);
   return { x: dot(rel, right) / (z * t * aspect), y: dot(rel, up) / (z * t) };
+}
+
+// `point` moved across the view at its own depth by (dx, dy) in normalised device coordinates (2 across
+// the image, y up), so that it stays under the pointer that drags it: project's inverse. A point behind
+// the camera stays where it is.
+export function panInView(camera, aspect, point, dx, dy) {
+  const { forward, right, up, t } = cameraBasis(camera);
+  const z = dot(sub(point, camera.position), forward);
+  if (z <= 1e-6) return point;
+  return add(point, add(scale(right, dx * z * t * aspect), scale(up, dy * z * t)));
 }
 
 // ---- colour --------------------------------------------------------------------------------------
