@@ -127,6 +127,22 @@ async function sceneOnServer(id) {
   return r.json;
 }
 
+// Drags from the view's centre with `modifier` held: `steps` moves of (dx, dy) CSS pixels, 30 ms apart.
+async function dragFromCentre(page, modifier, steps, dx, dy) {
+  const box = await page.locator('#view').boundingBox();
+  const cx = box.x + box.width / 2;
+  const cy = box.y + box.height / 2;
+  await page.mouse.move(cx, cy);
+  await page.keyboard.down(modifier);
+  await page.mouse.down();
+  for (let i = 1; i <= steps; ++i) {
+    await page.mouse.move(cx + i * dx, cy + i * dy);
+    await sleep(30);
+  }
+  await page.mouse.up();
+  await page.keyboard.up(modifier);
+}
+
 // Loads example scene `name` from the example picker and waits for its still frame.
 async function applyExample(page, name) {
   const rev0 = await page.evaluate(() => window.refract.lastRevision);
@@ -280,18 +296,7 @@ async function main() {
     const before = (await sceneOnServer(sceneId)).scene;
     const rev0 = await page.evaluate(() => window.refract.lastRevision);
     await snapshotCanvas(page);
-    const box = await page.locator('#view').boundingBox();
-    const cx = box.x + box.width / 2;
-    const cy = box.y + box.height / 2;
-    await page.mouse.move(cx, cy);
-    await page.keyboard.down('Alt');
-    await page.mouse.down();
-    for (let i = 1; i <= 10; ++i) {
-      await page.mouse.move(cx - i * 8, cy);
-      await sleep(30);
-    }
-    await page.mouse.up();
-    await page.keyboard.up('Alt');
+    await dragFromCentre(page, 'Alt', 10, -8, 0);
     await waitSettled(page, rev0);
     const after = (await sceneOnServer(sceneId)).scene;
     const [p0, p1] = [before.object.position, after.object.position];
@@ -316,18 +321,7 @@ async function main() {
     const before = await sceneOnServer(sceneId);
     const rev0 = await page.evaluate(() => window.refract.lastRevision);
     await snapshotCanvas(page);
-    const box = await page.locator('#view').boundingBox();
-    const cx = box.x + box.width / 2;
-    const cy = box.y + box.height / 2;
-    await page.mouse.move(cx, cy);
-    await page.keyboard.down('Shift');
-    await page.mouse.down();
-    for (let i = 1; i <= 12; ++i) {
-      await page.mouse.move(cx - i * 14, cy + i * 4);
-      await sleep(30);
-    }
-    await page.mouse.up();
-    await page.keyboard.up('Shift');
+    await dragFromCentre(page, 'Shift', 12, -14, 4);
     await waitSettled(page, rev0);
     const after = await sceneOnServer(sceneId);
     const changed = await canvasChange(page);
