@@ -410,18 +410,15 @@ private:
     void read_light(const json& light, const std::string& base, Light& l) const {
         check_object(light, base, {"type", "position", "direction", "color", "intensity", "cone_deg"},
                      "must be a JSON object");
-        {
-            const json* j = &light;
-            l.type = enumeration(*j, base, "type", l.type,
-                                 {{"point", LightType::point},
-                                  {"spot", LightType::spot},
-                                  {"directional", LightType::directional}});
-            l.position = vec3(*j, base, "position", l.position, kCoord);
-            l.direction = vec3(*j, base, "direction", l.direction, kCoord);
-            l.color = vec3(*j, base, "color", l.color, kColor);
-            l.intensity = number(*j, base, "intensity", l.intensity, kIntensity);
-            l.cone_deg = number(*j, base, "cone_deg", l.cone_deg, kCone);
-        }
+        l.type = enumeration(light, base, "type", l.type,
+                             {{"point", LightType::point},
+                              {"spot", LightType::spot},
+                              {"directional", LightType::directional}});
+        l.position = vec3(light, base, "position", l.position, kCoord);
+        l.direction = vec3(light, base, "direction", l.direction, kCoord);
+        l.color = vec3(light, base, "color", l.color, kColor);
+        l.intensity = number(light, base, "intensity", l.intensity, kIntensity);
+        l.cone_deg = number(light, base, "cone_deg", l.cone_deg, kCone);
         if (l.type != LightType::point && length(l.direction) < kTiny) {
             fail_blaming({{child(base, "direction"), "must be a non-zero vector for spot and directional lights"},
                           {child(base, "type"), "a spot or directional light needs a non-zero " + child(base, "direction")}});
@@ -433,47 +430,44 @@ private:
                      {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "abbe", "fresnel",
                       "film", "extinction", "scattering", "phase", "grid"},
                      "must be a JSON object");
-        {
-            const json* j = &object;
-            static constexpr const char* kMeshRule =
-                "must be \"sphere\", \"cube\", \"torus\", \"prism\" or \"upload:NAME\" with NAME 1..64 characters of "
-                "[A-Za-z0-9_.-]";
-            if (const std::string* mesh = string_member(*j, base, "mesh", kMeshRule)) {
-                constexpr std::string_view upload = "upload:";
-                const bool builtin = *mesh == "sphere" || *mesh == "cube" || *mesh == "torus" || *mesh == "prism";
-                const bool uploaded = mesh->compare(0, upload.size(), upload) == 0 &&
-                                      valid_name(std::string_view(*mesh).substr(upload.size()));
-                if (!builtin && !uploaded) fail(child(base, "mesh"), kMeshRule);
-                o.mesh = *mesh;
-            }
-            o.position = vec3(*j, base, "position", o.position, kCoord);
-            o.rotation_deg = vec3(*j, base, "rotation_deg", o.rotation_deg, kCoord);
-            o.scale = number(*j, base, "scale", o.scale, kScale);
-            o.index_field = enumeration(*j, base, "index_field", o.index_field,
-                                        {{"uniform", IndexFieldKind::uniform},
-                                         {"luneburg", IndexFieldKind::luneburg},
-                                         {"maxwell", IndexFieldKind::maxwell},
-                                         {"grid", IndexFieldKind::grid}});
-            o.ior = number(*j, base, "ior", o.ior, kIor);
-            o.maxwell_n0 = number(*j, base, "maxwell_n0", o.maxwell_n0, kIor);
-            o.abbe = number(*j, base, "abbe", o.abbe, kAbbe);
-            // Below 5 no glass exists, and channels would part by more than the field's own contrast.
-            if (o.abbe > 0.0 && o.abbe < 5.0) fail(child(base, "abbe"), kAbbeRule);
-            o.fresnel = boolean(*j, base, "fresnel", o.fresnel);
-            if (const json* f = section(*j, base, "film", {"ior", "top_nm", "bottom_nm"})) {
-                const std::string film = base + "/film";
-                o.film.ior = number(*f, film, "ior", o.film.ior, kIor);
-                o.film.top_nm = number(*f, film, "top_nm", o.film.top_nm, kFilmThickness);
-                o.film.bottom_nm = number(*f, film, "bottom_nm", o.film.bottom_nm, kFilmThickness);
-            }
-            coefficients(*j, base, o.extinction, o.scattering);
-            o.phase = phase(*j, base, o.phase);
-            static constexpr const char* kGridRule =
-                "must be \"\" or a name of 1..64 characters of [A-Za-z0-9_.-]";
-            if (const std::string* grid = string_member(*j, base, "grid", kGridRule)) {
-                if (!grid->empty() && !valid_name(*grid)) fail(child(base, "grid"), kGridRule);
-                o.grid = *grid;
-            }
+        static constexpr const char* kMeshRule =
+            "must be \"sphere\", \"cube\", \"torus\", \"prism\" or \"upload:NAME\" with NAME 1..64 characters of "
+            "[A-Za-z0-9_.-]";
+        if (const std::string* mesh = string_member(object, base, "mesh", kMeshRule)) {
+            constexpr std::string_view upload = "upload:";
+            const bool builtin = *mesh == "sphere" || *mesh == "cube" || *mesh == "torus" || *mesh == "prism";
+            const bool uploaded = mesh->compare(0, upload.size(), upload) == 0 &&
+                                  valid_name(std::string_view(*mesh).substr(upload.size()));
+            if (!builtin && !uploaded) fail(child(base, "mesh"), kMeshRule);
+            o.mesh = *mesh;
+        }
+        o.position = vec3(object, base, "position", o.position, kCoord);
+        o.rotation_deg = vec3(object, base, "rotation_deg", o.rotation_deg, kCoord);
+        o.scale = number(object, base, "scale", o.scale, kScale);
+        o.index_field = enumeration(object, base, "index_field", o.index_field,
+                                    {{"uniform", IndexFieldKind::uniform},
+                                     {"luneburg", IndexFieldKind::luneburg},
+                                     {"maxwell", IndexFieldKind::maxwell},
+                                     {"grid", IndexFieldKind::grid}});
+        o.ior = number(object, base, "ior", o.ior, kIor);
+        o.maxwell_n0 = number(object, base, "maxwell_n0", o.maxwell_n0, kIor);
+        o.abbe = number(object, base, "abbe", o.abbe, kAbbe);
+        // Below 5 no glass exists, and channels would part by more than the field's own contrast.
+        if (o.abbe > 0.0 && o.abbe < 5.0) fail(child(base, "abbe"), kAbbeRule);
+        o.fresnel = boolean(object, base, "fresnel", o.fresnel);
+        if (const json* f = section(object, base, "film", {"ior", "top_nm", "bottom_nm"})) {
+            const std::string film = base + "/film";
+            o.film.ior = number(*f, film, "ior", o.film.ior, kIor);
+            o.film.top_nm = number(*f, film, "top_nm", o.film.top_nm, kFilmThickness);
+            o.film.bottom_nm = number(*f, film, "bottom_nm", o.film.bottom_nm, kFilmThickness);
+        }
+        coefficients(object, base, o.extinction, o.scattering);
+        o.phase = phase(object, base, o.phase);
+        static constexpr const char* kGridRule =
+            "must be \"\" or a name of 1..64 characters of [A-Za-z0-9_.-]";
+        if (const std::string* grid = string_member(object, base, "grid", kGridRule)) {
+            if (!grid->empty() && !valid_name(*grid)) fail(child(base, "grid"), kGridRule);
+            o.grid = *grid;
         }
         if (o.index_field == IndexFieldKind::grid && o.grid.empty()) {
             fail_blaming({{child(base, "grid"), "must name a stored grid when " + child(base, "index_field") + " is \"grid\""},

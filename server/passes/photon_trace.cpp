@@ -76,19 +76,23 @@ PhotonTracePass::PhotonTracePass(vk::Context& context)
       sampled_walks_(context, photon_trace_spv, kLayout, 0, "photon trace (random walks, sampled deposits)",
                      kSampledWalks) {}
 
-void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey) {
-    recorder.fill(accum.stats, 0);
-    recorder.fill(accum.exits, 0);
+namespace {
+void clear_sums(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey) {
     if (!grey) recorder.fill(accum.red_green, 0);
     recorder.fill(accum.flux, 0);
     recorder.fill(accum.floor, 0);
+}
+}  // namespace
+
+void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey) {
+    recorder.fill(accum.stats, 0);
+    recorder.fill(accum.exits, 0);
+    clear_sums(recorder, accum, grey);
     recorder.transfer_to_compute_barrier();
 }
 
 void clear_for_next_light(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey) {
-    if (!grey) recorder.fill(accum.red_green, 0);
-    recorder.fill(accum.flux, 0);
-    recorder.fill(accum.floor, 0);
+    clear_sums(recorder, accum, grey);
     const uint32_t none = 0;
     recorder.update(accum.stats, offsetof(shaders::PhotonStats, queue_taken) + QUEUE_PHOTONS * sizeof(uint32_t), &none,
                     sizeof(none));

@@ -407,6 +407,15 @@ class SceneFileField extends Field {
   }
 }
 
+// Lists `names` (values `prefix` + name) in `select`'s option group `group`, hidden while empty; the
+// choice made stays.
+function fillGroup(select, group, prefix, names) {
+  const current = select.value;
+  group.replaceChildren(...names.map((n) => h('option', { value: `${prefix}${n}`, text: n })));
+  group.hidden = names.length === 0;
+  if (current) select.value = current;
+}
+
 // Mesh picker: built-in shapes and uploaded OBJ meshes, plus an upload button.
 class MeshField extends Field {
   constructor(spec, emit, hooks) {
@@ -427,12 +436,7 @@ class MeshField extends Field {
     this.el.append(this.label, h('div', { class: 'row' }, this.select, this.file, picker.label), keepLabel, this.status,
       this.error);
   }
-  setMeshes(names) {
-    const current = this.select.value;
-    this.uploaded.replaceChildren(...names.map((n) => h('option', { value: `upload:${n}`, text: n })));
-    this.uploaded.hidden = names.length === 0;
-    if (current) this.select.value = current;
-  }
+  setMeshes(names) { fillGroup(this.select, this.uploaded, 'upload:', names); }
   // Upload news stays only while the scene uses that mesh.
   setStatus(text, mesh = null) {
     this.status.textContent = text;
@@ -507,12 +511,7 @@ class EnvironmentField extends Field {
     this.el.append(this.label, h('div', { class: 'row' }, this.select, picker.input, picker.label), this.status,
       this.error);
   }
-  setImages(names) {
-    const current = this.select.value;
-    this.images.replaceChildren(...names.map((n) => h('option', { value: `image:${n}`, text: n })));
-    this.images.hidden = names.length === 0;
-    if (current) this.select.value = current;
-  }
+  setImages(names) { fillGroup(this.select, this.images, 'image:', names); }
   setStatus(text) { this.status.textContent = text; }
   update(doc) {
     if (isEditing(this.select)) return;
