@@ -145,6 +145,7 @@ public:
         read_image(root, d.image);
         d.lights = collection<Light>(root, "lights", "light", kMaxLights, &Reader::read_light);
         d.objects = collection<Object>(root, "objects", "object", kMaxObjects, &Reader::read_object);
+        check_objects_together(d.objects);
         read_medium(root, d.medium);
         read_volume(root, d.volume);
         read_photons(root, d.photons);
@@ -393,8 +394,7 @@ private:
         }
         const std::string base = child("", plural);
         if (!many->is_object()) fail(base, "must be a JSON object of named members");
-        const std::string count_rule = most == 1 ? "must hold exactly one member (scenes of several are not rendered yet)"
-                                                 : "must hold 1 to " + std::to_string(most) + " members";
+        const std::string count_rule = "must hold 1 to " + std::to_string(most) + " members";
         if (many->empty() || many->size() > most) fail(base, count_rule);
         std::map<std::string, T> members;
         for (const auto& [name, value] : many->items()) {
@@ -472,6 +472,24 @@ private:
         if (o.index_field == IndexFieldKind::grid && o.grid.empty()) {
             fail_blaming({{child(base, "grid"), "must name a stored grid when " + child(base, "index_field") + " is \"grid\""},
                           {child(base, "index_field"), "\"grid\" requires a non-empty " + child(base, "grid")}});
+        }
+    }
+
+    // What several objects must share: an imported grid is the scene's whole field, so it stands alone;
+    // and the channels' index contrast is scaled by one Abbe number per scene (dispersion_scales).
+    void check_objects_together(const std::map<std::string, Object>& objects) const {
+        if (objects.size() < 2) return;
+        const auto& [first_name, first] = *objects.begin();
+        const std::string first_abbe = child(child("/objects", first_name), "abbe");
+        for (const auto& [name, o] : objects) {
+            const std::string base = child("/objects", name);
+            if (o.index_field == IndexFieldKind::grid)
+                fail(child(base, "index_field"), "\"grid\" fills the scene's whole volume: it must be the only object");
+            if (o.abbe != first.abbe)
+                fail_blaming({{child(base, "abbe"), "every object takes the same Abbe number (dispersion is one per scene): " +
+                                                        first_abbe + " is " + std::to_string(first.abbe)},
+                              {first_abbe, "every object takes the same Abbe number (dispersion is one per scene): " +
+                                               child(base, "abbe") + " is " + std::to_string(o.abbe)}});
         }
     }
 

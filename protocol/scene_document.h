@@ -158,9 +158,9 @@ struct Environment {
     bool operator==(const Environment&) const = default;
 };
 
-// How many lights and objects a scene may hold. Several objects are not rendered yet: a scene holds one.
+// How many lights and objects a scene may hold.
 inline constexpr size_t kMaxLights = 8;
-inline constexpr size_t kMaxObjects = 1;
+inline constexpr size_t kMaxObjects = 64;
 
 struct SceneDocument {
     Camera camera;
@@ -176,7 +176,7 @@ struct SceneDocument {
     Floor floor;
     Environment environment;
 
-    // The scene's object (a scene holds one until several objects render).
+    // The first object by name: the one object of a document in the older form.
     Object& object() { return objects.begin()->second; }
     const Object& object() const { return objects.begin()->second; }
 

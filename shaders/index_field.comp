@@ -4,13 +4,18 @@
 // step. Gradients are per voxel length (the tracers step in voxel units). Uniform objects map coverage
 // to n between the medium's and the object's index; Luneburg and Maxwell lenses are the analytic test
 // beds, evaluated exactly at voxel centres; imported grids come from a simulation.
+//
+// In a scene of several objects each object's dispatch covers its own box and its voxels join what the
+// objects before it left: a voxel takes the field of the object with the most coverage there (the first
+// to reach it where coverages are equal), so where objects overlap the one more inside wins, and where
+// one only grazes another's box (the smoothing's tails) it leaves it be.
 #include "volume_build.h"
 
 layout(local_size_x = VOLUME_GROUP_3D, local_size_y = VOLUME_GROUP_3D, local_size_z = VOLUME_GROUP_3D) in;
 layout(std430, binding = INDEX_BINDING_COVERAGE) readonly buffer Coverage { float coverage[]; };
 layout(std430, binding = INDEX_BINDING_GRID) readonly buffer Grid { float grid[]; };
 layout(binding = INDEX_BINDING_INDEX_FIELD, rgba32f) uniform writeonly image3D index_field;
-layout(binding = INDEX_BINDING_COVERAGE_IMAGE, r32f) uniform writeonly image3D coverage_image;
+layout(binding = INDEX_BINDING_COVERAGE_IMAGE, rg32f) uniform image3D coverage_image;
 layout(push_constant) uniform Push { IndexFieldPush push; };
 
 float coverage_at(ivec3 v) {
@@ -64,6 +69,12 @@ void main() {
             texel = vec4(push.n_object / s, -2.0 * push.n_object * d / (radius * radius * s * s) * h);
         }
     }
-    imageStore(index_field, v, texel);
-    imageStore(coverage_image, v, vec4(c));
+    ivec3 at = v + ivec3(push.offset.xyz);
+    uint object = push.offset.w;
+    if (object > 0u) {
+        vec2 held = imageLoad(coverage_image, at).rg;
+        if (held.g > 0.0 && c <= held.r) return;
+    }
+    imageStore(index_field, at, texel);
+    imageStore(coverage_image, at, vec4(c, float(object), 0.0, 0.0));
 }

@@ -311,7 +311,8 @@ void main() {
             float coverage = coverage_for(kRandomWalks ? max(params.flags.y, params.flags.z) : params.flags.y, ray.p,
                                           ray.field.x);
             if (kRandomWalks) coverage = walk_step(ray.p, ray.d, ds, coverage, max(params.flags.y, params.flags.z), shell_step);
-            vec3 kappa = extinction_at(coverage) * h;  // per voxel length
+            uint object = object_at(ray.p);
+            vec3 kappa = extinction_at(coverage, object) * h;  // per voxel length
             overlap = overlap || (jumped && !flat_medium(ray.field, coverage));
             bool in_direct = along >= direct_from && along < direct_to;
             if (in_direct) ds = direct_to - along;
@@ -324,7 +325,7 @@ void main() {
             float len = min(ds, min(to_exit, to_floor));
             if (kRandomWalks) {
                 // Absorption stays in the weight; scattering ends the step where the walk says.
-                kappa -= walk_free_path(walk, coverage_as(params.flags.z, coverage), h, len);
+                kappa -= walk_free_path(walk, coverage_as(params.flags.z, coverage), object, h, len);
                 if (walk.collides) { ds = len; to_exit = 1e30; to_floor = 1e30; }
             }
             unbent = unbent && all(equal(ray.field.yzw, vec3(0.0)));

@@ -190,8 +190,9 @@ void shade(uvec2 pixel) {
         while (marches && steps < 8192u) {
             float coverage = coverage_for(max(params.flags.y, params.flags.z), ray.p, ray.field.x);
             float scatter_coverage = coverage_as(params.flags.z, coverage);
-            vec3 sigma_s = scattering_at(scatter_coverage) * h;
-            vec3 kappa = extinction_at(coverage_as(params.flags.y, coverage)) * h;
+            uint object = object_at(ray.p);
+            vec3 sigma_s = scattering_at(scatter_coverage, object) * h;
+            vec3 kappa = extinction_at(coverage_as(params.flags.y, coverage), object) * h;
             bool scatters = max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0;
             uint level = octree_level(ray.p);
             float to_exit = grid_interval(ray.p, ray.d).y;
@@ -212,9 +213,8 @@ void shade(uvec2 pixel) {
                                               : 1e30);
             run = min(run, to_end);
             if (gathers) {
-                bool in_object = scatter_coverage > 0.5;
-                uint model = in_object ? params.models.y : params.models.x;
-                float g = in_object ? params.object_scattering.w : params.medium_scattering.w;
+                uint model = phase_model_at(scatter_coverage, object);
+                float g = phase_g_at(scatter_coverage, object);
                 float gather_step = level == 0u ? run : view_step;
                 vec3 step_attenuation = exp(-kappa * gather_step);
                 vec3 step_path = transmitted_path(kappa, gather_step, step_attenuation);

@@ -180,7 +180,7 @@ TEST_F(EnvironmentGpuTest, UniformEnvironmentLightsTheOpenFloorToPiL) {
     const auto doc = open_scene({{"environment", {{"type", "uniform"}, {"color", {1, 1, 1}}, {"intensity", kRadiance}}},
                                  {"floor", {{"enabled", true}, {"height", -1.0}}}});
     scene::SceneGpu gpu(kit());
-    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+    gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
     EXPECT_EQ(gpu.params().environment.z, doc.photons.count);  // every photon from the environment
     const auto irradiance = gpu.read_floor_irradiance();
     const auto change = gpu.read_floor_map();
@@ -214,7 +214,7 @@ TEST_F(EnvironmentGpuTest, UniformEnvironmentGivesFluenceFourPiLInThinFog) {
                                  {"medium", {{"extinction", {kSigma, kSigma, kSigma}}, {"scattering", {kSigma, kSigma, kSigma}}}},
                                  {"floor", {{"enabled", false}}}});
     scene::SceneGpu gpu(kit());
-    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+    gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
     const auto& grid = gpu.grid();
     const glm::dvec3 centre = 0.5 * (glm::dvec3(grid.origin) + glm::dvec3(grid.max_corner()));
     const double side = static_cast<double>(grid.max_corner().x - grid.origin.x);
@@ -258,7 +258,7 @@ TEST_F(EnvironmentGpuTest, AMarkedDirectionAppearsWhereTheCameraSaysIt) {
                                                  {"fov_deg", 40.0}}},
                                      {"image", {{"width", 64}, {"height", 64}}}});
         scene::SceneGpu gpu(kit());
-        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, {}, &map);
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, {}, &map);
         const auto hdr = gpu.read_hdr();
         double sx = 0.0, sy = 0.0, weight = 0.0;
         for (uint32_t y = 0; y < 64; ++y)
@@ -296,7 +296,7 @@ TEST_F(EnvironmentGpuTest, AMarkedDirectionAppearsWhereItsMirrorImageShouldBe) {
                                  {"camera", {{"position", {eye.x, eye.y, eye.z}}, {"target", {0, 0, 0}}, {"fov_deg", 40.0}}},
                                  {"image", {{"width", 64}, {"height", 64}}}});
     scene::SceneGpu gpu(kit());
-    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, {}, &map);
+    gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, {}, &map);
     const double incidence = std::acos(std::abs(looking.y));
     const double ct = std::sqrt(1.0 - std::pow(std::sin(incidence) / 4.0, 2.0)), ci = std::cos(incidence);
     const double rs = (ci - 4.0 * ct) / (ci + 4.0 * ct), rp = (4.0 * ci - ct) / (4.0 * ci + ct);

@@ -62,7 +62,7 @@ protected:
         scene::RunOptions options;
         options.record_photon_exits = true;
         options.limit = scene::kAllPasses & ~scene::kView;
-        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
         return gpu.read_photon_exits();
     }
 
@@ -177,7 +177,7 @@ protected:
                                       {"image", {{"width", 16}, {"height", 16}}},
                                       {"volume", volume}});
         scene::SceneGpu gpu(kit());
-        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
         return {gpu.read_hdr(), gpu.params()};
     }
     // Each pixel's R_total measured from its colour, against `expected`(R at its angle of incidence):
@@ -254,7 +254,7 @@ TEST_F(FresnelViewTest, GlassInAUniformEnvironmentIsAWhiteFurnace) {
                       {"volume", bounds({-1.2, -1.2, -1.2}, {1.2, 1.2, 1.2}, 96)}};
         const auto doc = glass_scene(patch);
         scene::SceneGpu gpu(kit());
-        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
         double worst = 0.0;
         for (const auto& px : gpu.read_hdr())
             for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(double{px[c]} - L));
@@ -311,7 +311,7 @@ protected:
                                       {"volume", {{"resolution", 64}, {"smoothing", 0.75}, {"octree_epsilon", 1e-4},
                                                   {"bounds", {{"min", {-0.4, 0.5, -0.4}}, {"max", {0.4, 1.3, 0.4}}}}}}});
         scene::SceneGpu gpu(kit());
-        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
         const auto hdr = gpu.read_hdr();
         const auto& p = gpu.params();
         glm::dvec3 r(0.0);
@@ -372,7 +372,7 @@ TEST_F(FresnelTest, PhotonsThroughASoapFilmReflectEachChannelsBandAverage) {
     scene::SceneGpu gpu(kit());
     scene::RunOptions options;
     options.limit = scene::kAllPasses & ~scene::kView;
-    const auto stats = gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
+    const auto stats = gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
     const double entered = static_cast<double>(stats.photons_entered);
     ASSERT_GT(entered, 60000.0);
     const auto map = gpu.read_floor_map();

@@ -32,12 +32,14 @@ protected:
     static vk::Context& context() { return *context_; }
     static scene::PassKit& kit() { return *kit_; }
 
-    // The object's world mesh as the renderer builds it (built-ins and procedural lenses only).
-    static mesh::Mesh world_mesh(const protocol::SceneDocument& d) {
-        const auto base = scene::base_mesh(d, nullptr);
-        if (!base) throw std::runtime_error("test scene names an upload: " + d.object().mesh);
-        return scene::world_mesh(d, *base);
+    // The objects' world meshes as the renderer builds them (built-ins and procedural lenses only).
+    static scene::WorldMeshes worlds(const protocol::SceneDocument& d) {
+        return scene::world_meshes(d, [](const std::string& name) -> std::shared_ptr<const mesh::Mesh> {
+            throw std::runtime_error("test scene names an upload: " + name);
+        });
     }
+    // The first object's.
+    static mesh::Mesh world_mesh(const protocol::SceneDocument& d) { return worlds(d).begin()->second; }
 
 private:
     static inline std::unique_ptr<vk::Context> context_;

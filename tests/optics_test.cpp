@@ -58,7 +58,7 @@ protected:
         options.record_photon_exits = true;
         options.fixed_step = fixed_step;
         options.limit = scene::kAllPasses & ~scene::kView;
-        const auto stats = gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
+        const auto stats = gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
         Traced t{gpu.read_photon_exits(), gpu.grid(), 0.0};
         t.mean_steps = static_cast<double>(stats.photon_steps) / static_cast<double>(std::max<uint64_t>(stats.photons_entered, 1));
         return t;
@@ -370,7 +370,7 @@ protected:
         options.sampled_deposits = sampled_deposits;
         options.direct_light = direct_light;
         options.limit = scene::kAllPasses & ~scene::kView;
-        const auto s = gpu->run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
+        const auto s = gpu->run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
         if (stats) *stats = s;
         return gpu;
     }
@@ -632,7 +632,7 @@ TEST_F(EnergyTest, RefractionConservesFlux) {
         scene::RunOptions options;
         options.limit = scene::kAllPasses & ~scene::kView;
         options.record_photon_exits = true;
-        gpu->run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
+        gpu->run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
         const auto exits = gpu->read_photon_exits();
         const size_t count = doc.photons.count;
         ASSERT_EQ(exits.size(), abbe > 0.0 ? 3 * count : count);
@@ -807,7 +807,7 @@ TEST_F(EnergyTest, SampledDepositsAgreeWithExactOnes) {
         options.radiance_factor = factor;
         options.sampled_deposits = true;
         options.limit = scene::kAllPasses & ~scene::kView;
-        const auto rerun = exact->run(0, doc, world_mesh(doc), nullptr, options);
+        const auto rerun = exact->run(0, doc, worlds(doc), nullptr, options);
         EXPECT_TRUE(rerun.ran & scene::kPhotons);
         const auto resident = exact->read_flux();
         EXPECT_TRUE(std::equal(resident.begin(), resident.end(), b.begin()));
@@ -1009,7 +1009,7 @@ TEST_F(EnergyTest, FloorUnderSeveralLightsTakesEachLightsIrradiance) {
           {"away", {{"type", "spot"}, {"position", {0, 3, 0}}, {"direction", {1, 0, 0}}, {"cone_deg", 20}, {"intensity", 50}}}}}};
     const auto doc = protocol::parse_scene(patch);
     scene::SceneGpu gpu(kit());
-    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+    gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
     const glm::dvec3 x(0.0, -1.0, 0.0);
     glm::dvec3 expected(0.0);
     const auto colour = [](const protocol::Light& l) { return glm::dvec3(l.color[0], l.color[1], l.color[2]) * l.intensity; };

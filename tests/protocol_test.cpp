@@ -399,6 +399,34 @@ TEST(Collections, MergePatchesAddEditRenameAndRemoveOneLightByItsKey) {
     EXPECT_EQ(removed, one);
 }
 
+// "o0", "o1", ... (built by append: GCC 12 warns falsely on a literal + std::string).
+std::string object_name(size_t i) {
+    std::string name = "o";
+    name.append(std::to_string(i));
+    return name;
+}
+
+TEST(Collections, MergePatchesAddEditAndRemoveOneObjectByItsKey) {
+    const SceneDocument one;
+    const SceneDocument two = apply_merge_patch(
+        one, json::parse(R"({"objects": {"lens": {"index_field": "luneburg", "position": [2, 0, 0], "scale": 0.5}}})"));
+    ASSERT_EQ(two.objects.size(), 2u);
+    EXPECT_EQ(two.objects.at("object"), one.objects.at("object"));  // the other object is untouched
+    EXPECT_EQ(two.objects.at("lens").index_field, IndexFieldKind::luneburg);
+    EXPECT_EQ(two.objects.at("lens").extinction, Object{}.extinction);  // fields not given take defaults
+    const SceneDocument moved = apply_merge_patch(two, json::parse(R"({"objects": {"lens": {"position": [3, 0, 0]}}})"));
+    EXPECT_DOUBLE_EQ(moved.objects.at("lens").position[0], 3.0);
+    EXPECT_EQ(moved.objects.at("lens").index_field, IndexFieldKind::luneburg);
+    EXPECT_EQ(moved.objects.at("object"), one.objects.at("object"));
+    EXPECT_EQ(apply_merge_patch(moved, json::parse(R"({"objects": {"lens": null}})")), one);
+    // Up to kMaxObjects, in the stored form and back.
+    json many = json::object();
+    for (size_t i = 0; i < kMaxObjects; ++i) many[object_name(i)] = {{"position", {double(i), 0, 0}}};
+    const SceneDocument full = parse_scene(json{{"objects", many}});
+    EXPECT_EQ(full.objects.size(), kMaxObjects);
+    EXPECT_EQ(parse_scene(to_json(full)), full);
+}
+
 TEST(Collections, OlderFormPatchesEditTheOneMemberWhateverItsName) {
     SceneDocument d = apply_merge_patch(SceneDocument{}, json::parse(R"({"lights": {"light": null, "key": {"intensity": 9}}})"));
     ASSERT_EQ(d.lights.size(), 1u);
@@ -440,6 +468,8 @@ TEST(Collections, BadCollectionsAreRejectedWithTheirPointerAndChangeNothing) {
     for (int i = 0; i < 9; ++i) nine["l" + std::to_string(i)] = json::object();
     json eight = nine;
     eight.erase("l8");
+    json sixty_five = json::object();
+    for (size_t i = 0; i <= kMaxObjects; ++i) sixty_five[object_name(i)] = json::object();
     EXPECT_EQ(parse_scene(json{{"lights", eight}}).lights.size(), kMaxLights);
     const std::vector<std::pair<json, std::string>> documents = {
         {json{{"lights", nine}}, "/lights"},
@@ -454,8 +484,12 @@ TEST(Collections, BadCollectionsAreRejectedWithTheirPointerAndChangeNothing) {
         {json::parse(R"({"lights": {"key": {"wattage": 1}}})"), "/lights/key/wattage"},
         {json::parse(R"({"light": {}, "lights": {"key": {}}})"), "/light"},
         {json::parse(R"({"object": {}, "objects": {"glass": {}}})"), "/object"},
-        {json::parse(R"({"objects": {"a": {}, "b": {}}})"), "/objects"},
+        {json{{"objects", sixty_five}}, "/objects"},
+        {json::parse(R"({"objects": {}})"), "/objects"},
         {json::parse(R"({"objects": {"a": {"mesh": "teapot"}}})"), "/objects/a/mesh"},
+        // An imported grid is the whole field; dispersion is one per scene.
+        {json::parse(R"({"objects": {"a": {}, "b": {"index_field": "grid", "grid": "g"}}})"), "/objects/b/index_field"},
+        {json::parse(R"({"objects": {"a": {"abbe": 40}, "b": {"abbe": 30}}})"), "/objects/b/abbe"},
         {json::parse(R"({"objects": {"a/b": {}}})"), "/objects/a~1b"},
     };
     for (const auto& [document, pointer] : documents) {
@@ -468,7 +502,10 @@ TEST(Collections, BadCollectionsAreRejectedWithTheirPointerAndChangeNothing) {
         {json::parse(R"({"light": {"intensity": 1}})"), "/light"},  // which of the two?
         {json::parse(R"({"lights": {"fill": {"cone_deg": 0}}})"), "/lights/fill/cone_deg"},
         {json::parse(R"({"lights": {"new one": {}}})"), "/lights/new one"},
-        {json::parse(R"({"objects": {"second": {}}})"), "/objects"},
+        {json{{"objects", sixty_five}}, "/objects"},
+        {json::parse(R"({"objects": {"object": null}})"), "/objects"},
+        {json::parse(R"({"objects": {"second": {"abbe": 30}}})"), "/objects/second/abbe"},
+        {json::parse(R"({"objects": {"second": {"index_field": "grid", "grid": "g"}}})"), "/objects/second/index_field"},
     };
     for (const auto& [patch, pointer] : patches) {
         SCOPED_TRACE(patch.dump());

@@ -94,7 +94,7 @@ protected:
         scene::RunOptions options;
         options.record_photon_exits = exits;
         options.limit = scene::kAllPasses & ~scene::kView;
-        r.stats = r.gpu->run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
+        r.stats = r.gpu->run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
         if (exits) r.exits = r.gpu->read_photon_exits();
         return r;
     }
@@ -182,7 +182,7 @@ TEST_F(ScatteringTest, ZeroBouncesRendersTodaysFramesByteForByte) {
             uint64_t hashes[2];
             for (auto& hash : hashes) {
                 scene::SceneGpu gpu(kit());
-                gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, scene::run_options_for(quality));
+                gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, scene::run_options_for(quality));
                 hash = fnv1a_pfm_order(gpu.read_hdr(), gpu.width(), gpu.height());
             }
             const bool still = quality == scene::Quality::still;
@@ -274,7 +274,7 @@ TEST_F(ScatteringTest, InteractiveFramesCapTheBounces) {
         options.bounce_cap = cap;
         options.record_photon_exits = true;
         options.limit = scene::kAllPasses & ~scene::kView;
-        const auto stats = gpu.run(scene::kView, doc, world_mesh(doc), nullptr, options);
+        const auto stats = gpu.run(scene::kView, doc, worlds(doc), nullptr, options);
         EXPECT_TRUE(stats.ran & scene::kPhotons) << "cap " << cap;
         float most = 0.0f;
         for (const auto& e : gpu.read_photon_exits()) most = std::max(most, e.weight.w);

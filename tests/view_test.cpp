@@ -242,7 +242,7 @@ TEST_F(ViewTest, SingleScatteringOfAPointLightMatchesTheAirlightIntegral) {
     const json isotropic = {{"model", "isotropic"}, {"g", 0}};
     const SceneDocument doc = document(airlight_scene(isotropic, kSigma));
     scene::SceneGpu gpu(kit());
-    const auto stats = gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+    const auto stats = gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
     ASSERT_GT(stats.photons_entered, 0u);
     const auto hdr = gpu.read_hdr();
     const auto params = gpu.params();
@@ -250,7 +250,7 @@ TEST_F(ViewTest, SingleScatteringOfAPointLightMatchesTheAirlightIntegral) {
     // The background seen through the box: the same frame with scattering 0 (extinction unchanged), so
     // the difference is exactly the in-scattered light (no dependence on the sky's colours).
     const SceneDocument dark = document(airlight_scene(isotropic, 0.0));
-    gpu.run(scene::kView, dark, world_mesh(dark), nullptr);
+    gpu.run(scene::kView, dark, worlds(dark), nullptr);
     const auto background = gpu.read_hdr();
 
     for (const auto& r : compare_blocks(params, hdr, background, [](double) { return 1.0 / (4.0 * kPi); })) {
@@ -266,7 +266,7 @@ TEST_F(ViewTest, SingleScatteringOfAPointLightMatchesTheAirlightIntegral) {
     for (double g : {0.5, -0.5}) {
         const json hg = {{"model", "henyey-greenstein"}, {"g", g}};
         const SceneDocument forward = document(airlight_scene(hg, kSigma));
-        gpu.run(scene::kView, forward, world_mesh(forward), nullptr);
+        gpu.run(scene::kView, forward, worlds(forward), nullptr);
         const auto frame = gpu.read_hdr();
         const auto phase = [g](double mu) {
             return (1.0 - g * g) / (4.0 * kPi * std::pow(1.0 + g * g - 2.0 * g * mu, 1.5));
@@ -300,11 +300,11 @@ TEST_F(ViewTest, CoarseRadianceGridLinesUpWithTheIndexFieldOnGridsItDoesNotDivid
         scene::SceneGpu gpu(kit());
         scene::RunOptions options;
         options.radiance_factor = factor;
-        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
         ASSERT_EQ(gpu.params().grid_dims.x, 35u);
         ASSERT_EQ(gpu.params().radiance_grid.x, (35u + factor - 1) / factor);
         const auto hdr = gpu.read_hdr();
-        gpu.run(scene::kView, dark, world_mesh(dark), nullptr, options);
+        gpu.run(scene::kView, dark, worlds(dark), nullptr, options);
         blocks[factor] = compare_blocks(gpu.params(), hdr, gpu.read_hdr(), [](double) { return 1.0 / (4.0 * kPi); });
     }
     for (uint32_t factor : {2u, 3u})
@@ -331,11 +331,11 @@ TEST_F(ViewTest, SingleScatteringOfASpotBeamMatchesTheAirlightIntegralInItsCone)
     const json isotropic = {{"model", "isotropic"}, {"g", 0}};
     const SceneDocument doc = document(airlight_scene(isotropic, kSigma, cone_deg));
     scene::SceneGpu gpu(kit());
-    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+    gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
     const auto hdr = gpu.read_hdr();
     const auto params = gpu.params();
     const SceneDocument dark = document(airlight_scene(isotropic, 0.0, cone_deg));
-    gpu.run(scene::kView, dark, world_mesh(dark), nullptr);
+    gpu.run(scene::kView, dark, worlds(dark), nullptr);
     const auto background = gpu.read_hdr();
 
     struct Measured {
@@ -390,7 +390,7 @@ TEST_F(ViewTest, LitPyramidMarksExactlyTheCellsWithinReachOfLitRadianceVoxels) {
         scene::SceneGpu gpu(kit());
         scene::RunOptions options;
         options.radiance_factor = factor;
-        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
         const auto params = gpu.params();
         const glm::ivec3 dims(params.grid_dims), radiance(params.radiance_grid);
         const int f = static_cast<int>(params.radiance_grid.w);
@@ -561,12 +561,12 @@ void expect_sharp_interface_classes(const scene::SceneGpu& gpu);
 TEST_F(ViewTest, GlassSphereShowsTheFloorAsASharpInterfaceRayTraceDoes) {
     const SceneDocument doc = document(glass_scene());
     scene::SceneGpu gpu(kit());
-    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+    gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
     for (const scene::Quality quality : {scene::Quality::still, scene::Quality::interactive}) {
         SCOPED_TRACE(quality == scene::Quality::still ? "still" : "interactive");
         scene::RunOptions options = scene::run_options_for(quality);
         options.adaptive_view = false;
-        gpu.run(scene::kView, doc, world_mesh(doc), nullptr, options);
+        gpu.run(scene::kView, doc, worlds(doc), nullptr, options);
         expect_sharp_interface_classes(gpu);
     }
 }
@@ -666,7 +666,7 @@ TEST_F(ViewTest, BallLensInFogFocusesTheBeamPastTheSphere) {
                                                              {"volume", {{"resolution", 96}}},
                                                              {"photons", {{"count", 1 << 17}}}});
     scene::SceneGpu gpu(kit());
-    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+    gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
     const auto fluence = gpu.read_radiance();
     const auto& grid = gpu.grid();
     const glm::ivec3 dims(static_cast<int>(grid.dims.x), static_cast<int>(grid.dims.y), static_cast<int>(grid.dims.z));
@@ -758,7 +758,7 @@ TEST_F(ViewTest, TorusCastsACausticOnTheFloor) {
                                                               {"photons", {{"count", 1 << 18}}},
                                                               {"object", {{"fresnel", false}}}});
     scene::SceneGpu gpu(kit());
-    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+    gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
     const auto map = gpu.read_floor_irradiance();
     const auto& p = gpu.params();
     const auto& grid = gpu.grid();
@@ -848,11 +848,11 @@ TEST_F(ViewTest, AdaptiveFramesTraceWhereNeighboursDifferAndInterpolateOnlyWhere
     scene::RunOptions options = scene::run_options_for(scene::Quality::interactive);
     ASSERT_TRUE(options.adaptive_view);
     options.adaptive_view = false;
-    const uint64_t full_steps = gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options).view_steps;
+    const uint64_t full_steps = gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, options).view_steps;
     const auto full_hdr = gpu.read_hdr();
     const auto full_ldr = gpu.read_ldr();
     options.adaptive_view = true;
-    const scene::RunStats adaptive = gpu.run(scene::kView, doc, world_mesh(doc), nullptr, options);
+    const scene::RunStats adaptive = gpu.run(scene::kView, doc, worlds(doc), nullptr, options);
     ASSERT_EQ(adaptive.ran, scene::kView | scene::kToneMap);
     const auto hdr = gpu.read_hdr();
     const auto ldr = gpu.read_ldr();
@@ -922,7 +922,7 @@ TEST_F(ViewTest, SameSceneAndSeedGiveIdenticalFrames) {
     std::vector<glm::vec4> floor_map[2];
     for (int run = 0; run < 2; ++run) {
         scene::SceneGpu gpu(kit());
-        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
         hdr[run] = gpu.read_hdr();
         ldr[run] = gpu.read_ldr();
         floor_map[run] = gpu.read_floor_map();
@@ -949,7 +949,7 @@ TEST_F(ViewTest, GreyAndColouredTransportGiveTheSameFrame) {
                                             {"medium", {{"extinction", medium_extinction}}},
                                             {"photons", {{"count", 1 << 15}}}});
         scene::SceneGpu gpu(kit());
-        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
         EXPECT_EQ(gpu.channels(), expect_grey ? CHANNELS_GREY : CHANNELS_RGB);
         return gpu.read_hdr();
     };
@@ -995,7 +995,7 @@ TEST_F(ViewTest, DispersiveChannelsMatchTheirOwnIndex) {
         j["volume"] = {{"resolution", 48}, {"octree_epsilon", octree_epsilon}};
         const SceneDocument doc = document(j);
         scene::SceneGpu gpu(kit());
-        gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr, options);
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
         EXPECT_EQ(gpu.channels(), channels);
         return gpu.read_hdr();
     };
@@ -1038,11 +1038,11 @@ TEST_F(ViewTest, PhotonBatchesConvergeAsOneOverTheSquareRootOfTheirCount) {
                                                              {"photons", {{"count", 16384}}}});
     auto linear_after = [&](const SceneDocument& d, uint32_t batches) {
         scene::SceneGpu gpu(kit());
-        gpu.run(scene::kAllPasses, d, world_mesh(d), nullptr);
+        gpu.run(scene::kAllPasses, d, worlds(d), nullptr);
         for (uint32_t b = 1; b < batches; ++b) {
             scene::RunOptions options;
             options.photon_batch = b;
-            gpu.run(scene::kPhotons, d, world_mesh(d), nullptr, options);
+            gpu.run(scene::kPhotons, d, worlds(d), nullptr, options);
         }
         return gpu.read_hdr();
     };
@@ -1080,18 +1080,18 @@ TEST_F(ViewTest, JitteredSamplesAntiAliasSilhouettes) {
                   {"floor", {{"enabled", false}}}};
     const SceneDocument doc = document(scene);
     scene::SceneGpu gpu(kit());
-    gpu.run(scene::kAllPasses, doc, world_mesh(doc), nullptr);
+    gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
     const auto single = gpu.read_hdr();
     for (uint32_t s = 1; s < 16; ++s) {
         scene::RunOptions options;
         options.view_sample = s;
-        gpu.run(scene::kView, doc, world_mesh(doc), nullptr, options);
+        gpu.run(scene::kView, doc, worlds(doc), nullptr, options);
     }
     const auto averaged = gpu.read_hdr();
     scene["image"]["width"] = scene["image"]["height"] = 256;
     const SceneDocument fine = document(scene);
     scene::SceneGpu fine_gpu(kit());
-    fine_gpu.run(scene::kAllPasses, fine, world_mesh(fine), nullptr);
+    fine_gpu.run(scene::kAllPasses, fine, worlds(fine), nullptr);
     const auto fine_frame = fine_gpu.read_hdr();
     double contrast = 0.0, worst_single = 0.0, worst_averaged = 0.0;
     for (uint32_t y = 0; y < 64; ++y)

@@ -110,11 +110,15 @@ std::vector<uint32_t> reference_levels(const std::vector<float>& n, vk::Extent3 
 
 class VolumeTest : public testing::GpuTest {
 protected:
+    // The volume of `doc` with its one object's world mesh replaced by `world`.
     static Volume build(const SceneDocument& doc, const mesh::Mesh& world, bool with_octree = false) {
+        return build(doc, scene::WorldMeshes{{doc.objects.begin()->first, world}}, with_octree);
+    }
+    static Volume build(const SceneDocument& doc, const scene::WorldMeshes& worlds, bool with_octree = false) {
         scene::SceneGpu gpu(kit());
         scene::RunOptions options;
         options.limit = scene::kVoxelize | scene::kIndexField | (with_octree ? scene::kOctree : 0u);
-        gpu.run(scene::kAllPasses, doc, world, nullptr, options);
+        gpu.run(scene::kAllPasses, doc, worlds, nullptr, options);
         Volume v;
         v.grid = gpu.grid();
         v.coverage = gpu.read_coverage();
@@ -123,7 +127,7 @@ protected:
         return v;
     }
     static Volume build(const SceneDocument& doc, bool with_octree = false) {
-        return build(doc, world_mesh(doc), with_octree);
+        return build(doc, worlds(doc), with_octree);
     }
 };
 

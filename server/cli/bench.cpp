@@ -132,14 +132,12 @@ std::vector<BenchCase> standard_suite(bool gpu) {
     return cases;
 }
 
-mesh::Mesh world_of(const protocol::SceneDocument& d, const std::map<std::string, std::shared_ptr<const mesh::Mesh>>& uploads) {
-    const auto base = scene::base_mesh(d, [&](const std::string& name) -> std::shared_ptr<const mesh::Mesh> {
+scene::WorldMeshes worlds_of(const protocol::SceneDocument& d, const std::map<std::string, std::shared_ptr<const mesh::Mesh>>& uploads) {
+    return scene::world_meshes(d, [&](const std::string& name) -> std::shared_ptr<const mesh::Mesh> {
         const auto it = uploads.find(name);
         if (it == uploads.end()) throw std::runtime_error("bench: scene needs --mesh " + name + "=FILE.obj");
         return it->second;
     });
-    if (!base) throw std::runtime_error("bench: unknown mesh " + d.object().mesh);
-    return scene::world_mesh(d, *base);
 }
 
 // Radiance-grid deposits per second as three packed 64-bit integer atomics (the photon pass's way)
@@ -330,18 +328,18 @@ int bench_command(const Arguments& args) {
     }
     for (const auto& c : cases) {
         const auto document = protocol::parse_scene(c.scene);
-        const mesh::Mesh world = world_of(document, uploads);
+        const scene::WorldMeshes worlds = worlds_of(document, uploads);
         const int64_t memory_before = context.allocated_bytes();
         scene::SceneGpu scene_gpu(kit);
         const scene::RunOptions run_options = scene::run_options_for(c.quality);
-        scene_gpu.run(scene::kAllPasses, document, world, nullptr, run_options);  // warm-up: builds everything once
+        scene_gpu.run(scene::kAllPasses, document, worlds, nullptr, run_options);  // warm-up: builds everything once
         const int64_t memory = context.allocated_bytes() - memory_before;
         std::map<std::string, std::vector<double>> pass_ms;
         std::vector<double> host_ms, encode_ms;
         scene::RunStats last;
         for (int r = 0; r < runs; ++r) {
             const auto start = Clock::now();
-            last = scene_gpu.run(c.edit, document, world, nullptr, run_options);
+            last = scene_gpu.run(c.edit, document, worlds, nullptr, run_options);
             const auto encode_start = Clock::now();
             const auto png = image::encode_png(scene_gpu.read_ldr(), scene_gpu.width(), scene_gpu.height());
             const auto end = Clock::now();

@@ -77,15 +77,13 @@ std::shared_ptr<const image::EnvironmentMap> environment_of(const Loaded& loaded
     return map;
 }
 
-// The object's mesh in world space, resolved as the renderer resolves it.
-mesh::Mesh world_mesh(const Loaded& loaded) {
-    const auto base = scene::base_mesh(loaded.document, [&](const std::string& name) -> std::shared_ptr<const mesh::Mesh> {
+// The objects' meshes in world space, resolved as the renderer resolves them.
+scene::WorldMeshes world_meshes(const Loaded& loaded) {
+    return scene::world_meshes(loaded.document, [&](const std::string& name) -> std::shared_ptr<const mesh::Mesh> {
         const auto it = loaded.meshes.find(name);
         if (it == loaded.meshes.end()) throw std::runtime_error("the scene names upload:" + name + ": pass --mesh " + name + "=FILE.obj");
         return it->second;
     });
-    if (!base) throw std::runtime_error("unknown mesh " + loaded.document.object().mesh);
-    return scene::world_mesh(loaded.document, *base);
 }
 
 std::filesystem::path output_dir(const Arguments& args) {
@@ -154,22 +152,26 @@ int voxelize_command(const Arguments& args) {
     vk::Context context = make_context_for(args);
     scene::PassKit kit(context);
     scene::SceneGpu gpu(kit);
-    const mesh::Mesh world = world_mesh(loaded);
+    const scene::WorldMeshes worlds = world_meshes(loaded);
     scene::RunOptions options;
     options.limit = scene::kVoxelize | scene::kIndexField | scene::kOctree;
-    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world, nullptr, options);
+    const auto stats = gpu.run(scene::kAllPasses, loaded.document, worlds, nullptr, options);
     write_index_slices(dir, gpu);
     const auto coverage = gpu.read_coverage();
     double filled = 0.0;
     for (float c : coverage) filled += static_cast<double>(c);
     const double h = gpu.grid().voxel_size;
-    const auto report = mesh::inspect(world);
+    json meshes = json::object();
+    for (const auto& [name, world] : worlds) {
+        const auto report = mesh::inspect(world);
+        meshes[name] = {{"triangles", report.triangles}, {"boundary_edges", report.boundary_edges},
+                        {"non_manifold_edges", report.non_manifold_edges}, {"watertight", report.watertight()}};
+    }
     json summary = {{"device", context.info().name},
                     {"resolution", loaded.document.volume.resolution},
                     {"grid", grid_json(gpu.grid())},
                     {"filled_volume_m3", filled * h * h * h},
-                    {"mesh", {{"triangles", report.triangles}, {"boundary_edges", report.boundary_edges},
-                              {"non_manifold_edges", report.non_manifold_edges}, {"watertight", report.watertight()}}},
+                    {"meshes", meshes},
                     {"gpu_ms", timings_json(stats.gpu_ms)}};
     write_json(dir / "summary.json", summary);
     std::cout << summary.dump(2) << "\n";
@@ -184,7 +186,7 @@ int trace_command(const Arguments& args) {
     scene::SceneGpu gpu(kit);
     scene::RunOptions options;
     options.limit = scene::kAllPasses & ~scene::kView;
-    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_mesh(loaded), nullptr, options,
+    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_meshes(loaded), nullptr, options,
                                environment_of(loaded).get());
     write_index_slices(dir, gpu);
     const auto radiance = gpu.read_radiance();
@@ -224,7 +226,7 @@ int render_command(const Arguments& args) {
     scene::PassKit kit(context);
     scene::SceneGpu gpu(kit);
     const auto host_start = std::chrono::steady_clock::now();
-    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_mesh(loaded), nullptr,
+    const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_meshes(loaded), nullptr,
                                scene::run_options_for(args.interactive ? scene::Quality::interactive : scene::Quality::still),
                                environment_of(loaded).get());
     const auto encode_start = std::chrono::steady_clock::now();

@@ -1,6 +1,9 @@
 // Pass 2 (index field): smoothed coverage, a procedural lens or an imported grid -> one rgba32f texel
-// per voxel holding n and grad n, plus an r32f coverage image for extinction and scattering.
+// per voxel holding n and grad n, plus an rg32f image of coverage (for extinction and scattering) and
+// of which object it is.
 #pragma once
+
+#include <span>
 
 #include "passes/mode_pipelines.h"
 #include "protocol/scene_document.h"
@@ -10,15 +13,24 @@
 
 namespace refract::passes {
 
+// One object's part of the index field: its smoothed coverage over its own box of the scene's lattice.
+struct ObjectField {
+    const protocol::Object& object;
+    scene::GridGeometry box;     // the lattice's voxels from `offset` on; the coverage's size
+    glm::uvec3 offset;           // the box's min corner in the lattice (voxels)
+    const vk::Buffer& coverage;  // float per voxel of the box
+};
+
 class IndexFieldPass {
 public:
     explicit IndexFieldPass(vk::Context& context);
 
-    // `grid_values` is the imported index grid (same dims as `grid`) for index_field == grid; any small
-    // buffer otherwise.
-    void record(vk::CommandRecorder& recorder, const protocol::SceneDocument& document,
-                const scene::GridGeometry& grid, const vk::Buffer& coverage, const vk::Buffer& grid_values,
-                const vk::Image3D& index_field, const vk::Image3D& coverage_image) const;
+    // Records the field of `objects` into the lattice's images. One object's box is the whole lattice;
+    // several objects' fields join voxel by voxel over the medium (index_field.comp says how), in the
+    // order given. `grid_values` is the imported index grid (the lattice's size) for index_field == grid;
+    // any small buffer otherwise.
+    void record(vk::CommandRecorder& recorder, const protocol::Medium& medium, std::span<const ObjectField> objects,
+                const vk::Buffer& grid_values, const vk::Image3D& index_field, const vk::Image3D& coverage_image) const;
 
 private:
     ModePipelines pipelines_;  // by INDEX_KIND_*

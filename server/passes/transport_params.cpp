@@ -71,9 +71,11 @@ std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims) {
 }
 
 uint32_t transport_channels(const protocol::SceneDocument& document) {
-    if (document.object().abbe > 0.0) return CHANNELS_DISPERSIVE;
+    if (document.object().abbe > 0.0) return CHANNELS_DISPERSIVE;  // every object's (the document's rule)
     auto grey = [](const auto& rgb) { return rgb[0] == rgb[1] && rgb[1] == rgb[2]; };
-    return grey(document.medium.extinction) && grey(document.object().extinction) && !film_reflects(document) &&
+    const bool objects_grey = std::all_of(document.objects.begin(), document.objects.end(),
+                                          [&](const auto& named) { return grey(named.second.extinction); });
+    return grey(document.medium.extinction) && objects_grey && !film_reflects(document) &&
                    lights_share_colour(document) && !environment_lights(document)
                ? CHANNELS_GREY
                : CHANNELS_RGB;
@@ -119,21 +121,20 @@ glm::vec3 dispersion_scales(double abbe) {
     return scales;
 }
 
-double surface_index(const protocol::SceneDocument& document) {
-    const auto& object = document.object();
+double surface_index(const protocol::Object& object, const protocol::Medium& medium) {
     switch (object.index_field) {
         case protocol::IndexFieldKind::uniform: return object.ior;
         case protocol::IndexFieldKind::luneburg: return 1.0;  // sqrt(2 - (r / R)^2) at r = R
         case protocol::IndexFieldKind::maxwell: return 0.5 * object.maxwell_n0;  // n0 / (1 + (r / R)^2) at r = R
         case protocol::IndexFieldKind::grid: break;
     }
-    return document.medium.ior;
+    return medium.ior;
 }
 
-bool fresnel_reflects(const protocol::SceneDocument& document) {
-    if (!document.object().fresnel) return false;
-    const double surface = surface_index(document), medium = document.medium.ior;
-    switch (document.object().index_field) {
+bool reflects(const protocol::Object& object, const protocol::Medium& medium_around) {
+    if (!object.fresnel) return false;
+    const double surface = surface_index(object, medium_around), medium = medium_around.ior;
+    switch (object.index_field) {
         case protocol::IndexFieldKind::uniform: return std::abs(surface - medium) > 1e-4;
         // n rises inwards from its surface value, so the shell's midpoint is crossed at the outer boundary
         // only (never inside) where the surface lies above the medium.
@@ -144,15 +145,28 @@ bool fresnel_reflects(const protocol::SceneDocument& document) {
     return false;
 }
 
+bool has_film(const protocol::Object& object, const protocol::Medium& medium) {
+    return reflects(object, medium) && (object.film.top_nm > 0.0 || object.film.bottom_nm > 0.0);
+}
+
+bool fresnel_reflects(const protocol::SceneDocument& document) {
+    return std::any_of(document.objects.begin(), document.objects.end(),
+                       [&](const auto& named) { return reflects(named.second, document.medium); });
+}
+
 bool film_reflects(const protocol::SceneDocument& document) {
-    const auto& film = document.object().film;
-    return fresnel_reflects(document) && (film.top_nm > 0.0 || film.bottom_nm > 0.0);
+    return std::any_of(document.objects.begin(), document.objects.end(),
+                       [&](const auto& named) { return has_film(named.second, document.medium); });
 }
 
 bool any_scattering(const protocol::SceneDocument& document) {
     const auto& m = document.medium.scattering;
-    const auto& o = document.object().scattering;
-    return std::max({m[0], m[1], m[2], o[0], o[1], o[2]}) > 0.0;
+    double most = std::max({m[0], m[1], m[2]});
+    for (const auto& [name, object] : document.objects) {
+        const auto& o = object.scattering;
+        most = std::max({most, o[0], o[1], o[2]});
+    }
+    return most > 0.0;
 }
 
 uint32_t photon_bounces(const protocol::SceneDocument& document, uint32_t cap) {
@@ -266,6 +280,23 @@ std::vector<uint32_t> photon_shares(uint32_t photons, const std::vector<double>&
     return shares;
 }
 
+shaders::Material material_for(const protocol::Object& object, const protocol::Medium& medium,
+                               const scene::GridGeometry& grid) {
+    shaders::Material m{};
+    const double surface = surface_index(object, medium);
+    m.extinction = glm::vec4(vec(object.extinction), static_cast<float>(surface));
+    m.scattering = glm::vec4(vec(object.scattering), static_cast<float>(object.phase.g));
+    // A film's thickness goes from its top value at the object's top to its bottom value at its bottom
+    // (the built-in meshes reach scale above and below position).
+    const auto to_voxel_y = [&](double y) { return (static_cast<float>(y) - grid.origin.y) / grid.voxel_size; };
+    m.shell = glm::vec4(reflects(object, medium) ? 1.0f : 0.0f, static_cast<float>(0.5 * (surface + medium.ior)),
+                        to_voxel_y(object.position[1] + object.scale), to_voxel_y(object.position[1] - object.scale));
+    m.film = glm::vec4(static_cast<float>(object.film.ior), static_cast<float>(object.film.top_nm),
+                       static_cast<float>(object.film.bottom_nm), 0.0f);
+    m.model = glm::uvec4(phase_model(object.phase.model), 0u, 0u, 0u);
+    return m;
+}
+
 std::vector<shaders::TransportParams> make_transport_params(const protocol::SceneDocument& document,
                                                             const scene::GridGeometry& grid,
                                                             const TransportOptions& options) {
@@ -352,30 +383,31 @@ std::vector<shaders::TransportParams> make_transport_params(const protocol::Scen
     p.tone = glm::vec4(std::exp2(static_cast<float>(document.image.exposure)), options.view_step, 0.0f, 0.0f);
     p.refinement = glm::vec4(1.0f / static_cast<float>(options.photon_batch + 1),
                              1.0f / static_cast<float>(options.view_sample + 1), view_sample_offset(options.view_sample));
-    // How passes find coverage for each coefficient, and whether photons need to deposit at all.
-    const bool uniform_index = object.index_field == protocol::IndexFieldKind::uniform &&
+    // How passes find coverage for each coefficient, and whether photons need to deposit at all. n is
+    // linear in coverage only in the field of one uniform object.
+    const bool uniform_index = document.objects.size() == 1 && object.index_field == protocol::IndexFieldKind::uniform &&
                                std::abs(object.ior - medium.ior) > 1e-4;
-    auto coverage_mode = [&](bool coefficients_equal) {
-        if (coefficients_equal) return COVERAGE_CONSTANT;
+    auto coverage_mode = [&](auto coefficients_equal) {
+        const bool all_equal = std::all_of(document.objects.begin(), document.objects.end(),
+                                           [&](const auto& named) { return coefficients_equal(named.second); });
+        if (all_equal) return COVERAGE_CONSTANT;
         return uniform_index ? COVERAGE_FROM_INDEX : COVERAGE_FETCH;
     };
     const bool scatters = any_scattering(document);
-    p.flags = glm::uvec4(0u, coverage_mode(medium.extinction == object.extinction),
-                         coverage_mode(medium.scattering == object.scattering && medium.phase == object.phase),
+    p.flags = glm::uvec4(0u, coverage_mode([&](const protocol::Object& o) { return medium.extinction == o.extinction; }),
+                         coverage_mode([&](const protocol::Object& o) {
+                             return medium.scattering == o.scattering && medium.phase == o.phase;
+                         }),
                          scatters ? 1u : 0u);
     const vk::Extent3 radiance_dims = grid.coarsened(options.radiance_factor);
     p.radiance_grid = glm::uvec4(radiance_dims.x, radiance_dims.y, radiance_dims.z, options.radiance_factor);
     const auto lit = lit_pyramid_offsets(grid.dims);
     static_assert(LIT_LEVELS == 4);
     p.lit_offsets = glm::uvec4(lit[0], lit[1], lit[2], lit[3]);
-    // A film's thickness goes from its top value at the object's top to its bottom value at its bottom
-    // (the built-in meshes reach scale above and below position).
-    const auto to_voxel_y = [&](double y) { return (static_cast<float>(y) - grid.origin.y) / grid.voxel_size; };
-    const double surface = surface_index(document);
-    p.shell = glm::vec4(static_cast<float>(surface), static_cast<float>(0.5 * (surface + medium.ior)),
-                        to_voxel_y(object.position[1] + object.scale), to_voxel_y(object.position[1] - object.scale));
-    p.film = glm::vec4(static_cast<float>(object.film.ior), static_cast<float>(object.film.top_nm),
-                       static_cast<float>(object.film.bottom_nm), 0.0f);
+    const shaders::Material first = material_for(object, medium, grid);
+    p.shell = glm::vec4(first.extinction.w, glm::vec3(first.shell.y, first.shell.z, first.shell.w));
+    p.film = first.film;
+    p.materials = glm::uvec4(0u, 0u, static_cast<uint32_t>(document.objects.size()), 0u);
     // The environment: what rays that leave the scene see (view.comp, sky).
     const auto& environment = document.environment;
     const float intensity = static_cast<float>(environment.intensity);

@@ -69,18 +69,26 @@ float octree_epsilon(const protocol::SceneDocument& document);
 // nothing scatters (PHOTON_CONSTANT_RANDOM_WALKS is on when this is not 0).
 uint32_t photon_bounces(const protocol::SceneDocument& document, uint32_t cap);
 
-// The object's index just inside its outer boundary: the uniform object's, a Luneburg lens's 1, a Maxwell
+// An object's index just inside its outer boundary: the uniform object's, a Luneburg lens's 1, a Maxwell
 // fish-eye's n0 / 2; the medium's for an imported grid (no boundary).
-double surface_index(const protocol::SceneDocument& document);
+double surface_index(const protocol::Object& object, const protocol::Medium& medium);
 
-// Whether the object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL): Fresnel on and an index step at its
-// boundary. A graded field (Luneburg, Maxwell) reflects at its outer boundary only, where its surface
-// index lies above the medium's: n then rises inwards away from the shell's midpoint, which is crossed
-// nowhere inside (fresnel.glsl). Imported grids never reflect.
+// Whether an object's boundary reflects: Fresnel on and an index step at its boundary. A graded field
+// (Luneburg, Maxwell) reflects at its outer boundary only, where its surface index lies above the
+// medium's: n then rises inwards away from the shell's midpoint, which is crossed nowhere inside
+// (fresnel.glsl). Imported grids never reflect.
+bool reflects(const protocol::Object& object, const protocol::Medium& medium);
+// Whether that boundary carries a thin film: it reflects and has a thickness.
+bool has_film(const protocol::Object& object, const protocol::Medium& medium);
+// Whether any object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL), or carries a film
+// (TRANSPORT_CONSTANT_FILM).
 bool fresnel_reflects(const protocol::SceneDocument& document);
-
-// Whether that boundary carries a thin film (TRANSPORT_CONSTANT_FILM): it reflects and has a thickness.
 bool film_reflects(const protocol::SceneDocument& document);
+
+// An object's material as the table of a scene of several objects holds it (TRANSPORT_CONSTANT_MATERIALS);
+// the first object's fills TransportParams' object_*, shell and film.
+shaders::Material material_for(const protocol::Object& object, const protocol::Medium& medium,
+                               const scene::GridGeometry& grid);
 
 // Whether anything scatters: photons deposit into the radiance grid (and direct light is computed) only then.
 bool any_scattering(const protocol::SceneDocument& document);

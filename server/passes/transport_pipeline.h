@@ -29,6 +29,7 @@ struct TransportVariant {
     bool coverage_fetch = false;       // some coefficient reads the coverage texture (TRANSPORT_CONSTANT_COVERAGE_FETCH)
     bool fresnel = false;              // the object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL)
     bool film = false;                 // ... through a thin film (TRANSPORT_CONSTANT_FILM; with fresnel only)
+    bool materials = false;            // several objects, a material each (TRANSPORT_CONSTANT_MATERIALS)
 };
 
 // What every transport pass reads first: the frame's parameters, the index field, its coverage and the
@@ -83,7 +84,8 @@ public:
     const vk::ComputePipeline& operator()(TransportVariant variant) const;
 
 private:
-    static constexpr size_t kVariants = 3 * 2 * 3;  // CHANNELS_* x coverage fetch x (none, Fresnel, film)
+    // CHANNELS_* x coverage fetch x (none, Fresnel, film) x material table
+    static constexpr size_t kVariants = 3 * 2 * 3 * 2;
 
     vk::Context& context_;
     std::span<const uint32_t> spirv_;

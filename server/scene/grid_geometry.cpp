@@ -22,7 +22,7 @@ GridGeometry fit_grid(glm::vec3 lo, glm::vec3 hi, uint32_t resolution) {
     return grid;
 }
 
-GridGeometry grid_for(const protocol::SceneDocument& document, const mesh::Mesh& object_world) {
+GridGeometry grid_for(const protocol::SceneDocument& document, const std::map<std::string, mesh::Mesh>& worlds) {
     const auto& volume = document.volume;
     if (volume.bounds) {
         const auto& b = *volume.bounds;
@@ -30,12 +30,33 @@ GridGeometry grid_for(const protocol::SceneDocument& document, const mesh::Mesh&
                         volume.resolution);
     }
     glm::vec3 lo(1e30f), hi(-1e30f);
-    for (const auto& p : object_world.positions) {
+    for (const auto& [name, world] : worlds)
+        for (const auto& p : world.positions) {
+            lo = glm::min(lo, p);
+            hi = glm::max(hi, p);
+        }
+    const float margin = static_cast<float>(volume.margin);
+    return fit_grid(lo - margin, hi + margin, volume.resolution);
+}
+
+ObjectBox object_box(const GridGeometry& lattice, const mesh::Mesh& world, uint32_t apron) {
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const auto& p : world.positions) {
         lo = glm::min(lo, p);
         hi = glm::max(hi, p);
     }
-    const float margin = static_cast<float>(volume.margin);
-    return fit_grid(lo - margin, hi + margin, volume.resolution);
+    const glm::vec3 dims(static_cast<float>(lattice.dims.x), static_cast<float>(lattice.dims.y),
+                         static_cast<float>(lattice.dims.z));
+    const float reach = static_cast<float>(apron);
+    const glm::vec3 first = glm::clamp(glm::floor(lattice.to_voxel(lo) - reach), glm::vec3(0.0f), dims);
+    const glm::vec3 end = glm::clamp(glm::ceil(lattice.to_voxel(hi) + reach), first, dims);
+    ObjectBox b;
+    b.offset = glm::uvec3(first);
+    const glm::uvec3 size = glm::uvec3(end) - b.offset;
+    b.box.voxel_size = lattice.voxel_size;
+    b.box.origin = lattice.origin + lattice.voxel_size * first;
+    b.box.dims = {size.x, size.y, size.z};
+    return b;
 }
 
 }  // namespace refract::scene

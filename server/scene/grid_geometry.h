@@ -1,6 +1,9 @@
 // Where the voxel grid sits in the world: cubic voxels, `resolution` of them along the longest axis.
 #pragma once
 
+#include <map>
+#include <string>
+
 #include <glm/glm.hpp>
 
 #include "protocol/scene_document.h"
@@ -31,8 +34,18 @@ struct GridGeometry {
 // Fits a grid with `resolution` voxels along the longest side of the box [lo, hi].
 GridGeometry fit_grid(glm::vec3 lo, glm::vec3 hi, uint32_t resolution);
 
-// The grid a document asks for: volume.bounds when given, else the object's world bounds grown by
-// volume.margin (procedural lenses: the sphere of radius scale around position).
-GridGeometry grid_for(const protocol::SceneDocument& document, const mesh::Mesh& object_world);
+// The scene's lattice: volume.bounds when given, else the box around every object's world bounds
+// (`worlds`, procedural lenses' spheres of radius scale around position) grown by volume.margin.
+GridGeometry grid_for(const protocol::SceneDocument& document, const std::map<std::string, mesh::Mesh>& worlds);
+
+// An object's own box in the scene's lattice: the lattice's voxels from `offset` on that hold its world
+// bounds grown by `apron` voxels (where its smoothed coverage can reach), clipped to the lattice;
+// empty (a zero side) where it lies outside. In a scene of one object its box is the whole lattice.
+struct ObjectBox {
+    GridGeometry box;
+    glm::uvec3 offset{0u};
+    bool empty() const { return box.dims.count() == 0; }
+};
+ObjectBox object_box(const GridGeometry& lattice, const mesh::Mesh& world, uint32_t apron);
 
 }  // namespace refract::scene

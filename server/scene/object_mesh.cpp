@@ -2,6 +2,7 @@
 
 #include <map>
 #include <mutex>
+#include <stdexcept>
 
 namespace refract::scene {
 namespace {
@@ -27,8 +28,7 @@ std::shared_ptr<const mesh::Mesh> builtin(const std::string& name) {
 
 }  // namespace
 
-std::shared_ptr<const mesh::Mesh> base_mesh(const protocol::SceneDocument& document, const MeshLookup& uploads) {
-    const auto& object = document.object();
+std::shared_ptr<const mesh::Mesh> base_mesh(const protocol::Object& object, const MeshLookup& uploads) {
     if (object.index_field == protocol::IndexFieldKind::luneburg ||
         object.index_field == protocol::IndexFieldKind::maxwell)
         return builtin("sphere");
@@ -36,9 +36,19 @@ std::shared_ptr<const mesh::Mesh> base_mesh(const protocol::SceneDocument& docum
     return builtin(object.mesh);
 }
 
-mesh::Mesh world_mesh(const protocol::SceneDocument& document, const mesh::Mesh& base) {
-    const auto& object = document.object();
+mesh::Mesh world_mesh(const protocol::Object& object, const mesh::Mesh& base) {
     return mesh::transformed(base, static_cast<float>(object.scale), vec(object.rotation_deg), vec(object.position));
+}
+
+WorldMeshes world_meshes(const protocol::SceneDocument& document, const MeshLookup& uploads) {
+    WorldMeshes worlds;
+    for (const auto& [name, object] : document.objects) {
+        if (object.index_field == protocol::IndexFieldKind::grid) continue;
+        const auto base = base_mesh(object, uploads);
+        if (!base) throw std::runtime_error("object '" + name + "': unknown mesh " + object.mesh);
+        worlds.emplace(name, world_mesh(object, *base));
+    }
+    return worlds;
 }
 
 }  // namespace refract::scene

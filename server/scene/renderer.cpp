@@ -72,7 +72,7 @@ struct Renderer::Impl {
     struct Resident {
         std::unique_ptr<SceneGpu> gpu;
         protocol::SceneDocument document;  // as last rendered
-        std::shared_ptr<const mesh::Mesh> mesh;
+        std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;  // each object's, by name
         std::shared_ptr<const IndexGrid> grid;
         std::shared_ptr<const image::EnvironmentMap> environment;
         uint64_t last_used = 0;
@@ -116,18 +116,19 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
                              const Assets& assets, const FrameOptions& options) {
     const auto start = Clock::now();
     const Quality quality = options.quality;
-    const auto& object = requested.object();
-
     // Resolve assets first: an unknown name must not touch resident state.
-    std::shared_ptr<const mesh::Mesh> mesh;
+    std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;
     std::shared_ptr<const IndexGrid> grid;
-    if (object.index_field == protocol::IndexFieldKind::grid) {
-        grid = assets.grid ? assets.grid(object.grid) : nullptr;
-        if (!grid) throw RenderError("index field grid '" + object.grid + "' is not loaded");
-        if (!has_cubic_voxels(*grid)) throw RenderError("index field grid voxels must be cubic (within 1%)");
-    } else {
-        mesh = base_mesh(requested, assets.mesh);
-        if (!mesh) throw RenderError("mesh '" + object.mesh + "' is not a built-in or an uploaded mesh");
+    for (const auto& [name, object] : requested.objects) {
+        if (object.index_field == protocol::IndexFieldKind::grid) {
+            grid = assets.grid ? assets.grid(object.grid) : nullptr;
+            if (!grid) throw RenderError("index field grid '" + object.grid + "' is not loaded");
+            if (!has_cubic_voxels(*grid)) throw RenderError("index field grid voxels must be cubic (within 1%)");
+            continue;
+        }
+        auto mesh = base_mesh(object, assets.mesh);
+        if (!mesh) throw RenderError("mesh '" + object.mesh + "' of object '" + name + "' is not a built-in or an uploaded mesh");
+        meshes.emplace(name, std::move(mesh));
     }
     std::shared_ptr<const image::EnvironmentMap> environment;
     if (requested.environment.type == protocol::EnvironmentKind::image) {
@@ -142,7 +143,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     auto stale_against = [&](const protocol::SceneDocument& next) {
         if (!held) return kAllPasses;
         PassSet stale = passes_invalidated(held->document, next);
-        if (held->mesh != mesh || held->grid != grid) stale |= kAllPasses;
+        if (held->meshes != meshes || held->grid != grid) stale |= kAllPasses;
         // A re-uploaded image lights the scene anew.
         if (held->environment != environment) stale |= kPhotons | kView | kToneMap;
         return stale;
@@ -167,17 +168,29 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         if (held->level == 0 || held->level > level) stale = kPhotons | kView | kToneMap;
         else resident_level = held->level;
     }
-    // The object in world space fits the grid; needed only when the volume is rebuilt.
+    // The objects in world space fit the lattice; needed only when the volume is rebuilt.
     const bool rebuild = (stale & kVoxelize) != 0;
-    const mesh::Mesh world = mesh && rebuild ? world_mesh(document, *mesh) : mesh::Mesh{};
+    WorldMeshes worlds;
+    if (rebuild)
+        for (const auto& [name, mesh] : meshes) worlds.emplace(name, world_mesh(document.objects.at(name), *mesh));
     const int64_t budget = impl_->options.device_memory_budget;
+    // The objects' boxes in a lattice, for the estimate.
+    auto object_voxels = [&](const GridGeometry& lattice) {
+        if (grid) return lattice.dims.count();
+        uint64_t voxels = 0;
+        for (const auto& [name, box] : object_boxes(lattice, worlds, document.volume.smoothing)) voxels += box.box.dims.count();
+        return voxels;
+    };
     if (budget > 0 && rebuild) {
-        // Estimate against the grid this document asks for before allocating anything.
-        const GridGeometry g = grid ? GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : grid_for(document, world);
-        const int64_t need = estimate_scene_bytes(g, document.image.width, document.image.height);
-        // This scene's old volume is released before the new one is made.
+        // Estimate against the lattice this document asks for before allocating anything.
+        const GridGeometry g = grid ? GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : grid_for(document, worlds);
+        const int64_t need = estimate_scene_bytes(g, object_voxels(g), document.image.width, document.image.height);
+        // This scene's old volume is released before the new one is made (the lattice's own voxels stand
+        // for its boxes: an estimate).
         auto held_by = [](const Impl::Resident& r) {
-            return r.gpu->built() ? estimate_scene_bytes(r.gpu->grid(), r.gpu->width(), r.gpu->height()) : int64_t{0};
+            const GridGeometry& held_grid = r.gpu->grid();
+            return r.gpu->built() ? estimate_scene_bytes(held_grid, held_grid.dims.count(), r.gpu->width(), r.gpu->height())
+                                  : int64_t{0};
         };
         const int64_t replaced = it != impl_->scenes.end() ? held_by(it->second) : 0;
         // Make room by dropping least recently used scenes (their documents live on in the store).
@@ -223,11 +236,11 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
             if (step > 1) run_options.give_way = options.give_way;
             RunStats stats;
             try {
-                stats = resident.gpu->run(passes, document, world, grid.get(), run_options, environment.get());
+                stats = resident.gpu->run(passes, document, worlds, grid.get(), run_options, environment.get());
             } catch (const Superseded&) {
                 // What the GPU holds now: this document, with part of a step the frame does not hold.
                 resident.document = document;
-                resident.mesh = mesh;
+                resident.meshes = meshes;
                 resident.grid = grid;
                 resident.environment = environment;
                 resident.interactive.reset();
@@ -235,6 +248,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
                 throw;
             }
             frame.rerun |= stats.ran;
+            frame.voxelized.insert(frame.voxelized.end(), stats.voxelized.begin(), stats.voxelized.end());
             for (const auto& [name, ms] : stats.gpu_ms) add_timing(frame.timings, name, ms);
             frame.photons_traced += stats.photons_entered;
             photon_steps += stats.photon_steps;
@@ -269,7 +283,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         }
     }
     resident.document = document;
-    resident.mesh = mesh;
+    resident.meshes = meshes;
     resident.grid = grid;
     resident.environment = environment;
     resident.level = level;

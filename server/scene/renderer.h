@@ -103,6 +103,7 @@ struct FrameResult {
     std::vector<uint8_t> png;
     uint32_t width = 0, height = 0;
     PassSet rerun = 0;                // passes that ran for this frame
+    std::vector<std::string> voxelized;  // the objects the voxelize pass ran for, by name
     std::vector<PassTiming> timings;  // one entry per pass that ran, plus "encode"
     uint64_t photons_traced = 0;  // by the photon runs of this frame
     double mean_steps_per_photon = 0.0;

@@ -1,7 +1,10 @@
 #include "scene/scene_gpu.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
+#include <functional>
+#include <string_view>
 
 #include "scene/renderer.h"
 
@@ -20,29 +23,54 @@ PassKit::PassKit(vk::Context& ctx)
       tone_map(ctx),
       linear_sampler(vk::make_linear_sampler(ctx)) {}
 
-int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t height) {
+int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t object_voxels, uint32_t width, uint32_t height) {
     const int64_t voxels = static_cast<int64_t>(grid.dims.count());
-    // coverage + scratch (4+4), index field (16), coverage image (4), pyramid (8 x 1/7: levels 1 and up), levels (4 / 8),
-    // packed accumulators (RADIANCE_FLUX_WORDS x 8, and 8 for red and green in colour), net flux (16),
-    // coloured radiance (16); the direct light's edge list (4) and reach bits (1/8 + rows); voxelize's
-    // per-axis scratch (12) while it runs.
-    const int64_t per_voxel = 4 + 4 + 16 + 4 + 2 + 1 + (RADIANCE_FLUX_WORDS + 1) * 8 + 16 + 16 + 4 + 1 + 12;
+    // Per lattice voxel: index field (16), coverage image (8), pyramid (8 x 1/7: levels 1 and up), levels
+    // (4 / 8), packed accumulators (RADIANCE_FLUX_WORDS x 8, and 8 for red and green in colour), net flux
+    // (16), coloured radiance (16); the direct light's edge list (4) and reach bits (1/8 + rows). Per voxel
+    // of the objects' boxes: coverage and the voxelize pass's scratch (4 + 4), and its per-axis scratch
+    // (12) while it runs.
+    const int64_t per_voxel = 16 + 8 + 2 + 1 + (RADIANCE_FLUX_WORDS + 1) * 8 + 16 + 16 + 4 + 1;
+    const int64_t per_object_voxel = 4 + 4 + 12;
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
     const int64_t light_map = int64_t{passes::light_map_capacity(grid)} * passes::light_map_capacity(grid) * 2 * 4;
     // Per pixel: HDR (16), sRGB (4), a slot in the refinement list (4).
-    return voxels * per_voxel + floor + light_map + int64_t{width} * height * 24;
+    return voxels * per_voxel + static_cast<int64_t>(object_voxels) * per_object_voxel + floor + light_map +
+           int64_t{width} * height * 24;
 }
+
+uint32_t object_apron(double sigma) {
+    // The B-spline reaches 1.5 voxels past the surface, the lattice Gaussian ceil(3 sigma) taps more.
+    return static_cast<uint32_t>(std::ceil(3.0 * std::max(sigma, 0.0))) + 4u;
+}
+
+std::map<std::string, ObjectBox> object_boxes(const GridGeometry& lattice, const WorldMeshes& worlds,
+                                              double sigma) {
+    std::map<std::string, ObjectBox> boxes;
+    for (const auto& [name, world] : worlds)
+        boxes.emplace(name, worlds.size() == 1 ? ObjectBox{lattice, glm::uvec3(0u)}
+                                               : object_box(lattice, world, object_apron(sigma)));
+    return boxes;
+}
+
+namespace {
+// Identifies a world mesh's content: an object whose mesh hashes the same keeps its coverage.
+size_t mesh_hash(const mesh::Mesh& mesh) {
+    const std::hash<std::string_view> hash;
+    const size_t positions = hash({reinterpret_cast<const char*>(mesh.positions.data()), mesh.positions.size() * sizeof(glm::vec3)});
+    const size_t triangles = hash({reinterpret_cast<const char*>(mesh.triangles.data()), mesh.triangles.size() * sizeof(glm::uvec3)});
+    return positions ^ (triangles + 0x9e3779b97f4a7c15ull + (positions << 6) + (positions >> 2));
+}
+}  // namespace
 
 SceneGpu::SceneGpu(PassKit& kit) : kit_(kit), recorder_(kit.context, "scene passes"), timer_(kit.context) {}
 
 void SceneGpu::allocate_volume(const GridGeometry& grid) {
     vk::Context& ctx = kit_.context;
-    const VkDeviceSize voxel_bytes = grid.dims.count() * sizeof(float);
     const auto storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
                          VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
     // Drop the old volume first so peak memory is one volume, not two.
-    coverage_ = {};
-    scratch_ = {};
+    objects_.clear();
     pyramid_ = {};
     levels_ = {};
     index_field_ = {};
@@ -51,10 +79,8 @@ void SceneGpu::allocate_volume(const GridGeometry& grid) {
     radiance_ = {};
     flux_ = {};
     floor_map_ = {};
-    coverage_ = vk::Buffer(ctx, voxel_bytes, storage, vk::MemoryUse::device, "coverage");
-    scratch_ = vk::Buffer(ctx, voxel_bytes, storage, vk::MemoryUse::device, "coverage scratch");
     index_field_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "index field");
-    coverage_image_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32_SFLOAT, "coverage image");
+    coverage_image_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32G32_SFLOAT, "coverage and object image");
     const passes::OctreeLayout octree = passes::octree_layout(grid.dims);
     pyramid_ = vk::Buffer(ctx, std::max<uint64_t>(octree.node_count, 1) * 2 * sizeof(float), storage,
                           vk::MemoryUse::device, "octree pyramid");
@@ -113,11 +139,11 @@ void SceneGpu::allocate_frame(uint32_t width, uint32_t height) {
     height_ = height;
 }
 
-RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, const mesh::Mesh& object_world,
+RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, const WorldMeshes& worlds,
                        const IndexGrid* grid_asset, const RunOptions& options,
                        const image::EnvironmentMap* environment) {
     using protocol::IndexFieldKind;
-    const bool imported = document.object().index_field == IndexFieldKind::grid;
+    const bool imported = document.object().index_field == IndexFieldKind::grid;  // then the only object
     // Only a rebuilt volume can move the grid: otherwise keep the resident one.
     const bool rebuild = (stale & kVoxelize) || !(built_ & kVoxelize);
     GridGeometry grid = grid_;
@@ -128,7 +154,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         grid.voxel_size = static_cast<float>((b.max[0] - b.min[0]) / grid_asset->nx);
         grid.dims = {grid_asset->nx, grid_asset->ny, grid_asset->nz};
     } else if (rebuild) {
-        grid = grid_for(document, object_world);
+        grid = grid_for(document, worlds);
     }
     // Anything never built, or built for another grid, runs whatever it needs.
     if (!(grid == grid_) || !index_field_.get()) {
@@ -180,6 +206,17 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     }
     transport_options.environment = &environment_light_;
     light_params_ = passes::make_transport_params(document, grid_, transport_options);
+    // Several objects: their materials, by the object numbers the index field holds per voxel.
+    const bool several = document.objects.size() > 1;
+    if (several) {
+        std::vector<shaders::Material> table;
+        for (const auto& [name, object] : document.objects) table.push_back(passes::material_for(object, document.medium, grid_));
+        const uint64_t bytes = table.size() * sizeof(shaders::Material);
+        if (!materials_.get() || materials_.size() < bytes)
+            materials_ = vk::Buffer(kit_.context, sizeof(shaders::Material) * protocol::kMaxObjects,
+                                    VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT, vk::MemoryUse::upload, "object materials");
+        materials_.write(table.data(), bytes);
+    }
     uint32_t most_photons = 0;  // of one light's dispatch (with the environment's, for the first)
     for (const auto& light : light_params_) most_photons = std::max(most_photons, light.photon_info.x);
     if (stale & kPhotons)
@@ -194,6 +231,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         params.flags.x = options.record_photon_exits ? 1u : 0u;
         if (accum_) params.radiance_sums = glm::uvec4(halves(accum_->red_green.address()), halves(accum_->flux.address()));
         params.environment_map = glm::uvec4(halves(environment_map_.address()), 0u, 0u);
+        if (several) params.materials = glm::uvec4(halves(materials_.address()), params.materials.z, 0u);
         params_buffers_[i].write(&params, sizeof(params));
     }
     const shaders::TransportParams& params = light_params_.front();
@@ -229,9 +267,11 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             timer_.begin(cmd, scope);
         };
     };
-    // Uploads the recorded commands read; they live until the submission completes.
-    std::optional<passes::VoxelizeUploads> uploads;
+    // Uploads and scratch the recorded commands use; they live until the submission completes.
+    std::vector<passes::VoxelizeUploads> uploads;
+    std::vector<vk::Buffer> scratch;
     vk::Buffer coverage_upload;
+    std::vector<std::string> voxelized;
     const bool first_use = built_ == 0;
     if (first_use) {
         for (const vk::Image3D* image : {&index_field_, &coverage_image_}) recorder_.init_image(*image);
@@ -241,7 +281,14 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     }
     if (stale & kVoxelize) {
         timer_.begin(cmd, "voxelize");
+        const auto storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                             VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+        std::erase_if(objects_, [&](const auto& held) { return !document.objects.contains(held.first); });
         if (imported) {
+            ObjectVolume& volume = objects_[document.objects.begin()->first];
+            volume.box = {grid_, glm::uvec3(0u)};
+            volume.coverage = vk::Buffer(kit_.context, grid_.dims.count() * sizeof(float), storage,
+                                         vk::MemoryUse::device, "coverage");
             // An imported field has no mesh: coverage is where n departs from the medium.
             std::vector<float> coverage(grid_.dims.count());
             float n_max = static_cast<float>(document.medium.ior);
@@ -252,17 +299,43 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             coverage_upload = vk::Buffer(kit_.context, coverage.size() * sizeof(float), VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                                          vk::MemoryUse::upload, "coverage upload");
             coverage_upload.write(coverage.data(), coverage.size() * sizeof(float));
-            recorder_.copy(coverage_upload, coverage_, coverage.size() * sizeof(float));
+            recorder_.copy(coverage_upload, volume.coverage, coverage.size() * sizeof(float));
+            voxelized.push_back(document.objects.begin()->first);
         } else {
-            uploads = kit_.voxelize.record(recorder_, object_world, grid_, static_cast<float>(document.volume.smoothing),
-                                           scratch_, coverage_);
+            // Only the objects whose coverage no longer fits their world mesh, box or smoothing.
+            const double sigma = document.volume.smoothing;
+            for (const auto& [name, box] : object_boxes(grid_, worlds, sigma)) {
+                const mesh::Mesh& world = worlds.at(name);
+                const size_t hash = mesh_hash(world);
+                auto held = objects_.find(name);
+                if (held != objects_.end() && held->second.mesh_hash == hash && held->second.smoothing == sigma &&
+                    held->second.box.box == box.box)
+                    continue;
+                ObjectVolume& volume = objects_[name];
+                volume.box = box;
+                volume.mesh_hash = hash;
+                volume.smoothing = sigma;
+                voxelized.push_back(name);
+                if (box.empty()) continue;  // outside the lattice: nothing to voxelize
+                const VkDeviceSize bytes = box.box.dims.count() * sizeof(float);
+                if (!volume.coverage.get() || volume.coverage.size() != bytes)
+                    volume.coverage = vk::Buffer(kit_.context, bytes, storage, vk::MemoryUse::device, "coverage");
+                scratch.emplace_back(kit_.context, bytes, storage, vk::MemoryUse::device, "coverage scratch");
+                uploads.push_back(kit_.voxelize.record(recorder_, world, box.box, static_cast<float>(sigma),
+                                                       scratch.back(), volume.coverage));
+            }
         }
         recorder_.compute_barrier();
         timer_.end(cmd);
     }
     if (stale & kIndexField) {
         timer_.begin(cmd, "index_field");
-        kit_.index_field.record(recorder_, document, grid_, coverage_, grid_values_, index_field_, coverage_image_);
+        std::vector<passes::ObjectField> fields;
+        for (const auto& [name, object] : document.objects) {
+            const ObjectVolume& volume = objects_.at(name);
+            if (!volume.box.empty()) fields.push_back({object, volume.box.box, volume.box.offset, volume.coverage});
+        }
+        kit_.index_field.record(recorder_, document.medium, fields, grid_values_, index_field_, coverage_image_);
         recorder_.compute_barrier();
         timer_.end(cmd);
     }
@@ -273,7 +346,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         timer_.end(cmd);
     }
     const passes::TransportVariant variant{channels_, params.flags.y == COVERAGE_FETCH || params.flags.z == COVERAGE_FETCH,
-                                           passes::fresnel_reflects(document), passes::film_reflects(document)};
+                                           passes::fresnel_reflects(document), passes::film_reflects(document), several};
     auto inputs_for = [&](const vk::Buffer& light_params) {
         return passes::TransportInputs{light_params, index_field_, coverage_image_, levels_, kit_.linear_sampler.get(), variant};
     };
@@ -323,6 +396,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
 
     RunStats stats;
     stats.ran = stale;
+    stats.voxelized = std::move(voxelized);
     // One entry per pass: the parts of a pass split over submissions summed.
     for (auto& timing : timer_.read()) earlier_ms.push_back(std::move(timing));
     for (const auto& [name, ms] : earlier_ms) {
@@ -391,7 +465,18 @@ std::vector<glm::vec4> widen(const std::vector<uint16_t>& half) {
 }
 }  // namespace
 
-std::vector<float> SceneGpu::read_coverage() const { return read_image<float>(coverage_image_); }
+std::vector<float> SceneGpu::read_coverage() const {
+    const std::vector<glm::vec2> texels = read_image<glm::vec2>(coverage_image_);
+    std::vector<float> out(texels.size());
+    for (size_t i = 0; i < texels.size(); ++i) out[i] = texels[i].x;
+    return out;
+}
+std::vector<uint32_t> SceneGpu::read_object_numbers() const {
+    const std::vector<glm::vec2> texels = read_image<glm::vec2>(coverage_image_);
+    std::vector<uint32_t> out(texels.size());
+    for (size_t i = 0; i < texels.size(); ++i) out[i] = static_cast<uint32_t>(texels[i].y);
+    return out;
+}
 std::vector<glm::vec4> SceneGpu::read_index_field() const { return read_image<glm::vec4>(index_field_); }
 std::vector<uint32_t> SceneGpu::read_levels() const {
     return passes::levels_per_voxel(read_buffer<uint32_t>(levels_), grid_.dims);

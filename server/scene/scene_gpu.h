@@ -24,6 +24,7 @@
 #include "passes/voxelize.h"
 #include "protocol/scene_document.h"
 #include "scene/grid_geometry.h"
+#include "scene/object_mesh.h"
 #include "scene/passes.h"
 #include "transport.h"
 
@@ -57,6 +58,7 @@ struct RunStats {
     uint64_t direct_overlaps = 0;  // photons the light map sent straight where n varies (transport.h)
     uint64_t photon_scatterings = 0;  // scattering events of the photons' random walks
     uint64_t view_steps = 0;  // eye-ray march steps, when the viewing pass ran
+    std::vector<std::string> voxelized;  // the objects the voxelize pass ran for, by name
     double mean_steps_per_photon() const {
         return photons_entered ? static_cast<double>(photon_steps) / static_cast<double>(photons_entered) : 0.0;
     }
@@ -88,20 +90,31 @@ struct RunOptions {
     std::function<bool()> give_way;
 };
 
-// Device memory a scene of this size holds (bytes), for budgets before allocating.
-int64_t estimate_scene_bytes(const GridGeometry& grid, uint32_t width, uint32_t height);
+// Device memory a scene holds (bytes), for budgets before allocating: its lattice `grid`, objects'
+// boxes of `object_voxels` in all (the lattice's count for a scene of one object) and the frame.
+int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t object_voxels, uint32_t width, uint32_t height);
+
+// The voxels around an object's world bounds its box takes (object_box) for a smoothing of `sigma`
+// voxels: where the B-spline and the lattice Gaussian (passes::VoxelizePass) leave coverage, and one
+// more for the index field's central differences.
+uint32_t object_apron(double sigma);
+
+// The objects' boxes in `lattice`, by name: the whole lattice for the one object of a scene of one.
+std::map<std::string, ObjectBox> object_boxes(const GridGeometry& lattice, const WorldMeshes& worlds, double sigma);
 
 class SceneGpu {
 public:
     explicit SceneGpu(PassKit& kit);
 
     // Runs `stale` passes (plus whatever they depend on that was never built) for `document`.
-    // `object_world` is the object's mesh in world space, read only when the voxelize pass runs (the
-    // grid is fitted to it; an edit that moves the grid makes voxelize stale); ignored for imported
-    // grids. `grid_asset` is the imported index grid for index_field == grid; `environment` the map an
-    // image environment names: a changed map must come as a new pointer (the resident copy is kept while
-    // the pointer and the document's environment stay). Throws vk::Error on device failures.
-    RunStats run(PassSet stale, const protocol::SceneDocument& document, const mesh::Mesh& object_world,
+    // `worlds` holds every object's mesh in world space, read only when the voxelize pass runs: the
+    // lattice is fitted to them (an edit that moves the lattice makes voxelize stale), and the pass
+    // voxelizes only the objects whose world mesh, box or smoothing changed since their coverage was
+    // made (all of them when the lattice moved); imported grids have none. `grid_asset` is the imported
+    // index grid for index_field == grid; `environment` the map an image environment names: a changed
+    // map must come as a new pointer (the resident copy is kept while the pointer and the document's
+    // environment stay). Throws vk::Error on device failures.
+    RunStats run(PassSet stale, const protocol::SceneDocument& document, const WorldMeshes& worlds,
                  const IndexGrid* grid_asset, const RunOptions& options = {},
                  const image::EnvironmentMap* environment = nullptr);
 
@@ -112,6 +125,7 @@ public:
 
     // Read-backs (each a separate submission): float per voxel / texel, x fastest.
     std::vector<float> read_coverage() const;
+    std::vector<uint32_t> read_object_numbers() const;  // per voxel: 1 + the number of the object it holds, 0: none
     std::vector<glm::vec4> read_index_field() const;
     std::vector<uint32_t> read_levels() const;  // octree leaf level per voxel
     std::vector<glm::vec4> read_radiance() const;  // fluence rate rgb (W/m^2)
@@ -151,8 +165,16 @@ private:
     uint32_t bounces_ = 0;           // how often they could scatter (passes::photon_bounces)
     uint32_t channels_ = CHANNELS_RGB;
     std::vector<shaders::TransportParams> light_params_{shaders::TransportParams{}};
-    // Volume (voxelize, index field, octree)
-    vk::Buffer coverage_, scratch_, grid_values_, pyramid_, levels_;
+    // Volume (voxelize, index field, octree): each object's coverage over its box, kept while its world
+    // mesh, box and smoothing stay, so that an edit of one object voxelizes that one only.
+    struct ObjectVolume {
+        ObjectBox box;
+        size_t mesh_hash = 0;  // of the world mesh it was voxelized from
+        double smoothing = 0.0;
+        vk::Buffer coverage;
+    };
+    std::map<std::string, ObjectVolume> objects_;
+    vk::Buffer grid_values_, pyramid_, levels_, materials_;
     vk::Image3D index_field_, coverage_image_;
     // Transport (photons, resolve)
     std::optional<passes::PhotonAccumulators> accum_;

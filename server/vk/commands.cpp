@@ -79,6 +79,13 @@ void CommandRecorder::fill(const Buffer& buffer, uint32_t value) {
     vkCmdFillBuffer(command_buffer_, buffer.get(), 0, VK_WHOLE_SIZE, value);
 }
 
+void CommandRecorder::clear(const Image3D& image, const float (&value)[4]) {
+    VkClearColorValue colour{};
+    for (int i = 0; i < 4; ++i) colour.float32[i] = value[i];
+    const VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    vkCmdClearColorImage(command_buffer_, image.get(), VK_IMAGE_LAYOUT_GENERAL, &colour, 1, &range);
+}
+
 void CommandRecorder::update(const Buffer& buffer, VkDeviceSize offset, const void* data, VkDeviceSize bytes) {
     if (bytes == 0 || bytes > 65536 || bytes % 4 != 0 || offset % 4 != 0 || offset + bytes > buffer.size())
         throw Error("buffer update of " + std::to_string(bytes) + " bytes at " + std::to_string(offset) +

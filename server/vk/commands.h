@@ -29,6 +29,8 @@ public:
     // First use of an image: UNDEFINED -> GENERAL (contents discarded).
     void init_image(const Image3D& image);
     void fill(const Buffer& buffer, uint32_t value);
+    // Sets every texel of a float image (in the GENERAL layout) to `value`, the channels it has.
+    void clear(const Image3D& image, const float (&value)[4]);
     // Writes `bytes` (at most 65536, a multiple of 4) from host memory into `buffer` at `offset`.
     void update(const Buffer& buffer, VkDeviceSize offset, const void* data, VkDeviceSize bytes);
     void copy(const Buffer& src, const Buffer& dst, VkDeviceSize bytes);

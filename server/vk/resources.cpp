@@ -166,6 +166,7 @@ uint32_t Image3D::texel_bytes() const {
     switch (format_) {
         case VK_FORMAT_R32G32B32A32_SFLOAT: return 16;
         case VK_FORMAT_R16G16B16A16_SFLOAT: return 8;
+        case VK_FORMAT_R32G32_SFLOAT: return 8;
         case VK_FORMAT_R32_SFLOAT: return 4;
         case VK_FORMAT_R32_UINT: return 4;
         case VK_FORMAT_R8_UINT: return 1;

@@ -52,7 +52,15 @@ float shell_step_for(Ray ray, float shell_step) {
 // counts), and the direction the reflected part leaves in; 0 where the step does not cross it.
 vec3 shell_reflectance(Ray before, Ray after, out vec3 reflected) {
     reflected = before.d;
-    float midpoint = params.shell.y;
+    // In a scene of several objects the boundary is that of the object whose shell the step starts in.
+    Material object;
+    if (kMaterials) {
+        object = material_of(object_at(before.p));
+        if (object.shell.x < 0.5) return vec3(0.0);  // its Fresnel is off
+    }
+    vec4 shell = kMaterials ? vec4(object.extinction.w, object.shell.yzw) : params.shell;
+    vec4 film = kMaterials ? object.film : params.film;
+    float midpoint = shell.y;
     bool entering = before.field.x < midpoint;
     vec3 g = before.field.yzw + after.field.yzw;
     float g_length = length(g);
@@ -60,7 +68,7 @@ vec3 shell_reflectance(Ray before, Ray after, out vec3 reflected) {
     vec3 normal = g / g_length;
     float contrast = kDispersive ? ray_contrast : 1.0;
     float n_medium = params.medium_extinction.w;
-    float n_object = n_medium + contrast * (params.shell.x - n_medium);
+    float n_object = n_medium + contrast * (shell.x - n_medium);
     float n_here = n_medium + contrast * (before.field.x - n_medium);
     float n1 = entering ? n_medium : n_object, n2 = entering ? n_object : n_medium;
     float cos_here = dot(before.d, normal);
@@ -68,9 +76,9 @@ vec3 shell_reflectance(Ray before, Ray after, out vec3 reflected) {
     float across = n_here * sqrt(max(1.0 - cos_here * cos_here, 0.0));  // n sin(theta)
     if (across >= min(n1, n2)) return vec3(0.0);
     if (kFilm) {
-        float height = clamp((params.shell.z - before.p.y) / max(params.shell.z - params.shell.w, 1e-6), 0.0, 1.0);
-        float thickness = mix(params.film.y, params.film.z, height);
-        if (thickness > 0.0) return film_band_reflectance(n1, params.film.x, n2, across / n1, thickness);
+        float height = clamp((shell.z - before.p.y) / max(shell.z - shell.w, 1e-6), 0.0, 1.0);
+        float thickness = mix(film.y, film.z, height);
+        if (thickness > 0.0) return film_band_reflectance(n1, film.x, n2, across / n1, thickness);
     }
     return vec3(fresnel_reflectance(n1, n2, across / n1));
 }

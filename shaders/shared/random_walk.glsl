@@ -23,22 +23,24 @@ struct Walk {
     uint bounces;      // scattering events so far
     bool collides;     // the step being taken ends at a scattering event
     float coverage;    // the coverage of that step's coefficients
+    uint object;       // and the object whose they are (object_at)
 };
 
 // A walk before its first free path: `xi` uniform in [0, 1).
-Walk start_walk(float xi) { return Walk(-log(1.0 - xi), 0u, false, 0.0); }
+Walk start_walk(float xi) { return Walk(-log(1.0 - xi), 0u, false, 0.0, 0u); }
 
-// Spends the optical depth of a step of length `len` (voxels of side h) at coverage c, and returns the
+// Spends the optical depth of a step of length `len` (voxels of side h) at coverage c of object o, and returns the
 // coefficient sigma it was sampled against (per voxel; 0 once the photon has used its bounces): the
 // photon crosses the whole step, or `len` is shortened to where it scatters (w.collides).
-float walk_free_path(inout Walk w, float c, float h, inout float len) {
-    vec3 s = scattering_at(c);
+float walk_free_path(inout Walk w, float c, uint o, float h, inout float len) {
+    vec3 s = scattering_at(c, o);
     float sigma = w.bounces < params.models.w ? (s.r + s.g + s.b) * (1.0 / 3.0) * h : 0.0;
     float depth = sigma * len;
     w.collides = depth > w.depth_left;
     if (w.collides) {
         len = w.depth_left / sigma;
         w.coverage = c;
+        w.object = o;
     } else {
         w.depth_left -= depth;
     }
@@ -81,10 +83,9 @@ vec3 turn(vec3 d, float mu, float phi) {
 // coefficients. `xi`: three uniform numbers, the last for the next free path. The walk counts the
 // bounce and starts its next free path.
 vec3 scatter(inout Walk w, vec3 d, vec3 xi, out vec3 weight_factor) {
-    bool in_object = w.coverage > 0.5;
-    uint model = in_object ? params.models.y : params.models.x;
-    float g = in_object ? params.object_scattering.w : params.medium_scattering.w;
-    vec3 s = scattering_at(w.coverage);
+    uint model = phase_model_at(w.coverage, w.object);
+    float g = phase_g_at(w.coverage, w.object);
+    vec3 s = scattering_at(w.coverage, w.object);
     weight_factor = s * (3.0 / (s.r + s.g + s.b));
     w.bounces += 1u;
     w.depth_left = -log(1.0 - xi.z);

@@ -128,7 +128,13 @@ struct LightParams {
 // Specialization constant of the same passes, with Fresnel on: the boundary carries a thin film (its
 // Airy reflectance per channel, fresnel.h), so reflection may colour light.
 #define TRANSPORT_CONSTANT_FILM 3
-#define TRANSPORT_CONSTANT_COUNT 4  // a pass's own constants are numbered from here
+// Specialization constant of the same passes: the scene holds several objects, each with its own
+// material (Material, in the table at TransportParams::materials), and each voxel names the object whose
+// material mixes with the medium's there (the coverage texture's second channel, written by the
+// index-field pass). Off for a scene of one object, whose material is TransportParams' object_*, shell
+// and film: such scenes run the shaders they ran before several objects existed.
+#define TRANSPORT_CONSTANT_MATERIALS 4
+#define TRANSPORT_CONSTANT_COUNT 5  // a pass's own constants are numbered from here
 // Specialization constant of the photon pass (after the transport constants): deposits are sampled, one
 // per radiance voxel of path, rather than exact per voxel crossed (photon_trace.comp, deposit).
 #define PHOTON_CONSTANT_SAMPLED_DEPOSITS TRANSPORT_CONSTANT_COUNT
@@ -143,7 +149,19 @@ const bool kDispersive = kChannels == CHANNELS_DISPERSIVE;
 layout(constant_id = TRANSPORT_CONSTANT_COVERAGE_FETCH) const bool kCoverageFetch = true;
 layout(constant_id = TRANSPORT_CONSTANT_FRESNEL) const bool kFresnel = false;
 layout(constant_id = TRANSPORT_CONSTANT_FILM) const bool kFilm = false;
+layout(constant_id = TRANSPORT_CONSTANT_MATERIALS) const bool kMaterials = false;
 #endif
+
+// One object's material, as the table of a scene of several objects holds it (TRANSPORT_CONSTANT_MATERIALS):
+// the fields TransportParams holds for the one object of a scene without the table.
+struct Material {
+    vec4 extinction;  // rgb per metre; w: the object's index at its surface (reference channel; shell.x)
+    vec4 scattering;  // rgb per metre; w: phase g
+    vec4 shell;       // x: 1 = its boundary reflects (Fresnel), y: the shell's midpoint, z, w: the heights
+                      // (voxels) where its film has its top and bottom thickness
+    vec4 film;        // x: the film's index, y: its thickness at the top, z: at the bottom (nm); w: unused
+    uvec4 model;      // x: phase model (PHASE_*_ID); yzw: unused
+};
 
 // How a pass finds the coverage that mixes medium and object coefficients: not at all when both are
 // equal, from n when the field is the uniform object's (n is linear in coverage), else by a fetch.
@@ -225,6 +243,8 @@ struct TransportParams {
     uvec4 light_set;          // x: the scene's lights (in lights[]), y: the one whose photons these parameters
                               // trace (light_*, emit_*; the resolve of light 0 replaces a batch, the others'
                               // add to it); zw: unused
+    uvec4 materials;          // xy: device address (low, high) of the Material table, one per object in
+                              // name order (TRANSPORT_CONSTANT_MATERIALS); z: objects; w: unused
     LightParams lights[TRANSPORT_MAX_LIGHTS];
 };
 
@@ -328,7 +348,8 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == (42 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == (43 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
+static_assert(sizeof(refract::shaders::Material) == 80);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 80);

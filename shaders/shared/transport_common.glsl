@@ -2,6 +2,8 @@
 // stepping and the ray equation. Positions are in voxel units (voxel i spans [i, i+1)).
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_buffer_reference_uvec2 : require
 #include "transport.h"
 
 // The frame parameters (a storage buffer: transport.h says why), read through a private copy: lavapipe
@@ -39,8 +41,38 @@ vec3 to_world(vec3 voxel) { return params.grid_origin.xyz + voxel * params.grid_
 vec4 index_at(vec3 p) { return textureLod(index_field, p / grid_dims(), 0.0); }
 float coverage_at(vec3 p) { return textureLod(coverage_field, p / grid_dims(), 0.0).r; }
 
-vec3 extinction_at(float c) { return mix(params.medium_extinction.rgb, params.object_extinction.rgb, c); }
-vec3 scattering_at(float c) { return mix(params.medium_scattering.rgb, params.object_scattering.rgb, c); }
+layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer Materials { Material material[]; };
+
+// The object whose material mixes with the medium's at p: the one the index-field pass left in the voxel
+// holding p (the object of most coverage there; the first where no object's box reaches, as coverage is
+// 0 there); always 0 in a scene of one object.
+uint object_at(vec3 p) {
+    if (!kMaterials) return 0u;
+    float held = texelFetch(coverage_field, ivec3(clamp(p, vec3(0.0), grid_dims() - 1.0)), 0).g;
+    return uint(max(held - 1.0, 0.0));
+}
+
+// Object `o`'s material (kMaterials only).
+Material material_of(uint o) { return Materials(params.materials.xy).material[o]; }
+
+// Coefficients at coverage c of object o: the medium's at 0, the object's at 1.
+vec3 extinction_at(float c, uint o) {
+    return mix(params.medium_extinction.rgb, kMaterials ? material_of(o).extinction.rgb : params.object_extinction.rgb, c);
+}
+vec3 scattering_at(float c, uint o) {
+    return mix(params.medium_scattering.rgb, kMaterials ? material_of(o).scattering.rgb : params.object_scattering.rgb, c);
+}
+
+// The phase function (model, g) where scattering takes the coverage c of object o: the object's over
+// 0.5, the medium's below.
+uint phase_model_at(float c, uint o) {
+    if (c <= 0.5) return params.models.x;
+    return kMaterials ? material_of(o).model.x : params.models.y;
+}
+float phase_g_at(float c, uint o) {
+    if (c <= 0.5) return params.medium_scattering.w;
+    return kMaterials ? material_of(o).scattering.w : params.object_scattering.w;
+}
 
 // Coverage at p where the index there is n, found the cheapest way `mode` allows (COVERAGE_*). lavapipe
 // runs both sides of a branch, so a pass that needs coverage for several modes should call this once

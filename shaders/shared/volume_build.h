@@ -70,16 +70,20 @@ struct SmoothPush {
 #define INDEX_BINDING_COVERAGE 0      // smoothed coverage (float per voxel)
 #define INDEX_BINDING_GRID 1          // imported index grid (float per voxel), for INDEX_KIND_GRID
 #define INDEX_BINDING_INDEX_FIELD 2   // out: rgba32f (n, dn/dx, dn/dy, dn/dz), gradient per voxel length
-#define INDEX_BINDING_COVERAGE_IMAGE 3 // out: r32f coverage, for extinction and scattering
+#define INDEX_BINDING_COVERAGE_IMAGE 3 // out: rg32f: coverage, for extinction and scattering; 1 + the
+                                       // number of the object it is of (0 where no object's box reaches)
 
 #define INDEX_KIND_UNIFORM 0u
 #define INDEX_KIND_LUNEBURG 1u
 #define INDEX_KIND_MAXWELL 2u
 #define INDEX_KIND_GRID 3u
 
+// One dispatch per object over its own box of the scene's lattice (the whole lattice in a scene of one).
 struct IndexFieldPush {
-    uvec4 dims;        // xyz: grid size; w: unused
-    vec4 origin;       // xyz: world position of the grid's min corner; w: voxel size (m)
+    uvec4 dims;        // xyz: the object's box (voxels; its coverage's size); w: unused
+    vec4 origin;       // xyz: world position of the box's min corner; w: voxel size (m)
+    uvec4 offset;      // xyz: the box's min corner in the lattice (voxels); w: 0 in a scene of one object,
+                       // else 1 + the object's number: its voxels then join those of the objects before
     vec4 sphere;       // procedural fields: xyz centre (world), w radius
     float n_medium;
     float n_object;    // uniform: object index; maxwell: n0
@@ -109,7 +113,7 @@ REFRACT_SHADERS_END
 #ifdef __cplusplus
 static_assert(sizeof(refract::shaders::VoxelizePush) == 32);
 static_assert(sizeof(refract::shaders::SmoothPush) == 80);
-static_assert(sizeof(refract::shaders::IndexFieldPush) == 64);
+static_assert(sizeof(refract::shaders::IndexFieldPush) == 80);
 static_assert(sizeof(refract::shaders::OctreePush) == 80);
 #endif
 
