@@ -6,15 +6,16 @@
 // beds, evaluated exactly at voxel centres; imported grids come from a simulation.
 //
 // In a scene of several objects each object's dispatch covers its own box and its voxels join what the
-// objects before it left: a voxel takes the field of the object with the most coverage there (the first
-// to reach it where coverages are equal), so where objects overlap the one more inside wins, and where
-// one only grazes another's box (the smoothing's tails) it leaves it be.
+// objects before it left: a voxel takes the field of the object with the most coverage there, and where
+// coverages are equal (inside both) of the one of higher index, whatever the order. So where one object
+// only grazes another's box (the smoothing's tails) it leaves it be, and where two overlap the one more
+// inside wins, the denser one inside both.
 #include "volume_build.h"
 
 layout(local_size_x = VOLUME_GROUP_3D, local_size_y = VOLUME_GROUP_3D, local_size_z = VOLUME_GROUP_3D) in;
 layout(std430, binding = INDEX_BINDING_COVERAGE) readonly buffer Coverage { float coverage[]; };
 layout(std430, binding = INDEX_BINDING_GRID) readonly buffer Grid { float grid[]; };
-layout(binding = INDEX_BINDING_INDEX_FIELD, rgba32f) uniform writeonly image3D index_field;
+layout(binding = INDEX_BINDING_INDEX_FIELD, rgba32f) uniform image3D index_field;
 layout(binding = INDEX_BINDING_COVERAGE_IMAGE, rg32f) uniform image3D coverage_image;
 layout(push_constant) uniform Push { IndexFieldPush push; };
 
@@ -73,7 +74,7 @@ void main() {
     uint object = push.offset.w;
     if (object > 0u) {
         vec2 held = imageLoad(coverage_image, at).rg;
-        if (held.g > 0.0 && c <= held.r) return;
+        if (held.g > 0.0 && (c < held.r || (c == held.r && texel.x <= imageLoad(index_field, at).x))) return;
     }
     imageStore(index_field, at, texel);
     imageStore(coverage_image, at, vec4(c, float(object), 0.0, 0.0));

@@ -223,6 +223,35 @@ TEST_F(OpticsTest, BallLensFocusesParaxialRaysAtItsFocalLength) {
     EXPECT_NEAR(median, ball_focus(n), tolerance);
 }
 
+// The ball lens among other objects in the beam (a cube above it, a Luneburg lens below, each on its own
+// paths) focuses as it does alone: within the same tolerance, on a lattice of the same voxel size (it
+// grows along y only, the resolution with it). Photons 4x, as the beam now covers a lattice 2.2x as tall.
+TEST_F(OpticsTest, BallLensAmongOtherObjectsFocusesAtItsFocalLength) {
+    const double n = 1.5;
+    json alone = ball_lens_patch(n, 0.0);
+    json patch = {{"volume", alone["volume"]}, {"photons", {{"count", 65536}}}};
+    patch["volume"]["bounds"] = {{"min", {-1.2, -2.6, -1.2}}, {"max", {1.2, 2.6, 2.0}}};
+    patch["volume"]["resolution"] = 208;
+    auto clear = [](json object) {
+        object["extinction"] = {0, 0, 0};
+        object["scattering"] = {0, 0, 0};
+        return object;
+    };
+    patch["objects"] = {{"object", nullptr},
+                        {"ball", clear(alone["object"])},
+                        {"cube", clear({{"mesh", "cube"}, {"position", {0, 2, 0}}, {"scale", 0.4}, {"ior", 1.33}})},
+                        {"lens", clear({{"index_field", "luneburg"}, {"position", {0, -2, 0}}, {"scale", 0.4}})}};
+    const protocol::SceneDocument doc = protocol::apply_merge_patch(optics_scene(json::object()), patch);
+    ASSERT_EQ(doc.objects.size(), 3u);
+    const Traced t = trace(doc);
+    const double h = t.grid.voxel_size;
+    EXPECT_NEAR(h, 0.025, 1e-6);
+    const double median = median_ball_focus(t.exits, n), tolerance = ball_focus_tolerance(n, h);
+    std::printf("ball lens among others: f %.3f, focus median %.4f, tolerance %.4f (h %.4f)\n", ball_focus(n), median,
+                tolerance, h);
+    EXPECT_NEAR(median, ball_focus(n), tolerance);
+}
+
 // Dispersion (abbe V): each channel's photons see n_c - 1 = (n - 1) s_c and focus at f(n_c), blue nearest.
 // Each channel's median focus must lie within the ball lens's own tolerance of f(n_c). The ratio of the
 // blue and red foci is a sharper check: the shell's effective radius, the tolerance's main term, scales

@@ -16,10 +16,14 @@
 #include <utility>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "gpu_fixture.h"
 #include "mesh/mesh.h"
 #include "passes/octree.h"
 #include "passes/voxelize.h"
+#include "protocol/scene_document.h"
+#include "scene/passes.h"
 #include "vk/commands.h"
 #include "vk/resources.h"
 
@@ -791,6 +795,87 @@ TEST_F(VolumeTest, OctreeIsCoarseInHomogeneousRegionsAndFineInTheShell) {
     }
     EXPECT_GT(steep, 1000u);
     EXPECT_EQ(not_leaf0, 0u);
+}
+
+
+// --- Several objects ---------------------------------------------------------------------------------
+
+// Scenes of several objects on a fixed lattice (volume.bounds), so that moving one does not move it.
+SceneDocument objects_document(const nlohmann::json& objects) {
+    return protocol::parse_scene({{"objects", objects},
+                                  {"volume", {{"resolution", 96}, {"bounds", {{"min", {-1.5, -1, -1}}, {"max", {1.5, 1, 1}}}}}},
+                                  {"medium", {{"ior", 1.0}}}});
+}
+
+// Where two objects overlap, the voxel takes the field of the one with more coverage, and where both
+// cover it fully, of the denser; the order of their names does not matter.
+TEST_F(VolumeTest, OverlappingObjectsTakeTheFieldOfTheOneMoreInsideAndInsideBothOfTheDenser) {
+    auto two = [](const char* light_name, const char* dense_name) {
+        return objects_document({{light_name, {{"position", {-0.3, 0, 0}}, {"scale", 0.5}, {"ior", 1.3}}},
+                                 {dense_name, {{"position", {0.3, 0, 0}}, {"scale", 0.5}, {"ior", 1.7}}}});
+    };
+    for (const auto& [light_name, dense_name] : {std::pair{"a", "b"}, std::pair{"b", "a"}}) {
+        SCOPED_TRACE(std::string("lighter glass named ") + light_name);
+        const SceneDocument doc = two(light_name, dense_name);
+        scene::SceneGpu gpu(kit());
+        scene::RunOptions options;
+        options.limit = scene::kVoxelize | scene::kIndexField;
+        const scene::RunStats stats = gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
+        EXPECT_EQ(stats.voxelized.size(), 2u);
+        const auto field = gpu.read_index_field();
+        const auto numbers = gpu.read_object_numbers();  // 1 + the object's place in name order
+        const uint32_t light_number = std::string(light_name) < dense_name ? 1u : 2u;
+        const scene::GridGeometry& g = gpu.grid();
+        auto voxel_at = [&](glm::vec3 p) {
+            const glm::uvec3 v(g.to_voxel(p));
+            return (size_t{v.z} * g.dims.y + v.y) * g.dims.x + v.x;
+        };
+        // Inside the lighter sphere only (0.5 from the other's centre is its surface; 0.75 is clear of it).
+        const size_t light_only = voxel_at({-0.45f, 0.0f, 0.0f});
+        EXPECT_NEAR(field[light_only].x, 1.3f, 1e-5f);
+        EXPECT_EQ(numbers[light_only], light_number);
+        // Inside both: the denser.
+        const size_t both = voxel_at({0.0f, 0.0f, 0.0f});
+        EXPECT_NEAR(field[both].x, 1.7f, 1e-5f);
+        EXPECT_EQ(numbers[both], 3u - light_number);
+        // Far from both: the medium, and no object.
+        const size_t clear = voxel_at({0.0f, 0.9f, 0.9f});
+        EXPECT_EQ(field[clear], glm::vec4(1.0f, 0.0f, 0.0f, 0.0f));
+        EXPECT_EQ(numbers[clear], 0u);
+    }
+}
+
+// Moving one object of three voxelizes that object only, and the volume it leaves is the one a fresh
+// build of the moved scene makes, to the bit.
+TEST_F(VolumeTest, MovingOneObjectVoxelizesItAloneAndGivesTheVolumeOfAFreshBuild) {
+    const nlohmann::json objects = {{"ball", {{"position", {-1.0, 0, 0}}, {"scale", 0.35}}},
+                                    {"cube", {{"mesh", "cube"}, {"position", {0.0, 0, 0}}, {"scale", 0.3}, {"ior", 1.33}}},
+                                    {"lens", {{"index_field", "luneburg"}, {"position", {1.0, 0, 0}}, {"scale", 0.35}}}};
+    const SceneDocument before = objects_document(objects);
+    const SceneDocument after = protocol::apply_merge_patch(
+        before, {{"objects", {{"cube", {{"position", {0.1, 0.2, -0.1}}, {"rotation_deg", {0, 30, 0}}}}}}});
+    scene::RunOptions options;
+    options.limit = scene::kVoxelize | scene::kIndexField | scene::kOctree;
+    scene::SceneGpu resident(kit());
+    EXPECT_EQ(resident.run(scene::kAllPasses, before, worlds(before), nullptr, options).voxelized,
+              (std::vector<std::string>{"ball", "cube", "lens"}));
+    const scene::PassSet stale = scene::passes_invalidated(before, after);
+    EXPECT_TRUE(stale & scene::kVoxelize);
+    EXPECT_EQ(resident.run(stale, after, worlds(after), nullptr, options).voxelized, std::vector<std::string>{"cube"});
+    scene::SceneGpu fresh(kit());
+    fresh.run(scene::kAllPasses, after, worlds(after), nullptr, options);
+    EXPECT_TRUE(resident.read_index_field() == fresh.read_index_field());
+    EXPECT_TRUE(resident.read_coverage() == fresh.read_coverage());
+    EXPECT_TRUE(resident.read_object_numbers() == fresh.read_object_numbers());
+    EXPECT_TRUE(resident.read_levels() == fresh.read_levels());
+    // A material edit voxelizes nothing; removing an object voxelizes nothing either (the others keep
+    // their coverage), and the field then is that of the two left.
+    const SceneDocument removed = protocol::apply_merge_patch(after, {{"objects", {{"ball", nullptr}}}});
+    EXPECT_TRUE(resident.run(scene::passes_invalidated(after, removed), removed, worlds(removed), nullptr, options)
+                    .voxelized.empty());
+    scene::SceneGpu fresh_removed(kit());
+    fresh_removed.run(scene::kAllPasses, removed, worlds(removed), nullptr, options);
+    EXPECT_TRUE(resident.read_index_field() == fresh_removed.read_index_field());
 }
 
 }  // namespace

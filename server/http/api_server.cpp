@@ -271,6 +271,7 @@ struct ApiServer::Impl {
         res.status = 200;
         res.set_header("X-Refract-Revision", std::to_string(outcome->revision));
         res.set_header("X-Refract-Passes", outcome->cached ? "" : scene::pass_names(frame.rerun));
+        res.set_header("X-Refract-Voxelized", outcome->cached ? "" : comma_list(frame.voxelized));
         res.set_header("X-Refract-Cached", outcome->cached ? "1" : "0");
         res.set_header("ETag", etag(outcome->revision));
         res.set_header("Cache-Control", "no-store");

@@ -132,6 +132,15 @@ std::vector<std::string> pass_list(scene::PassSet passes) {
     return names;
 }
 
+std::string comma_list(const std::vector<std::string>& names) {
+    std::string out;
+    for (const auto& name : names) {
+        if (!out.empty()) out += ',';
+        out += name;
+    }
+    return out;
+}
+
 nlohmann::json timings_json(const scene::FrameResult& frame) {
     nlohmann::json timings = nlohmann::json::object();
     for (const auto& timing : frame.timings) timings[timing.name] = pass_ms(timing);

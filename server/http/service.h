@@ -72,6 +72,8 @@ std::string dump_json(const nlohmann::json& value);
 
 // Pass names of a set, in pipeline order ("voxelize", "index_field", ...).
 std::vector<std::string> pass_list(scene::PassSet passes);
+// Names joined by commas (the X-Refract-Voxelized header: object names hold no comma).
+std::string comma_list(const std::vector<std::string>& names);
 // {pass: ms} for every timing of a frame.
 nlohmann::json timings_json(const scene::FrameResult& frame);
 // The Server-Timing header value of a frame ("voxelize;dur=1.2, view;dur=3.4").

@@ -462,6 +462,7 @@ private:
                            {"seq", seq},
                            {"revision", outcome.revision},
                            {"passes", pass_list(outcome.cached ? 0 : frame.rerun)},
+                           {"voxelized", outcome.cached ? std::vector<std::string>{} : frame.voxelized},
                            {"timings", outcome.cached ? json::object() : timings_json(frame)},
                            {"width", frame.width},
                            {"height", frame.height},
