@@ -431,11 +431,12 @@ private:
                       "film", "extinction", "scattering", "phase", "grid"},
                      "must be a JSON object");
         static constexpr const char* kMeshRule =
-            "must be \"sphere\", \"cube\", \"torus\", \"prism\" or \"upload:NAME\" with NAME 1..64 characters of "
+            "must be \"sphere\", \"cube\", \"torus\", \"prism\", \"bunny\" or \"upload:NAME\" with NAME 1..64 characters of "
             "[A-Za-z0-9_.-]";
         if (const std::string* mesh = string_member(object, base, "mesh", kMeshRule)) {
             constexpr std::string_view upload = "upload:";
-            const bool builtin = *mesh == "sphere" || *mesh == "cube" || *mesh == "torus" || *mesh == "prism";
+            const bool builtin = *mesh == "sphere" || *mesh == "cube" || *mesh == "torus" || *mesh == "prism" ||
+                                 *mesh == "bunny";
             const bool uploaded = mesh->compare(0, upload.size(), upload) == 0 &&
                                   valid_name(std::string_view(*mesh).substr(upload.size()));
             if (!builtin && !uploaded) fail(child(base, "mesh"), kMeshRule);

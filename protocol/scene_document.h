@@ -68,7 +68,7 @@ struct Film {
 };
 
 struct Object {
-    std::string mesh = "sphere";  // "sphere" | "cube" | "torus" | "prism" | "upload:NAME"
+    std::string mesh = "sphere";  // "sphere" | "cube" | "torus" | "prism" | "bunny" | "upload:NAME"
     Vec3 position{0.0, 0.0, 0.0};
     Vec3 rotation_deg{0.0, 0.0, 0.0};  // XYZ Euler angles, applied X then Y then Z
     double scale = 1.0;

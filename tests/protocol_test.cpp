@@ -142,7 +142,7 @@ TEST(SceneDocument, RoundTripEveryEnumValue) {
         d.object().grid = "g";
         EXPECT_EQ(parse_scene(to_json(d)), d);
     }
-    for (const char* mesh : {"sphere", "cube", "torus", "prism", "upload:A-z_0.9"}) {
+    for (const char* mesh : {"sphere", "cube", "torus", "prism", "bunny", "upload:A-z_0.9"}) {
         SceneDocument d;
         d.object().mesh = mesh;
         EXPECT_EQ(parse_scene(to_json(d)), d);

@@ -21,6 +21,7 @@ std::shared_ptr<const mesh::Mesh> builtin(const std::string& name) {
     else if (name == "cube") m = std::make_shared<mesh::Mesh>(mesh::make_cube());
     else if (name == "torus") m = std::make_shared<mesh::Mesh>(mesh::make_torus());
     else if (name == "prism") m = std::make_shared<mesh::Mesh>(mesh::make_prism());
+    else if (name == "bunny") m = std::make_shared<mesh::Mesh>(mesh::make_blobby_bunny());
     else return nullptr;
     cache.emplace(name, m);
     return m;
