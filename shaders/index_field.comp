@@ -5,8 +5,9 @@
 // to n between the medium's and the object's index; Luneburg and Maxwell lenses are the analytic test
 // beds, evaluated exactly at voxel centres; imported grids come from a simulation.
 //
-// In a scene of several objects each object's dispatch covers its own box and its voxels join what the
-// objects before it left: a voxel takes the field of the object with the most coverage there, and where
+// In a scene of several objects, an edit recomposes only the region it changed (the boxes of the objects
+// it moved, before and after): a dispatch sets the region to the medium (a uniform object of no coverage),
+// then each object whose box meets it writes its part, joining what the objects before it left: a voxel takes the field of the object with the most coverage there, and where
 // coverages are equal (inside both) of the one of higher index, whatever the order. So where one object
 // only grazes another's box (the smoothing's tails) it leaves it be, and where two overlap the one more
 // inside wins, the denser one inside both.
@@ -44,8 +45,8 @@ vec3 gradient_of_grid(ivec3 v) {
 
 void main() {
     uvec3 id = gl_GlobalInvocationID;
-    if (any(greaterThanEqual(id, push.dims.xyz))) return;
-    ivec3 v = ivec3(id);
+    if (any(greaterThanEqual(id, push.extent.xyz))) return;
+    ivec3 v = ivec3(id + push.first.xyz);
     float h = push.origin.w;
     float c = coverage_at(v);
     vec4 texel;

@@ -845,8 +845,9 @@ TEST_F(VolumeTest, OverlappingObjectsTakeTheFieldOfTheOneMoreInsideAndInsideBoth
     }
 }
 
-// Moving one object of three voxelizes that object only, and the volume it leaves is the one a fresh
-// build of the moved scene makes, to the bit.
+// Moving one object of three voxelizes that object only and remakes the index field over its boxes
+// (before and after) only, and the volume it leaves is the one a fresh build of the moved scene makes,
+// to the bit; so does an index edit of one object, and removing one.
 TEST_F(VolumeTest, MovingOneObjectVoxelizesItAloneAndGivesTheVolumeOfAFreshBuild) {
     const nlohmann::json objects = {{"ball", {{"position", {-1.0, 0, 0}}, {"scale", 0.35}}},
                                     {"cube", {{"mesh", "cube"}, {"position", {0.0, 0, 0}}, {"scale", 0.3}, {"ior", 1.33}}},
@@ -868,10 +869,18 @@ TEST_F(VolumeTest, MovingOneObjectVoxelizesItAloneAndGivesTheVolumeOfAFreshBuild
     EXPECT_TRUE(resident.read_coverage() == fresh.read_coverage());
     EXPECT_TRUE(resident.read_object_numbers() == fresh.read_object_numbers());
     EXPECT_TRUE(resident.read_levels() == fresh.read_levels());
-    // A material edit voxelizes nothing; removing an object voxelizes nothing either (the others keep
-    // their coverage), and the field then is that of the two left.
-    const SceneDocument removed = protocol::apply_merge_patch(after, {{"objects", {{"ball", nullptr}}}});
-    EXPECT_TRUE(resident.run(scene::passes_invalidated(after, removed), removed, worlds(removed), nullptr, options)
+    // An index edit of one object remakes the field over its box only, to the same bits.
+    const SceneDocument denser = protocol::apply_merge_patch(after, {{"objects", {{"cube", {{"ior", 1.9}}}}}});
+    EXPECT_TRUE(resident.run(scene::passes_invalidated(after, denser), denser, worlds(denser), nullptr, options)
+                    .voxelized.empty());
+    scene::SceneGpu fresh_denser(kit());
+    fresh_denser.run(scene::kAllPasses, denser, worlds(denser), nullptr, options);
+    EXPECT_TRUE(resident.read_index_field() == fresh_denser.read_index_field());
+    EXPECT_TRUE(resident.read_levels() == fresh_denser.read_levels());
+    // Removing an object voxelizes nothing (the others keep their coverage), and the field then is
+    // that of the two left.
+    const SceneDocument removed = protocol::apply_merge_patch(denser, {{"objects", {{"ball", nullptr}}}});
+    EXPECT_TRUE(resident.run(scene::passes_invalidated(denser, removed), removed, worlds(removed), nullptr, options)
                     .voxelized.empty());
     scene::SceneGpu fresh_removed(kit());
     fresh_removed.run(scene::kAllPasses, removed, worlds(removed), nullptr, options);

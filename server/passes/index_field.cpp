@@ -25,20 +25,18 @@ IndexFieldPass::IndexFieldPass(vk::Context& context)
 }
 
 void IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol::Medium& medium,
-                            std::span<const ObjectField> objects, const vk::Buffer& grid_values,
-                            const vk::Image3D& index_field, const vk::Image3D& coverage_image) const {
+                            const scene::GridGeometry& lattice, std::span<const ObjectField> objects, VoxelRange region, const vk::Buffer& zeros,
+                            const vk::Buffer& grid_values, const vk::Image3D& index_field,
+                            const vk::Image3D& coverage_image) const {
     using protocol::IndexFieldKind;
-    const bool several = objects.size() > 1;
-    if (several) {
-        // Where no object's box reaches: the medium, no coverage, no object.
-        const float n_medium = static_cast<float>(medium.ior);
-        recorder.clear(index_field, {n_medium, 0.0f, 0.0f, 0.0f});
-        recorder.clear(coverage_image, {0.0f, 0.0f, 0.0f, 0.0f});
-        recorder.transfer_to_compute_barrier();
-    }
-    for (size_t i = 0; i < objects.size(); ++i) {
-        const ObjectField& part = objects[i];
-        const protocol::Object& object = part.object;
+    const float n_medium = static_cast<float>(medium.ior);
+    // One dispatch: `object` over the part of `box` (its coverage's extent, at `offset` in the lattice)
+    // inside the region; `number` 0 writes, else joins (IndexFieldPush::offset).
+    auto dispatch = [&](const protocol::Object& object, const scene::GridGeometry& box, glm::uvec3 offset,
+                        const vk::Buffer& coverage, uint32_t number) {
+        const glm::uvec3 box_end = offset + glm::uvec3(box.dims.x, box.dims.y, box.dims.z);
+        const VoxelRange part{glm::max(region.first, offset), glm::min(region.end, box_end)};
+        if (part.empty()) return;
         uint32_t kind = INDEX_KIND_UNIFORM;
         float n_object = static_cast<float>(object.ior);
         switch (object.index_field) {
@@ -50,23 +48,40 @@ void IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol::Mediu
                 break;
             case IndexFieldKind::grid: kind = INDEX_KIND_GRID; break;
         }
-        const auto& dims = part.box.dims;
+        const glm::uvec3 extent = part.end - part.first;
         IndexFieldPush push{};
-        push.dims = glm::uvec4(dims.x, dims.y, dims.z, 0);
-        push.origin = glm::vec4(part.box.origin, part.box.voxel_size);
-        push.offset = glm::uvec4(part.offset, several ? static_cast<uint32_t>(i) + 1u : 0u);
+        push.dims = glm::uvec4(box.dims.x, box.dims.y, box.dims.z, 0);
+        push.origin = glm::vec4(box.origin, box.voxel_size);
+        push.offset = glm::uvec4(offset, number);
+        push.first = glm::uvec4(part.first - offset, 0u);
+        push.extent = glm::uvec4(extent, 0u);
         push.sphere = glm::vec4(static_cast<float>(object.position[0]), static_cast<float>(object.position[1]),
                                 static_cast<float>(object.position[2]), static_cast<float>(object.scale));
-        push.n_medium = static_cast<float>(medium.ior);
+        push.n_medium = n_medium;
         push.n_object = n_object;
-        if (i > 0) recorder.compute_barrier();  // each object's voxels join what those before it left
         pipelines_[kind].dispatch(recorder.get(),
-                                  {vk::Binding::storage_buffer(INDEX_BINDING_COVERAGE, part.coverage),
+                                  {vk::Binding::storage_buffer(INDEX_BINDING_COVERAGE, coverage),
                                    vk::Binding::storage_buffer(INDEX_BINDING_GRID, grid_values),
                                    vk::Binding::storage_image(INDEX_BINDING_INDEX_FIELD, index_field),
                                    vk::Binding::storage_image(INDEX_BINDING_COVERAGE_IMAGE, coverage_image)},
-                                  push, vk::group_count(dims.x, VOLUME_GROUP_3D), vk::group_count(dims.y, VOLUME_GROUP_3D),
-                                  vk::group_count(dims.z, VOLUME_GROUP_3D));
+                                  push, vk::group_count(extent.x, VOLUME_GROUP_3D), vk::group_count(extent.y, VOLUME_GROUP_3D),
+                                  vk::group_count(extent.z, VOLUME_GROUP_3D));
+    };
+    if (objects.size() == 1 && objects.front().number == 0) {
+        const ObjectField& only = objects.front();
+        dispatch(only.object, only.box, only.offset, only.coverage, 0u);
+        return;
+    }
+    // The region to the medium: a uniform object of the medium's index and no coverage, numbered none.
+    protocol::Object medium_object;
+    medium_object.ior = medium.ior;
+    const glm::uvec3 size = region.end - region.first;
+    const scene::GridGeometry region_box{lattice.origin + lattice.voxel_size * glm::vec3(region.first),
+                                         lattice.voxel_size, {size.x, size.y, size.z}};
+    dispatch(medium_object, region_box, region.first, zeros, 0u);
+    for (const ObjectField& part : objects) {
+        recorder.compute_barrier();  // each object's voxels join what those before it left
+        dispatch(part.object, part.box, part.offset, part.coverage, part.number);
     }
 }
 

@@ -13,24 +13,38 @@
 
 namespace refract::passes {
 
+// A box of the lattice's voxels, [first, end).
+struct VoxelRange {
+    glm::uvec3 first{0u}, end{0u};
+    bool empty() const { return glm::any(glm::greaterThanEqual(first, end)); }
+    uint64_t count() const {
+        return empty() ? 0 : uint64_t{end.x - first.x} * (end.y - first.y) * (end.z - first.z);
+    }
+};
+
 // One object's part of the index field: its smoothed coverage over its own box of the scene's lattice.
 struct ObjectField {
     const protocol::Object& object;
     scene::GridGeometry box;     // the lattice's voxels from `offset` on; the coverage's size
     glm::uvec3 offset;           // the box's min corner in the lattice (voxels)
     const vk::Buffer& coverage;  // float per voxel of the box
+    uint32_t number;             // 1 + the object's place in name order (the material table's); 0 for the
+                                 // one object of a scene of one, whose box is the whole lattice
 };
 
 class IndexFieldPass {
 public:
     explicit IndexFieldPass(vk::Context& context);
 
-    // Records the field of `objects` into the lattice's images. One object's box is the whole lattice;
-    // several objects' fields join voxel by voxel over the medium (index_field.comp says how), in the
-    // order given. `grid_values` is the imported index grid (the lattice's size) for index_field == grid;
-    // any small buffer otherwise.
-    void record(vk::CommandRecorder& recorder, const protocol::Medium& medium, std::span<const ObjectField> objects,
-                const vk::Buffer& grid_values, const vk::Image3D& index_field, const vk::Image3D& coverage_image) const;
+    // Records the field of `objects` over `region` of the lattice's images; the rest keeps what it holds.
+    // The one object of a scene of one (number 0) writes the whole lattice.
+    // One object's box is the whole lattice, and so is the region. Several objects' fields join voxel by
+    // voxel over the medium (index_field.comp says how), in the order given: `zeros` is a float per
+    // voxel of the region, all 0 (the medium's coverage). `grid_values` is the imported index grid (the
+    // lattice's size) for index_field == grid; any small buffer otherwise.
+    void record(vk::CommandRecorder& recorder, const protocol::Medium& medium, const scene::GridGeometry& lattice,
+                std::span<const ObjectField> objects, VoxelRange region, const vk::Buffer& zeros, const vk::Buffer& grid_values,
+                const vk::Image3D& index_field, const vk::Image3D& coverage_image) const;
 
 private:
     ModePipelines pipelines_;  // by INDEX_KIND_*

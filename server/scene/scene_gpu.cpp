@@ -54,6 +54,17 @@ std::map<std::string, ObjectBox> object_boxes(const GridGeometry& lattice, const
 }
 
 namespace {
+passes::VoxelRange range_of(const ObjectBox& b) {
+    return {b.offset, b.offset + glm::uvec3(b.box.dims.x, b.box.dims.y, b.box.dims.z)};
+}
+
+// The smallest range holding both.
+passes::VoxelRange joined(const passes::VoxelRange& a, const passes::VoxelRange& b) {
+    if (a.empty()) return b;
+    if (b.empty()) return a;
+    return {glm::min(a.first, b.first), glm::max(a.end, b.end)};
+}
+
 // Identifies a world mesh's content: an object whose mesh hashes the same keeps its coverage.
 size_t mesh_hash(const mesh::Mesh& mesh) {
     const std::hash<std::string_view> hash;
@@ -272,6 +283,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     std::vector<vk::Buffer> scratch;
     vk::Buffer coverage_upload;
     std::vector<std::string> voxelized;
+    passes::VoxelRange moved;  // where the objects voxelized now lay before and lie now
+    vk::Buffer zeros;          // the medium's coverage over the region the index field is remade over
     const bool first_use = built_ == 0;
     if (first_use) {
         for (const vk::Image3D* image : {&index_field_, &coverage_image_}) recorder_.init_image(*image);
@@ -311,6 +324,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                 if (held != objects_.end() && held->second.mesh_hash == hash && held->second.smoothing == sigma &&
                     held->second.box.box == box.box)
                     continue;
+                if (held != objects_.end()) moved = joined(moved, range_of(held->second.box));
+                moved = joined(moved, range_of(box));
                 ObjectVolume& volume = objects_[name];
                 volume.box = box;
                 volume.mesh_hash = hash;
@@ -331,11 +346,37 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     if (stale & kIndexField) {
         timer_.begin(cmd, "index_field");
         std::vector<passes::ObjectField> fields;
+        uint32_t number = 0;
         for (const auto& [name, object] : document.objects) {
             const ObjectVolume& volume = objects_.at(name);
-            if (!volume.box.empty()) fields.push_back({object, volume.box.box, volume.box.offset, volume.coverage});
+            ++number;
+            if (!volume.box.empty())
+                fields.push_back({object, volume.box.box, volume.box.offset, volume.coverage, several ? number : 0u});
         }
-        kit_.index_field.record(recorder_, document.medium, fields, grid_values_, index_field_, coverage_image_);
+        // The whole lattice, unless the field of these very objects (by name, so by number) over this
+        // medium is resident and only some objects moved or changed their index: then their boxes.
+        passes::VoxelRange region{glm::uvec3(0u), glm::uvec3(grid_.dims.x, grid_.dims.y, grid_.dims.z)};
+        const bool same_objects = std::equal(composed_objects_.begin(), composed_objects_.end(), document.objects.begin(),
+                                             document.objects.end(), [](const auto& a, const auto& b) { return a.first == b.first; });
+        if (several && (built_ & kIndexField) && same_objects && composed_medium_ior_ == document.medium.ior) {
+            region = moved;
+            for (const auto& [name, object] : document.objects) {
+                const protocol::Object& was = composed_objects_.at(name);
+                if (was.index_field != object.index_field || was.ior != object.ior || was.maxwell_n0 != object.maxwell_n0)
+                    region = joined(region, range_of(objects_.at(name).box));
+            }
+        }
+        if (several && !region.empty()) {
+            zeros = vk::Buffer(kit_.context, region.count() * sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                               VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::device, "medium coverage");
+            recorder_.fill(zeros, 0u);
+            recorder_.transfer_to_compute_barrier();
+        }
+        if (!region.empty())
+            kit_.index_field.record(recorder_, document.medium, grid_, fields, region, several ? zeros : grid_values_,
+                                    grid_values_, index_field_, coverage_image_);
+        composed_objects_ = document.objects;
+        composed_medium_ior_ = document.medium.ior;
         recorder_.compute_barrier();
         timer_.end(cmd);
     }

@@ -174,6 +174,10 @@ private:
         vk::Buffer coverage;
     };
     std::map<std::string, ObjectVolume> objects_;
+    // The objects and the medium's index as the index field was last made of them: an edit that moves
+    // some objects of several remakes the field over their boxes only.
+    std::map<std::string, protocol::Object> composed_objects_;
+    double composed_medium_ior_ = 0.0;
     vk::Buffer grid_values_, pyramid_, levels_, materials_;
     vk::Image3D index_field_, coverage_image_;
     // Transport (photons, resolve)

@@ -84,6 +84,9 @@ struct IndexFieldPush {
     vec4 origin;       // xyz: world position of the box's min corner; w: voxel size (m)
     uvec4 offset;      // xyz: the box's min corner in the lattice (voxels); w: 0 in a scene of one object,
                        // else 1 + the object's number: its voxels then join those of the objects before
+    uvec4 first;       // xyz: the box's first voxel this dispatch writes (the part of the box inside the
+                       // region an edit changed); w: unused
+    uvec4 extent;      // xyz: how many voxels from there; w: unused
     vec4 sphere;       // procedural fields: xyz centre (world), w radius
     float n_medium;
     float n_object;    // uniform: object index; maxwell: n0
@@ -113,7 +116,7 @@ REFRACT_SHADERS_END
 #ifdef __cplusplus
 static_assert(sizeof(refract::shaders::VoxelizePush) == 32);
 static_assert(sizeof(refract::shaders::SmoothPush) == 80);
-static_assert(sizeof(refract::shaders::IndexFieldPush) == 80);
+static_assert(sizeof(refract::shaders::IndexFieldPush) == 112);
 static_assert(sizeof(refract::shaders::OctreePush) == 80);
 #endif
 
