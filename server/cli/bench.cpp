@@ -1,6 +1,7 @@
 // refract bench: per-pass GPU milliseconds (timestamp queries) for fixed scenes and edit kinds.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -41,6 +42,9 @@ struct BenchCase {
     scene::PassSet edit = scene::kAllPasses;
     std::string edit_name = "full";  // "full" | "light" | "camera"
     scene::Quality quality = scene::Quality::still;  // how the passes run (as refractd runs them)
+    // A merge patch each run applies and the next takes back (moving an object there and back), the
+    // passes it invalidates rerun; null: each run reruns `edit` on the same document.
+    json move = nullptr;
 };
 
 // Median and spread of a series of samples.
@@ -126,6 +130,33 @@ std::vector<BenchCase> standard_suite(bool gpu) {
         add("bounces " + std::to_string(b) + " interactive", "dense_fog",
             {{"photons", {{"count", base_photons}, {"max_bounces", b}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
             scene::kPhotons | scene::kView, "light", scene::Quality::interactive);
+    // Several objects: examples/gallery.json (eight objects, three lights), its full build and a move of
+    // its bunny by 5 cm, against the move of the bunny alone on a lattice of the same voxel size (its
+    // own box: README, "Several objects").
+    std::ifstream gallery_file(std::string(REFRACT_SOURCE_DIR) + "/examples/gallery.json");
+    if (gallery_file) {
+        json gallery = json::parse(gallery_file);
+        gallery["image"] = {{"width", base_image}, {"height", base_image * 9 / 16}};
+        gallery["photons"] = {{"count", base_photons}};
+        const json bunny = gallery["objects"]["bunny"];
+        const json move = {{"objects", {{"bunny", {{"position", {bunny["position"][0].get<double>() + 0.05,
+                                                                  bunny["position"][1], bunny["position"][2]}}}}}}};
+        cases.push_back({"gallery", gallery, scene::kAllPasses, "full"});
+        cases.push_back({"gallery move one", gallery, scene::kAllPasses, "move", scene::Quality::still, move});
+        json alone = gallery;
+        alone["objects"] = {{"bunny", bunny}};
+        const auto& bounds = gallery["volume"]["bounds"];
+        const double voxel = (bounds["max"][0].get<double>() - bounds["min"][0].get<double>()) /
+                             gallery["volume"]["resolution"].get<double>();
+        const double half = 0.65;  // around the bunny (scale 0.5) and its move
+        json lo = json::array(), hi = json::array();
+        for (size_t a = 0; a < 3; ++a) {
+            lo.push_back(bunny["position"][a].get<double>() - half);
+            hi.push_back(bunny["position"][a].get<double>() + half);
+        }
+        alone["volume"] = {{"resolution", static_cast<int>(std::lround(2.0 * half / voxel))}, {"bounds", {{"min", lo}, {"max", hi}}}};
+        cases.push_back({"gallery bunny alone move", alone, scene::kAllPasses, "move", scene::Quality::still, move});
+    }
     for (const std::string base : {"luneburg", "torus_floor", "bunny", "dispersion"})
         add(base, base, {{"photons", {{"count", base_photons}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
             scene::kAllPasses, "full");
@@ -331,15 +362,24 @@ int bench_command(const Arguments& args) {
         const scene::WorldMeshes worlds = worlds_of(document, uploads);
         const int64_t memory_before = context.allocated_bytes();
         scene::SceneGpu scene_gpu(kit);
-        const scene::RunOptions run_options = scene::run_options_for(c.quality);
+        scene::RunOptions run_options = scene::run_options_for(c.quality);
+        // A rebuild voxelizes every object again, though their coverage is resident.
+        run_options.revoxelize = c.move.is_null() && (c.edit & scene::kVoxelize);
         scene_gpu.run(scene::kAllPasses, document, worlds, nullptr, run_options);  // warm-up: builds everything once
         const int64_t memory = context.allocated_bytes() - memory_before;
         std::map<std::string, std::vector<double>> pass_ms;
         std::vector<double> host_ms, encode_ms;
         scene::RunStats last;
+        // A moving case alternates between the document and the moved one.
+        const protocol::SceneDocument moved = c.move.is_null() ? document : protocol::apply_merge_patch(document, c.move);
+        const scene::WorldMeshes moved_worlds = worlds_of(moved, uploads);
         for (int r = 0; r < runs; ++r) {
+            const bool there = !c.move.is_null() && r % 2 == 0;
+            const protocol::SceneDocument& from = there ? document : moved;
+            const protocol::SceneDocument& to = there ? moved : document;
+            const scene::PassSet passes = c.move.is_null() ? c.edit : scene::passes_invalidated(from, to);
             const auto start = Clock::now();
-            last = scene_gpu.run(c.edit, document, worlds, nullptr, run_options);
+            last = scene_gpu.run(passes, to, there ? moved_worlds : worlds, nullptr, run_options);
             const auto encode_start = Clock::now();
             const auto png = image::encode_png(scene_gpu.read_ldr(), scene_gpu.width(), scene_gpu.height());
             const auto end = Clock::now();

@@ -321,8 +321,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                 const mesh::Mesh& world = worlds.at(name);
                 const size_t hash = mesh_hash(world);
                 auto held = objects_.find(name);
-                if (held != objects_.end() && held->second.mesh_hash == hash && held->second.smoothing == sigma &&
-                    held->second.box.box == box.box)
+                if (!options.revoxelize && held != objects_.end() && held->second.mesh_hash == hash &&
+                    held->second.smoothing == sigma && held->second.box.box == box.box)
                     continue;
                 if (held != objects_.end()) moved = joined(moved, range_of(held->second.box));
                 moved = joined(moved, range_of(box));

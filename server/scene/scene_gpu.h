@@ -71,6 +71,9 @@ struct RunOptions {
     bool fixed_step = false;      // photons step one voxel everywhere (reference for the octree's gain)
     bool record_photon_exits = false;
     PassSet limit = kAllPasses;   // passes outside this set are not run (the CLI's voxelize and trace)
+    // The voxelize pass keeps each object's resident coverage while its world mesh, box and smoothing
+    // stay; set, it voxelizes every object again (what a benchmark of a whole rebuild measures).
+    bool revoxelize = false;
     float view_step = 1.0f;       // eye-ray step in scattering media (voxels); interactive frames use 2
     uint32_t radiance_factor = 1; // index-field voxels per radiance-grid voxel per axis; interactive: 3
     bool sampled_deposits = false; // photons deposit once per radiance voxel of path, not exactly per
