@@ -394,6 +394,15 @@ async function main() {
     ui = await outliner();
     assert(ui.chosen === 'glass.small' && !ui.errorShown, `outliner after Rename ${JSON.stringify(ui)}`);
     await shot(page, '02c-renamed-object.png');
+    // The Abbe number is one per scene: the panel writes it to every object, and back.
+    for (const abbe of [40, before.object.abbe]) {
+      const rev = await page.evaluate(() => window.refract.lastRevision);
+      await page.fill('#ctl-object-abbe-num', String(abbe));
+      await page.press('#ctl-object-abbe-num', 'Enter');
+      await waitSettled(page, rev);
+      server = (await sceneOnServer(sceneId)).scene;
+      assert(Object.values(server.objects).every((o) => o.abbe === abbe), `Abbe numbers ${Object.values(server.objects).map((o) => o.abbe)}`);
+    }
     // Remove takes the chosen one away; the last cannot be removed.
     const rev4 = await page.evaluate(() => window.refract.lastRevision);
     await page.click('#object-remove');
