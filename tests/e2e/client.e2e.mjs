@@ -316,6 +316,142 @@ async function main() {
     log(`object ${JSON.stringify(p0)} -> ${JSON.stringify(p1)}, ${(changed * 100).toFixed(1)}% pixels changed`);
   });
 
+  await check('the outliner adds an object beside the chosen one; the panel and Alt+drag edit only it; rename, remove', async () => {
+    await waitSettled(page);
+    const before = (await sceneOnServer(sceneId)).scene;
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await snapshotCanvas(page);
+    await page.click('#object-add');
+    await waitSettled(page, rev0);
+    let server = (await sceneOnServer(sceneId)).scene;
+    assert(JSON.stringify(Object.keys(server.objects).sort()) === '["object","object2"]', `objects after Add: ${Object.keys(server.objects)}`);
+    const added = server.objects.object2;
+    assert(added.mesh === 'sphere' && added.abbe === before.object.abbe && added.scale < before.object.scale,
+      `the new object: ${JSON.stringify(added)}`);
+    assert(added.position[0] > before.object.position[0] + before.object.scale, `not beside the first: ${added.position}`);
+    assert(JSON.stringify(server.objects.object) === JSON.stringify(before.object), 'Add changed the first object');
+    const seen = await canvasChange(page);
+    assert(seen > 0.005, `a second object changed only ${(seen * 100).toFixed(2)}% of the pixels`);
+    // The outliner lists both and has chosen the new one; the panel shows it.
+    const outliner = () => page.evaluate(() => ({
+      names: [...document.getElementById('ctl-object-member').options].map((o) => o.value),
+      chosen: document.getElementById('ctl-object-member').value,
+      name: document.getElementById('object-name').value,
+      scale: document.getElementById('ctl-object-scale-num').value,
+      removeDisabled: document.getElementById('object-remove').disabled,
+      error: document.getElementById('ctl-object-member-error').textContent,
+      errorShown: !document.getElementById('ctl-object-member-error').hidden,
+    }));
+    let ui = await outliner();
+    assert(JSON.stringify(ui.names) === '["object","object2"]' && ui.chosen === 'object2' && ui.name === 'object2',
+      `outliner ${JSON.stringify(ui)}`);
+    assert(Number(ui.scale) === added.scale && !ui.removeDisabled, `panel ${JSON.stringify(ui)}`);
+    await shot(page, '02b-two-objects.png');
+    // The panel edits only the chosen object.
+    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    await page.fill('#ctl-object-ior-num', '1.9');
+    await page.press('#ctl-object-ior-num', 'Enter');
+    await waitSettled(page, rev1);
+    server = (await sceneOnServer(sceneId)).scene;
+    assert(server.objects.object2.ior === 1.9, `object2 ior ${server.objects.object2.ior}`);
+    assert(JSON.stringify(server.objects.object) === JSON.stringify(before.object), 'the IOR edit changed the first object');
+    // Alt+drag moves the chosen object, not the first.
+    const rev2 = await page.evaluate(() => window.refract.lastRevision);
+    await dragFromCentre(page, 'Alt', 6, 6, 0);
+    await waitSettled(page, rev2);
+    server = (await sceneOnServer(sceneId)).scene;
+    assert(server.objects.object2.position[0] > added.position[0] + 0.02, `object2 ${added.position} -> ${server.objects.object2.position}`);
+    assert(JSON.stringify(server.objects.object) === JSON.stringify(before.object), 'Alt+drag moved the first object');
+    // Choosing the first object in the outliner makes the panel show it.
+    await page.selectOption('#ctl-object-member', 'object');
+    ui = await outliner();
+    assert(ui.name === 'object' && Number(ui.scale) === before.object.scale, `after choosing "object": ${JSON.stringify(ui)}`);
+    await page.selectOption('#ctl-object-member', 'object2');
+    // Refused renames (a bad name, a name taken) say why at the outliner and send nothing.
+    const revBefore = (await sceneOnServer(sceneId)).revision;
+    for (const [bad, why] of [['no spaces', /not a name/], ['object', /already an object named “object”/], ['..', /not a name/]]) {
+      await page.fill('#object-name', bad);
+      await page.click('#object-rename');
+      ui = await outliner();
+      assert(ui.errorShown && why.test(ui.error), `renaming to "${bad}": ${JSON.stringify(ui)}`);
+      const invalid = await page.evaluate(() => document.getElementById('object-name').getAttribute('aria-invalid'));
+      assert(invalid === 'true', `the name box is not marked invalid for "${bad}"`);
+    }
+    await sleep(300);
+    const unchanged = await sceneOnServer(sceneId);
+    assert(unchanged.revision === revBefore && JSON.stringify(Object.keys(unchanged.scene.objects).sort()) === '["object","object2"]',
+      `a refused rename changed the scene (revision ${revBefore} -> ${unchanged.revision})`);
+    ui = await outliner();
+    assert(JSON.stringify(ui.names) === '["object","object2"]' && ui.chosen === 'object2', `outliner after refusals ${JSON.stringify(ui)}`);
+    // A good name renames: one patch, the object's fields kept, still chosen.
+    const rev3 = await page.evaluate(() => window.refract.lastRevision);
+    await page.fill('#object-name', 'glass.small');
+    await page.click('#object-rename');
+    await waitSettled(page, rev3);
+    server = (await sceneOnServer(sceneId)).scene;
+    assert(JSON.stringify(Object.keys(server.objects).sort()) === '["glass.small","object"]' && server.objects['glass.small'].ior === 1.9,
+      `objects after Rename: ${JSON.stringify(server.objects)}`);
+    ui = await outliner();
+    assert(ui.chosen === 'glass.small' && !ui.errorShown, `outliner after Rename ${JSON.stringify(ui)}`);
+    await shot(page, '02c-renamed-object.png');
+    // The Abbe number is one per scene: the panel writes it to every object, and back.
+    for (const abbe of [40, before.object.abbe]) {
+      const rev = await page.evaluate(() => window.refract.lastRevision);
+      await page.fill('#ctl-object-abbe-num', String(abbe));
+      await page.press('#ctl-object-abbe-num', 'Enter');
+      await waitSettled(page, rev);
+      server = (await sceneOnServer(sceneId)).scene;
+      assert(Object.values(server.objects).every((o) => o.abbe === abbe), `Abbe numbers ${Object.values(server.objects).map((o) => o.abbe)}`);
+    }
+    // Remove takes the chosen one away; the last cannot be removed.
+    const rev4 = await page.evaluate(() => window.refract.lastRevision);
+    await page.click('#object-remove');
+    await waitSettled(page, rev4);
+    server = (await sceneOnServer(sceneId)).scene;
+    assert(JSON.stringify(server.objects) === JSON.stringify({ object: before.object }), `objects after Remove: ${JSON.stringify(server.objects)}`);
+    ui = await outliner();
+    assert(JSON.stringify(ui.names) === '["object"]' && ui.chosen === 'object' && ui.removeDisabled, `outliner after Remove ${JSON.stringify(ui)}`);
+    log(`Add changed ${(seen * 100).toFixed(1)}% of the pixels at ${JSON.stringify(added.position)}; edited, moved, renamed, removed`);
+  });
+
+  await check('a daemon refusal of Add (a grid object stands alone) shows at the outliner and changes nothing', async () => {
+    await waitSettled(page);
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    // Another client imports an index grid: the object's index field becomes "grid".
+    const values = Buffer.from(new Float32Array(8).fill(1.3).buffer);
+    const put = await fetch(`${base}/api/scenes/${sceneId}/index-field?nx=2&ny=2&nz=2&min=-1,-1,-1&max=1,1,1`,
+      { method: 'PUT', body: values, headers: { 'Content-Type': 'application/octet-stream' } });
+    assert(put.ok, `PUT index-field: ${put.status} ${await put.text()}`);
+    await waitFor(page, (rev) => window.refract.lastRevision > rev && window.refract.doc().objects.object.index_field === 'grid', rev0);
+    await waitSettled(page, rev0);
+    const before = await sceneOnServer(sceneId);
+    const errors0 = await page.evaluate(() => window.refract.errors);
+    await page.click('#object-add');
+    await waitFor(page, (n) => window.refract.errors > n && !window.refract.busy(), errors0);
+    const ui = await page.evaluate(() => ({
+      names: [...document.getElementById('ctl-object-member').options].map((o) => o.value),
+      chosen: document.getElementById('ctl-object-member').value,
+      error: document.getElementById('ctl-object-member-error').textContent,
+      lastError: window.refract.lastError,
+      doc: window.refract.doc(),
+    }));
+    assert(/refused/.test(ui.error) && /\/objects\/object\/index_field/.test(ui.error) && /only object/.test(ui.error), `outliner error "${ui.error}"`);
+    assert(JSON.stringify(ui.names) === '["object"]' && ui.chosen === 'object', `outliner ${JSON.stringify(ui)}`);
+    assert(JSON.stringify(Object.keys(ui.doc.objects)) === '["object"]', `the client's document: ${Object.keys(ui.doc.objects)}`);
+    await sleep(300);
+    const after = await sceneOnServer(sceneId);
+    assert(after.revision === before.revision && JSON.stringify(after.scene.objects) === JSON.stringify(before.scene.objects),
+      `the scene changed: revision ${before.revision} -> ${after.revision}`);
+    await shot(page, '02d-refused-add.png');
+    // Back to a uniform glass sphere for the checks after this one.
+    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    const back = await api('PATCH', `/api/scenes/${sceneId}`, { objects: { object: { index_field: 'uniform', grid: '' } } },
+      'application/merge-patch+json');
+    assert(back.status === 200, `PATCH back: ${back.status} ${JSON.stringify(back.json)}`);
+    await waitSettled(page, rev1);
+    log(`refused: ${ui.error}`);
+  });
+
   await check('shift-drag moves the light: new revision, different pixels', async () => {
     await waitSettled(page);
     const before = await sceneOnServer(sceneId);

@@ -28,7 +28,7 @@ export const SECTIONS = [
   },
   {
     id: 'light', title: 'Light', controls: [
-      { kind: 'members', member: 'light', label: 'Lights (the panel edits the one chosen)', canAdd: true },
+      { kind: 'members', member: 'light', label: 'Lights (the panel edits the one chosen)' },
       { kind: 'select', ptr: '/light/type', label: 'Light type',
         options: [['point', 'Point'], ['spot', 'Spot'], ['directional', 'Directional']] },
       { kind: 'range', ptr: '/light/intensity', label: 'Intensity', min: 0, max: 200, step: 0.5 },
@@ -39,14 +39,14 @@ export const SECTIONS = [
   },
   {
     id: 'object', title: 'Object', controls: [
-      { kind: 'members', member: 'object', label: 'Objects (scenes of several are not rendered yet)', canAdd: false },
+      { kind: 'members', member: 'object', label: 'Objects (the panel and Alt+drag edit the one chosen)' },
       { kind: 'select', ptr: '/object/index_field', label: 'Index field',
         options: [['uniform', 'Uniform'], ['luneburg', 'Luneburg lens'], ['maxwell', 'Maxwell fish-eye']] },
       { kind: 'range', ptr: '/object/ior', label: 'Index of refraction', min: 1, max: 4, step: 0.01,
         showIf: (doc) => (doc.object?.index_field ?? 'uniform') === 'uniform' },
       { kind: 'range', ptr: '/object/maxwell_n0', label: 'Fish-eye central index n₀', min: 1, max: 4, step: 0.01,
         showIf: (doc) => doc.object?.index_field === 'maxwell' },
-      { kind: 'range', ptr: '/object/abbe', label: 'Dispersion: Abbe number (0 = none; glass 30-60)',
+      { kind: 'range', ptr: '/object/abbe', label: 'Dispersion: Abbe number (0 = none; glass 30-60; one for all objects)',
         min: 0, max: 0.2, step: 0.002, ...INVERSE_SLIDER },
       { kind: 'checkbox', ptr: '/object/fresnel', label: 'Fresnel reflection at the surface',
         showIf: (doc) => ['uniform', 'maxwell'].includes(doc.object?.index_field ?? 'uniform') },
@@ -454,7 +454,7 @@ class MeshField extends Field {
   }
 }
 
-// The outliner of one collection (lights or objects): which member the panel edits; lights can be added,
+// The outliner of one collection (lights or objects): which member the panel edits; members can be added,
 // removed (all but the last) and renamed.
 class MembersField extends Field {
   constructor(spec, emit, hooks) {
@@ -464,26 +464,31 @@ class MembersField extends Field {
     const members = hooks.members;
     this.kind = kind;
     this.hooks = members;
-    this.select = h('select', { id });
+    this.select = h('select', { id, size: 2, class: 'member-list' });  // a list box: every member in view
     this.select.addEventListener('change', () => members.select(kind, this.select.value));
-    this.addButton = h('button', { type: 'button', id: `${kind}-add`, text: 'Add', hidden: !spec.canAdd });
-    this.removeButton = h('button', { type: 'button', id: `${kind}-remove`, text: 'Remove', hidden: !spec.canAdd });
+    this.addButton = h('button', { type: 'button', id: `${kind}-add`, text: 'Add' });
+    this.removeButton = h('button', { type: 'button', id: `${kind}-remove`, text: 'Remove' });
     this.addButton.addEventListener('click', () => members.add(kind));
     this.removeButton.addEventListener('click', () => members.remove(kind));
-    this.name = h('input', { type: 'text', id: `${kind}-name`, 'aria-label': `New name for the ${kind}`, maxlength: 64 });
+    this.name = h('input', { type: 'text', id: `${kind}-name`, 'aria-label': `New name for the chosen ${kind}`, maxlength: 64,
+      title: `New name for the chosen ${kind}`, placeholder: 'New name' });
     this.renameButton = h('button', { type: 'button', id: `${kind}-rename`, text: 'Rename' });
     const rename = () => { this.clearError(); members.rename(kind, this.name.value.trim(), this); };
     this.renameButton.addEventListener('click', rename);
     this.name.addEventListener('keydown', (e) => { if (e.key === 'Enter') { e.preventDefault(); rename(); } });
     this.describe(this.select, this.name);
-    this.el.append(this.label, h('div', { class: 'row' }, this.select, this.addButton, this.removeButton),
-      h('div', { class: 'row' }, this.name, this.renameButton), this.error);
+    this.alwaysShows = true;  // its error is about an action, not a value: the list follows the document
+    this.el.append(this.label, h('div', { class: 'row members' }, this.select,
+      h('div', { class: 'member-actions' }, this.addButton, this.removeButton)),
+    h('div', { class: 'row' }, this.name, this.renameButton), this.error);
   }
   update(doc) {
     const names = Object.keys(doc[`${this.kind}s`] || {}).sort();
     const chosen = this.hooks.selected(this.kind);
-    if (names.join('/') !== [...this.select.options].map((o) => o.value).join('/'))
+    if (names.join('/') !== [...this.select.options].map((o) => o.value).join('/')) {
       this.select.replaceChildren(...names.map((n) => h('option', { value: n, text: n })));
+      this.select.size = Math.max(2, Math.min(names.length, 6));
+    }
     if (!isEditing(this.select)) this.select.value = chosen ?? '';
     if (!isEditing(this.name)) this.name.value = chosen ?? '';
     this.removeButton.disabled = names.length < 2;
@@ -555,10 +560,11 @@ export function buildControls(form, onEdit, hooks) {
     environment: fields.find((f) => f instanceof EnvironmentField),
     example: fields.find((f) => f instanceof ExampleField),
     file: fields.find((f) => f instanceof SceneFileField),
+    outliners: fields.filter((f) => f instanceof MembersField),
     // Shows `doc` in every control, except those holding a rejected value the user has not fixed yet.
     update(doc, { force = false } = {}) {
       for (const f of fields) {
-        if (force || !f.invalid) f.update(doc);
+        if (force || !f.invalid || f.alwaysShows) f.update(doc);
         // Controls that the current settings ignore are hidden (never one that shows an error).
         if (f.spec.showIf) f.el.hidden = !f.invalid && !f.spec.showIf(doc);
       }

@@ -65,6 +65,7 @@ const state = {
   ticker: null,
   playing: null,          // { seq, name, field, at }: keyframes playing into this view (at: the last frame's place)
   selected: { light: null, object: null },  // the light and object the panel edits (null: the first by name)
+  pendingSelection: null, // `selected` as it was before the edits now pending
 };
 
 // Named one-shot timers (debounces); `settled` below waits for all of them.
@@ -127,9 +128,19 @@ const controls = buildControls($('controls'), (patch, final) => edit(patch, fina
   members: { selected: selectedMember, select: selectMember, add: addMember, remove: removeMember, rename: renameMember },
 });
 
-// ---- the outliner: which light and object the panel edits, and adding, removing, renaming lights -------
+// ---- the outliner: which light and object the panel edits; adding, removing, renaming them ------------
 
-const NEW_LIGHT = { type: 'point', position: [-2, 2.5, 1.5], intensity: 10 };
+// What Add puts in the scene, by kind: a point light beside the others; a small sphere beside the chosen
+// object (so it is in view), sharing its Abbe number as the daemon requires.
+const NEW_MEMBER = {
+  light: () => ({ type: 'point', position: [-2, 2.5, 1.5], intensity: 10 }),
+  object: (doc) => {
+    const chosen = doc.object || {};
+    const placed = S.placedBounds(boundsOf(chosen.mesh) || BUILTIN_BOUNDS.sphere, chosen);
+    return { mesh: 'sphere', ...S.besideObject(placed, cameraOf(doc)), abbe: chosen.abbe ?? 0 };
+  },
+};
+const ARTICLE = { light: 'a', object: 'an' };
 
 function selectedMember(kind) {
   return S.selectedName(view(), kind, state.selected[kind]);
@@ -144,9 +155,9 @@ function selectMember(kind, name) {
 
 function addMember(kind) {
   const name = S.freeName(view(), kind, kind);
-  edit({ [S.COLLECTIONS[kind]]: { [name]: NEW_LIGHT } }, true);
+  edit({ [S.COLLECTIONS[kind]]: { [name]: NEW_MEMBER[kind](panel()) } }, true);
   selectMember(kind, name);
-  announce(`Added the ${kind} ${name}`);
+  announce(`Added ${ARTICLE[kind]} ${kind}, ${name}`);
 }
 
 function removeMember(kind) {
@@ -161,22 +172,25 @@ function removeMember(kind) {
 function renameMember(kind, to, field) {
   const from = selectedMember(kind);
   if (!from || to === from) return;
-  if (!/^[A-Za-z0-9_.-]{1,64}$/.test(to) || to === '.' || to === '..') {
-    field.setError('A name is 1 to 64 letters, digits, “_”, “.” or “-”.');
-    return;
-  }
-  if (S.memberNames(view(), kind).includes(to)) {
-    field.setError(`There is already a ${kind} named “${to}”.`);
-    return;
-  }
+  if (!S.validName(to)) return void refuseName(field, `“${to}” is not a name: use 1 to 64 letters, digits, “_”, “.” or “-” (not “.” or “..”).`);
+  if (S.memberNames(view(), kind).includes(to)) return void refuseName(field, `There is already ${ARTICLE[kind]} ${kind} named “${to}”.`);
   const plural = S.COLLECTIONS[kind];
   edit({ [plural]: { [from]: null, [to]: view()[plural][from] } }, true);
   selectMember(kind, to);
   announce(`Renamed the ${kind} ${from} to ${to}`);
 }
 
+// A name the daemon would refuse: said at the outliner, and nothing is sent.
+function refuseName(field, message) {
+  field.setError(message);
+  hooks.lastError = { error: message, pointer: field.ptrs[0], seq: null };
+  hooks.errors++;
+  announce(message);
+}
+
 // Queues an edit (or, with a null patch, just a frame) and sends it when the link is free.
 function edit(patch, final) {
+  state.pendingSelection ??= { ...state.selected };
   if (patch) state.pending = S.composePatches(state.pending, S.memberPatch(patch, view(), state.selected));
   state.pendingQuality = final ? 'still' : 'interactive';
   if (patch) scheduleViewUpdate();
@@ -217,7 +231,9 @@ function pump() {
   const patch = state.pending ? S.prunePatch(state.confirmed, state.pending) : null;
   const quality = state.pendingQuality;
   const force = state.forceFrame;
+  const selection = state.pendingSelection ?? { ...state.selected };
   state.pending = null;
+  state.pendingSelection = null;
   state.pendingQuality = null;
   state.forceFrame = false;
   const retry = state.retryNext;
@@ -232,7 +248,8 @@ function pump() {
   if (patch) message.patch = patch;
   ws.send(JSON.stringify(message));
   // errorsBefore: an error shown after this request was sent is newer than its edit and must outlive it.
-  state.inflight = { seq, patch, quality, sentAt: performance.now(), retry, errorsBefore: hooks.errors };
+  // selection: what the outliner had chosen before the edits sent; a rejected Add or Rename goes back to it.
+  state.inflight = { seq, patch, quality, sentAt: performance.now(), retry, errorsBefore: hooks.errors, selection };
   hooks.requestsSent++;
   hooks.sent[quality]++;
   hooks.maxInFlight = Math.max(hooks.maxInFlight, 1);
@@ -267,8 +284,10 @@ function onBinary(blob) {
     state.inflight = null;
     clearTimeout(state.watchdog);
     hooks.latencyMs = Math.round(performance.now() - inf.sentAt);
-    // An accepted edit makes earlier complaints stale: a failed upload, a frame that could not render.
+    // An accepted edit makes earlier complaints stale: a failed upload, a refused Add, Remove or Rename, a
+    // frame that could not render.
     if (inf.patch && !inf.retry && hooks.errors === inf.errorsBefore) {
+      for (const outliner of controls.outliners) outliner.clearError();
       controls.mesh.clearError();
       controls.file.clearError();
       controls.file.status.textContent = '';
@@ -357,11 +376,12 @@ function paintFrame() {
 function onServerError(msg) {
   const inf = state.inflight;
   const answers = inf && (msg.seq === undefined || msg.seq === null || msg.seq >= inf.seq);
+  // What the rejection takes back: the pointer, or all of a refused Add, Remove or Rename.
+  const pointer = answers && inf.patch && msg.pointer ? S.rejectedScope(inf.patch, msg.pointer, state.confirmed) : msg.pointer;
   if (answers) {
     state.inflight = null;
     clearTimeout(state.watchdog);
     // Re-send the rest of a rejected patch once: edits coalesced with the bad value are not lost.
-    const pointer = msg.pointer;
     if (inf.patch && !inf.retry && pointer && S.patchTouches(inf.patch, pointer)) {
       const rest = S.removeFromPatch(inf.patch, pointer);
       if (rest) {
@@ -370,8 +390,17 @@ function onServerError(msg) {
         if (!state.pendingQuality) state.pendingQuality = inf.quality;
       }
     }
+    // A member chosen by the rejected edit (added, renamed) is gone again: choose what was chosen before it.
+    for (const kind of Object.keys(S.COLLECTIONS)) {
+      const names = S.memberNames(view(), kind);
+      if (state.selected[kind] !== null && !names.includes(state.selected[kind])) state.selected[kind] = inf.selection[kind];
+    }
   }
-  reportError(msg.error || 'The daemon rejected the edit.', msg.pointer, msg.seq);
+  // A refused Add, Remove or Rename is reported at its outliner, naming the member the daemon blames.
+  const message = msg.error || 'The daemon rejected the edit.';
+  const named = message.includes(msg.pointer) ? message : `${msg.pointer}: ${message}`;
+  if (pointer !== msg.pointer) reportError(`The daemon refused the change: ${named}`, pointer, msg.seq);
+  else reportError(message, msg.pointer, msg.seq);
   // Without a pointer it was not a validation error (e.g. the frame could not be rendered): the edit
   // may have been stored, so ask the daemon what the scene is now.
   if (msg.pointer === undefined || msg.pointer === null) resync();
@@ -956,6 +985,7 @@ async function connect() {
     // Whatever was in flight goes again after reconnecting (merge patches are idempotent).
     if (state.inflight) {
       state.pending = S.composePatches(state.inflight.patch, state.pending);
+      state.pendingSelection = state.inflight.selection;
       if (!state.pendingQuality) state.pendingQuality = state.inflight.quality;
       state.inflight = null;
     }

@@ -188,7 +188,8 @@ export function rotateXYZ(v, deg) {
 }
 
 // Where an object's mesh, with bounds `{min, max}` in its own units, lies in the world: the centre and
-// radius of a sphere around its placed bounding box (object.position, rotation_deg, scale applied).
+// radius of a sphere around its placed bounding box (object.position, rotation_deg, scale applied), and
+// that box's corners `lo` and `hi`.
 export function placedBounds(bounds, object) {
   const s = object.scale ?? 1;
   const corners = [0, 1, 2, 3, 4, 5, 6, 7].map((k) => [0, 1, 2].map((i) => ((k >> i) & 1 ? bounds.max[i] : bounds.min[i])));
@@ -196,7 +197,22 @@ export function placedBounds(bounds, object) {
   const lo = [0, 1, 2].map((i) => Math.min(...placed.map((p) => p[i])));
   const hi = [0, 1, 2].map((i) => Math.max(...placed.map((p) => p[i])));
   const center = scale(add(lo, hi), 0.5);
-  return { center, radius: Math.max(1e-6, ...placed.map((p) => length(sub(p, center)))) };
+  return { center, radius: Math.max(1e-6, ...placed.map((p) => length(sub(p, center)))), lo, hi };
+}
+
+// Where a new object goes beside a placed one (`placedBounds` of it), seen by `camera`: a unit-mesh
+// scale half the placed one's largest half-extent, standing on the same bottom, just past it towards the
+// view's right (horizontally), so that it is in view wherever the camera looks from.
+export function besideObject(placed, camera) {
+  const half = Math.max(1e-3, ...[0, 1, 2].map((i) => (placed.hi[i] - placed.lo[i]) / 2));
+  const r = half / 2;
+  const forward = sub(camera.target, camera.position);
+  const flat = normalize([-forward[2], 0, forward[0]]);  // forward x up: the view's right, level
+  const right = flat[0] || flat[2] ? flat : [1, 0, 0];
+  const offset = half + 1.2 * r;
+  const position = add(placed.center, scale(right, offset));
+  position[1] = placed.lo[1] + r;
+  return { scale: round(r, 4), position: roundVec(position, 4) };
 }
 
 // Scale and position that fit a mesh with bounds `{min, max}` to `size` (its longest side) with its
@@ -271,6 +287,12 @@ export function linearToHex(rgb) {
 // marker need not know names; edits and error pointers are translated at the edges.
 
 export const COLLECTIONS = { light: 'lights', object: 'objects' };
+// Fields every member of a collection must share (the daemon refuses objects of differing Abbe numbers:
+// dispersion is one per scene): the panel's edit of one writes them all.
+const SHARED = { object: ['abbe'] };
+
+// Whether the daemon takes `name` as a member's name: 1 to 64 of [A-Za-z0-9_.-], not "." or "..".
+export const validName = (name) => /^[A-Za-z0-9_.-]{1,64}$/.test(name) && name !== '.' && name !== '..';
 
 export function memberNames(doc, kind) {
   return Object.keys((isObject(doc) && doc[COLLECTIONS[kind]]) || {}).sort();
@@ -292,7 +314,8 @@ export function panelDocument(doc, selection) {
   return out;
 }
 
-// A patch written against the panel document as a patch of the scene: '/light/...' edits the selected light.
+// A patch written against the panel document as a patch of the scene: '/light/...' edits the selected light
+// (and a shared field, every member).
 export function memberPatch(patch, doc, selection) {
   if (!isObject(patch)) return patch;
   let out = patch;
@@ -300,7 +323,12 @@ export function memberPatch(patch, doc, selection) {
     if (!(kind in out)) continue;
     const name = selectedName(doc, kind, selection[kind]);
     const { [kind]: member, ...rest } = out;
-    out = name === null ? rest : composePatches(rest, { [plural]: { [name]: member } });
+    if (name === null) { out = rest; continue; }
+    const shared = Object.fromEntries((SHARED[kind] || []).filter((k) => isObject(member) && k in member)
+      .map((k) => [k, member[k]]));
+    const others = Object.keys(shared).length ? memberNames(doc, kind).filter((n) => n !== name) : [];
+    const members = Object.fromEntries(others.map((n) => [n, shared]));
+    out = composePatches(rest, { [plural]: { ...members, [name]: member } });
   }
   return out;
 }
@@ -320,4 +348,18 @@ export function panelPointer(pointer, doc, selection) {
 export function freeName(doc, kind, base) {
   const names = new Set(memberNames(doc, kind));
   for (let i = 2; ; ++i) if (!names.has(`${base}${i}`)) return `${base}${i}`;
+}
+
+// What of a rejected `patch` to drop before re-sending the rest, for an error at `pointer`: that pointer,
+// or, when the patch adds, removes or renames members of the collection it points into, the whole
+// collection's part (a rename without its new name would remove the member). `doc`: the document the
+// patch was written against.
+export function rejectedScope(patch, pointer, doc) {
+  const [top] = parsePointer(pointer);
+  const plural = Object.values(COLLECTIONS).find((p) => p === top);
+  const members = plural && isObject(patch) && isObject(patch[plural]) ? patch[plural] : null;
+  if (!members) return pointer;
+  const existing = (isObject(doc) && doc[plural]) || {};
+  const structural = Object.entries(members).some(([name, value]) => value === null || !(name in existing));
+  return structural ? `/${plural}` : pointer;
 }
