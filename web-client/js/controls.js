@@ -103,7 +103,7 @@ export const SECTIONS = [
   },
 ];
 
-const BUILTIN_MESHES = [['sphere', 'Sphere'], ['cube', 'Cube'], ['torus', 'Torus'], ['prism', 'Prism']];
+const BUILTIN_MESHES = [['sphere', 'Sphere'], ['cube', 'Cube'], ['torus', 'Torus'], ['prism', 'Prism'], ['bunny', 'Bunny']];
 
 function h(tag, attrs = {}, ...children) {
   const el = document.createElement(tag);

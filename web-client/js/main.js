@@ -25,6 +25,7 @@ const BUILTIN_BOUNDS = {
   cube: { min: [-1, -1, -1], max: [1, 1, 1] },
   torus: { min: [-1.35, -0.35, -1.35], max: [1.35, 0.35, 1.35] },
   prism: { min: [-0.866, -0.5, -1], max: [0.866, 1, 1] },
+  bunny: { min: [-0.96883, -1, -0.56078], max: [0.96883, 1, 0.56078] },
 };
 
 const $ = (id) => document.getElementById(id);
