@@ -674,6 +674,36 @@ TEST(Daemon, WithoutAUsableDeviceHealthSaysWhyAndDocumentsStillWork) {
     EXPECT_EQ(daemon.stop(), 0);
 }
 
+// An edit that moves one object of two voxelizes that one, and the frame's headers say so.
+TEST(Daemon, MovingOneObjectVoxelizesItAlone) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "pair");
+    auto added = patch(client, id, {{"objects", {{"object", {{"position", {-0.8, 0.0, 0.0}}, {"scale", 0.5}}},
+                                                 {"lens", {{"index_field", "luneburg"}, {"position", {0.8, 0.0, 0.0}}, {"scale", 0.5}}}}},
+                                    {"volume", {{"resolution", 64}, {"bounds", {{"min", {-1.6, -0.8, -0.8}}, {"max", {1.6, 0.8, 0.8}}}}}}});
+    ASSERT_TRUE(added);
+    ASSERT_EQ(added->status, 200) << added->body;
+    auto first = get_frame(client, id);
+    ASSERT_TRUE(first && first->status == 200);
+    EXPECT_EQ(first->get_header_value("X-Refract-Voxelized"), "lens,object");
+    auto moved = patch(client, id, {{"objects", {{"lens", {{"position", {0.8, 0.1, 0.0}}}}}}});
+    ASSERT_TRUE(moved && moved->status == 200);
+    auto second = get_frame(client, id);
+    ASSERT_TRUE(second && second->status == 200);
+    EXPECT_EQ(second->get_header_value("X-Refract-Passes"), "voxelize,index_field,octree,photons,view,tone_map");
+    EXPECT_EQ(second->get_header_value("X-Refract-Voxelized"), "lens");
+    EXPECT_NE(first->body, second->body);
+    auto lit = patch(client, id, {{"lights", {{"light", {{"intensity", 30.0}}}}}});
+    ASSERT_TRUE(lit && lit->status == 200);
+    auto third = get_frame(client, id);
+    ASSERT_TRUE(third && third->status == 200);
+    EXPECT_EQ(third->get_header_value("X-Refract-Voxelized"), "");
+    expect_no_validation_errors(daemon);
+    EXPECT_EQ(daemon.stop(), 0);
+}
+
 TEST(Daemon, LightEditChangesTheFrame) {
     TempDir dir;
     Daemon daemon(dir.path() / "data");
