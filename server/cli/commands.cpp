@@ -276,7 +276,8 @@ int animate_command(const Arguments& args) {
     };
     assets.grid = [](const std::string&) -> std::shared_ptr<const scene::IndexGrid> { return nullptr; };
     assets.environment = [&](const std::string& name) { return find_environment(loaded, name); };
-    std::map<std::string, uint64_t> reruns;  // pass name -> frames that ran it
+    std::map<std::string, uint64_t> reruns;      // pass name -> frames that ran it
+    std::map<std::string, uint64_t> voxelized;  // object name -> frames that voxelized it
     const auto start = std::chrono::steady_clock::now();
     for (uint64_t f = 0; f < frames; ++f) {
         const double t = static_cast<double>(f) / args.fps;
@@ -292,6 +293,7 @@ int animate_command(const Arguments& args) {
         image::write_file(dir / name, frame.png);
         std::stringstream passes(scene::pass_names(frame.rerun));
         for (std::string pass; std::getline(passes, pass, ',');) ++reruns[pass];
+        for (const auto& object : frame.voxelized) ++voxelized[object];
     }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     json summary = {{"device", context.info().name},
@@ -299,6 +301,7 @@ int animate_command(const Arguments& args) {
                     {"fps", args.fps},
                     {"duration_s", animation.duration()},
                     {"frames_rerunning", reruns},
+                    {"frames_voxelizing", voxelized},
                     {"render_s", seconds}};
     std::cout << summary.dump(2) << "\n";
     return 0;
