@@ -887,5 +887,31 @@ TEST_F(VolumeTest, MovingOneObjectVoxelizesItAloneAndGivesTheVolumeOfAFreshBuild
     EXPECT_TRUE(resident.read_index_field() == fresh_removed.read_index_field());
 }
 
+
+// The memory estimate the renderer budgets with covers what a scene holds once built, one object or
+// several (their boxes rather than the lattice), and does not overstate it by more than the transient
+// buffers and the conservative per-voxel sums it adds (2x).
+TEST_F(VolumeTest, MemoryEstimateCoversWhatASceneHolds) {
+    const SceneDocument one = protocol::parse_scene({{"image", {{"width", 64}, {"height", 64}}}, {"volume", {{"resolution", 64}}}});
+    const SceneDocument three = objects_document({{"ball", {{"position", {-1.0, 0, 0}}, {"scale", 0.35}}},
+                                                  {"cube", {{"mesh", "cube"}, {"scale", 0.3}}},
+                                                  {"lens", {{"index_field", "luneburg"}, {"position", {1.0, 0, 0}}, {"scale", 0.35}}}});
+    for (const SceneDocument* doc : {&one, &three}) {
+        SCOPED_TRACE(doc->objects.size());
+        const int64_t before = context().allocated_bytes();
+        scene::SceneGpu gpu(kit());
+        gpu.run(scene::kAllPasses, *doc, worlds(*doc), nullptr);
+        const int64_t held = context().allocated_bytes() - before;
+        uint64_t object_voxels = 0;
+        for (const auto& [name, box] : scene::object_boxes(gpu.grid(), worlds(*doc), doc->volume.smoothing))
+            object_voxels += box.box.dims.count();
+        const int64_t estimate = scene::estimate_scene_bytes(gpu.grid(), object_voxels, doc->image.width, doc->image.height);
+        std::printf("[ info ] %zu object(s): holds %.1f MiB, estimate %.1f MiB\n", doc->objects.size(),
+                    static_cast<double>(held) / (1 << 20), static_cast<double>(estimate) / (1 << 20));
+        EXPECT_GE(estimate, held);
+        EXPECT_LE(estimate, 2 * held);
+    }
+}
+
 }  // namespace
 }  // namespace refract
