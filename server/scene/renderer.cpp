@@ -154,7 +154,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         const InteractiveSettings* resident = held && held->interactive ? &*held->interactive : nullptr;
         const PassSet would = resident ? stale_against(with_settings(requested, *resident)) : kAllPasses;
         const FrameBudget& budget = it != impl_->scenes.end() ? it->second.budget : FrameBudget{};
-        settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0, resident);
+        settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0, resident, options.budget_ms);
         document = with_settings(requested, settings);
     }
     PassSet stale = stale_against(document);
@@ -275,8 +275,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     resident.level = level;
     if (quality == Quality::interactive) {
         const double photons = photon_ms(frame);
-        resident.budget.observe(requested, settings, photons, ms_since(start) - photons - volume_ms(frame),
-                                options.budget_ms);
+        resident.budget.observe(requested, settings, photons, ms_since(start) - photons - volume_ms(frame));
         resident.interactive = settings;
     } else {
         resident.interactive.reset();
