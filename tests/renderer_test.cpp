@@ -319,6 +319,18 @@ TEST_F(RendererTest, MemoryPlateausOverManyFramesOfEveryEditKind) {
         << kFrames - kWarmup << " frames; the scene holds " << scene_bytes / 1024 << " KiB";
 }
 
+TEST_F(RendererTest, WarmUpKeepsNothingButThePipelines) {
+    Renderer renderer(*context);
+    const SceneDocument doc = small();
+    renderer.warm_up(doc, no_assets, [] { return false; });
+    EXPECT_EQ(renderer.resident_scenes(), 0u);
+    // The scene's own first frame is whole: it builds every pass.
+    EXPECT_EQ(renderer.render("scene", doc, no_assets).rerun, kAllPasses);
+    const auto missing = protocol::apply_merge_patch(doc, {{"object", {{"mesh", "upload:nowhere"}}}});
+    EXPECT_THROW(renderer.warm_up(missing, no_assets, [] { return false; }), RenderError);
+    EXPECT_EQ(renderer.resident_scenes(), 1u);
+}
+
 TEST_F(RendererTest, UnrenderableSceneLeavesOtherScenesResident) {
     Renderer renderer(*context);
     const SceneDocument doc = small();

@@ -54,6 +54,9 @@ double photon_ms(const FrameResult& frame) {
     return 0.0;
 }
 
+// The smallest volume.resolution the protocol accepts: a warm-up volume builds in milliseconds.
+constexpr uint32_t kWarmUpResolution = 32;
+
 }  // namespace
 
 RunOptions run_options_for(Quality quality) {
@@ -283,6 +286,27 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     std::lock_guard relock(impl_->mutex);
     impl_->evict_least_recent(scene_id);
     return frame;
+}
+
+void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& assets,
+                       const std::function<bool()>& stop) {
+    protocol::SceneDocument reduced = document;
+    reduced.image.width = reduced.image.height = FrameBudget::kMinSide;
+    reduced.photons.count = FrameBudget::kMinPhotons;
+    reduced.volume.resolution = kWarmUpResolution;
+    // Not a scene id the store accepts, so no scene's resident state or frame budget is touched.
+    const std::string id = " warm-up";
+    struct Evict {
+        Renderer& renderer;
+        const std::string& id;
+        ~Evict() { renderer.evict(id); }
+    } evict_after{*this, id};
+    for (Quality quality : {Quality::interactive, Quality::still}) {
+        if (stop()) return;
+        FrameOptions options;
+        options.quality = quality;
+        render(id, reduced, assets, options);
+    }
 }
 
 void Renderer::evict(const std::string& scene_id) {
