@@ -179,7 +179,7 @@ void RenderQueue::run() {
     try {
         if (options_.warm_up) options_.warm_up([this] {
                 std::lock_guard lock(mutex_);
-                return !order_.empty();
+                return stopping_ || !order_.empty();
             });
     } catch (const std::exception& e) {
         std::cerr << "refractd: warming up the render thread failed: " << e.what() << "\n";
