@@ -57,6 +57,9 @@ void cast_rays() {
     uint iv = column / count_u;
     uint tile = (iv / push.tile_size) * push.tiles_u + iu / push.tile_size;
     uvec2 range = tile_ranges[tile];
+    // No triangle over the column (most columns): its rays cross nothing, and their counts are the fill's
+    // zeros already.
+    if (range.y == 0u) return;
 
     // Each triangle of the column's bin is loaded once and tested against all of its rays (storage-buffer
     // loads run lane by lane on lavapipe; loading per ray cost a third of the pass). Ray r keeps its
@@ -157,6 +160,7 @@ void gather() {
     uint iv = column / count_u;
     int length_along = int(dims[axis]);
     bool reliable = true;
+    bool crossed = false;  // some ray within the kernel's reach crosses the surface
     // Each crossing adds (entering) or takes away (leaving) the kernel's integral up to each voxel centre:
     // the centres within its reach get that here, those past it the whole weight, through `steps`, whose
     // running sum along the column is added at the end.
@@ -170,6 +174,7 @@ void gather() {
                 vec2 from_centre = vec2(du, dv) + ray_offset(r) - 0.5;
                 float weight = kernel(from_centre.x) * kernel(from_centre.y) / float(kRays);
                 if (weight == 0.0) continue;
+                crossed = crossed || n > 0;
                 for (int i = 0; i < n; ++i) {
                     vec2 interval = intervals[(source * kRays + r) * VOXELIZE_MAX_INTERVALS + uint(i)];
                     for (int side = 0; side < 2; ++side) {
@@ -187,6 +192,10 @@ void gather() {
             }
         }
     }
+    // Nothing added: the column's coverage and steps are still the zeros they were filled with. Most
+    // columns lie so (outside the object's shadow on this axis's plane), and the running sum below is
+    // four storage accesses per voxel, lane by lane on lavapipe.
+    if (!crossed && reliable) return;
     float past = 0.0;
     for (uint k = 0u; k < uint(length_along); ++k) {
         uint index = voxel_along(dims, axis, iu, iv, k);

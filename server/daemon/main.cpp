@@ -3,6 +3,7 @@
 #include <pthread.h>
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <csignal>
 #include <cstdio>
 #include <iostream>
@@ -33,6 +34,9 @@ namespace {
 const nlohmann::json kFirstScene = {
     {"camera", {{"position", {2.2, 2.0, 5.0}}, {"target", {-0.5, -0.6, 0.0}}, {"fov_deg", 38}}},
     {"object", {{"position", {0.0, 0.2, 0.0}}, {"scale", 0.6}}}};
+
+// How many stored scenes the render thread prepares pipelines for before it takes requests.
+constexpr size_t kWarmUpScenes = 4;
 
 int run(const http::DaemonConfig& config) {
     // Signals are taken by sigwait below only: block them before any thread starts, so all inherit it.
@@ -107,6 +111,18 @@ int run(const http::DaemonConfig& config) {
         queue_options.evict = [&](const std::string& scene_id) { renderer->evict(scene_id); };
         queue_options.on_rendered = [&](const scene::FrameRequest&, const scene::FrameResult& frame) {
             metrics.record_frame(frame);
+        };
+        // While the first viewer's page loads: the pipelines the stored scenes' frames use (a few of
+        // them; scenes share most pipelines). A scene that cannot render now says so when asked for a frame.
+        queue_options.warm_up = [&](const std::function<bool()>& waiting) {
+            std::vector<scene::SceneSnapshot> scenes = store.list();
+            scenes.resize(std::min(scenes.size(), kWarmUpScenes));
+            for (const auto& snapshot : scenes) {
+                try {
+                    renderer->warm_up(snapshot.document, assets, waiting);
+                } catch (const scene::RenderError&) {
+                }
+            }
         };
         queue_options.after_frame = [&] {
             if (!service_ptr) return;

@@ -130,18 +130,20 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
                                                  vk::MemoryUse::device, "axis coverage");
     }
 
-    // The largest axis's rays: the axes take turns with these buffers.
+    // The largest axis's rays: the axes take turns with the intervals, not with their counts (zeroed once).
     uint64_t most_columns = 0;
     for (uint32_t axis = 0; axis < 3; ++axis)
         most_columns = std::max(most_columns, uint64_t{dims[(axis + 1) % 3]} * dims[(axis + 2) % 3]);
     const uint64_t rays = most_columns * kSubsamples * kSubsamples;
     uploads.intervals = vk::Buffer(context_, rays * VOXELIZE_MAX_INTERVALS * sizeof(glm::vec2), storage,
                                    vk::MemoryUse::device, "voxelize intervals");
-    uploads.interval_counts = vk::Buffer(context_, rays * sizeof(int32_t), storage, vk::MemoryUse::device,
-                                         "voxelize interval counts");
+    for (auto& counts : uploads.interval_counts)
+        counts = vk::Buffer(context_, rays * sizeof(int32_t), storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                            vk::MemoryUse::device, "voxelize interval counts");
 
     const VkCommandBuffer cmd = recorder.get();
     for (const auto& b : uploads.axis_coverage) recorder.fill(b, 0);
+    for (const auto& b : uploads.interval_counts) recorder.fill(b, 0);
     recorder.fill(scratch, 0);  // the gathers' steps
     recorder.transfer_to_compute_barrier();
     // Below a twentieth of a voxel: each voxel's covered fraction, unfiltered. Otherwise the spline filters
@@ -163,7 +165,7 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
             vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE_Z, uploads.axis_coverage[2]),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_COVERAGE, combined),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_INTERVALS, uploads.intervals),
-            vk::Binding::storage_buffer(VOXELIZE_BINDING_INTERVAL_COUNTS, uploads.interval_counts),
+            vk::Binding::storage_buffer(VOXELIZE_BINDING_INTERVAL_COUNTS, uploads.interval_counts[axis]),
             vk::Binding::storage_buffer(VOXELIZE_BINDING_STEPS, scratch)};
     };
     for (uint32_t axis = 0; axis < 3; ++axis) {

@@ -23,7 +23,9 @@ struct VoxelizeUploads {
     vk::Buffer triangles;
     std::array<vk::Buffer, 3> tile_ranges, tile_items;
     std::array<vk::Buffer, 3> axis_coverage;
-    vk::Buffer intervals, interval_counts;  // one axis's rays at a time
+    vk::Buffer intervals;  // one axis's rays at a time
+    // Per axis, filled with zeros first: a column with no triangle over it writes none.
+    std::array<vk::Buffer, 3> interval_counts;
 };
 
 class VoxelizePass {

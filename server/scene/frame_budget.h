@@ -1,8 +1,9 @@
 // Dynamic resolution for interactive frames: while a user drags, each frame's image size (and, when its
 // photons rerun anyway, their count) is chosen from what the scene's last interactive frames cost on
-// this device, so that a frame lands within a budget (frame_ms). A feedback controller, as game engines
-// run dynamic resolution: the model is only "time scales with pixels and photons", and each frame's
-// measurement corrects the next choice.
+// this device, so that a frame lands within a budget. A feedback controller, as game engines run
+// dynamic resolution: the model is only "time scales with pixels and photons", each frame's measurement
+// corrects it, and the next frame is sized for the passes it will run (a light drag's frames share the
+// budget with the photon pass, a camera drag's give it all to the image).
 #pragma once
 
 #include <cstdint>
@@ -33,23 +34,24 @@ public:
     static constexpr double kMinPhotonShare = 1.0 / 64.0;
     static constexpr uint32_t kMinPhotons = 4096;
 
-    // The settings for the next interactive frame of `document`. `photons_rerun`: the edit reruns the
-    // photon pass anyway, so its count may change (otherwise the resident count must be kept, or a
-    // camera drag would retrace photons). `resident`: the settings the resident state was rendered
-    // with, kept where changing them would rerun a pass the edit does not need.
+    // The settings for the next interactive frame of `document`, to land within `budget_ms`.
+    // `photons_rerun`: the edit reruns the photon pass anyway, so its count may change (otherwise the
+    // resident count must be kept, or a camera drag would retrace photons). `resident`: the settings the
+    // resident state was rendered with, kept where changing them would rerun a pass the edit does not need.
     InteractiveSettings choose(const protocol::SceneDocument& document, bool photons_rerun, bool view_rerun,
-                               const InteractiveSettings* resident) const;
+                               const InteractiveSettings* resident, double budget_ms) const;
 
     // Feeds back what a frame rendered with `used` cost: milliseconds in the photon pass (0 when it did
     // not run) and everything else (view, tone map, read-back, encode).
     void observe(const protocol::SceneDocument& document, const InteractiveSettings& used, double photon_ms,
-                 double rest_ms, double budget_ms);
-
-    double scale() const { return scale_; }
+                 double rest_ms);
 
 private:
-    double scale_ = 0.5;                     // image side relative to the document's
-    double photon_share_ = kMaxPhotonShare;  // photons relative to the document's count
+    // What a frame would cost at the document's own image size and photon count, as the last frames
+    // measured it (0: not yet measured). Kept per pass rather than as a scale, so that the first frame
+    // of a light drag after a camera drag (or the other way round) is sized for the passes it runs.
+    double image_ms_ = 0.0;   // everything but the photon pass
+    double photon_ms_ = 0.0;  // the photon pass
 };
 
 }  // namespace refract::scene

@@ -176,6 +176,14 @@ void RenderQueue::stop() {
 }
 
 void RenderQueue::run() {
+    try {
+        if (options_.warm_up) options_.warm_up([this] {
+                std::lock_guard lock(mutex_);
+                return stopping_ || !order_.empty();
+            });
+    } catch (const std::exception& e) {
+        std::cerr << "refractd: warming up the render thread failed: " << e.what() << "\n";
+    }
     for (;;) {
         std::unique_lock lock(mutex_);
         wake_.wait(lock, [&] { return stopping_ || !order_.empty() || !evictions_.empty(); });

@@ -66,6 +66,10 @@ struct RenderQueueOptions {
     std::function<void(const FrameRequest&, const FrameResult&)> on_rendered;
     // Reads renderer gauges after each frame and eviction (render thread); may be empty.
     std::function<void()> after_frame;
+    // Runs once on the render thread before it takes any request (Renderer::warm_up); requests queue
+    // meanwhile, and `waiting` says whether one has (or the queue is stopping), so that it can leave the
+    // rest to first use. May be empty.
+    std::function<void(const std::function<bool()>& waiting)> warm_up;
 };
 
 class RenderQueue {

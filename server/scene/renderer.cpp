@@ -54,6 +54,9 @@ double photon_ms(const FrameResult& frame) {
     return 0.0;
 }
 
+// The smallest volume.resolution the protocol accepts: a warm-up volume builds in milliseconds.
+constexpr uint32_t kWarmUpResolution = 32;
+
 }  // namespace
 
 RunOptions run_options_for(Quality quality) {
@@ -155,7 +158,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         const InteractiveSettings* resident = held && held->interactive ? &*held->interactive : nullptr;
         const PassSet would = resident ? stale_against(with_settings(requested, *resident)) : kAllPasses;
         const FrameBudget& budget = it != impl_->scenes.end() ? it->second.budget : FrameBudget{};
-        settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0, resident);
+        settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0, resident, options.budget_ms);
         document = with_settings(requested, settings);
     }
     PassSet stale = stale_against(document);
@@ -289,8 +292,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     resident.level = level;
     if (quality == Quality::interactive) {
         const double photons = photon_ms(frame);
-        resident.budget.observe(requested, settings, photons, ms_since(start) - photons - volume_ms(frame),
-                                options.budget_ms);
+        resident.budget.observe(requested, settings, photons, ms_since(start) - photons - volume_ms(frame));
         resident.interactive = settings;
     } else {
         resident.interactive.reset();
@@ -298,6 +300,27 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     std::lock_guard relock(impl_->mutex);
     impl_->evict_least_recent(scene_id);
     return frame;
+}
+
+void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& assets,
+                       const std::function<bool()>& stop) {
+    protocol::SceneDocument reduced = document;
+    reduced.image.width = reduced.image.height = FrameBudget::kMinSide;
+    reduced.photons.count = FrameBudget::kMinPhotons;
+    reduced.volume.resolution = kWarmUpResolution;
+    // Not a scene id the store accepts, so no scene's resident state or frame budget is touched.
+    const std::string id = " warm-up";
+    struct Evict {
+        Renderer& renderer;
+        const std::string& id;
+        ~Evict() { renderer.evict(id); }
+    } evict_after{*this, id};
+    for (Quality quality : {Quality::interactive, Quality::still}) {
+        if (stop()) return;
+        FrameOptions options;
+        options.quality = quality;
+        render(id, reduced, assets, options);
+    }
 }
 
 void Renderer::evict(const std::string& scene_id) {

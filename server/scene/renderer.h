@@ -143,6 +143,12 @@ public:
     // Throws RenderError for an unrenderable scene (resident state untouched), vk::Error for device faults.
     FrameResult render(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
                        const FrameOptions& options = {});
+    // Creates the pipelines that frames of `document` use, interactive and still: they are compiled on
+    // first use (LLVM on lavapipe: 0.2-0.3 s for a scene's set), which would otherwise fall on its first
+    // frame. Renders a reduced copy of `document` (the smallest image, volume and photon count) once of
+    // each quality under a scene id of its own, keeps nothing of it but the pipelines, and rethrows what
+    // render() throws. Stops before a quality when `stop` says so (the rest is compiled on first use).
+    void warm_up(const protocol::SceneDocument& document, const Assets& assets, const std::function<bool()>& stop);
     // Drops a scene's GPU state (its document lives elsewhere).
     void evict(const std::string& scene_id);
     size_t resident_scenes() const;

@@ -86,7 +86,7 @@ function watchSockets(page) {
       frames.push({
         t, tHeader: head.tHeader, quality: m.quality ?? null, width: m.width ?? null, height: m.height ?? null,
         level: m.level ?? null, revision: m.revision ?? null, seq: m.seq ?? null, cached: Boolean(m.cached), bytes: payload.length,
-        passMs: sumTimings(m.timings),
+        passMs: sumTimings(m.timings), timings: m.timings ?? null,
       });
     });
     ws.on('framesent', ({ payload }) => {
@@ -103,6 +103,21 @@ function sumTimings(timings) {
   if (!timings || typeof timings !== 'object') return null;
   const values = Object.values(timings).filter((v) => typeof v === 'number');
   return values.length ? values.reduce((a, b) => a + b, 0) : null;
+}
+
+// Per-pass milliseconds of a frame, rounded for the JSON line: where a slow frame spent its time.
+function roundTimings(timings) {
+  if (!timings || typeof timings !== 'object') return null;
+  return Object.fromEntries(Object.entries(timings).map(([k, v]) => [k, typeof v === 'number' ? Math.round(v * 10) / 10 : v]));
+}
+
+// Milliseconds from sending the request a frame answers to receiving it: the frame's passes plus its
+// wait and delivery. Null for frames nobody on the page asked for and for the refinement levels that
+// follow an answer (they repeat its seq).
+function sinceAsked(f) {
+  if (typeof f.seq !== 'number' || frames.find((x) => x.seq === f.seq) !== f) return null;
+  const asked = sent.find((m) => m.seq === f.seq);
+  return asked ? f.t - asked.t : null;
 }
 
 // The client's own record of drawn frames, where it has window.refract: epoch ms of each draw.
@@ -320,7 +335,7 @@ async function main() {
     label: LABEL, refractd: REFRACTD, web_root: WEB_ROOT, device, hooks: hooked, scene: sceneId,
     frames_total: frames.length, max_level: maxLevel, load, orbit, light,
     frames: frames.map((f) => [f.t - navStart, f.quality, `${f.width}x${f.height}`, f.level, f.revision, f.seq,
-      f.passMs === null ? null : Math.round(f.passMs)]),
+      f.passMs === null ? null : Math.round(f.passMs), roundTimings(f.timings), sinceAsked(f)]),
     exposure: {
       first_pass_ms: edits[0].passMs, first_wall_ms: edits[0].wallMs,
       median_pass_ms: median(edits.map((e) => e.passMs)), median_wall_ms: median(edits.map((e) => e.wallMs)),

@@ -935,8 +935,8 @@ async function connect() {
   clearTimeout(state.reconnectTimer);
   setConn('connecting', 'Connecting…');
   try {
-    await fetchHealth();
-    await loadScene();
+    // Neither needs the other's answer: both round trips at once, the first frame waits for the later.
+    await Promise.all([fetchHealth(), loadScene()]);
   } catch (e) {
     console.warn('refractd not reachable', e);
     if (e instanceof HttpError && e.status !== 404 && e.status < 500 && hooks.connects === 0) {
@@ -970,7 +970,9 @@ async function connect() {
     state.frameMeta = null;
     checkImageSize(true);
     // A quick preview first (the daemon sizes it to its frame budget), then the still: on two CPU cores
-    // the still of a fresh scene takes seconds.
+    // the still of a fresh scene takes seconds. A still asked for before the socket opened (the first
+    // resize settling) comes second too, or it would be the first frame.
+    state.pendingQuality = null;
     requestFrame('interactive');
     requestFrame('still');
   });
