@@ -184,11 +184,12 @@ TEST_F(RendererTest, RefinementLevelsAreDeterministicHoweverTheyAreReached) {
 // the first part leaves no trace in the level asked for next.
 TEST_F(RendererTest, RefinementStepsGiveWayBetweenPartsAndKeepTheirBytes) {
     using passes::kWorkPart;
-    // Level 2 adds a photon batch: 2 parts of photons, then a check before the view (one part: 32 x 32).
+    // Level 2 adds a photon batch: checks after the direct light, between the 2 parts of photons, after
+    // the resolve and before the view (one part: 32 x 32).
     // Level 17 adds an eye-ray sample: a 512 x 256 image is 2 parts of pixels.
     const SceneDocument photons = small({{"photons", {{"count", 2 * kWorkPart}}}});
     const SceneDocument pixels = small({{"image", {{"width", 512}, {"height", kWorkPart / 256}}}});
-    for (const auto& [doc, level, checks] : {std::tuple{photons, 2u, 2}, std::tuple{pixels, kMaxPhotonBatches + 1, 1}}) {
+    for (const auto& [doc, level, checks] : {std::tuple{photons, 2u, 4}, std::tuple{pixels, kMaxPhotonBatches + 1, 1}}) {
         SCOPED_TRACE(level);
         Renderer whole(*context), parted(*context), yielded(*context);
         const FrameResult reference = whole.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level});

@@ -397,6 +397,9 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         passes::clear_photon_accumulators(recorder_, *accum_, grey());
         // Light by light: each one's sums hold its own unbent light (transport.h), so each is resolved into
         // the radiance grid and floor map, the first replacing this batch's share and the rest adding theirs.
+        // A refinement step gives way after the direct light and after each resolve too (each a tenth of
+        // a second or more on two cores), not only between parts of the photons.
+        const passes::BetweenParts gap = between_parts("photons");
         for (size_t i = 0; i < light_params_.size(); ++i) {
             const shaders::TransportParams& light = light_params_[i];
             const passes::TransportInputs light_inputs = inputs_for(params_buffers_[i]);
@@ -405,12 +408,14 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                 kit_.direct_light.record(recorder_, light_inputs, *accum_, static_cast<uint32_t>(light.direct_light.x),
                                          grid_.coarsened(options.radiance_factor));
                 recorder_.compute_barrier();
+                if (gap) gap();
             }
             kit_.photon_trace.record(recorder_, light_inputs, *accum_, light.photon_info.x, options.sampled_deposits,
                                      bounces > 0, between_parts("photons"));
             recorder_.compute_barrier();
             kit_.radiance_resolve.record(recorder_, params_buffers_[i], *accum_, grey(), radiance_, flux_, floor_map_);
             recorder_.compute_barrier();
+            if (gap) gap();
         }
         kit_.lit_pyramid.record(recorder_, params_buffer, flux_, accum_->lit_blocks, index_field_.extent());
         recorder_.compute_barrier();
