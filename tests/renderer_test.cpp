@@ -179,7 +179,7 @@ TEST_F(RendererTest, RefinementLevelsAreDeterministicHoweverTheyAreReached) {
     EXPECT_EQ(after.rerun & kVoxelize, 0u) << pass_names(after.rerun);
 }
 
-// A refinement step runs in parts (passes::kWorkPart photons or pixels, a submission each) and asks
+// A still frame's step runs in parts (passes::kWorkPart photons or pixels, a submission each) and asks
 // whether to give way after each: the parts make the same bytes as one submission, and giving way after
 // the first part leaves no trace in the level asked for next.
 TEST_F(RendererTest, RefinementStepsGiveWayBetweenPartsAndKeepTheirBytes) {
@@ -205,9 +205,17 @@ TEST_F(RendererTest, RefinementStepsGiveWayBetweenPartsAndKeepTheirBytes) {
                      Superseded);
         EXPECT_EQ(yielded.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level}).png, reference.png);
     }
+    // The still frame after a drag (level 1, photons into the still grid) gives way too, and leaves no
+    // trace in the still frame asked for next.
+    Renderer dragged(*context), fresh(*context);
+    const FrameResult still = fresh.render("a", photons, no_assets);
+    dragged.render("a", photons, no_assets, {Quality::interactive});
+    EXPECT_THROW(dragged.render("a", photons, no_assets, {Quality::still, kDefaultBudgetMs, 1, [] { return true; }}),
+                 Superseded);
+    EXPECT_EQ(dragged.render("a", photons, no_assets).png, still.png);
 }
 
-// Interactive frames deposit photons into a coarser radiance grid.// Interactive frames deposit photons into a coarser radiance grid. With 4096 photons and a 32-pixel
+// Interactive frames deposit photons into a coarser radiance grid. With 4096 photons and a 32-pixel
 // image the interactive document is the still one (nothing to halve or quarter), so only the grid's
 // resolution differs: switching quality must still rerun photons and view, and the still frame after
 // an interactive one must be the first still frame to the byte.

@@ -361,13 +361,7 @@ private:
         if (rendered.quality == scene::Quality::still) {
             if (rendered.level >= refine_to_) return;
             wanted_seq_ = seq;
-            // A level gives way after any part of its work when this session's next message waits (here:
-            // one frame in flight a session) or another frame does that is not a refinement level.
-            newer_message_ = std::make_shared<std::atomic<bool>>(false);
-            wanted_options_ = {scene::Quality::still, budget_ms_, rendered.level + 1,
-                               [newer = newer_message_, &queue = service_.queue()] {
-                                   return newer->load() || queue.queued_ahead_of_refinement() > 0;
-                               }};
+            wanted_options_ = yielding_still(rendered.level + 1);
             want_frame_ = true;
             return submit_frame();
         }
@@ -375,10 +369,21 @@ private:
         idle_timer_.async_wait([self = shared_from_this(), seq](beast::error_code ec) {
             if (ec || self->want_frame_ || self->in_flight_ || self->closing_) return;
             self->wanted_seq_ = seq;
-            self->wanted_options_ = {scene::Quality::still, self->budget_ms_, 1};
+            self->wanted_options_ = self->yielding_still(1);
             self->want_frame_ = true;
             self->submit_frame();
         });
+    }
+
+    // A still frame this session pushes unasked (the one after a drag, or a refinement level): it gives
+    // way after any part of its work when this session's next message waits (here: one frame in flight a
+    // session) or another frame does that is not a refinement level, so that a drag resumed a moment
+    // after a pause waits for one part of the still, not all of it.
+    scene::FrameOptions yielding_still(uint32_t level) {
+        newer_message_ = std::make_shared<std::atomic<bool>>(false);
+        return {scene::Quality::still, budget_ms_, level, [newer = newer_message_, &queue = service_.queue()] {
+                    return newer->load() || queue.queued_ahead_of_refinement() > 0;
+                }};
     }
 
     void submit_frame() {

@@ -235,8 +235,8 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
                     passes = kView;
                 }
             }
-            // A step past the first runs in parts and gives way between them when other work waits.
-            if (step > 1) run_options.give_way = options.give_way;
+            // Each step runs in parts and gives way between them when the caller says other work waits.
+            run_options.give_way = options.give_way;
             RunStats stats;
             try {
                 stats = resident.gpu->run(passes, document, worlds, grid.get(), run_options, environment.get());

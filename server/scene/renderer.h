@@ -92,10 +92,10 @@ struct FrameOptions {
     Quality quality = Quality::still;
     double budget_ms = kDefaultBudgetMs;  // interactive frames: the frame-time budget (frame_budget.h)
     uint32_t level = 1;                   // still frames: the refinement level, 1 to kMaxRefinementLevel
-    // When set, a refinement step (a level past the first) asks it between the parts of its photon and view
-    // dispatches (RunOptions::give_way), and gives way (Superseded) if it says other work is waiting: a
-    // user's next edit waits for one part (passes::kWorkPart photons or pixels), not a whole level. The
-    // refinement state is then dropped, so levels stay the same bytes however reached.
+    // When set, each step of a still frame (level 1, and each level past it) asks it between the parts of
+    // its photon and view dispatches (RunOptions::give_way), and gives way (Superseded) if it says other
+    // work is waiting: a user's next edit waits for one part (passes::kWorkPart photons or pixels), not a
+    // whole frame. The refinement state is then dropped, so levels stay the same bytes however reached.
     std::function<bool()> give_way;
 };
 
