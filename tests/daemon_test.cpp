@@ -1782,6 +1782,11 @@ TEST(DaemonHostile, SlowAndGreedyClientsCostOthersNothing) {
     TempDir dir;
     Daemon daemon(dir.path() / "data", {"--token", "s3cret"});
 
+    // The render thread first: a frame request ends its warm-up (pipelines compiled for the stored
+    // scenes, hundreds of MiB of compiler memory) and is answered once it is idle, so that what follows
+    // measures the uploads alone.
+    auto warm = daemon.client().Get("/api/scenes/default/frame.png?token=s3cret&width=16&height=16");
+    ASSERT_TRUE(warm && warm->status == 200) << (warm ? warm->body : "no answer");
     // 16 unauthenticated 60 MiB uploads: refused from their headers, their bodies never held.
     const long rss_before = memory_kib(daemon.pid(), "VmRSS");
     const long peak_before = memory_kib(daemon.pid(), "VmHWM");
