@@ -222,11 +222,10 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     if (several) {
         std::vector<shaders::Material> table;
         for (const auto& [name, object] : document.objects) table.push_back(passes::material_for(object, document.medium, grid_));
-        const uint64_t bytes = table.size() * sizeof(shaders::Material);
-        if (!materials_.get() || materials_.size() < bytes)
+        if (!materials_.get())  // room for the most objects a scene may hold
             materials_ = vk::Buffer(kit_.context, sizeof(shaders::Material) * protocol::kMaxObjects,
                                     VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT, vk::MemoryUse::upload, "object materials");
-        materials_.write(table.data(), bytes);
+        materials_.write(table.data(), table.size() * sizeof(shaders::Material));
     }
     uint32_t most_photons = 0;  // of one light's dispatch (with the environment's, for the first)
     for (const auto& light : light_params_) most_photons = std::max(most_photons, light.photon_info.x);
