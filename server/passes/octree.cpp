@@ -44,9 +44,8 @@ constexpr vk::BindingLayout kLayout[] = {
     {OCTREE_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 
-// Boxes of one level's nodes are held as VoxelRanges in that level's units.
-
-// The level-1 nodes whose range reads a voxel of `region`: node k reads voxels 2k - 1 .. 2k + 2.
+// The level-1 nodes whose range reads a voxel of `region`: node k reads voxels 2k - 1 .. 2k + 2. A box
+// of one level's nodes is a VoxelRange in that level's units.
 VoxelRange level1_nodes(VoxelRange region, glm::uvec3 level1_dims) {
     return {(glm::max(region.first, glm::uvec3(1u)) - 1u) / 2u, glm::min(region.end / 2u + 1u, level1_dims)};
 }

@@ -533,7 +533,6 @@ std::vector<glm::vec4> SceneGpu::read_index_field() const { return read_image<gl
 std::vector<uint32_t> SceneGpu::read_levels() const {
     return passes::levels_per_voxel(read_buffer<uint32_t>(levels_), grid_.dims);
 }
-
 std::vector<glm::vec2> SceneGpu::read_pyramid() const { return read_buffer<glm::vec2>(pyramid_); }
 std::vector<glm::vec4> SceneGpu::read_flux() const { return read_image<glm::vec4>(flux_); }
 std::vector<uint32_t> SceneGpu::read_lit_pyramid() const { return read_buffer<uint32_t>(accum_->lit_blocks); }
