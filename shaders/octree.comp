@@ -20,19 +20,28 @@ uint level_offset(uint level) { return level < 4u ? push.offsets0[level] : push.
 
 uvec3 level_dims(uint level) { return (push.dims.xyz + (1u << level) - 1u) >> level; }
 
-uint node_index(uint level, uvec3 node) {
+// A node's place within its level, x fastest; the level map is laid out as level 1 is.
+uint node_in_level(uint level, uvec3 node) {
     uvec3 d = level_dims(level);
-    return level_offset(level) + (node.z * d.y + node.y) * d.x + node.x;
+    return (node.z * d.y + node.y) * d.x + node.x;
+}
+
+uint node_index(uint level, uvec3 node) { return level_offset(level) + node_in_level(level, node); }
+
+// The node of the box being written (OctreePush::first, extent) that invocation i writes; false past
+// the box. A full build's box is the whole level; an edit's, the nodes its changed voxels reach.
+bool box_node(uint i, out uvec3 node) {
+    uvec3 e = push.extent.xyz;
+    node = push.first.xyz + uvec3(i % e.x, (i / e.x) % e.y, i / (e.x * e.y));
+    return i < e.x * e.y * e.z;
 }
 
 // Level 1 straight from the index field: a level-1 node's range covers the 3x3x3 neighbourhoods of its
 // 2x2x2 voxels, the 4x4x4 voxels from 2 node - 1 to 2 node + 2 (clamped: a repeated edge voxel changes
 // no minimum or maximum, and covers the last node of an odd side, which has one voxel along it).
 // Eight loads per voxel; a level of per-voxel ranges would take 27 and write as many ranges as voxels.
-void level1_range(uint i) {
-    uvec3 d = level_dims(1u);
-    if (i >= d.x * d.y * d.z) return;
-    ivec3 first = 2 * ivec3(i % d.x, (i / d.x) % d.y, i / (d.x * d.y)) - 1;
+void level1_range(uvec3 node) {
+    ivec3 first = 2 * ivec3(node) - 1;
     ivec3 last = ivec3(push.dims.xyz) - 1;
     float lo = 1e30, hi = -1e30;
     for (int z = 0; z < 4; ++z)
@@ -42,14 +51,11 @@ void level1_range(uint i) {
                 lo = min(lo, n);
                 hi = max(hi, n);
             }
-    pyramid[level_offset(1u) + i] = vec2(lo, hi);
+    pyramid[node_index(1u, node)] = vec2(lo, hi);
 }
 
-void reduce(uint i) {
-    uint level = push.level_dims.w;
-    uvec3 d = push.level_dims.xyz;
-    if (i >= d.x * d.y * d.z) return;
-    uvec3 node = uvec3(i % d.x, (i / d.x) % d.y, i / (d.x * d.y));
+void reduce(uvec3 node) {
+    uint level = push.dims.w;
     uvec3 child_dims = level_dims(level - 1u);
     vec2 range = vec2(1e30, -1e30);
     for (uint c = 0u; c < 8u; ++c) {
@@ -58,31 +64,29 @@ void reduce(uint i) {
         vec2 r = pyramid[node_index(level - 1u, child)];
         range = vec2(min(range.x, r.x), max(range.y, r.y));
     }
-    pyramid[level_offset(level) + i] = range;
+    pyramid[node_index(level, node)] = range;
 }
 
 // The level map has one entry per level-1 node: its 2x2x2 voxels have the same ancestors, so the same
 // leaf level, and one entry for eight voxels makes this job 8x smaller.
-void level_map(uint i) {
-    uvec3 cells = level_dims(1u);
-    if (i >= cells.x * cells.y * cells.z) return;
-    uvec3 c = uvec3(i % cells.x, (i / cells.x) % cells.y, i / (cells.x * cells.y));
+void level_map(uvec3 c) {
     uint level = 0u;
     for (uint l = 1u; l <= push.offsets1.z; ++l) {
         vec2 r = pyramid[node_index(l, c >> (l - 1u))];
         if (r.y - r.x >= push.epsilon) break;
         level = l;
     }
-    levels[i] = level;
+    levels[node_in_level(1u, c)] = level;
 }
 
 void main() {
-    uint i = linear_invocation();
+    uvec3 node;
+    if (!box_node(linear_invocation(), node)) return;
     if (kMode == OCTREE_MODE_LEVEL1_RANGE) {
-        level1_range(i);
+        level1_range(node);
     } else if (kMode == OCTREE_MODE_REDUCE) {
-        reduce(i);
+        reduce(node);
     } else {
-        level_map(i);
+        level_map(node);
     }
 }

@@ -662,30 +662,61 @@ std::vector<uint32_t> reference_levels(const std::vector<float>& n, vk::Extent3 
     return levels;
 }
 
+passes::VoxelRange whole(vk::Extent3 dims) { return {glm::uvec3(0u), glm::uvec3(dims.x, dims.y, dims.z)}; }
+
+// passes::OctreePass alone on index fields uploaded into one image; its pyramid and level map stay between
+// builds, as a scene's do.
+class OctreeRig {
+public:
+    OctreeRig(vk::Context& context, vk::Extent3 dims)
+        : context_(context),
+          layout_(passes::octree_layout(dims)),
+          field_(context, dims, VK_FORMAT_R32G32B32A32_SFLOAT, "test index field"),
+          staging_(context, dims.count() * sizeof(glm::vec4), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::upload,
+                   "test index upload"),
+          pyramid_(context, layout_.node_count * sizeof(glm::vec2), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                   vk::MemoryUse::readback, "test pyramid"),
+          levels_(context, layout_.cell_count * sizeof(uint32_t), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                  vk::MemoryUse::readback, "test levels") {}
+
+    // Uploads `n` and remakes the octree over `region` of it.
+    void build(const passes::OctreePass& octree, const std::vector<float>& n, float epsilon, passes::VoxelRange region) {
+        std::vector<glm::vec4> texels(n.size());
+        for (size_t i = 0; i < n.size(); ++i) texels[i] = glm::vec4(n[i], 0.0f, 0.0f, 0.0f);
+        staging_.write(texels.data(), texels.size() * sizeof(glm::vec4));
+        vk::run_once(context_, [&](vk::CommandRecorder& r) {
+            if (!initialized_) r.init_image(field_);
+            r.copy(staging_, field_);
+            r.transfer_to_compute_barrier();
+            octree.record(r, field_, epsilon, region, pyramid_, levels_);
+            r.to_host_barrier();
+        });
+        initialized_ = true;
+    }
+    std::vector<glm::vec2> pyramid() const { return read<glm::vec2>(pyramid_, layout_.node_count); }
+    std::vector<uint32_t> levels() const { return passes::levels_per_voxel(read<uint32_t>(levels_, layout_.cell_count), field_.extent()); }
+
+private:
+    template <typename T>
+    static std::vector<T> read(const vk::Buffer& buffer, uint64_t count) {
+        std::vector<T> values(count);
+        buffer.read(values.data(), count * sizeof(T));
+        return values;
+    }
+
+    vk::Context& context_;
+    passes::OctreeLayout layout_;
+    vk::Image3D field_;
+    vk::Buffer staging_, pyramid_, levels_;
+    bool initialized_ = false;
+};
+
 // Runs passes::OctreePass alone on an index field uploaded from `n`.
 std::vector<uint32_t> gpu_levels(vk::Context& context, const passes::OctreePass& octree, const std::vector<float>& n,
                                  vk::Extent3 dims, float epsilon) {
-    std::vector<glm::vec4> texels(n.size());
-    for (size_t i = 0; i < n.size(); ++i) texels[i] = glm::vec4(n[i], 0.0f, 0.0f, 0.0f);
-    const VkDeviceSize bytes = texels.size() * sizeof(glm::vec4);
-    vk::Image3D field(context, dims, VK_FORMAT_R32G32B32A32_SFLOAT, "test index field");
-    vk::Buffer staging(context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::upload, "test index upload");
-    staging.write(texels.data(), bytes);
-    const passes::OctreeLayout layout = passes::octree_layout(dims);
-    vk::Buffer pyramid(context, layout.node_count * sizeof(glm::vec2), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-                       vk::MemoryUse::device, "test pyramid");
-    vk::Buffer levels(context, layout.cell_count * sizeof(uint32_t), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-                      vk::MemoryUse::readback, "test levels");
-    vk::run_once(context, [&](vk::CommandRecorder& r) {
-        r.init_image(field);
-        r.copy(staging, field);
-        r.transfer_to_compute_barrier();
-        octree.record(r, field, epsilon, pyramid, levels);
-        r.to_host_barrier();
-    });
-    std::vector<uint32_t> cells(layout.cell_count);
-    levels.read(cells.data(), cells.size() * sizeof(uint32_t));
-    return passes::levels_per_voxel(cells, dims);
+    OctreeRig rig(context, dims);
+    rig.build(octree, n, epsilon, whole(dims));
+    return rig.levels();
 }
 
 // A quiet background (noise well below epsilon) with random boxes of random size laid over it: some of
@@ -752,6 +783,57 @@ TEST_F(VolumeTest, OctreeLevelsMatchCpuReferenceExactly) {
         std::cout << "\n";
         EXPECT_GE(used, 4u) << histogram[0] << " " << histogram[1] << " " << histogram[2] << " " << histogram[3]
                             << " " << histogram[4] << " " << histogram[5];
+    }
+}
+
+// An octree remade over the region where its field changed is the octree of the changed field built
+// whole, to the bit: pyramid and level map. Regions of one voxel to 16 per side, at the grid's corners
+// and edges, inside one top-level node and across the boundary of two (where the level map of both must
+// be remade), on a cube and on an odd box with partial nodes at every level.
+TEST_F(VolumeTest, OctreeRemadeOverTheChangedRegionIsTheWholeBuildToTheBit) {
+    const float epsilon = 0.01f;
+    for (const vk::Extent3 dims : {vk::Extent3{64, 64, 64}, vk::Extent3{45, 38, 29}}) {
+        SCOPED_TRACE(std::to_string(dims.x) + "x" + std::to_string(dims.y) + "x" + std::to_string(dims.z));
+        const glm::uvec3 end(dims.x, dims.y, dims.z);
+        const uint32_t top = 1u << passes::octree_layout(dims).max_level;  // a top-level node's side, in voxels
+        std::vector<passes::VoxelRange> regions = {
+            {glm::uvec3(0u), glm::uvec3(1u)},
+            {end - 1u, end},
+            {glm::uvec3(top - 1u, 0u, 5u), glm::uvec3(top + 1u, 3u, 6u)},   // across a top-level boundary
+            {glm::uvec3(top, 2u, 2u), glm::uvec3(top + 3u, 9u, 4u)},         // from one on, the one below reads it
+            {glm::uvec3(3u, 3u, 3u), glm::uvec3(top - 3u, top - 3u, top - 3u)},  // inside one
+            {glm::uvec3(0u, 7u, 0u), glm::uvec3(end.x, 8u, end.z)}};
+        std::mt19937 rng(dims.x);
+        for (int i = 0; i < 6; ++i) {
+            passes::VoxelRange random;
+            for (int a = 0; a < 3; ++a) {
+                random.first[a] = std::uniform_int_distribution<uint32_t>(0, end[a] - 1)(rng);
+                random.end[a] = std::min(end[a], random.first[a] + std::uniform_int_distribution<uint32_t>(1, 16)(rng));
+            }
+            regions.push_back(random);
+        }
+        const std::vector<float> before = random_field(dims, epsilon, 11u);
+        const std::vector<float> elsewhere = random_field(dims, epsilon, 12u);
+        OctreeRig resident(context(), dims), fresh(context(), dims);
+        resident.build(kit().octree, before, epsilon, whole(dims));
+        std::vector<float> n = before;
+        for (const passes::VoxelRange& region : regions) {
+            auto text = [](glm::uvec3 v) { return std::to_string(v.x) + "," + std::to_string(v.y) + "," + std::to_string(v.z); };
+            SCOPED_TRACE("region " + text(region.first) + " .. " + text(region.end));
+            // Inside the region, another field: other boxes, other noise.
+            for (uint32_t z = region.first.z; z < region.end.z; ++z)
+                for (uint32_t y = region.first.y; y < region.end.y; ++y)
+                    for (uint32_t x = region.first.x; x < region.end.x; ++x) {
+                        const size_t v = (size_t{z} * dims.y + y) * dims.x + x;
+                        n[v] = elsewhere[v];
+                    }
+            resident.build(kit().octree, n, epsilon, region);
+            fresh.build(kit().octree, n, epsilon, whole(dims));
+            EXPECT_TRUE(resident.pyramid() == fresh.pyramid());
+            EXPECT_TRUE(resident.levels() == fresh.levels());
+        }
+        // The changes reached the level map, so the comparison means something.
+        EXPECT_NE(fresh.levels(), gpu_levels(context(), kit().octree, before, dims, epsilon));
     }
 }
 
@@ -869,6 +951,7 @@ TEST_F(VolumeTest, MovingOneObjectVoxelizesItAloneAndGivesTheVolumeOfAFreshBuild
     EXPECT_TRUE(resident.read_coverage() == fresh.read_coverage());
     EXPECT_TRUE(resident.read_object_numbers() == fresh.read_object_numbers());
     EXPECT_TRUE(resident.read_levels() == fresh.read_levels());
+    EXPECT_TRUE(resident.read_pyramid() == fresh.read_pyramid());
     // An index edit of one object remakes the field over its box only, to the same bits.
     const SceneDocument denser = protocol::apply_merge_patch(after, {{"objects", {{"cube", {{"ior", 1.9}}}}}});
     EXPECT_TRUE(resident.run(scene::passes_invalidated(after, denser), denser, worlds(denser), nullptr, options)
@@ -877,6 +960,7 @@ TEST_F(VolumeTest, MovingOneObjectVoxelizesItAloneAndGivesTheVolumeOfAFreshBuild
     fresh_denser.run(scene::kAllPasses, denser, worlds(denser), nullptr, options);
     EXPECT_TRUE(resident.read_index_field() == fresh_denser.read_index_field());
     EXPECT_TRUE(resident.read_levels() == fresh_denser.read_levels());
+    EXPECT_TRUE(resident.read_pyramid() == fresh_denser.read_pyramid());
     // Removing an object voxelizes nothing (the others keep their coverage), and the field then is
     // that of the two left.
     const SceneDocument removed = protocol::apply_merge_patch(denser, {{"objects", {{"ball", nullptr}}}});
@@ -885,6 +969,54 @@ TEST_F(VolumeTest, MovingOneObjectVoxelizesItAloneAndGivesTheVolumeOfAFreshBuild
     scene::SceneGpu fresh_removed(kit());
     fresh_removed.run(scene::kAllPasses, removed, worlds(removed), nullptr, options);
     EXPECT_TRUE(resident.read_index_field() == fresh_removed.read_index_field());
+    EXPECT_TRUE(resident.read_levels() == fresh_removed.read_levels());
+    EXPECT_TRUE(resident.read_pyramid() == fresh_removed.read_pyramid());
+}
+
+// The octree is remade over what the moved object's boxes reach, and its level map under the top-level
+// nodes they meet: a ball that leaves one top-level node for the boundary of two others leaves the node
+// it left all medium, a leaf of the top level to its far corner, as in a fresh build of the moved scene.
+TEST_F(VolumeTest, MovingAnObjectAcrossTopLevelNodesGivesTheOctreeOfAFreshBuild) {
+    const nlohmann::json objects = {{"ball", {{"position", {-1.0, 0.5, 0.5}}, {"scale", 0.15}}},
+                                    {"cube", {{"mesh", "cube"}, {"position", {1.0, -0.5, -0.5}}, {"scale", 0.2}, {"ior", 1.33}}}};
+    const SceneDocument before = objects_document(objects);
+    const SceneDocument after = protocol::apply_merge_patch(before, {{"objects", {{"ball", {{"position", {0.5, 0.5, 0.5}}}}}}});
+    scene::RunOptions options;
+    options.limit = scene::kVoxelize | scene::kIndexField | scene::kOctree;
+    scene::SceneGpu resident(kit());
+    resident.run(scene::kAllPasses, before, worlds(before), nullptr, options);
+    const scene::GridGeometry& g = resident.grid();
+    const uint32_t max_level = passes::octree_layout(g.dims).max_level;
+    ASSERT_EQ(max_level, 5u);
+    const uint32_t top = 1u << max_level;
+    // The ball's box before lies in the top-level node from (0, 32, 32) and after crosses from the node
+    // from (32, 32, 32) into the one from (64, 32, 32); the cube's lies below them all.
+    const double sigma = before.volume.smoothing;
+    const scene::ObjectBox was = scene::object_boxes(g, worlds(before), sigma).at("ball");
+    const scene::ObjectBox is = scene::object_boxes(g, worlds(after), sigma).at("ball");
+    const scene::ObjectBox cube = scene::object_boxes(g, worlds(after), sigma).at("cube");
+    auto top_node = [&](glm::uvec3 voxel) { return voxel / top; };
+    const glm::uvec3 was_last = was.offset + glm::uvec3(was.box.dims.x, was.box.dims.y, was.box.dims.z) - 1u;
+    const glm::uvec3 is_last = is.offset + glm::uvec3(is.box.dims.x, is.box.dims.y, is.box.dims.z) - 1u;
+    ASSERT_EQ(top_node(was.offset), glm::uvec3(0u, 1u, 1u));
+    ASSERT_EQ(top_node(was_last), glm::uvec3(0u, 1u, 1u));
+    ASSERT_EQ(top_node(is.offset), glm::uvec3(1u, 1u, 1u));
+    ASSERT_EQ(top_node(is_last), glm::uvec3(2u, 1u, 1u));
+    ASSERT_LT(cube.offset.y + cube.box.dims.y, top - 1u);  // below what the nodes at y 32 read
+    // A voxel of the node the ball leaves whose level-1 node reads none of the ball's box (voxels z 61..64).
+    const glm::uvec3 corner(1u, top + 1u, 2u * top - 1u);
+    ASSERT_LT(was_last.z, corner.z - 2u);
+    const size_t corner_index = (size_t{corner.z} * g.dims.y + corner.y) * g.dims.x + corner.x;
+    EXPECT_LT(resident.read_levels()[corner_index], max_level);
+
+    resident.run(scene::passes_invalidated(before, after), after, worlds(after), nullptr, options);
+    scene::SceneGpu fresh(kit());
+    fresh.run(scene::kAllPasses, after, worlds(after), nullptr, options);
+    EXPECT_TRUE(resident.read_index_field() == fresh.read_index_field());
+    const std::vector<uint32_t> levels = resident.read_levels();
+    EXPECT_EQ(levels[corner_index], max_level);
+    EXPECT_TRUE(levels == fresh.read_levels());
+    EXPECT_TRUE(resident.read_pyramid() == fresh.read_pyramid());
 }
 
 

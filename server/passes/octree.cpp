@@ -43,6 +43,15 @@ constexpr vk::BindingLayout kLayout[] = {
     {OCTREE_BINDING_PYRAMID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {OCTREE_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
+
+// The level-1 nodes whose range reads a voxel of `region`: node k reads voxels 2k - 1 .. 2k + 2. A box
+// of one level's nodes is a VoxelRange in that level's units.
+VoxelRange level1_nodes(VoxelRange region, glm::uvec3 level1_dims) {
+    return {(glm::max(region.first, glm::uvec3(1u)) - 1u) / 2u, glm::min(region.end / 2u + 1u, level1_dims)};
+}
+
+// The parents of `nodes`.
+VoxelRange parents(VoxelRange nodes) { return {nodes.first / 2u, (nodes.end + 1u) / 2u}; }
 }  // namespace
 
 OctreePass::OctreePass(vk::Context& context)
@@ -51,9 +60,11 @@ OctreePass::OctreePass(vk::Context& context)
     static_assert(OCTREE_MODE_LEVEL1_RANGE == 0 && OCTREE_MODE_REDUCE == 1 && OCTREE_MODE_LEVEL_MAP == 2);
 }
 
-void OctreePass::record(vk::CommandRecorder& recorder, const vk::Image3D& index_field, float epsilon,
+void OctreePass::record(vk::CommandRecorder& recorder, const vk::Image3D& index_field, float epsilon, VoxelRange region,
                         const vk::Buffer& pyramid, const vk::Buffer& levels) const {
     const vk::Extent3 dims = index_field.extent();
+    region.end = glm::min(region.end, glm::uvec3(dims.x, dims.y, dims.z));
+    if (region.empty()) return;
     const OctreeLayout layout = octree_layout(dims);
     OctreePush push{};
     push.dims = glm::uvec4(dims.x, dims.y, dims.z, 0);
@@ -65,17 +76,26 @@ void OctreePass::record(vk::CommandRecorder& recorder, const vk::Image3D& index_
         vk::Binding::storage_buffer(OCTREE_BINDING_PYRAMID, pyramid),
         vk::Binding::storage_buffer(OCTREE_BINDING_LEVELS, levels)};
     const VkCommandBuffer cmd = recorder.get();
-    // Level 1 from the index field, then each level from the one below it: a barrier between levels.
+    auto dispatch = [&](uint32_t mode, VoxelRange nodes) {
+        push.first = glm::uvec4(nodes.first, 0u);
+        push.extent = glm::uvec4(nodes.end - nodes.first, 0u);
+        const auto groups = vk::linear_groups(nodes.count(), VOLUME_GROUP_SIZE);
+        pipelines_[mode].dispatch(cmd, bindings, push, groups.x, groups.y);
+    };
+    // Level 1 over the nodes that read a changed voxel, then each level over the parents of the nodes
+    // changed below it (all of a level when the region is the whole grid): a barrier between levels.
+    const glm::uvec3 level1_dims((dims.x + 1) / 2, (dims.y + 1) / 2, (dims.z + 1) / 2);
+    VoxelRange changed = level1_nodes(region, level1_dims);
     for (uint32_t level = 1; level <= layout.max_level; ++level) {
-        const uint32_t step = 1u << level;
-        const glm::uvec3 level_dims((dims.x + step - 1) / step, (dims.y + step - 1) / step, (dims.z + step - 1) / step);
-        push.level_dims = glm::uvec4(level_dims, level);
-        const auto groups = vk::linear_groups(uint64_t{level_dims.x} * level_dims.y * level_dims.z, VOLUME_GROUP_SIZE);
-        pipelines_[level == 1 ? OCTREE_MODE_LEVEL1_RANGE : OCTREE_MODE_REDUCE].dispatch(cmd, bindings, push, groups.x, groups.y);
+        if (level > 1) changed = parents(changed);
+        push.dims.w = level;
+        dispatch(level == 1 ? OCTREE_MODE_LEVEL1_RANGE : OCTREE_MODE_REDUCE, changed);
         recorder.compute_barrier();
     }
-    const auto cell_groups = vk::linear_groups(layout.cell_count, VOLUME_GROUP_SIZE);
-    pipelines_[OCTREE_MODE_LEVEL_MAP].dispatch(cmd, bindings, push, cell_groups.x, cell_groups.y);
+    // A level-1 node's leaf level reads every ancestor up to the top level, so the map is remade under
+    // the changed top-level nodes: the region grown to the top level's node alignment.
+    const uint32_t shift = layout.max_level > 1 ? layout.max_level - 1 : 0;
+    dispatch(OCTREE_MODE_LEVEL_MAP, {changed.first << shift, glm::min(changed.end << shift, level1_dims)});
 }
 
 }  // namespace refract::passes

@@ -6,6 +6,7 @@
 #include <span>
 #include <vector>
 
+#include "passes/index_field.h"
 #include "passes/mode_pipelines.h"
 #include "vk/commands.h"
 #include "vk/pipeline.h"
@@ -32,8 +33,11 @@ public:
     explicit OctreePass(vk::Context& context);
 
     // Reads n from `index_field`; writes the pyramid (vec2 per node, octree_layout(dims).node_count of
-    // them) and `levels` (uint per level-1 node, octree_layout(dims).cell_count of them).
-    void record(vk::CommandRecorder& recorder, const vk::Image3D& index_field, float epsilon,
+    // them) and `levels` (uint per level-1 node, octree_layout(dims).cell_count of them) where the
+    // voxels of `region` reach: the level-1 nodes that read them, their ancestors, and the level map
+    // under the top-level ones. The rest must hold the octree, for this epsilon, of a field that
+    // differs from this one only inside `region`; the whole grid as region builds it all.
+    void record(vk::CommandRecorder& recorder, const vk::Image3D& index_field, float epsilon, VoxelRange region,
                 const vk::Buffer& pyramid, const vk::Buffer& levels) const;
 
 private:

@@ -284,6 +284,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     std::vector<std::string> voxelized;
     passes::VoxelRange moved;  // where the objects voxelized now lay before and lie now
     vk::Buffer zeros;          // the medium's coverage over the region the index field is remade over
+    const passes::VoxelRange whole_lattice{glm::uvec3(0u), glm::uvec3(grid_.dims.x, grid_.dims.y, grid_.dims.z)};
+    passes::VoxelRange field_changed = whole_lattice;  // where the index field changed since the octree was made
     const bool first_use = built_ == 0;
     if (first_use) {
         for (const vk::Image3D* image : {&index_field_, &coverage_image_}) recorder_.init_image(*image);
@@ -374,6 +376,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         if (!region.empty())
             kit_.index_field.record(recorder_, document.medium, grid_, fields, region, several ? zeros : grid_values_,
                                     grid_values_, index_field_, coverage_image_);
+        field_changed = region;
         composed_objects_ = document.objects;
         composed_medium_ior_ = document.medium.ior;
         recorder_.compute_barrier();
@@ -381,7 +384,11 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     }
     if (stale & kOctree) {
         timer_.begin(cmd, "octree");
-        kit_.octree.record(recorder_, index_field_, passes::octree_epsilon(document), pyramid_, levels_);
+        // Over what the changed voxels reach, when the resident octree is the old field's at this epsilon.
+        const float epsilon = passes::octree_epsilon(document);
+        const bool resident = (built_ & kOctree) && epsilon == octree_epsilon_;
+        kit_.octree.record(recorder_, index_field_, epsilon, resident ? field_changed : whole_lattice, pyramid_, levels_);
+        octree_epsilon_ = epsilon;
         recorder_.compute_barrier();
         timer_.end(cmd);
     }
@@ -526,6 +533,7 @@ std::vector<glm::vec4> SceneGpu::read_index_field() const { return read_image<gl
 std::vector<uint32_t> SceneGpu::read_levels() const {
     return passes::levels_per_voxel(read_buffer<uint32_t>(levels_), grid_.dims);
 }
+std::vector<glm::vec2> SceneGpu::read_pyramid() const { return read_buffer<glm::vec2>(pyramid_); }
 std::vector<glm::vec4> SceneGpu::read_flux() const { return read_image<glm::vec4>(flux_); }
 std::vector<uint32_t> SceneGpu::read_lit_pyramid() const { return read_buffer<uint32_t>(accum_->lit_blocks); }
 

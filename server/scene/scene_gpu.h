@@ -131,6 +131,7 @@ public:
     std::vector<uint32_t> read_object_numbers() const;  // per voxel: 1 + the number of the object it holds, 0: none
     std::vector<glm::vec4> read_index_field() const;
     std::vector<uint32_t> read_levels() const;  // octree leaf level per voxel
+    std::vector<glm::vec2> read_pyramid() const;  // octree (min, max) n per node, levels 1 and up back to back
     std::vector<glm::vec4> read_radiance() const;  // fluence rate rgb (W/m^2)
     std::vector<glm::vec4> read_flux() const;      // net flux vector xyz, fluence rate w (channel mean; W/m^2)
     uint32_t channels() const { return channels_; }  // how the photons last ran carried colour (CHANNELS_*)
@@ -167,6 +168,7 @@ private:
     bool sampled_deposits_ = false;  // how the photons in the radiance grid were deposited (RunOptions)
     uint32_t bounces_ = 0;           // how often they could scatter (passes::photon_bounces)
     uint32_t channels_ = CHANNELS_RGB;
+    float octree_epsilon_ = 0.0f;  // the epsilon of the resident level map
     std::vector<shaders::TransportParams> light_params_{shaders::TransportParams{}};
     // Volume (voxelize, index field, octree): each object's coverage over its box, kept while its world
     // mesh, box and smoothing stay, so that an edit of one object voxelizes that one only.

@@ -103,8 +103,9 @@ struct IndexFieldPush {
 #define OCTREE_MODE_LEVEL_MAP 2u
 
 struct OctreePush {
-    uvec4 dims;        // xyz: grid size; w: unused
-    uvec4 level_dims;  // xyz: node count of the level being written (REDUCE); w: level
+    uvec4 dims;        // xyz: grid size; w: the level being written (REDUCE)
+    uvec4 first;       // xyz: first node of the box of nodes written (of level 1 for the ranges and map)
+    uvec4 extent;      // xyz: that box's nodes along each axis
     uvec4 offsets0;    // node offset of levels 0..3 in the pyramid buffer (level 0 has no nodes there)
     uvec4 offsets1;    // node offset of levels 4..5; z: max level; w: unused
     float epsilon;     // a node is a leaf when max n - min n < epsilon
@@ -117,7 +118,7 @@ REFRACT_SHADERS_END
 static_assert(sizeof(refract::shaders::VoxelizePush) == 32);
 static_assert(sizeof(refract::shaders::SmoothPush) == 80);
 static_assert(sizeof(refract::shaders::IndexFieldPush) == 112);
-static_assert(sizeof(refract::shaders::OctreePush) == 80);
+static_assert(sizeof(refract::shaders::OctreePush) == 96);
 #endif
 
 #endif
