@@ -1067,30 +1067,33 @@ TEST_F(EnergyTest, FloorUnderSeveralLightsTakesEachLightsIrradiance) {
 // others by about a whole one. Either way the photons leave from other points of the scene (emission is
 // rastered on the grid), so both moved maps differ from the first by photon noise; only the half-voxel
 // move also changes the lattice under the shell. If the lattice added nothing, both differences would be
-// the same noise: imprint / noise = 1 on average. Each mean of squared differences over N texels has a
-// relative standard deviation of sqrt(2 / N), so each RMS 1 / sqrt(2 N) and the ratio 1 / sqrt(N); a
-// photon's bilinear splat shares its noise among at most 2 x 2 texels, so N counts a quarter of the texels
-// the noise reaches. The bar is 1 plus three of those standard deviations.
+// the same noise: imprint / noise = 1 on average. The moved maps draw other photons (another seed) than
+// the first: with the same seed, a move by a near-whole number of emission strata repeats the first map's
+// photons and understates the noise.
 //
-// Not met yet, so not run by default: the voxelization no longer aliases the surface (1.47 -> 1.26 at the
-// default smoothing), but the lattice still leaves 1.12-1.17 at 1.0-1.5 voxels (README). Run it with
+// One seed gives one ratio, and its spread is far wider than independent texels would give (0.97-1.19
+// where 1 / sqrt(texels) predicts 0.014: a caustic focuses each stratum of emission onto many texels, so
+// their noise is shared). So the ratio is measured for kSeeds seeds, each its own first map and two
+// moves, and the bar is 1 plus three standard errors of their mean, from their own spread.
+//
+// Not met yet, so not run by default: 1.16, 1.12, 1.11 at smoothing 0.75, 1.0, 1.5 (README). Run it with
 // --gtest_also_run_disabled_tests; REFRACT_IMPRINT_SMOOTHING sets volume.smoothing (default 0.75).
 TEST_F(EnergyTest, DISABLED_LatticeLeavesNoImprintOnACausticAboveThePhotonNoise) {
+    constexpr uint32_t kSeeds = 8;
     const double h = 2.7 / 96.0;
     const char* smoothing_text = std::getenv("REFRACT_IMPRINT_SMOOTHING");
     const double smoothing = smoothing_text ? std::atof(smoothing_text) : 0.75;
-    auto scene = [&](double shift) {
+    auto scene = [&](double shift, uint32_t seed) {
         return protocol::parse_scene(json{
             {"light", {{"type", "directional"}, {"direction", {-2, -3, -1}}, {"intensity", 1.0}}},
             {"medium", {{"ior", 1.0}, {"extinction", {0, 0, 0}}, {"scattering", {0, 0, 0}}}},
             {"object", {{"extinction", {0, 0, 0}}, {"scattering", {0, 0, 0}}}},
             {"image", {{"width", 8}, {"height", 8}}},
-            {"photons", {{"count", 1 << 18}}},
+            {"photons", {{"count", 1 << 18}, {"seed", seed}}},
             {"volume", {{"resolution", 96}, {"smoothing", smoothing},
                         {"bounds", {{"min", {-1.35 + shift, -1.35, -1.35}}, {"max", {1.35 + shift, 1.35, 1.35}}}}}}});
     };
-    const auto first = photons(scene(0.0));
-    const glm::vec4 placement = first->params().floor_map;
+    const glm::vec4 placement = photons(scene(0.0, 1))->params().floor_map;
     const double texel = double{placement.z} / double{placement.w};
     // The fewest texels that move the lattice by `phase` of a voxel, to within a tenth.
     auto texels_for = [&](double phase) {
@@ -1099,30 +1102,33 @@ TEST_F(EnergyTest, DISABLED_LatticeLeavesNoImprintOnACausticAboveThePhotonNoise)
         return m;
     };
     const int m_half = texels_for(0.5), m_whole = texels_for(0.0);
-    const auto base = first->read_floor_map();
     const auto side = static_cast<size_t>(placement.w);
-    auto rms_difference = [&](int m, double* reached) {
-        const auto moved = photons(scene(m * texel))->read_floor_map();
-        double sum = 0.0;
-        for (size_t z = 0; z < side; ++z) {
-            for (size_t x = 0; x + static_cast<size_t>(std::max(m_half, m_whole)) < side; ++x) {
-                const double d = double{base[z * side + x + static_cast<size_t>(m)].r} - double{moved[z * side + x].r};
-                sum += d * d;
-                if (reached && d != 0.0) *reached += 1.0;
+    std::vector<double> ratios;
+    for (uint32_t seed = 1; seed <= kSeeds; ++seed) {
+        const auto base = photons(scene(0.0, seed))->read_floor_map();
+        auto rms_difference = [&](int m) {
+            const auto moved = photons(scene(m * texel, seed + kSeeds))->read_floor_map();
+            double sum = 0.0;
+            for (size_t z = 0; z < side; ++z) {
+                for (size_t x = 0; x + static_cast<size_t>(std::max(m_half, m_whole)) < side; ++x) {
+                    const double d = double{base[z * side + x + static_cast<size_t>(m)].r} - double{moved[z * side + x].r};
+                    sum += d * d;
+                }
             }
-        }
-        return std::sqrt(sum);
-    };
-    double reached = 0.0;
-    const double noise = rms_difference(m_whole, &reached);
-    const double imprint = rms_difference(m_half, nullptr);
-    ASSERT_GT(noise, 0.0);
-    const double ratio = imprint / noise;
-    const double bar = 1.0 + 3.0 / std::sqrt(reached / 4.0);
-    std::printf("lattice imprint / photon noise on the floor caustic: %.3f (bar %.3f, %.0f texels with noise; grid moved "
-                "%d and %d texels, %.3f and %.3f voxels)\n", ratio, bar, reached, m_half, m_whole, m_half * texel / h,
-                m_whole * texel / h);
-    EXPECT_LT(ratio, bar);
+            return std::sqrt(sum);
+        };
+        const double noise = rms_difference(m_whole);
+        ASSERT_GT(noise, 0.0);
+        ratios.push_back(rms_difference(m_half) / noise);
+        std::printf("seed %u: imprint / noise %.3f\n", seed, ratios.back());
+    }
+    double mean = 0.0, spread = 0.0;
+    for (double r : ratios) mean += r / kSeeds;
+    for (double r : ratios) spread += (r - mean) * (r - mean) / (kSeeds - 1);
+    const double bar = 1.0 + 3.0 * std::sqrt(spread / kSeeds);
+    std::printf("lattice imprint / photon noise on the floor caustic: mean %.3f over %u seeds (bar %.3f; grid moved %d and "
+                "%d texels, %.3f and %.3f voxels)\n", mean, kSeeds, bar, m_half, m_whole, m_half * texel / h, m_whole * texel / h);
+    EXPECT_LT(mean, bar);
 }
 
 }  // namespace
