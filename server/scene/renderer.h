@@ -149,6 +149,14 @@ public:
     // each quality under a scene id of its own, keeps nothing of it but the pipelines, and rethrows what
     // render() throws. Stops before a quality when `stop` says so (the rest is compiled on first use).
     void warm_up(const protocol::SceneDocument& document, const Assets& assets, const std::function<bool()>& stop);
+    // Builds the resident volume (voxelize, index field, octree) of `document` as scene `scene_id` before
+    // anyone asks for a frame of it (the daemon's warm-up: those passes are most of a first frame), so
+    // that its first frame runs only the passes after them. One pass a submission; stops before a pass
+    // when `stop` says so (the frame then runs the rest). Does nothing and returns false when the scene is
+    // resident already or would not fit the resident-scene count or memory budget without evicting
+    // another. Throws what render() throws (RenderError for an unrenderable document, state untouched).
+    bool prepare(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
+                 const std::function<bool()>& stop);
     // Drops a scene's GPU state (its document lives elsewhere).
     void evict(const std::string& scene_id);
     size_t resident_scenes() const;
