@@ -331,20 +331,21 @@ TEST_F(RendererTest, MemoryPlateausOverManyFramesOfEveryEditKind) {
 TEST_F(RendererTest, WarmUpKeepsNothingButThePipelines) {
     Renderer renderer(*context);
     const SceneDocument doc = small();
-    renderer.warm_up(doc, no_assets, [] { return false; });
+    for (Quality quality : {Quality::interactive, Quality::still}) renderer.warm_up(doc, no_assets, quality);
     EXPECT_EQ(renderer.resident_scenes(), 0u);
     // The scene's own first frame is whole: it builds every pass.
     EXPECT_EQ(renderer.render("scene", doc, no_assets).rerun, kAllPasses);
     const auto missing = protocol::apply_merge_patch(doc, {{"object", {{"mesh", "upload:nowhere"}}}});
-    EXPECT_THROW(renderer.warm_up(missing, no_assets, [] { return false; }), RenderError);
+    EXPECT_THROW(renderer.warm_up(missing, no_assets, Quality::interactive), RenderError);
     EXPECT_EQ(renderer.resident_scenes(), 1u);
 }
 
-// The daemon's warm-up builds stored scenes' volumes before anyone asks (Renderer::prepare): a scene's
-// first frame (here at another image size, as the client asks) then runs only the passes after the
-// volume, and its bytes are those of a frame built from nothing. Stopped between passes, prepare leaves
-// what it built for the frame to continue from; it never evicts a scene to make room, and an
-// unrenderable document leaves nothing behind.
+// The daemon's warm-up builds stored scenes' volumes and first interactive photons before anyone asks
+// (Renderer::prepare): a scene's first interactive frame (here at another image size, as the client
+// asks) then runs only the view and tone map, and its bytes, and those of the still frame after it, are
+// those of frames built from nothing. Stopped between passes, prepare leaves what it built for the
+// frame to continue from; it never evicts a scene to make room, and an unrenderable document leaves
+// nothing behind.
 TEST_F(RendererTest, APreparedVolumeServesTheFirstFrame) {
     const SceneDocument stored = small();
     const SceneDocument asked = protocol::apply_merge_patch(stored, {{"image", {{"width", 48}, {"height", 40}}}});
@@ -355,7 +356,9 @@ TEST_F(RendererTest, APreparedVolumeServesTheFirstFrame) {
     EXPECT_TRUE(prepared.prepare("a", stored, no_assets, [] { return false; }));
     EXPECT_EQ(prepared.resident_scenes(), 1u);
     EXPECT_FALSE(prepared.prepare("a", stored, no_assets, [] { return false; }));  // resident already
-    EXPECT_EQ(prepared.render("a", asked, no_assets, {Quality::interactive}).rerun, kPhotons | kView | kToneMap);
+    const FrameResult first = prepared.render("a", asked, no_assets, {Quality::interactive});
+    EXPECT_EQ(first.rerun, kView | kToneMap);
+    EXPECT_EQ(first.png, fresh.render("b", asked, no_assets, {Quality::interactive}).png);
     EXPECT_EQ(prepared.render("a", asked, no_assets).png, reference.png);
 
     Renderer stopped(*context);

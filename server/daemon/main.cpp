@@ -114,29 +114,30 @@ int run(const http::DaemonConfig& config) {
         queue_options.on_rendered = [&](const scene::FrameRequest&, const scene::FrameResult& frame) {
             metrics.record_frame(frame);
         };
-        // While the first viewer's page loads: the pipelines the stored scenes' frames use (a few of
-        // them; scenes share most pipelines), then the same scenes' volumes, most of a first frame's
-        // work (Renderer::prepare; within the memory budget, evicting nothing). `default` first: the
-        // client opens it when the address names no scene. A scene that cannot render now says so when
-        // asked for a frame. Each step stops when a request waits, which then renders what is left.
+        // While the first viewer's page loads, in the order its first frames need them: the pipelines
+        // of the stored scenes' interactive frames (a few scenes; they share most pipelines), then the
+        // same scenes' volumes (Renderer::prepare: most of a first frame's work; within the memory
+        // budget, evicting nothing), then the still frames' pipelines. `default` first: the client
+        // opens it when the address names no scene. Each step stops when a request waits, which then
+        // renders what is left. A scene that cannot render now says so when asked for a frame.
         queue_options.warm_up = [&](const std::function<bool()>& waiting) {
             std::vector<scene::SceneSnapshot> scenes = store.list();
             std::stable_partition(scenes.begin(), scenes.end(),
                                   [](const scene::SceneSnapshot& snapshot) { return snapshot.id == "default"; });
             scenes.resize(std::min(scenes.size(), kWarmUpScenes));
-            for (const auto& snapshot : scenes) {
-                try {
-                    renderer->warm_up(snapshot.document, assets, waiting);
-                } catch (const scene::RenderError&) {
+            const std::vector<std::function<void(const scene::SceneSnapshot&)>> steps = {
+                [&](const scene::SceneSnapshot& s) { renderer->warm_up(s.document, assets, scene::Quality::interactive); },
+                [&](const scene::SceneSnapshot& s) { renderer->prepare(s.id, s.document, assets, waiting); },
+                [&](const scene::SceneSnapshot& s) { renderer->warm_up(s.document, assets, scene::Quality::still); },
+            };
+            for (const auto& step : steps)
+                for (const auto& snapshot : scenes) {
+                    if (waiting()) return;
+                    try {
+                        step(snapshot);
+                    } catch (const scene::RenderError&) {
+                    }
                 }
-            }
-            for (const auto& snapshot : scenes) {
-                if (waiting()) return;
-                try {
-                    renderer->prepare(snapshot.id, snapshot.document, assets, waiting);
-                } catch (const scene::RenderError&) {
-                }
-            }
         };
         queue_options.after_frame = [&] {
             http::Service* published = service_ptr.load();

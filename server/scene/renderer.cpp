@@ -322,8 +322,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     return frame;
 }
 
-void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& assets,
-                       const std::function<bool()>& stop) {
+void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& assets, Quality quality) {
     protocol::SceneDocument reduced = document;
     reduced.image.width = reduced.image.height = FrameBudget::kMinSide;
     reduced.photons.count = FrameBudget::kMinPhotons;
@@ -335,12 +334,9 @@ void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& as
         const std::string& id;
         ~Evict() { renderer.evict(id); }
     } evict_after{*this, id};
-    for (Quality quality : {Quality::interactive, Quality::still}) {
-        if (stop()) return;
-        FrameOptions options;
-        options.quality = quality;
-        render(id, reduced, assets, options);
-    }
+    FrameOptions options;
+    options.quality = quality;
+    render(id, reduced, assets, options);
 }
 
 bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
@@ -358,23 +354,28 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
     resident.gpu = std::make_unique<SceneGpu>(impl_->kit);
     resident.last_used = ++impl_->clock;
     lock.unlock();
+    // The photons of the scene's first interactive frame: their count does not depend on the image size
+    // (the viewer's own), and a budget that has measured nothing chooses it from the document alone.
+    const InteractiveSettings settings = resident.budget.choose(document, true, true, nullptr, kDefaultBudgetMs);
+    const protocol::SceneDocument interactive = with_settings(document, settings);
     try {
         // One pass a submission, so that a request waits for one pass at most; render() runs what is left.
-        for (PassSet pass : {kVoxelize, kIndexField, kOctree}) {
+        for (PassSet pass : {kVoxelize, kIndexField, kOctree, kPhotons}) {
             if (stop()) break;
             RunOptions run_options = run_options_for(Quality::interactive);
             run_options.limit = pass;
-            resident.gpu->run(pass, document, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+            resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get());
         }
     } catch (...) {
         evict(scene_id);  // partially built state is not trusted
         throw;
     }
-    resident.document = document;
+    resident.document = interactive;
     resident.meshes = resolved.meshes;
     resident.grid = resolved.grid;
     resident.environment = resolved.environment;
-    resident.level = 0;  // no frame: render() runs the photon, view and tone map passes
+    resident.interactive = settings;
+    resident.level = 0;  // no frame: render() runs the view and tone map (and what the stop left)
     return true;
 }
 
