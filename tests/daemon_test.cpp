@@ -656,6 +656,32 @@ TEST(Daemon, HealthDescribesTheDeviceAndStartsWithADefaultScene) {
     EXPECT_NE(daemon.log().find("SIGTERM received"), std::string::npos);
 }
 
+// The render thread's warm-up builds the stored `default` scene's volume and first interactive photons
+// (Renderer::prepare) before anyone asks, so that the first viewer's first frame runs only the view.
+// Health says when the warm-up has left the scene resident; the frame asked for then (at the client's
+// own image size, a new revision) runs only the view and tone map, and the stored document is what it
+// was.
+TEST(Daemon, TheWarmUpBuildsTheDefaultScenesVolumeBeforeTheFirstFrame) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    const json stored = get_json(client, "/api/scenes/default");
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    while (get_json(client, "/api/health")["scenes_resident"] != 1) {
+        ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the warm-up left no scene resident\n" << daemon.log();
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    EXPECT_EQ(get_json(client, "/api/scenes/default"), stored);
+    WsClient ws(daemon.ws_port(), "/api/scenes/default/ws");
+    ws.send({{"seq", 1}, {"refine", 0}, {"patch", {{"image", {{"width", 96}, {"height", 64}}}}}});
+    auto [header, png] = ws.read_frame();
+    EXPECT_EQ(header["seq"], 1);
+    EXPECT_EQ(header["revision"], stored["revision"].get<int>() + 1);
+    EXPECT_EQ(header["passes"], json({"view", "tone_map"})) << header.dump();
+    EXPECT_TRUE(is_png(png));
+    expect_no_validation_errors(daemon);
+}
+
 TEST(Daemon, WithoutAUsableDeviceHealthSaysWhyAndDocumentsStillWork) {
     TempDir dir;
     Daemon daemon(dir.path() / "data", {"--device", "no-such-gpu"});

@@ -331,13 +331,58 @@ TEST_F(RendererTest, MemoryPlateausOverManyFramesOfEveryEditKind) {
 TEST_F(RendererTest, WarmUpKeepsNothingButThePipelines) {
     Renderer renderer(*context);
     const SceneDocument doc = small();
-    renderer.warm_up(doc, no_assets, [] { return false; });
+    for (Quality quality : {Quality::interactive, Quality::still}) renderer.warm_up(doc, no_assets, quality);
     EXPECT_EQ(renderer.resident_scenes(), 0u);
     // The scene's own first frame is whole: it builds every pass.
     EXPECT_EQ(renderer.render("scene", doc, no_assets).rerun, kAllPasses);
     const auto missing = protocol::apply_merge_patch(doc, {{"object", {{"mesh", "upload:nowhere"}}}});
-    EXPECT_THROW(renderer.warm_up(missing, no_assets, [] { return false; }), RenderError);
+    EXPECT_THROW(renderer.warm_up(missing, no_assets, Quality::interactive), RenderError);
     EXPECT_EQ(renderer.resident_scenes(), 1u);
+}
+
+// The daemon's warm-up builds stored scenes' volumes and first interactive photons before anyone asks
+// (Renderer::prepare): a scene's first interactive frame (here at another image size, as the client
+// asks) then runs only the view and tone map, and its bytes, and those of the still frame after it, are
+// those of frames built from nothing. Stopped between passes, prepare leaves what it built for the
+// frame to continue from; it never evicts a scene to make room, and an unrenderable document leaves
+// nothing behind.
+TEST_F(RendererTest, APreparedVolumeServesTheFirstFrame) {
+    const SceneDocument stored = small();
+    const SceneDocument asked = protocol::apply_merge_patch(stored, {{"image", {{"width", 48}, {"height", 40}}}});
+    Renderer fresh(*context);
+    const FrameResult reference = fresh.render("a", asked, no_assets);
+
+    Renderer prepared(*context);
+    EXPECT_TRUE(prepared.prepare("a", stored, no_assets, [] { return false; }));
+    EXPECT_EQ(prepared.resident_scenes(), 1u);
+    EXPECT_FALSE(prepared.prepare("a", stored, no_assets, [] { return false; }));  // resident already
+    const FrameResult first = prepared.render("a", asked, no_assets, {Quality::interactive});
+    EXPECT_EQ(first.rerun, kView | kToneMap);
+    EXPECT_EQ(first.png, fresh.render("b", asked, no_assets, {Quality::interactive}).png);
+    EXPECT_EQ(prepared.render("a", asked, no_assets).png, reference.png);
+
+    Renderer stopped(*context);
+    int asked_to_stop = 0;
+    EXPECT_TRUE(stopped.prepare("a", stored, no_assets, [&] { return ++asked_to_stop > 1; }));  // after voxelize
+    const FrameResult continued = stopped.render("a", asked, no_assets);
+    EXPECT_EQ(continued.rerun, kAllPasses & ~kVoxelize);
+    EXPECT_EQ(continued.png, reference.png);
+
+    RendererOptions one_scene;
+    one_scene.max_resident_scenes = 1;
+    Renderer full(*context, one_scene);
+    full.render("a", stored, no_assets);
+    EXPECT_FALSE(full.prepare("b", stored, no_assets, [] { return false; }));
+    EXPECT_EQ(full.render("a", stored, no_assets).rerun, 0u);  // still resident
+    RendererOptions no_room;
+    no_room.device_memory_budget = context->allocated_bytes() + 1;
+    Renderer tight(*context, no_room);
+    EXPECT_FALSE(tight.prepare("a", stored, no_assets, [] { return false; }));
+    EXPECT_EQ(tight.resident_scenes(), 0u);
+
+    const auto missing = protocol::apply_merge_patch(stored, {{"object", {{"mesh", "upload:nowhere"}}}});
+    EXPECT_THROW(prepared.prepare("b", missing, no_assets, [] { return false; }), RenderError);
+    EXPECT_EQ(prepared.resident_scenes(), 1u);
 }
 
 TEST_F(RendererTest, UnrenderableSceneLeavesOtherScenesResident) {

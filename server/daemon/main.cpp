@@ -4,6 +4,7 @@
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <iostream>
@@ -35,7 +36,7 @@ const nlohmann::json kFirstScene = {
     {"camera", {{"position", {2.2, 2.0, 5.0}}, {"target", {-0.5, -0.6, 0.0}}, {"fov_deg", 38}}},
     {"object", {{"position", {0.0, 0.2, 0.0}}, {"scale", 0.6}}}};
 
-// How many stored scenes the render thread prepares pipelines for before it takes requests.
+// How many stored scenes the render thread prepares (pipelines, then volumes) before it takes requests.
 constexpr size_t kWarmUpScenes = 4;
 
 int run(const http::DaemonConfig& config) {
@@ -99,7 +100,8 @@ int run(const http::DaemonConfig& config) {
     }
 
     http::Metrics metrics;
-    http::Service* service_ptr = nullptr;  // where the render thread publishes gauges (built after the queue)
+    // Where the render thread publishes gauges, built after the queue: atomic, as its warm-up runs meanwhile.
+    std::atomic<http::Service*> service_ptr = nullptr;
     scene::Assets assets = store.assets();
     scene::RenderFunction render;
     scene::RenderQueueOptions queue_options;
@@ -112,23 +114,37 @@ int run(const http::DaemonConfig& config) {
         queue_options.on_rendered = [&](const scene::FrameRequest&, const scene::FrameResult& frame) {
             metrics.record_frame(frame);
         };
-        // While the first viewer's page loads: the pipelines the stored scenes' frames use (a few of
-        // them; scenes share most pipelines). A scene that cannot render now says so when asked for a frame.
+        // While the first viewer's page loads, in the order its first frames need them: the pipelines
+        // of the stored scenes' interactive frames (a few scenes; they share most pipelines), then the
+        // same scenes' volumes (Renderer::prepare: most of a first frame's work; within the memory
+        // budget, evicting nothing), then the still frames' pipelines. `default` first: the client
+        // opens it when the address names no scene. Each step stops when a request waits, which then
+        // renders what is left. A scene that cannot render now says so when asked for a frame.
         queue_options.warm_up = [&](const std::function<bool()>& waiting) {
             std::vector<scene::SceneSnapshot> scenes = store.list();
+            std::stable_partition(scenes.begin(), scenes.end(),
+                                  [](const scene::SceneSnapshot& snapshot) { return snapshot.id == "default"; });
             scenes.resize(std::min(scenes.size(), kWarmUpScenes));
-            for (const auto& snapshot : scenes) {
-                try {
-                    renderer->warm_up(snapshot.document, assets, waiting);
-                } catch (const scene::RenderError&) {
+            const std::vector<std::function<void(const scene::SceneSnapshot&)>> steps = {
+                [&](const scene::SceneSnapshot& s) { renderer->warm_up(s.document, assets, scene::Quality::interactive); },
+                [&](const scene::SceneSnapshot& s) { renderer->prepare(s.id, s.document, assets, waiting); },
+                [&](const scene::SceneSnapshot& s) { renderer->warm_up(s.document, assets, scene::Quality::still); },
+            };
+            for (const auto& step : steps)
+                for (const auto& snapshot : scenes) {
+                    if (waiting()) return;
+                    try {
+                        step(snapshot);
+                    } catch (const scene::RenderError&) {
+                    }
                 }
-            }
         };
         queue_options.after_frame = [&] {
-            if (!service_ptr) return;
-            service_ptr->scenes_resident.store(renderer->resident_scenes());
-            service_ptr->device_bytes.store(context->allocated_bytes());
-            service_ptr->validation_errors.store(context->validation_error_count());
+            http::Service* published = service_ptr.load();
+            if (!published) return;
+            published->scenes_resident.store(renderer->resident_scenes());
+            published->device_bytes.store(context->allocated_bytes());
+            published->validation_errors.store(context->validation_error_count());
         };
     }
     scene::RenderQueue queue(render, queue_options, device.error);

@@ -175,6 +175,14 @@ void RenderQueue::stop() {
     for (auto& waiter : cancelled) waiter(outcome);
 }
 
+void RenderQueue::read_gauges() {
+    try {
+        if (options_.after_frame) options_.after_frame();
+    } catch (const std::exception& e) {
+        std::cerr << "refractd: reading renderer gauges failed: " << e.what() << "\n";
+    }
+}
+
 void RenderQueue::run() {
     try {
         if (options_.warm_up) options_.warm_up([this] {
@@ -184,6 +192,7 @@ void RenderQueue::run() {
     } catch (const std::exception& e) {
         std::cerr << "refractd: warming up the render thread failed: " << e.what() << "\n";
     }
+    read_gauges();  // the warm-up may have left scenes resident
     for (;;) {
         std::unique_lock lock(mutex_);
         wake_.wait(lock, [&] { return stopping_ || !order_.empty() || !evictions_.empty(); });
@@ -201,11 +210,7 @@ void RenderQueue::run() {
                     std::cerr << "refractd: evicting " << scene_id << " failed: " << e.what() << "\n";
                 }
             }
-            try {
-                if (options_.after_frame) options_.after_frame();
-            } catch (const std::exception& e) {
-                std::cerr << "refractd: reading renderer gauges failed: " << e.what() << "\n";
-            }
+            read_gauges();
             lock.lock();
         }
         if (order_.empty()) continue;
@@ -239,11 +244,7 @@ void RenderQueue::run() {
         if (outcome.status != FrameOutcome::Status::ok && outcome.status != FrameOutcome::Status::superseded)
             std::cerr << "refractd: frame of " << request.scene_id << " r" << request.revision
                       << " failed: " << outcome.error << "\n";
-        try {
-            if (options_.after_frame) options_.after_frame();
-        } catch (const std::exception& e) {
-            std::cerr << "refractd: reading renderer gauges failed: " << e.what() << "\n";
-        }
+        read_gauges();
 
         lock.lock();
         std::vector<FrameCallback> waiters = std::move(in_flight_->waiters);

@@ -64,7 +64,7 @@ struct RenderQueueOptions {
     std::function<void(const std::string& scene_id)> evict;
     // Sees every rendered frame once (metrics); runs on the render thread; may be empty.
     std::function<void(const FrameRequest&, const FrameResult&)> on_rendered;
-    // Reads renderer gauges after each frame and eviction (render thread); may be empty.
+    // Reads renderer gauges after the warm-up and after each frame and eviction (render thread); may be empty.
     std::function<void()> after_frame;
     // Runs once on the render thread before it takes any request (Renderer::warm_up); requests queue
     // meanwhile, and `waiting` says whether one has (or the queue is stopping), so that it can leave the
@@ -113,6 +113,7 @@ private:
 
     static std::string key_of(const FrameRequest& request);
     void run();
+    void read_gauges();  // options_.after_frame, its failure logged
 
     RenderFunction render_;
     RenderQueueOptions options_;

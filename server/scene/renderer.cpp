@@ -57,6 +57,52 @@ double photon_ms(const FrameResult& frame) {
 // The smallest volume.resolution the protocol accepts: a warm-up volume builds in milliseconds.
 constexpr uint32_t kWarmUpResolution = 32;
 
+// The assets a document names, resolved before anything resident is touched: an unknown name must not be.
+struct ResolvedAssets {
+    std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;  // each object's, by name
+    std::shared_ptr<const IndexGrid> grid;
+    std::shared_ptr<const image::EnvironmentMap> environment;
+};
+
+ResolvedAssets resolve(const protocol::SceneDocument& document, const Assets& assets) {
+    ResolvedAssets resolved;
+    for (const auto& [name, object] : document.objects) {
+        if (object.index_field == protocol::IndexFieldKind::grid) {
+            resolved.grid = assets.grid ? assets.grid(object.grid) : nullptr;
+            if (!resolved.grid) throw RenderError("index field grid '" + object.grid + "' is not loaded");
+            if (!has_cubic_voxels(*resolved.grid)) throw RenderError("index field grid voxels must be cubic (within 1%)");
+            continue;
+        }
+        auto mesh = base_mesh(object, assets.mesh);
+        if (!mesh) throw RenderError("mesh '" + object.mesh + "' of object '" + name + "' is not a built-in or an uploaded mesh");
+        resolved.meshes.emplace(name, std::move(mesh));
+    }
+    if (document.environment.type == protocol::EnvironmentKind::image) {
+        resolved.environment = assets.environment ? assets.environment(document.environment.image) : nullptr;
+        if (!resolved.environment)
+            throw RenderError("environment '" + document.environment.image + "' is not a built-in or an uploaded one");
+    }
+    return resolved;
+}
+
+// The objects in world space, fitted to the lattice (what the voxelize pass reads).
+WorldMeshes worlds_of(const protocol::SceneDocument& document, const ResolvedAssets& resolved) {
+    WorldMeshes worlds;
+    for (const auto& [name, mesh] : resolved.meshes) worlds.emplace(name, world_mesh(document.objects.at(name), *mesh));
+    return worlds;
+}
+
+// Device memory the scene `document` holds once rendered, estimated on the lattice it asks for before
+// anything is allocated (the objects' boxes in it, or the imported grid's own lattice).
+int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes& worlds, const IndexGrid* grid) {
+    const GridGeometry g = grid ? GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : grid_for(document, worlds);
+    uint64_t object_voxels = 0;
+    if (grid) object_voxels = g.dims.count();
+    else
+        for (const auto& [name, box] : object_boxes(g, worlds, document.volume.smoothing)) object_voxels += box.box.dims.count();
+    return estimate_scene_bytes(g, object_voxels, document.image.width, document.image.height);
+}
+
 }  // namespace
 
 RunOptions run_options_for(Quality quality) {
@@ -119,33 +165,18 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
                              const Assets& assets, const FrameOptions& options) {
     const auto start = Clock::now();
     const Quality quality = options.quality;
-    // Resolve assets first: an unknown name must not touch resident state.
-    std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;
-    std::shared_ptr<const IndexGrid> grid;
-    for (const auto& [name, object] : requested.objects) {
-        if (object.index_field == protocol::IndexFieldKind::grid) {
-            grid = assets.grid ? assets.grid(object.grid) : nullptr;
-            if (!grid) throw RenderError("index field grid '" + object.grid + "' is not loaded");
-            if (!has_cubic_voxels(*grid)) throw RenderError("index field grid voxels must be cubic (within 1%)");
-            continue;
-        }
-        auto mesh = base_mesh(object, assets.mesh);
-        if (!mesh) throw RenderError("mesh '" + object.mesh + "' of object '" + name + "' is not a built-in or an uploaded mesh");
-        meshes.emplace(name, std::move(mesh));
-    }
-    std::shared_ptr<const image::EnvironmentMap> environment;
-    if (requested.environment.type == protocol::EnvironmentKind::image) {
-        environment = assets.environment ? assets.environment(requested.environment.image) : nullptr;
-        if (!environment)
-            throw RenderError("environment '" + requested.environment.image + "' is not a built-in or an uploaded one");
-    }
+    const ResolvedAssets resolved = resolve(requested, assets);
+    const auto& meshes = resolved.meshes;
+    const auto& grid = resolved.grid;
+    const auto& environment = resolved.environment;
 
     std::unique_lock lock(impl_->mutex);
     auto it = impl_->scenes.find(scene_id);
-    const Impl::Resident* held = it != impl_->scenes.end() && it->second.gpu->built() == kAllPasses ? &it->second : nullptr;
+    // A scene prepared ahead (prepare) or whose last step gave way holds some passes built: the rest run.
+    const Impl::Resident* held = it != impl_->scenes.end() && it->second.gpu->built() != 0 ? &it->second : nullptr;
     auto stale_against = [&](const protocol::SceneDocument& next) {
         if (!held) return kAllPasses;
-        PassSet stale = passes_invalidated(held->document, next);
+        PassSet stale = passes_invalidated(held->document, next) | (kAllPasses & ~held->gpu->built());
         if (held->meshes != meshes || held->grid != grid) stale |= kAllPasses;
         // A re-uploaded image lights the scene anew.
         if (held->environment != environment) stale |= kPhotons | kView | kToneMap;
@@ -173,21 +204,10 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     }
     // The objects in world space fit the lattice; needed only when the volume is rebuilt.
     const bool rebuild = (stale & kVoxelize) != 0;
-    WorldMeshes worlds;
-    if (rebuild)
-        for (const auto& [name, mesh] : meshes) worlds.emplace(name, world_mesh(document.objects.at(name), *mesh));
+    const WorldMeshes worlds = rebuild ? worlds_of(document, resolved) : WorldMeshes{};
     const int64_t budget = impl_->options.device_memory_budget;
-    // The objects' boxes in a lattice, for the estimate.
-    auto object_voxels = [&](const GridGeometry& lattice) {
-        if (grid) return lattice.dims.count();
-        uint64_t voxels = 0;
-        for (const auto& [name, box] : object_boxes(lattice, worlds, document.volume.smoothing)) voxels += box.box.dims.count();
-        return voxels;
-    };
     if (budget > 0 && rebuild) {
-        // Estimate against the lattice this document asks for before allocating anything.
-        const GridGeometry g = grid ? GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : grid_for(document, worlds);
-        const int64_t need = estimate_scene_bytes(g, object_voxels(g), document.image.width, document.image.height);
+        const int64_t need = needed_bytes(document, worlds, grid.get());
         // This scene's old volume is released before the new one is made (the lattice's own voxels stand
         // for its boxes: an estimate).
         auto held_by = [](const Impl::Resident& r) {
@@ -302,8 +322,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     return frame;
 }
 
-void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& assets,
-                       const std::function<bool()>& stop) {
+void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& assets, Quality quality) {
     protocol::SceneDocument reduced = document;
     reduced.image.width = reduced.image.height = FrameBudget::kMinSide;
     reduced.photons.count = FrameBudget::kMinPhotons;
@@ -315,12 +334,49 @@ void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& as
         const std::string& id;
         ~Evict() { renderer.evict(id); }
     } evict_after{*this, id};
-    for (Quality quality : {Quality::interactive, Quality::still}) {
-        if (stop()) return;
-        FrameOptions options;
-        options.quality = quality;
-        render(id, reduced, assets, options);
+    FrameOptions options;
+    options.quality = quality;
+    render(id, reduced, assets, options);
+}
+
+bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
+                       const std::function<bool()>& stop) {
+    const ResolvedAssets resolved = resolve(document, assets);
+    const WorldMeshes worlds = worlds_of(document, resolved);
+    std::unique_lock lock(impl_->mutex);
+    if (impl_->scenes.contains(scene_id)) return false;  // rendered already: nothing to prepare
+    // Only into room there is: a scene nobody has asked for yet never evicts one that somebody has.
+    if (impl_->scenes.size() >= std::max<size_t>(impl_->options.max_resident_scenes, 1)) return false;
+    const int64_t budget = impl_->options.device_memory_budget;
+    if (budget > 0 && impl_->context.allocated_bytes() + needed_bytes(document, worlds, resolved.grid.get()) > budget)
+        return false;
+    Impl::Resident& resident = impl_->scenes[scene_id];
+    resident.gpu = std::make_unique<SceneGpu>(impl_->kit);
+    resident.last_used = ++impl_->clock;
+    lock.unlock();
+    // The photons of the scene's first interactive frame: their count does not depend on the image size
+    // (the viewer's own), and a budget that has measured nothing chooses it from the document alone.
+    const InteractiveSettings settings = resident.budget.choose(document, true, true, nullptr, kDefaultBudgetMs);
+    const protocol::SceneDocument interactive = with_settings(document, settings);
+    try {
+        // One pass a submission, so that a request waits for one pass at most; render() runs what is left.
+        for (PassSet pass : {kVoxelize, kIndexField, kOctree, kPhotons}) {
+            if (stop()) break;
+            RunOptions run_options = run_options_for(Quality::interactive);
+            run_options.limit = pass;
+            resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+        }
+    } catch (...) {
+        evict(scene_id);  // partially built state is not trusted
+        throw;
     }
+    resident.document = interactive;
+    resident.meshes = resolved.meshes;
+    resident.grid = resolved.grid;
+    resident.environment = resolved.environment;
+    resident.interactive = settings;
+    resident.level = 0;  // no frame: render() runs the view and tone map (and what the stop left)
+    return true;
 }
 
 void Renderer::evict(const std::string& scene_id) {

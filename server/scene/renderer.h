@@ -143,12 +143,20 @@ public:
     // Throws RenderError for an unrenderable scene (resident state untouched), vk::Error for device faults.
     FrameResult render(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
                        const FrameOptions& options = {});
-    // Creates the pipelines that frames of `document` use, interactive and still: they are compiled on
-    // first use (LLVM on lavapipe: 0.2-0.3 s for a scene's set), which would otherwise fall on its first
-    // frame. Renders a reduced copy of `document` (the smallest image, volume and photon count) once of
-    // each quality under a scene id of its own, keeps nothing of it but the pipelines, and rethrows what
-    // render() throws. Stops before a quality when `stop` says so (the rest is compiled on first use).
-    void warm_up(const protocol::SceneDocument& document, const Assets& assets, const std::function<bool()>& stop);
+    // Creates the pipelines that frames of `document` use at `quality`: they are compiled on first use
+    // (LLVM on lavapipe: 0.2-0.3 s for a scene's set), which would otherwise fall on its first frame.
+    // Renders a reduced copy of `document` (the smallest image, volume and photon count) under a scene id
+    // of its own, keeps nothing of it but the pipelines, and rethrows what render() throws.
+    void warm_up(const protocol::SceneDocument& document, const Assets& assets, Quality quality);
+    // Builds the resident volume (voxelize, index field, octree) of `document` as scene `scene_id`, and
+    // the photons of its first interactive frame, before anyone asks for a frame of it (the daemon's
+    // warm-up: those passes are most of a first frame), so that its first interactive frame runs only
+    // the view and tone map. One pass a submission; stops before a pass when `stop` says so (the frame
+    // then runs the rest). Does nothing and returns false when the scene is
+    // resident already or would not fit the resident-scene count or memory budget without evicting
+    // another. Throws what render() throws (RenderError for an unrenderable document, state untouched).
+    bool prepare(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
+                 const std::function<bool()>& stop);
     // Drops a scene's GPU state (its document lives elsewhere).
     void evict(const std::string& scene_id);
     size_t resident_scenes() const;

@@ -1,7 +1,10 @@
 // Refract browser client: shows frames streamed by refractd and edits the scene with merge patches.
 //
-// Flow control: at most one request is in flight on the WebSocket. Edits made meanwhile are
-// coalesced into one pending merge patch, sent when the answer (a frame, or an error) arrives.
+// Flow control: at most one request is in flight on the WebSocket, or two when the first is an
+// interactive one: the daemon renders the newest request after the frame it is on (latest wins), so a
+// second edit sent while a preview renders keeps its render thread busy instead of idle for the
+// frame's delivery, decode and our answer. Edits made meanwhile are coalesced into one pending merge
+// patch, sent when a request slot frees (a frame, or an error, answers it).
 // Dragging sends "interactive" requests; releasing asks for a "still" (full quality) frame.
 // Frames are drawn scaled to the canvas with smooth filtering: interactive ones arrive smaller.
 
@@ -14,6 +17,7 @@ const MIN_SIDE = 64;
 const TOKEN = params.get('token') || '';  // only for daemons started with an API token
 const REQUEST_TIMEOUT_MS = 180_000;  // a lost answer: give up on it and reconnect
 const QUALITY_RANK = { interactive: 0, still: 1 };
+const MAX_IN_FLIGHT = 2;  // requests on the WebSocket at once, the first an interactive one (see above)
 const ORBIT_STEP = 5 * Math.PI / 180;  // arrow keys
 const ZOOM_STEP = 1.1;
 const MAX_CANVAS = 2048;  // canvas backing store, per side
@@ -37,7 +41,7 @@ const state = {
   sceneId: null,
   confirmed: null,        // the scene document as the daemon last told us (plus our accepted patches)
   confirmedRevision: null,
-  inflight: null,         // { seq, patch, quality, sentAt, retry }
+  inflight: [],           // requests sent and not yet answered, oldest first: { seq, patch, quality, sentAt, retry }
   pending: null,          // coalesced merge patch not yet sent
   pendingQuality: null,   // 'interactive' | 'still' | null: a frame is wanted
   forceFrame: false,      // request a frame even if nothing changed (connect, Refine)
@@ -103,9 +107,9 @@ const hooks = {
   downloads: 0,
   playedFrames: 0,     // frames of played animations drawn
   playing: () => state.playing?.name ?? null,
-  busy: () => Boolean(state.inflight || state.pendingQuality || state.replacing),
+  busy: () => Boolean(state.inflight.length || state.pendingQuality || state.replacing),
   // Connected, nothing in flight or queued or about to be, and the last frame is a decoded still.
-  settled: () => hooks.connected && !state.inflight && !state.pendingQuality && !state.replacing &&
+  settled: () => hooks.connected && !state.inflight.length && !state.pendingQuality && !state.replacing &&
     timers.size === 0 && state.drawnToken === state.drawToken && hooks.lastQuality === 'still',
 };
 window.refract = hooks;
@@ -113,8 +117,7 @@ window.refract = hooks;
 // ---- the document as the user sees it ------------------------------------------------------------
 
 function view() {
-  let doc = state.confirmed || {};
-  if (state.inflight?.patch) doc = S.applyMergePatch(doc, state.inflight.patch);
+  let doc = sentDocument();
   if (state.pending) doc = S.applyMergePatch(doc, state.pending);
   return doc;
 }
@@ -225,11 +228,17 @@ function requestFrame(quality = 'still') {
   pump();
 }
 
+// Whether another request may go now: none is in flight, or one interactive one (see the top).
+function slotFree() {
+  const n = state.inflight.length;
+  return n === 0 || (n < MAX_IN_FLIGHT && state.inflight.every((inf) => inf.quality === 'interactive'));
+}
+
 function pump() {
   const ws = state.ws;
-  if (!ws || ws.readyState !== WebSocket.OPEN || state.inflight || state.replacing || !state.pendingQuality ||
+  if (!ws || ws.readyState !== WebSocket.OPEN || !slotFree() || state.replacing || !state.pendingQuality ||
       !state.confirmed) return;
-  const patch = state.pending ? S.prunePatch(state.confirmed, state.pending) : null;
+  const patch = state.pending ? S.prunePatch(sentDocument(), state.pending) : null;
   const quality = state.pendingQuality;
   const force = state.forceFrame;
   const selection = state.pendingSelection ?? { ...state.selected };
@@ -239,10 +248,11 @@ function pump() {
   state.forceFrame = false;
   const retry = state.retryNext;
   state.retryNext = false;
-  // Nothing changed and we already show a frame of this revision at this quality or better.
+  // Nothing changed and we already show (or the answer in flight will show) this quality or better.
   const last = state.lastFrame;
-  if (!patch && !force && last && last.revision === state.confirmedRevision &&
-      QUALITY_RANK[last.quality] >= QUALITY_RANK[quality]) return;
+  const covered = state.inflight.length ? quality === 'interactive'
+    : last && last.revision === state.confirmedRevision && QUALITY_RANK[last.quality] >= QUALITY_RANK[quality];
+  if (!patch && !force && covered) return;
 
   const seq = ++state.seq;
   const message = { seq, quality };
@@ -250,16 +260,35 @@ function pump() {
   ws.send(JSON.stringify(message));
   // errorsBefore: an error shown after this request was sent is newer than its edit and must outlive it.
   // selection: what the outliner had chosen before the edits sent; a rejected Add or Rename goes back to it.
-  state.inflight = { seq, patch, quality, sentAt: performance.now(), retry, errorsBefore: hooks.errors, selection };
+  state.inflight.push({ seq, patch, quality, sentAt: performance.now(), retry, errorsBefore: hooks.errors, selection });
   hooks.requestsSent++;
   hooks.sent[quality]++;
-  hooks.maxInFlight = Math.max(hooks.maxInFlight, 1);
+  hooks.maxInFlight = Math.max(hooks.maxInFlight, state.inflight.length);
   clearTimeout(state.watchdog);
   state.watchdog = setTimeout(() => {
     // No answer: assume the connection is wedged; reconnecting re-sends the edit.
-    if (state.inflight?.seq === seq && state.ws === ws) ws.close(4000, 'request timed out');
+    if (state.inflight.some((inf) => inf.seq === seq) && state.ws === ws) ws.close(4000, 'request timed out');
   }, REQUEST_TIMEOUT_MS);
   updateProgress();
+}
+
+// The document as the daemon will have it once the requests in flight are applied: what a new patch
+// is pruned against.
+function sentDocument() {
+  let doc = state.confirmed || {};
+  for (const inf of state.inflight) if (inf.patch) doc = S.applyMergePatch(doc, inf.patch);
+  return doc;
+}
+
+// Takes the requests an answer with `seq` covers out of those in flight and returns them, oldest first:
+// a frame answers its own request and every older one (latest wins: the daemon rendered the newest).
+function answered(seq) {
+  if (seq === undefined) return state.inflight.splice(0, 1);  // an older daemon: one request at a time
+  if (seq === null) return [];                                // pushed for someone else's edit
+  const n = state.inflight.filter((inf) => inf.seq <= seq).length;
+  const done = state.inflight.splice(0, n);
+  if (!state.inflight.length) clearTimeout(state.watchdog);
+  return done;
 }
 
 // ---- WebSocket messages --------------------------------------------------------------------------
@@ -276,14 +305,18 @@ function onText(data) {
 function onBinary(blob) {
   const meta = state.frameMeta || {};
   state.frameMeta = null;
-  const inf = state.inflight;
-  // A frame with a null seq answers nobody here: the daemon pushed it for another client's edit.
-  const answers = inf && (meta.seq === undefined || (meta.seq !== null && meta.seq >= inf.seq));
-  const quality = meta.quality || (answers ? inf.quality : 'still');
-  if (answers) {
-    if (inf.patch) state.confirmed = S.applyMergePatch(state.confirmed, inf.patch);
-    state.inflight = null;
-    clearTimeout(state.watchdog);
+  // The requests this frame answers (its own and older ones); a frame with a null seq answers nobody
+  // here: the daemon pushed it for another client's edit.
+  const done = answered(meta.seq);
+  const inf = done[done.length - 1];
+  const quality = meta.quality || (inf ? inf.quality : 'still');
+  let ours = 0;  // edits this frame holds: each may have made a revision
+  for (const req of done) {
+    if (!req.patch) continue;
+    state.confirmed = S.applyMergePatch(state.confirmed, req.patch);
+    ours++;
+  }
+  if (inf) {
     hooks.latencyMs = Math.round(performance.now() - inf.sentAt);
     // An accepted edit makes earlier complaints stale: a failed upload, a refused Add, Remove or Rename, a
     // frame that could not render.
@@ -297,8 +330,8 @@ function onBinary(blob) {
   }
   if (typeof meta.revision === 'number') {
     const expected = state.confirmedRevision;
-    const ours = answers && inf.patch;
-    const consistent = meta.revision === expected || (ours && expected !== null && meta.revision === expected + 1);
+    const consistent = meta.revision === expected ||
+      (expected !== null && meta.revision > expected && meta.revision <= expected + ours);
     state.confirmedRevision = meta.revision;
     if (!consistent && expected !== null) resync();  // someone else edited the scene
   }
@@ -375,13 +408,16 @@ function paintFrame() {
 }
 
 function onServerError(msg) {
-  const inf = state.inflight;
-  const answers = inf && (msg.seq === undefined || msg.seq === null || msg.seq >= inf.seq);
+  // A refused edit answers its own request; an error without a seq (or of a frame) all up to it.
+  const own = state.inflight.findIndex((req) => req.seq === msg.seq);
+  const done = own >= 0 && msg.pointer ? state.inflight.splice(own, 1)
+    : answered(msg.seq === undefined || msg.seq === null ? Infinity : msg.seq);
+  if (!state.inflight.length) clearTimeout(state.watchdog);
+  const inf = done[done.length - 1];
+  const answers = Boolean(inf);
   // What the rejection takes back: the pointer, or all of a refused Add, Remove or Rename.
-  const pointer = answers && inf.patch && msg.pointer ? S.rejectedScope(inf.patch, msg.pointer, state.confirmed) : msg.pointer;
+  const pointer = answers && inf.patch && msg.pointer ? S.rejectedScope(inf.patch, msg.pointer, sentDocument()) : msg.pointer;
   if (answers) {
-    state.inflight = null;
-    clearTimeout(state.watchdog);
     // Re-send the rest of a rejected patch once: edits coalesced with the bad value are not lost.
     if (inf.patch && !inf.retry && pointer && S.patchTouches(inf.patch, pointer)) {
       const rest = S.removeFromPatch(inf.patch, pointer);
@@ -460,7 +496,7 @@ const duration = (ms) => (ms >= 1000 ? `${(ms / 1000).toFixed(ms < 10_000 ? 1 : 
 // and, while a frame is pending, a few times a second (elapsed time, dimming).
 function updateProgress() {
   const el = $('hud-status');
-  const inf = state.inflight;
+  const inf = state.inflight[0];  // the longest waiting
   const now = performance.now();
   const f = fps();
   const streaming = f !== null && now - state.frameTimes[state.frameTimes.length - 1] < 1000;
@@ -646,7 +682,7 @@ function resync() {
   later('resync', async () => {
     try {
       const got = await api('GET', `/api/scenes/${encodeURIComponent(state.sceneId)}`);
-      if (state.inflight) return;  // our edit is under way; its answer will tell us the revision
+      if (state.inflight.length) return;  // our edit is under way; its answer will tell us the revision
       state.confirmed = got.scene;
       state.confirmedRevision = got.revision;
       controls.update(panel());
@@ -767,7 +803,7 @@ async function refreshExamples() {
 
 const untilIdle = async () => {
   const deadline = performance.now() + REQUEST_TIMEOUT_MS;
-  while (state.inflight && performance.now() < deadline) await new Promise((r) => setTimeout(r, 30));
+  while (state.inflight.length && performance.now() < deadline) await new Promise((r) => setTimeout(r, 30));
 };
 
 // Makes the scene the document `getDoc()` gives (a whole document; members it leaves out take their
@@ -986,11 +1022,12 @@ async function connect() {
     state.ws = null;
     clearTimeout(state.watchdog);
     // Whatever was in flight goes again after reconnecting (merge patches are idempotent).
-    if (state.inflight) {
-      state.pending = S.composePatches(state.inflight.patch, state.pending);
-      state.pendingSelection = state.inflight.selection;
-      if (!state.pendingQuality) state.pendingQuality = state.inflight.quality;
-      state.inflight = null;
+    const lost = state.inflight.splice(0);
+    if (lost.length) {
+      const patch = lost.reduce((sum, req) => S.composePatches(sum, req.patch), null);
+      state.pending = S.composePatches(patch, state.pending);
+      state.pendingSelection = lost[0].selection;
+      if (!state.pendingQuality) state.pendingQuality = lost[lost.length - 1].quality;
     }
     scheduleReconnect();
   });
