@@ -80,6 +80,7 @@ nlohmann::json Service::health() const {
         {"device_bytes", g.device_bytes},
         {"render_waiting", g.render_waiting},
         {"frames_rendered", queue_.frames_rendered()},
+        {"warming_up", queue_.warming_up()},
         {"ws_port", config_.effective_ws_port()},
         {"ws_sessions", g.ws_sessions},
         {"limits",

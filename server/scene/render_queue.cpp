@@ -193,6 +193,7 @@ void RenderQueue::run() {
         std::cerr << "refractd: warming up the render thread failed: " << e.what() << "\n";
     }
     read_gauges();  // the warm-up may have left scenes resident
+    warming_up_ = false;
     for (;;) {
         std::unique_lock lock(mutex_);
         wake_.wait(lock, [&] { return stopping_ || !order_.empty() || !evictions_.empty(); });

@@ -99,6 +99,9 @@ public:
     // that two scenes refining at once both progress.
     size_t queued_ahead_of_refinement() const;
     uint64_t frames_rendered() const { return frames_rendered_.load(); }
+    // Whether the render thread is still in its warm-up (RenderQueueOptions::warm_up), which ends when it
+    // is done or a request arrives: a readiness signal for whatever sends users to this daemon.
+    bool warming_up() const { return warming_up_.load(); }
 
 private:
     struct Pending {
@@ -131,6 +134,7 @@ private:
     std::deque<std::string> evictions_;
     size_t waiters_ = 0;
     std::atomic<uint64_t> frames_rendered_{0};
+    std::atomic<bool> warming_up_{true};
     std::thread thread_;
 };
 

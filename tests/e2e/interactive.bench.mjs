@@ -7,6 +7,8 @@
 // Starts refractd on free loopback ports with a temporary data directory (LP_NUM_THREADS=2 unless
 // set), opens the client in Debian's headless Chromium (playwright-core, no browser download) at the
 // default URL and window size, on the default scene document, and measures:
+//   - the daemon's warm-up (health's warming_up), which navigation waits for, as a user opening the
+//     client on a running daemon would;
 //   - navigation to the first frame received and drawn, and to the first full-resolution still;
 //   - a 3 s orbit drag and a 3 s shift-drag of the light: frames received per second while dragging,
 //     and the time from releasing the mouse to the first full-resolution still;
@@ -275,6 +277,15 @@ async function main() {
   const health = await waitForHealth(base, daemon);
   const device = health.device?.name ?? health.device ?? null;
   log('refractd is up:', JSON.stringify(device));
+  // A user opens the client on a running daemon: navigation waits for its warm-up (health's warming_up;
+  // a daemon without the field has none to wait for). How long that took is reported beside it.
+  const warmStart = Date.now();
+  for (let h = health; h.warming_up === true; h = await (await fetch(`${base}/api/health`)).json()) {
+    if (Date.now() - warmStart > SETTLE_TIMEOUT_MS) throw new Error('the daemon stayed warming up');
+    await sleep(50);
+  }
+  const warmUpMs = Date.now() - warmStart;
+  log(`warm-up ended ${warmUpMs} ms after health answered`);
 
   browser = await chromium.launch({
     executablePath: CHROMIUM,
@@ -303,6 +314,7 @@ async function main() {
   const firstDraw = draws.find((d) => d.t >= navStart);
   const firstFullDraw = draws.find((d) => d.quality === 'still' && d.width === size.width && d.height === size.height);
   const load = {
+    warm_up_ms: warmUpMs,
     first_frame_ms: frames[0].t - navStart,
     first_drawn_ms: firstDraw ? firstDraw.t - navStart : null,
     first_full_ms: firstFull.t - navStart,
@@ -347,6 +359,7 @@ async function main() {
 function table(r) {
   const ms = (v) => (typeof v === 'number' ? `${Math.round(v)} ms` : '—');
   const rows = [
+    ['daemon warm-up, waited before navigation', ms(r.load.warm_up_ms), 'health: warming_up'],
     ['navigation -> first frame received', ms(r.load.first_frame_ms), `${r.load.first_quality} ${r.load.first_size}`],
     ['navigation -> first frame drawn', ms(r.load.first_drawn_ms), r.hooks ? 'window.refract' : 'no hooks'],
     ['navigation -> first full-resolution still', ms(r.load.first_full_ms), `${r.load.full_size}, passes ${ms(r.load.full_pass_ms)}`],
