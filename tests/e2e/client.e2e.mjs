@@ -468,8 +468,9 @@ async function main() {
       'light position unchanged on the server');
     assert(JSON.stringify(after.scene.camera) === JSON.stringify(before.scene.camera), 'shift-drag moved the camera');
     assert(changed > 0.005, `only ${(changed * 100).toFixed(2)}% of the pixels changed`);
-    // One request in flight, or two while a preview renders (the next edit waits at the daemon).
-    assert(stats.maxInFlight <= 2, `${stats.maxInFlight} requests were in flight at once`);
+    // One request in flight, or two while a preview renders (the next edit waits at the daemon), and
+    // the release's still frame behind them.
+    assert(stats.maxInFlight <= 3, `${stats.maxInFlight} requests were in flight at once`);
     log(`light ${JSON.stringify(before.scene.light.position)} -> ${JSON.stringify(after.scene.light.position)},`,
       `${(changed * 100).toFixed(1)}% pixels changed`);
     await shot(page, '02-light-moved.png');

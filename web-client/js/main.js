@@ -3,8 +3,9 @@
 // Flow control: at most one request is in flight on the WebSocket, or two when the first is an
 // interactive one: the daemon renders the newest request after the frame it is on (latest wins), so a
 // second edit sent while a preview renders keeps its render thread busy instead of idle for the
-// frame's delivery, decode and our answer. Edits made meanwhile are coalesced into one pending merge
-// patch, sent when a request slot frees (a frame, or an error, answers it).
+// frame's delivery, decode and our answer. A still request may follow two previews (see slotFree).
+// Edits made meanwhile are coalesced into one pending merge patch, sent when a request slot frees (a
+// frame, or an error, answers it).
 // Dragging sends "interactive" requests; releasing asks for a "still" (full quality) frame.
 // Frames are drawn scaled to the canvas with smooth filtering: interactive ones arrive smaller.
 
@@ -228,10 +229,14 @@ function requestFrame(quality = 'still') {
   pump();
 }
 
-// Whether another request may go now: none is in flight, or one interactive one (see the top).
+// Whether another request may go now: none is in flight, or only interactive ones, fewer than
+// MAX_IN_FLIGHT of them (see the top). A still frame (a drag's release) goes even past that: at the
+// daemon it takes the place of the preview still queued there (latest wins), so the full-quality frame
+// comes after the preview rendering, not after two.
 function slotFree() {
   const n = state.inflight.length;
-  return n === 0 || (n < MAX_IN_FLIGHT && state.inflight.every((inf) => inf.quality === 'interactive'));
+  const previews = state.inflight.every((inf) => inf.quality === 'interactive');
+  return n === 0 || (previews && (n < MAX_IN_FLIGHT || (n === MAX_IN_FLIGHT && state.pendingQuality === 'still')));
 }
 
 function pump() {
