@@ -226,6 +226,8 @@ void main() {
     }
     rng_state = hash(i ^ hash(params.photon_info.y));
     uint fresnel_seed = hash(i ^ hash(params.photon_info.y + 2u));
+    // Where shell steps start after a leaf (below), by step number: a channel's path replays its photon's.
+    uint step_seed = hash(i ^ hash(params.photon_info.y + 5u));
     deposit_phase = i * 2654435769u + hash(params.photon_info.y + 1u);  // 2^32 / the golden ratio
 
     vec3 p = to_voxel(origin);
@@ -263,13 +265,14 @@ void main() {
     float direct_from = params.direct_light.y;
     float direct_to = params.direct_light.w > 0.5 && !from_environment ? light_map[light_map_texel(sample_point)] : 0.0;
     bool jumped = false;   // the last step crossed the direct span
+    bool after_leaf = true;  // the last step ended on a plane of the lattice (a leaf's, or the grid's face)
     bool overlap = false;  // it landed where n varies or on the object: the map was wrong for this photon
     // Where the channels part: the ray before that step, its length, and the path's state then.
     Ray split_ray = ray;
     float split_ds = 0.0, split_along = 0.0, split_length = 0.0;
     vec3 split_weight = weight;
     uint split_steps = 0u, split_rng = 0u, split_phase = 0u;
-    bool split_jumped = false, split_overlap = false, split_unbent = true;
+    bool split_jumped = false, split_overlap = false, split_unbent = true, split_after_leaf = true;
     // Multiple scattering (random_walk.glsl): compiled out where photons do not scatter.
     Walk walk = start_walk(kRandomWalks ? next_unit() : 0.0);
     Walk split_walk = walk;
@@ -287,6 +290,7 @@ void main() {
             jumped = split_jumped;
             overlap = split_overlap;
             unbent = split_unbent;
+            after_leaf = split_after_leaf;
             walk = split_walk;
             rng_state = split_rng;
             deposit_phase = split_phase;
@@ -308,6 +312,13 @@ void main() {
             }
             uint level = fixed_step ? 0u : octree_level(ray.p);
             float ds = safe_step(level, ray.p, ray.d, shell_step_for(ray, shell_step));
+            // A leaf ends on a plane of the lattice, so the shell steps after it would all start at the
+            // same phase of the lattice, and what the steps make of a shell a voxel or two wide depends
+            // on where the lattice cuts it: a caustic gathers that from many photons into rings (README,
+            // "Ring moire in caustics"). The first shell step after a leaf falls short by a random
+            // fraction, so each photon crosses the shell at its own phase.
+            if (level == 0u && after_leaf) ds *= 1.0 - to_unit(hash(step_seed ^ hash(steps)));
+            after_leaf = level != 0u;
             float coverage = coverage_for(kRandomWalks ? max(params.flags.y, params.flags.z) : params.flags.y, ray.p,
                                           ray.field.x);
             if (kRandomWalks) coverage = walk_step(ray.p, ray.d, ds, coverage, max(params.flags.y, params.flags.z), shell_step);
@@ -356,6 +367,7 @@ void main() {
                 split_jumped = jumped;
                 split_overlap = overlap;
                 split_unbent = unbent;
+                split_after_leaf = after_leaf;
                 split_walk = walk;
                 break;
             }

@@ -200,17 +200,24 @@ void shade(uvec2 pixel) {
             float to_end = min(to_exit, to_floor);
             // Refracting shells (level 0) take the photons' shell step, for the same refraction, and
             // gather once over it; lit fog in a leaf (n constant, the ray straight) gathers every view
-            // step to the leaf's end; unlit fog is crossed to the end of its leaf or unlit cell, clear
-            // space to the end of its leaf. No leaf step is shorter than the shell step, and none longer
-            // than the leaf, so coarse view steps never step over a shell.
+            // step to the leaf's end; clear space is crossed to the end of its leaf, and so is unlit fog
+            // that lasts that far, else it is crossed in whole view steps towards the end of its unlit
+            // cell. No leaf step is shorter than the shell step, and none longer than the leaf, so coarse
+            // view steps never step over a shell. The ray so stops only where a march gathering every
+            // view step of the leaf would have stopped: the lit cells change as refinement adds photons,
+            // and a skip to the unlit cell's own end moved the gathering points along a beam's sharp edge
+            // and where a grazing ray enters the glass, which changed a pixel by several percent at once.
             float unlit = unlit_cell(ray.p);
-            bool gathers = scatters && (level == 0u || unlit == 0.0);
             float shell_step = shell_step_for(ray, params.stepping.x);
-            float run = level == 0u ? shell_step
-                                    : min(safe_step(level, ray.p, ray.d, shell_step),
-                                          scatters && !gathers
-                                              ? max(cell_exit(ray.p, ray.d, unlit) + params.stepping.y, view_step)
-                                              : 1e30);
+            float leaf_run = level == 0u ? shell_step : safe_step(level, ray.p, ray.d, shell_step);
+            float skip = 0.0;
+            if (scatters && level != 0u && unlit > 0.0) {
+                float to_unlit_end = cell_exit(ray.p, ray.d, unlit);
+                skip = to_unlit_end + params.stepping.y >= leaf_run ? leaf_run
+                                                                    : view_step * floor(to_unlit_end / view_step);
+            }
+            bool gathers = scatters && skip == 0.0;
+            float run = skip > 0.0 ? skip : leaf_run;
             run = min(run, to_end);
             if (gathers) {
                 uint model = phase_model_at(scatter_coverage, object);

@@ -461,7 +461,7 @@ json glass_scene() {
         {"light", {{"type", "point"}, {"position", {kGlassLightPos.x, kGlassLightPos.y, kGlassLightPos.z}},
                    {"intensity", kGlassLight}}},
         {"object", {{"mesh", "sphere"}, {"scale", kGlassRadius}, {"ior", kGlassIor}, {"extinction", {0, 0, 0}},
-                    {"scattering", {0, 0, 0}}}},
+                    {"scattering", {0, 0, 0}}, {"fresnel", false}}},
         {"medium", {{"ior", 1.0}, {"extinction", {0, 0, 0}}, {"scattering", {0, 0, 0}}}},
         {"volume", {{"resolution", 64}, {"smoothing", 0.5},
                     {"bounds", {{"min", {-1.25, -1.25, -1.25}}, {"max", {1.25, 1.25, 1.25}}}}}},
@@ -551,7 +551,10 @@ char symbol(Seen s) { return s == Seen::sky ? '.' : s == Seen::light_cell ? 'O' 
 // cell by comparison with sqrt(0.35) x the analytic light-cell radiance at the sharp trace's floor point
 // (the shader's dark cells reflect 0.35 of the light cells' albedo). Required: >= 95% of the compared
 // pixels seen through the sphere agree, and >= 99% of those seeing the floor or sky directly. Measured:
-// 99.1% of 692 and 99.9% of 1372; with only a +-2 voxel radius allowance, 96.4% and 97.5% (the halo).
+// 98.8% of 692 and 99.9% of 1372. Refraction alone (Fresnel off), as the sharp trace has no reflection:
+// light the sphere reflects lands on the far floor beside it (grazing reflections, where reflectance
+// nears 1) and lit 25 of those dark cells with the isotropic gradient, as many with 64 times the
+// photons: the reflected light itself, not its noise.
 // Interactive frames (two-voxel view steps, a coarser radiance grid) must refract as still
 // frames do: both are checked, the interactive one with every pixel traced (its adaptive pixels
 // interpolate where traced neighbours agree, which misses checker cells thinner than two pixels near
@@ -626,7 +629,8 @@ void expect_sharp_interface_classes(const scene::SceneGpu& gpu) {
     ASSERT_GE(compared[1], 400) << "too few pixels through the sphere to compare";
     EXPECT_GE(agreed[1], 0.95 * compared[1]) << "class per pixel (O light cell, x dark cell, . sky) in the sharp trace\n"
                                              << map_expected << "and in the rendering\n" << map_rendered;
-    EXPECT_GE(agreed[0], 0.99 * compared[0]);
+    EXPECT_GE(agreed[0], 0.99 * compared[0]) << "class per pixel in the sharp trace\n"
+                                             << map_expected << "and in the rendering\n" << map_rendered;
     // Inverted: through the sphere the floor appears above the sky (rows count from the top).
     ASSERT_GE(floor_pixels, 50);
     ASSERT_GE(sky_pixels, 50);
@@ -1058,7 +1062,8 @@ TEST_F(ViewTest, PhotonBatchesConvergeAsOneOverTheSquareRootOfTheirCount) {
     const double first = rms_against_reference(linear_after(doc, 1));
     const double sixteen = rms_against_reference(linear_after(doc, 16));
     ASSERT_GT(first, 0.0);
-    EXPECT_LE(sixteen, 0.3 * first) << "first batch " << first << ", sixteen " << sixteen;
+    std::printf("photon batches: rms against 64 batches, first %.4g, sixteen %.4g, ratio %.3f\n", first, sixteen, sixteen / first);
+    EXPECT_LE(sixteen, 0.3 * first);
     RecordProperty("rms_ratio_16_batches", std::to_string(sixteen / first));
 }
 
