@@ -30,28 +30,37 @@ float grid_at(ivec3 v) {
     return grid[(uint(c.z) * push.dims.y + uint(c.y)) * push.dims.x + uint(c.x)];
 }
 
-float differentiated_at(ivec3 v) { return kMode == INDEX_KIND_GRID ? grid_at(v) : coverage_at(v); }
-
-// grad n per voxel length at voxel v from the differentiated field around it (the border clamped): each
-// axis's central difference, averaged across its two other axes with weights 1 4 1 / 6. A plain central
-// difference errs by h^2/6 times the third derivative along its own axis, which tilts the normal of a
-// shell the lattice does not line up with, and a caustic focused through that shell shows the lattice
-// as rings (README, "Ring moire in caustics"). Averaged this way the error is h^2/6 grad(laplacian n) on
-// every axis, along the normal of a locally spherical shell; the weights stay positive (no ringing in
-// the shell's tails) and a flat interface's integral stays exact. Each of the 27 values adds to all three
-// differences: with its sign along one axis and its weights across.
-vec3 isotropic_gradient(ivec3 v) {
+// grad n per voxel length from the 3 x 3 x 3 values around a voxel (`around[(z * 3 + y) * 3 + x]`, the
+// border clamped): each axis's central difference, averaged across its two other axes with weights
+// 1 4 1 / 6. A plain central difference errs by h^2/6 times the third derivative along its own axis,
+// which tilts the normal of a shell the lattice does not line up with, and a caustic focused through
+// that shell shows the lattice as rings (README, "Ring moire in caustics"). Averaged this way the error
+// is h^2/6 grad(laplacian n) on every axis, along the normal of a locally spherical shell; the weights
+// stay positive (no ringing in the shell's tails) and a flat interface's integral stays exact.
+vec3 isotropic_gradient(float around[27]) {
+    const float across[3] = float[3](1.0, 4.0, 1.0);
     vec3 g = vec3(0.0);
-    for (int z = -1; z <= 1; ++z) {
-        for (int y = -1; y <= 1; ++y) {
-            for (int x = -1; x <= 1; ++x) {
-                vec3 across = mix(vec3(1.0), vec3(4.0), equal(ivec3(x, y, z), ivec3(0)));
-                g += differentiated_at(v + ivec3(x, y, z)) *
-                     vec3(x, y, z) * vec3(across.y * across.z, across.x * across.z, across.x * across.y);
-            }
+    for (int a = 0; a < 3; ++a) {
+        for (int b = 0; b < 3; ++b) {
+            float w = across[a] * across[b];
+            g.x += w * (around[(a * 3 + b) * 3 + 2] - around[(a * 3 + b) * 3]);
+            g.y += w * (around[(a * 3 + 2) * 3 + b] - around[a * 9 + b]);
+            g.z += w * (around[(2 * 3 + a) * 3 + b] - around[a * 3 + b]);
         }
     }
     return g / 72.0;
+}
+
+vec3 gradient_of_coverage(ivec3 v) {
+    float around[27];
+    for (int i = 0; i < 27; ++i) around[i] = coverage_at(v + ivec3(i % 3, (i / 3) % 3, i / 9) - 1);
+    return isotropic_gradient(around);
+}
+
+vec3 gradient_of_grid(ivec3 v) {
+    float around[27];
+    for (int i = 0; i < 27; ++i) around[i] = grid_at(v + ivec3(i % 3, (i / 3) % 3, i / 9) - 1);
+    return isotropic_gradient(around);
 }
 
 void main() {
@@ -64,9 +73,9 @@ void main() {
     uint kind = kMode;  // INDEX_KIND_*
     if (kind == INDEX_KIND_UNIFORM) {
         texel = vec4(push.n_medium + (push.n_object - push.n_medium) * c,
-                     (push.n_object - push.n_medium) * isotropic_gradient(v));
+                     (push.n_object - push.n_medium) * gradient_of_coverage(v));
     } else if (kind == INDEX_KIND_GRID) {
-        texel = vec4(grid_at(v), isotropic_gradient(v));
+        texel = vec4(grid_at(v), gradient_of_grid(v));
     } else {
         vec3 x = push.origin.xyz + (vec3(v) + 0.5) * h;
         vec3 d = x - push.sphere.xyz;
