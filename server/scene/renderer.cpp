@@ -388,7 +388,11 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
             if (stop()) break;
             RunOptions run_options = run_options_for(Quality::interactive);
             run_options.limit = pass;
-            resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+            const RunStats stats =
+                resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+            // What these photons cost sizes the first frame that traces photons (a light drag's): a camera
+            // drag's frames shade from the resident grid and measure none.
+            if (pass == kPhotons) resident.budget.observe(document, settings, stats.gpu_ms.front().second, 0.0);
         }
     } catch (...) {
         evict(scene_id);  // partially built state is not trusted
