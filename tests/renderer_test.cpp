@@ -9,8 +9,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include "image/png.h"
+#include "scene/object_mesh.h"
 #include "scene/passes.h"
 #include "scene/renderer.h"
+#include "scene/scene_gpu.h"
 #include "vk/context.h"
 
 namespace refract {
@@ -133,18 +136,32 @@ TEST_F(RendererTest, ResidentStateIsReusedAndOnlyStalePassesRun) {
 }
 
 // Exposure is display only: the resident linear frame is tone-mapped again, and the bytes are those of
-// a frame rendered at that exposure from the start.
+// a frame rendered at that exposure from the start; the refinement levels after it continue from it.
 TEST_F(RendererTest, AnExposureEditOnlyToneMapsTheResidentFrame) {
     Renderer renderer(*context);
     const SceneDocument doc = small();
-    renderer.render("a", doc, no_assets);
+    renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2});
     const auto brighter = protocol::apply_merge_patch(doc, {{"image", {{"exposure", 2.0}}}});
-    const FrameResult retoned = renderer.render("a", brighter, no_assets);
+    const FrameResult retoned = renderer.render("a", brighter, no_assets, {Quality::still, kDefaultBudgetMs, 2});
     EXPECT_EQ(retoned.rerun, kToneMap);
     Renderer fresh(*context);
-    const FrameResult direct = fresh.render("b", brighter, no_assets);
+    const FrameResult direct = fresh.render("b", brighter, no_assets, {Quality::still, kDefaultBudgetMs, 2});
     EXPECT_EQ(retoned.png, direct.png);
+    const FrameResult refined = renderer.render("a", brighter, no_assets, {Quality::still, kDefaultBudgetMs, 3});
+    EXPECT_EQ(refined.rerun, kPhotons | kView | kToneMap);
+    EXPECT_EQ(refined.png, fresh.render("b", brighter, no_assets, {Quality::still, kDefaultBudgetMs, 3}).png);
     EXPECT_NE(retoned.png, renderer.render("a", doc, no_assets).png);
+    // A refinement level that gave way in its photons leaves the frame before it whole: an exposure edit
+    // of that frame is still a tone map, and the level after it starts from new photons.
+    Renderer interrupted(*context);
+    interrupted.render("a", doc, no_assets);
+    EXPECT_THROW(interrupted.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, [] { return true; }}),
+                 Superseded);
+    const FrameResult after_giving_way = interrupted.render("a", brighter, no_assets);
+    EXPECT_EQ(after_giving_way.rerun, kToneMap);
+    EXPECT_EQ(after_giving_way.png, fresh.render("c", brighter, no_assets).png);
+    EXPECT_EQ(interrupted.render("a", brighter, no_assets, {Quality::still, kDefaultBudgetMs, 2}).png,
+              fresh.render("c", brighter, no_assets, {Quality::still, kDefaultBudgetMs, 2}).png);
 }
 
 // A refinement level is the same bytes however it was reached: step by step, straight from nothing, or
@@ -217,19 +234,113 @@ TEST_F(RendererTest, RefinementStepsGiveWayBetweenPartsAndKeepTheirBytes) {
 
 // Interactive frames deposit photons into a coarser radiance grid. With 4096 photons and a 32-pixel
 // image the interactive document is the still one (nothing to halve or quarter), so only the grid's
-// resolution differs: switching quality must still rerun photons and view, and the still frame after
-// an interactive one must be the first still frame to the byte.
+// resolution differs: the still frame after an interactive one must rerun photons and view into its own
+// grid and be a fresh scene's still frame to the byte.
 TEST_F(RendererTest, SwitchingQualityRerunsPhotonsIntoTheRightGrid) {
-    Renderer renderer(*context);
+    Renderer renderer(*context), fresh(*context);
     const SceneDocument doc = small({{"photons", {{"count", 4096}}}});
-    const FrameResult still = renderer.render("a", doc, no_assets, {Quality::still});
     const FrameResult interactive = renderer.render("a", doc, no_assets, {Quality::interactive});
-    EXPECT_EQ(interactive.rerun, kPhotons | kView | kToneMap);
+    const FrameResult still = renderer.render("a", doc, no_assets, {Quality::still});
+    EXPECT_EQ(still.rerun, kPhotons | kView | kToneMap);
     EXPECT_NE(interactive.png, still.png);
-    const FrameResult again = renderer.render("a", doc, no_assets, {Quality::still});
-    EXPECT_EQ(again.rerun, kPhotons | kView | kToneMap);
-    EXPECT_EQ(again.png, still.png);
+    EXPECT_EQ(still.png, fresh.render("b", doc, no_assets, {Quality::still}).png);
     EXPECT_EQ(renderer.render("a", doc, no_assets, {Quality::still}).rerun, 0u);
+}
+
+// Issue 21: the first frame of a camera drag after a still frame runs no photons. It shades from the
+// still frame's radiance grid (the index field's resolution, exact deposits), so it is the frame the
+// interactive view makes from such a grid built from nothing; the drag's next camera frames keep that
+// grid, and a light edit during the drag traces photons into the interactive grid again, as a scene
+// that never held a still frame does.
+TEST_F(RendererTest, ACameraDragAfterAStillFrameShadesFromItsRadianceGrid) {
+    const SceneDocument doc = small();
+    const auto camera = protocol::apply_merge_patch(doc, {{"camera", {{"position", {1, 1, 4}}}}});
+    const auto further = protocol::apply_merge_patch(camera, {{"camera", {{"position", {1.5, 1, 4}}}}});
+    const auto light = protocol::apply_merge_patch(further, {{"light", {{"position", {-2, 3, 1}}}}});
+    Renderer renderer(*context), fresh(*context);
+    renderer.render("a", doc, no_assets);
+    const FrameResult moved = renderer.render("a", camera, no_assets, {Quality::interactive});
+    EXPECT_EQ(pass_names(moved.rerun), pass_names(kView | kToneMap));
+    EXPECT_EQ(moved.photons, doc.photons.count);
+
+    // The interactive view (two-voxel fog steps, adaptive pixels) over a still frame's photons.
+    RunOptions over_still_grid = run_options_for(Quality::interactive);
+    over_still_grid.radiance_factor = 1;
+    over_still_grid.sampled_deposits = false;
+    over_still_grid.bounce_cap = protocol::kMaxBounces;
+    const auto reference_doc =
+        protocol::apply_merge_patch(camera, {{"image", {{"width", moved.width}, {"height", moved.height}}}});
+    PassKit kit(*context);
+    SceneGpu reference(kit);
+    const WorldMeshes worlds = world_meshes(reference_doc, [](const std::string&) { return nullptr; });
+    reference.run(kAllPasses, reference_doc, worlds, nullptr, over_still_grid);
+    EXPECT_EQ(moved.png, image::encode_png(reference.read_ldr(), reference.width(), reference.height()));
+    EXPECT_NE(moved.png, fresh.render("b", camera, no_assets, {Quality::interactive}).png);
+
+    EXPECT_EQ(renderer.render("a", further, no_assets, {Quality::interactive}).rerun, kView | kToneMap);
+    const FrameResult lit = renderer.render("a", light, no_assets, {Quality::interactive});
+    EXPECT_EQ(lit.rerun, kPhotons | kView | kToneMap);
+    EXPECT_EQ(lit.png, fresh.render("c", light, no_assets, {Quality::interactive}).png);
+    // The drag's camera frames after it keep the interactive grid; its release's still frame does not.
+    const auto back = protocol::apply_merge_patch(light, {{"camera", {{"position", {1, 1, 4}}}}});
+    EXPECT_EQ(renderer.render("a", back, no_assets, {Quality::interactive}).rerun, kView | kToneMap);
+    const FrameResult released = renderer.render("a", back, no_assets);
+    EXPECT_EQ(released.rerun, kPhotons | kView | kToneMap);
+    EXPECT_EQ(released.png, fresh.render("d", back, no_assets).png);
+}
+
+// A drag that begins while a refinement level renders makes that level give way: during its view (here
+// an eye-ray sample over 512 x 128 pixels, two parts) the radiance grid is whole and the drag's first
+// frame shades from it; during its photons the grid holds part of a batch and the frame traces anew.
+TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
+    const auto give_way = [] { return true; };
+    const SceneDocument wide = small({{"image", {{"width", 512}, {"height", passes::kWorkPart / 256}}}});
+    Renderer in_view(*context);
+    in_view.render("a", wide, no_assets, {Quality::still, kDefaultBudgetMs, kMaxPhotonBatches});
+    EXPECT_THROW(in_view.render("a", wide, no_assets, {Quality::still, kDefaultBudgetMs, kMaxPhotonBatches + 1, give_way}),
+                 Superseded);
+    const auto wide_camera = protocol::apply_merge_patch(wide, {{"camera", {{"position", {1, 1, 4}}}}});
+    const FrameResult over_grid = in_view.render("a", wide_camera, no_assets, {Quality::interactive});
+    EXPECT_EQ(pass_names(over_grid.rerun), pass_names(kView | kToneMap));
+    EXPECT_EQ(over_grid.refinement.photon_batches, kMaxPhotonBatches);
+
+    const SceneDocument doc = small();
+    const auto camera = protocol::apply_merge_patch(doc, {{"camera", {{"position", {1, 1, 4}}}}});
+    Renderer in_photons(*context), fresh(*context);
+    in_photons.render("a", doc, no_assets);
+    EXPECT_THROW(in_photons.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, give_way}), Superseded);
+    const FrameResult traced = in_photons.render("a", camera, no_assets, {Quality::interactive});
+    EXPECT_EQ(pass_names(traced.rerun), pass_names(kPhotons | kView | kToneMap));
+    EXPECT_EQ(traced.png, fresh.render("b", camera, no_assets, {Quality::interactive}).png);
+}
+
+// The still frame after a camera drag over a refined grid is its level's bytes however reached: from the
+// photon batches the grid holds (the view alone) when the level holds as many or more, else from new
+// photons.
+TEST_F(RendererTest, StillFramesAfterACameraDragAreTheirLevelsBytes) {
+    const SceneDocument doc = small();
+    const auto camera = protocol::apply_merge_patch(doc, {{"camera", {{"position", {1, 1, 4}}}}});
+    const struct {
+        uint32_t refined, asked;
+        PassSet rerun;
+    } cases[] = {{3, 3, kView | kToneMap},
+                 {3, 4, kPhotons | kView | kToneMap},
+                 {3, 1, kPhotons | kView | kToneMap},
+                 {kMaxPhotonBatches + 2, kMaxPhotonBatches + 1, kView | kToneMap}};
+    Renderer fresh(*context);
+    for (const auto& c : cases) {
+        SCOPED_TRACE(::testing::Message() << c.refined << " then " << c.asked);
+        Renderer renderer(*context);
+        renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, c.refined});
+        const FrameResult dragged = renderer.render("a", camera, no_assets, {Quality::interactive});
+        EXPECT_EQ(pass_names(dragged.rerun), pass_names(kView | kToneMap));
+        EXPECT_EQ(dragged.refinement.photon_batches, refinement_at(c.refined).photon_batches);
+        const FrameResult released = renderer.render("a", camera, no_assets, {Quality::still, kDefaultBudgetMs, c.asked});
+        EXPECT_EQ(pass_names(released.rerun), pass_names(c.rerun));
+        EXPECT_EQ(released.refinement.photon_batches, refinement_at(c.asked).photon_batches);
+        EXPECT_EQ(released.png,
+                  fresh.render(std::to_string(c.asked), camera, no_assets, {Quality::still, kDefaultBudgetMs, c.asked}).png);
+    }
 }
 
 // Extinction that differs by channel switches the resident scene from grey to coloured transport (a
@@ -254,8 +365,9 @@ TEST_F(RendererTest, SwitchingBetweenGreyColouredAndDispersiveTransportMatchesFr
     EXPECT_EQ(fresh.render("c", dispersive, no_assets).png, dispersed.png);
     EXPECT_NE(switched.png, first.png);
     EXPECT_NE(dispersed.png, first.png);
-    // Dragging a dispersive scene: sampled deposits into the coarse grid, adaptive pixels, three paths.
-    const FrameResult dragged = fresh.render("c", dispersive, no_assets, {Quality::interactive});
+    // Dragging a dispersive scene's light: sampled deposits into the coarse grid, adaptive pixels, three paths.
+    const auto lit = protocol::apply_merge_patch(dispersive, {{"light", {{"position", {-2, 3, 1}}}}});
+    const FrameResult dragged = fresh.render("c", lit, no_assets, {Quality::interactive});
     EXPECT_EQ(dragged.rerun, kPhotons | kView | kToneMap);
     EXPECT_FALSE(dragged.png.empty());
 }

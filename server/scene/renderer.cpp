@@ -29,6 +29,11 @@ protocol::SceneDocument with_settings(protocol::SceneDocument document, const In
     return document;
 }
 
+// What a frame was rendered with, interactive or still (an interactive frame's document holds its settings).
+InteractiveSettings settings_of(const protocol::SceneDocument& document) {
+    return {document.image.width, document.image.height, document.photons.count};
+}
+
 // The milliseconds of a frame spent in passes whose cost the image size and photon count do not set
 // (a geometry edit while dragging), kept out of the budget's measurements.
 double volume_ms(const FrameResult& frame) {
@@ -125,9 +130,8 @@ struct Renderer::Impl {
         std::shared_ptr<const IndexGrid> grid;
         std::shared_ptr<const image::EnvironmentMap> environment;
         uint64_t last_used = 0;
-        uint32_t level = 0;                               // refinement level of the resident frame
-        FrameBudget budget;                               // this scene's dynamic resolution
-        std::optional<InteractiveSettings> interactive;  // set while the resident frame is interactive
+        uint32_t level = 0;  // refinement level of the resident still frame (0: the frame is interactive or partial)
+        FrameBudget budget;  // this scene's dynamic resolution
     };
 
     Impl(vk::Context& ctx, RendererOptions opts) : context(ctx), options(opts), kit(ctx) {}
@@ -176,31 +180,44 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     const Impl::Resident* held = it != impl_->scenes.end() && it->second.gpu->built() != 0 ? &it->second : nullptr;
     auto stale_against = [&](const protocol::SceneDocument& next) {
         if (!held) return kAllPasses;
-        PassSet stale = passes_invalidated(held->document, next) | (kAllPasses & ~held->gpu->built());
+        PassSet stale = passes_invalidated(held->document, next);
         if (held->meshes != meshes || held->grid != grid) stale |= kAllPasses;
         // A re-uploaded image lights the scene anew.
         if (held->environment != environment) stale |= kPhotons | kView | kToneMap;
-        return stale;
+        return held->gpu->passes_for(stale);
     };
     protocol::SceneDocument document = requested;
     InteractiveSettings settings;
     if (quality == Quality::interactive) {
-        // What the edit reruns if the resident interactive settings were kept decides which of them may change.
-        const InteractiveSettings* resident = held && held->interactive ? &*held->interactive : nullptr;
-        const PassSet would = resident ? stale_against(with_settings(requested, *resident)) : kAllPasses;
+        // What the edit reruns if the resident frame's settings were kept (a still frame's too: its photon
+        // count keeps its radiance grid) decides which of them may change.
+        const InteractiveSettings resident = held ? settings_of(held->document) : InteractiveSettings{};
+        const PassSet would = held ? stale_against(with_settings(requested, resident)) : kAllPasses;
         const FrameBudget& budget = it != impl_->scenes.end() ? it->second.budget : FrameBudget{};
-        settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0, resident, options.budget_ms);
+        settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0, held ? &resident : nullptr,
+                                 options.budget_ms);
         document = with_settings(requested, settings);
     }
     PassSet stale = stale_against(document);
-    // Still frames refine in order from level 1 (refinement_at): an unchanged document continues from
-    // the resident level; a lower level than the resident one starts again from new photons.
+    // Still frames refine in order from level 1 (refinement_at). One continues from the resident still
+    // frame when the edit leaves it valid but for its tone (exposure), that frame's level is not above
+    // its own and, to refine it further, the radiance grid holds that level's batches; else from the
+    // photon batches the grid holds, when it is a still frame's and holds no more than this level's
+    // (their view at pixel centres is the frame of the level with that many); else from new photons.
     const uint32_t level = quality == Quality::still ? std::clamp(options.level, 1u, kMaxRefinementLevel) : 1u;
-    uint32_t resident_level = 0;  // levels the resident frame already holds of this very frame
-    if (quality == Quality::still && stale == 0 && held && !held->interactive) {
-        // Level 0: a refinement step gave way halfway, so the grid holds a batch the frame does not.
-        if (held->level == 0 || held->level > level) stale = kPhotons | kView | kToneMap;
-        else resident_level = held->level;
+    uint32_t resident_level = 0;  // the level whose linear frame (or, with the view stale, photons) is resident
+    if (quality == Quality::still && held) {
+        const uint32_t batches =
+            stale & kPhotons ? 0u : held->gpu->photon_batches(document, run_options_for(Quality::still));
+        if (!(stale & ~kToneMap) && held->level != 0 && held->level <= level &&
+            (held->level == level || batches == refinement_at(held->level).photon_batches)) {
+            resident_level = held->level;
+        } else if (batches > 0 && batches <= refinement_at(level).photon_batches) {
+            resident_level = batches;
+            stale |= kView | kToneMap;
+        } else {
+            stale |= kPhotons | kView | kToneMap;
+        }
     }
     // The objects in world space fit the lattice; needed only when the volume is rebuilt.
     const bool rebuild = (stale & kVoxelize) != 0;
@@ -236,16 +253,24 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     Impl::Resident& resident = it->second;
     resident.last_used = ++impl_->clock;
     lock.unlock();
+    // An interactive frame whose photons need not run shades from the resident radiance grid, whatever
+    // quality made it: the first frame of a camera drag after a still frame runs no photons. Photons
+    // that run go into the interactive grid.
+    RunOptions frame_options = run_options_for(quality);
+    if (quality == Quality::interactive && !(stale & kPhotons))
+        frame_options = resident.gpu->with_resident_photons(frame_options);
 
     FrameResult frame;
     try {
         uint64_t photon_steps = 0;
-        for (uint32_t step = resident_level + 1; step <= level; ++step) {
+        // The first step runs the stale passes: level 1's, or those of the resident level.
+        const uint32_t first = stale != 0 && resident_level > 0 ? resident_level : resident_level + 1;
+        for (uint32_t step = first; step <= level; ++step) {
             // Level 1 is the frame itself; each level after it adds one photon batch (rerunning the view
             // at pixel centres) until the batches are all in, then one jittered eye-ray sample per pixel.
-            RunOptions run_options = run_options_for(quality);
+            RunOptions run_options = frame_options;
             PassSet passes = stale;
-            if (step > 1) {
+            if (step > std::max(resident_level, 1u)) {
                 const Refinement now = refinement_at(step), before = refinement_at(step - 1);
                 if (now.photon_batches > before.photon_batches) {
                     run_options.photon_batch = now.photon_batches - 1;
@@ -261,13 +286,13 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
             try {
                 stats = resident.gpu->run(passes, document, worlds, grid.get(), run_options, environment.get());
             } catch (const Superseded&) {
-                // What the GPU holds now: this document, with part of a step the frame does not hold.
+                // What the GPU holds now: this document, with part of a step the frame does not hold; a step
+                // that gave way before its view leaves the frame of the level before it.
                 resident.document = document;
                 resident.meshes = meshes;
                 resident.grid = grid;
                 resident.environment = environment;
-                resident.interactive.reset();
-                resident.level = 0;
+                resident.level = resident.gpu->built() & kView ? step - 1 : 0;
                 throw;
             }
             frame.rerun |= stats.ran;
@@ -280,6 +305,8 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
             frame.photons_traced ? static_cast<double>(photon_steps) / static_cast<double>(frame.photons_traced) : 0.0;
         frame.level = level;
         frame.refinement = refinement_at(level);
+        // An interactive frame may be shaded from a still frame's refined grid.
+        frame.refinement.photon_batches = resident.gpu->photon_batches(document, frame_options);
         frame.photons = uint64_t{frame.refinement.photon_batches} * document.photons.count;
         const auto encode_start = Clock::now();
         const auto pixels = resident.gpu->read_ldr();
@@ -309,13 +336,10 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     resident.meshes = meshes;
     resident.grid = grid;
     resident.environment = environment;
-    resident.level = level;
+    resident.level = quality == Quality::still ? level : 0;
     if (quality == Quality::interactive) {
         const double photons = photon_ms(frame);
         resident.budget.observe(requested, settings, photons, ms_since(start) - photons - volume_ms(frame));
-        resident.interactive = settings;
-    } else {
-        resident.interactive.reset();
     }
     std::lock_guard relock(impl_->mutex);
     impl_->evict_least_recent(scene_id);
@@ -364,7 +388,11 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
             if (stop()) break;
             RunOptions run_options = run_options_for(Quality::interactive);
             run_options.limit = pass;
-            resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+            const RunStats stats =
+                resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+            // What these photons cost sizes the first frame that traces photons (a light drag's): a camera
+            // drag's frames shade from the resident grid and measure none.
+            if (pass == kPhotons) resident.budget.observe(document, settings, stats.gpu_ms.front().second, 0.0);
         }
     } catch (...) {
         evict(scene_id);  // partially built state is not trusted
@@ -374,7 +402,6 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
     resident.meshes = resolved.meshes;
     resident.grid = resolved.grid;
     resident.environment = resolved.environment;
-    resident.interactive = settings;
     resident.level = 0;  // no frame: render() runs the view and tone map (and what the stop left)
     return true;
 }

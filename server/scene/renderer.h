@@ -8,7 +8,6 @@
 #include <functional>
 #include <map>
 #include <memory>
-#include <optional>
 #include <string>
 #include <vector>
 
@@ -56,14 +55,15 @@ struct Assets {
 
 enum class Quality { interactive, still };
 
-// Scattering events per photon interactive frames take at most: each bounce costs about one more free
-// path of steps, and the first few carry most of the glow (README, "Multiple scattering").
+// Scattering events per photon the photons of interactive frames take at most: each bounce costs about
+// one more free path of steps, and the first few carry most of the glow (README, "Multiple scattering").
 inline constexpr uint32_t kInteractiveBounces = 4;
 
 // How the passes run for a quality: `interactive` takes two-voxel eye-ray steps in fog, a radiance
 // grid of a third of the resolution per axis, sampled photon deposits, adaptive pixels and at most
 // kInteractiveBounces (the image size and photon count are chosen per frame by the scene's FrameBudget,
-// in the renderer).
+// in the renderer). An interactive frame whose edit leaves the photons valid keeps the resident grid
+// instead, a still frame's too (Renderer::render).
 RunOptions run_options_for(Quality quality);
 
 struct PassTiming {
@@ -139,7 +139,8 @@ public:
 
     // Renders `document` for scene `scene_id`, reusing whatever resident state is still valid for it.
     // Interactive frames choose their image size and photon count to land within `options.budget_ms`
-    // (frame_budget.h); still frames render the document as it is, refined to `options.level`.
+    // (frame_budget.h), and shade from the resident radiance grid, whatever quality made it, when their
+    // edit leaves its photons valid; still frames render the document as it is, refined to `options.level`.
     // Throws RenderError for an unrenderable scene (resident state untouched), vk::Error for device faults.
     FrameResult render(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
                        const FrameOptions& options = {});

@@ -176,16 +176,11 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     // transport means new photons into a new grid.
     const uint32_t channels = passes::transport_channels(document);
     const uint32_t bounces = passes::photon_bounces(document, options.bounce_cap);
-    if (options.radiance_factor != radiance_factor_ || options.sampled_deposits != sampled_deposits_ ||
-        channels != channels_ || bounces != bounces_)
-        built_ &= ~(kPhotons | kView | kToneMap);
+    if (!grid_made_for(document, options)) built_ &= ~(kPhotons | kView | kToneMap);
     sampled_deposits_ = options.sampled_deposits;
     bounces_ = bounces;
-    stale |= kAllPasses & ~built_;
-    // Each pass depends on all before it.
-    for (PassSet p : {kVoxelize, kIndexField, kOctree, kPhotons, kView})
-        if (stale & p) stale |= (kAllPasses & ~(p - 1));
-    stale &= options.limit;
+    const PassSet asked = stale;
+    stale = passes_for(stale) & options.limit;
     allocate_frame(document.image.width, document.image.height);
 
     passes::TransportOptions transport_options;
@@ -260,21 +255,28 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     VkCommandBuffer cmd = recorder_.begin();
     timer_.reset(cmd);
     std::vector<std::pair<std::string, double>> earlier_ms;  // pass times of this run's earlier submissions
-    auto submit_part = [&] {
+    // Submits the parts recorded so far, `pass` unfinished (begun or next). Giving way leaves the passes
+    // before it built, and it and the passes asked for after it not (a photon pass stopped halfway holds
+    // part of a batch).
+    auto submit_part = [&](Pass pass) {
         recorder_.submit_and_wait();
         for (auto& timing : timer_.read()) earlier_ms.push_back(std::move(timing));
-        if (options.give_way()) throw Superseded();
+        if (options.give_way()) {
+            // A pass after `pass` that runs only because an earlier one does keeps its output, made before.
+            built_ = (built_ | (stale & (pass - 1))) & ~((asked | pass) & ~(pass - 1));
+            throw Superseded();
+        }
         cmd = recorder_.begin();
         timer_.reset(cmd);
         recorder_.compute_barrier();  // the parts before wrote what the next reads and adds to
     };
-    // Between two parts of the pass timed as `scope`.
-    auto between_parts = [&](const char* scope) -> passes::BetweenParts {
+    // Between two parts of `pass`, timed under its name.
+    auto between_parts = [&](Pass pass) -> passes::BetweenParts {
         if (!options.give_way) return {};
-        return [&, scope] {
+        return [&, pass] {
             timer_.end(cmd);
-            submit_part();
-            timer_.begin(cmd, scope);
+            submit_part(pass);
+            timer_.begin(cmd, pass_names(pass));
         };
     };
     // Uploads and scratch the recorded commands use; they live until the submission completes.
@@ -405,7 +407,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         // the radiance grid and floor map, the first replacing this batch's share and the rest adding theirs.
         // A refinement step gives way after the direct light and after each resolve too (each a tenth of
         // a second or more on two cores), not only between parts of the photons.
-        const passes::BetweenParts gap = between_parts("photons");
+        const passes::BetweenParts gap = between_parts(kPhotons);
         for (size_t i = 0; i < light_params_.size(); ++i) {
             const shaders::TransportParams& light = light_params_[i];
             const passes::TransportInputs light_inputs = inputs_for(params_buffers_[i]);
@@ -417,7 +419,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                 if (gap) gap();
             }
             kit_.photon_trace.record(recorder_, light_inputs, *accum_, light.photon_info.x, options.sampled_deposits,
-                                     bounces > 0, between_parts("photons"));
+                                     bounces > 0, between_parts(kPhotons));
             recorder_.compute_barrier();
             kit_.radiance_resolve.record(recorder_, params_buffers_[i], *accum_, grey(), radiance_, flux_, floor_map_);
             recorder_.compute_barrier();
@@ -426,13 +428,14 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         kit_.lit_pyramid.record(recorder_, params_buffer, flux_, accum_->lit_blocks, index_field_.extent());
         recorder_.compute_barrier();
         timer_.end(cmd);
-        if (options.give_way && (stale & kView)) submit_part();
+        photon_batches_ = options.photon_batch + 1;
+        if (options.give_way && (stale & kView)) submit_part(kView);
     }
     if (stale & kView) {
         timer_.begin(cmd, "view");
         kit_.view.record(recorder_, inputs, radiance_, flux_, floor_map_,
                          {hdr_, accum_->stats, accum_->lit_blocks, refine_}, width_, height_, options.adaptive_view,
-                         between_parts("view"));
+                         between_parts(kView));
         recorder_.compute_barrier();
         timer_.end(cmd);
     }
@@ -469,6 +472,32 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         if (stale & kView) stats.view_steps = counters.view_steps;
     }
     return stats;
+}
+
+PassSet SceneGpu::passes_for(PassSet stale) const {
+    if (!(built_ & kToneMap)) stale |= kToneMap;  // a run leaves a whole frame
+    if (stale == 0) return 0;
+    // The first stale pass runs with what it reads that is not built, and each pass reruns all after it.
+    PassSet first = stale & (~stale + 1);
+    while (first != kVoxelize && !(built_ & (first >> 1))) first >>= 1;
+    return kAllPasses & ~(first - 1);
+}
+
+bool SceneGpu::grid_made_for(const protocol::SceneDocument& document, const RunOptions& options) const {
+    return options.radiance_factor == radiance_factor_ && options.sampled_deposits == sampled_deposits_ &&
+           passes::transport_channels(document) == channels_ &&
+           passes::photon_bounces(document, options.bounce_cap) == bounces_;
+}
+
+uint32_t SceneGpu::photon_batches(const protocol::SceneDocument& document, const RunOptions& options) const {
+    return (built_ & kPhotons) && grid_made_for(document, options) ? photon_batches_ : 0u;
+}
+
+RunOptions SceneGpu::with_resident_photons(RunOptions options) const {
+    options.radiance_factor = radiance_factor_;
+    options.sampled_deposits = sampled_deposits_;
+    options.bounce_cap = bounces_;  // the document's bounces capped there are those its photons took
+    return options;
 }
 
 template <typename T>

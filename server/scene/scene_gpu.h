@@ -89,7 +89,8 @@ struct RunOptions {
     // Set for refinement steps: the photon and view dispatches then run in parts of about
     // passes::kWorkPart photons or pixels, a submission each, and this is asked after each; when it says
     // other work waits, the run stops there (Superseded), and what its photon and view passes hold is
-    // partial: the caller must run them again (the renderer drops the refinement level).
+    // partial: built() leaves out the pass it stopped in and those asked for after it (the renderer
+    // keeps the refinement level before the step only where its view is left whole).
     std::function<bool()> give_way;
 };
 
@@ -109,7 +110,7 @@ class SceneGpu {
 public:
     explicit SceneGpu(PassKit& kit);
 
-    // Runs `stale` passes (plus whatever they depend on that was never built) for `document`.
+    // Runs `stale` passes for `document`, with what passes_for() adds to them.
     // `worlds` holds every object's mesh in world space, read only when the voxelize pass runs: the
     // lattice is fitted to them (an edit that moves the lattice makes voxelize stale), and the pass
     // voxelizes only the objects whose world mesh, box or smoothing changed since their coverage was
@@ -122,7 +123,19 @@ public:
                  const image::EnvironmentMap* environment = nullptr);
 
     const GridGeometry& grid() const { return grid_; }
+    // The passes whose results are resident and whole.
     PassSet built() const { return built_; }
+    // The passes a run asked for `stale` runs (before RunOptions::limit, on this grid and radiance grid):
+    // those, what the first of them reads that is not built, every pass after them, and the whole frame
+    // when it is not built.
+    PassSet passes_for(PassSet stale) const;
+    // Whole photon batches (RunOptions::photon_batch) in the resident radiance grid that a run with
+    // `options` over `document` would shade from rather than trace anew: 0 when there are none, or the
+    // grid was made with other photon settings (radiance factor, deposits, bounces, kind of transport).
+    uint32_t photon_batches(const protocol::SceneDocument& document, const RunOptions& options) const;
+    // `options` with the photon settings the resident radiance grid was made with, so that a run that
+    // needs no photons shades from that grid, whatever quality made it.
+    RunOptions with_resident_photons(RunOptions options) const;
     uint32_t width() const { return width_; }
     uint32_t height() const { return height_; }
 
@@ -156,6 +169,7 @@ private:
     void allocate_volume(const GridGeometry& grid);
     void allocate_transport(uint32_t photon_exit_count, bool record_exits, uint32_t radiance_factor, uint32_t channels);
     void allocate_frame(uint32_t width, uint32_t height);
+    bool grid_made_for(const protocol::SceneDocument& document, const RunOptions& options) const;
     template <typename T>
     std::vector<T> read_image(const vk::Image3D& image) const;
     template <typename T>
@@ -167,6 +181,7 @@ private:
     uint32_t width_ = 0, height_ = 0, floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
     bool sampled_deposits_ = false;  // how the photons in the radiance grid were deposited (RunOptions)
     uint32_t bounces_ = 0;           // how often they could scatter (passes::photon_bounces)
+    uint32_t photon_batches_ = 0;    // how many batches its running mean holds (with kPhotons built)
     uint32_t channels_ = CHANNELS_RGB;
     float octree_epsilon_ = 0.0f;  // the epsilon of the resident level map
     std::vector<shaders::TransportParams> light_params_{shaders::TransportParams{}};
