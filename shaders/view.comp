@@ -184,10 +184,14 @@ void shade(uvec2 pixel) {
             marches = !straight;
         }
         uint steps = 0u;
+        // Unlit fog is crossed in pieces of a leaf: the ray as it entered the leaf, and how far along it.
+        Ray leaf_start = ray;
+        float into_leaf = 0.0;
         // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch
-        // appears once: the loop below takes one octree leaf (or shell step) per pass, and the inner
-        // loop, which holds the only in-scattering fetches, takes that leaf's view steps.
+        // appears once: the loop below takes one octree leaf (or shell step, or piece of unlit fog) per
+        // pass, and the inner loop, which holds the only in-scattering fetches, takes its view steps.
         while (marches && steps < 8192u) {
+            if (into_leaf == 0.0) leaf_start = ray;
             float coverage = coverage_for(max(params.flags.y, params.flags.z), ray.p, ray.field.x);
             float scatter_coverage = coverage_as(params.flags.z, coverage);
             uint object = object_at(ray.p);
@@ -202,22 +206,27 @@ void shade(uvec2 pixel) {
             // gather once over it; lit fog in a leaf (n constant, the ray straight) gathers every view
             // step to the leaf's end; clear space is crossed to the end of its leaf, and so is unlit fog
             // that lasts that far, else it is crossed in whole view steps towards the end of its unlit
-            // cell. No leaf step is shorter than the shell step, and none longer than the leaf, so coarse
-            // view steps never step over a shell. The ray so stops only where a march gathering every
-            // view step of the leaf would have stopped: the lit cells change as refinement adds photons,
-            // and a skip to the unlit cell's own end moved the gathering points along a beam's sharp edge
-            // and where a grazing ray enters the glass, which changed a pixel by several percent at once.
+            // cell (or, within half a view step of that end, gathered one view step at a time). No leaf step is
+            // shorter than the shell step, and none longer than the leaf, so coarse view steps never step
+            // over a shell. The ray so gathers only where a march gathering every view step of the leaf
+            // would, and pieces of a leaf go on along its straight start, taking the leaf's one ray step
+            // at its end as that march does: the lit cells change as refinement adds photons, and a skip
+            // to the unlit cell's own end moved the gathering points along a beam's sharp edge and where
+            // a grazing ray enters the glass, which changed a pixel by several percent at once.
             float unlit = unlit_cell(ray.p);
             float shell_step = shell_step_for(ray, params.stepping.x);
             float leaf_run = level == 0u ? shell_step : safe_step(level, ray.p, ray.d, shell_step);
+            bool in_unlit = scatters && level != 0u && unlit > 0.0;
             float skip = 0.0;
-            if (scatters && level != 0u && unlit > 0.0) {
+            if (in_unlit) {
                 float to_unlit_end = cell_exit(ray.p, ray.d, unlit);
+                // Every view step whose gathering point (its midpoint) lies in the unlit cell gathers 0.
                 skip = to_unlit_end + params.stepping.y >= leaf_run ? leaf_run
-                                                                    : view_step * floor(to_unlit_end / view_step);
+                                                                    : view_step * floor(to_unlit_end / view_step + 0.5);
             }
             bool gathers = scatters && skip == 0.0;
-            float run = skip > 0.0 ? skip : leaf_run;
+            float run = min(skip > 0.0 ? skip : in_unlit ? view_step : leaf_run, leaf_run);
+            bool piece = in_unlit && run < leaf_run;  // ends inside the leaf
             run = min(run, to_end);
             if (gathers) {
                 uint model = phase_model_at(scatter_coverage, object);
@@ -251,7 +260,15 @@ void shade(uvec2 pixel) {
                 on_floor = to_floor <= to_exit;
                 break;
             }
-            Ray before = ray;
+            if (piece) {
+                into_leaf += run;
+                ray.p = leaf_start.p + into_leaf * leaf_start.d;
+                continue;
+            }
+            run += into_leaf;
+            into_leaf = 0.0;
+            Ray before = leaf_start;
+            ray = leaf_start;
             ray_step(ray, run);
             if (kDispersive && path == 0u && !(channel_free(before.field) && channel_free(ray.field))) {
                 // What this step gathered lay on its straight start, the same in every channel.
