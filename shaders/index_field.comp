@@ -51,15 +51,12 @@ vec3 isotropic_gradient(float around[27]) {
     return g / 72.0;
 }
 
-vec3 gradient_of_coverage(ivec3 v) {
-    float around[27];
-    for (int i = 0; i < 27; ++i) around[i] = coverage_at(v + ivec3(i % 3, (i / 3) % 3, i / 9) - 1);
-    return isotropic_gradient(around);
-}
+// The field the gradient is taken of: an imported grid's values, else the coverage.
+float differentiated_at(ivec3 v) { return kMode == INDEX_KIND_GRID ? grid_at(v) : coverage_at(v); }
 
-vec3 gradient_of_grid(ivec3 v) {
+vec3 gradient_at(ivec3 v) {
     float around[27];
-    for (int i = 0; i < 27; ++i) around[i] = grid_at(v + ivec3(i % 3, (i / 3) % 3, i / 9) - 1);
+    for (int i = 0; i < 27; ++i) around[i] = differentiated_at(v + ivec3(i % 3, (i / 3) % 3, i / 9) - 1);
     return isotropic_gradient(around);
 }
 
@@ -73,9 +70,9 @@ void main() {
     uint kind = kMode;  // INDEX_KIND_*
     if (kind == INDEX_KIND_UNIFORM) {
         texel = vec4(push.n_medium + (push.n_object - push.n_medium) * c,
-                     (push.n_object - push.n_medium) * gradient_of_coverage(v));
+                     (push.n_object - push.n_medium) * gradient_at(v));
     } else if (kind == INDEX_KIND_GRID) {
-        texel = vec4(grid_at(v), gradient_of_grid(v));
+        texel = vec4(grid_at(v), gradient_at(v));
     } else {
         vec3 x = push.origin.xyz + (vec3(v) + 0.5) * h;
         vec3 d = x - push.sphere.xyz;

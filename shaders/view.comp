@@ -206,13 +206,13 @@ void shade(uvec2 pixel) {
             // gather once over it; lit fog in a leaf (n constant, the ray straight) gathers every view
             // step to the leaf's end; clear space is crossed to the end of its leaf, and so is unlit fog
             // that lasts that far, else it is crossed in whole view steps towards the end of its unlit
-            // cell (or, within half a view step of that end, gathered one view step at a time). No leaf step is
-            // shorter than the shell step, and none longer than the leaf, so coarse view steps never step
-            // over a shell. The ray so gathers only where a march gathering every view step of the leaf
-            // would, and pieces of a leaf go on along its straight start, taking the leaf's one ray step
-            // at its end as that march does: the lit cells change as refinement adds photons, and a skip
-            // to the unlit cell's own end moved the gathering points along a beam's sharp edge and where
-            // a grazing ray enters the glass, which changed a pixel by several percent at once.
+            // cell (within half a view step of that end, a view step gathers and the ray looks again).
+            // No leaf step is shorter than the shell step, and none longer than the leaf, so coarse view
+            // steps never step over a shell. So the ray gathers only where a march gathering every view
+            // step of the leaf would, and the pieces of a leaf go on along its straight start, the leaf's
+            // one ray step taken at its end as that march takes it: the lit cells change as refinement
+            // adds photons, and a skip to the unlit cell's own end moved the gathering points along a
+            // beam's sharp edge and where a grazing ray enters the glass, changing a pixel by 7% at once.
             float unlit = unlit_cell(ray.p);
             float shell_step = shell_step_for(ray, params.stepping.x);
             float leaf_run = level == 0u ? shell_step : safe_step(level, ray.p, ray.d, shell_step);
