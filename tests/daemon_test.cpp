@@ -1007,6 +1007,41 @@ TEST(Daemon, WebSocketPushesRefinementLevelsUntilTheCap) {
     expect_alive(daemon);
 }
 
+// The still after a camera drag starts from the photon batches the radiance grid already holds: the
+// frame of that level costs the view alone, where level 1 would rerun the photons. Asked for or pushed
+// after the drag, it says the level it holds, and refinement goes on from there.
+TEST(Daemon, AStillAfterACameraDragKeepsThePhotonBatchesOfItsGrid) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    std::string id = create_scene(client, "resumed");
+    WsClient ws(daemon.ws_port(), "/api/scenes/" + id + "/ws");
+    ws.send({{"seq", 1}, {"refine", 3}});
+    ws.read_frame();  // interactive
+    for (int level = 1; level <= 3; ++level) EXPECT_EQ(ws.read_frame().first["level"], level);
+    ws.send({{"seq", 2}, {"patch", {{"camera", {{"position", {0.5, 1.0, 3.5}}}}}}});
+    auto [dragged, dragged_png] = ws.read_frame();
+    EXPECT_EQ(dragged["quality"], "interactive");
+    EXPECT_EQ(dragged["passes"], json({"view", "tone_map"})) << dragged.dump();
+    auto [pushed, pushed_png] = ws.read_frame();
+    EXPECT_EQ(pushed["seq"], 2);
+    EXPECT_EQ(pushed["quality"], "still");
+    EXPECT_EQ(pushed["level"], 3);
+    EXPECT_EQ(pushed["photon_batches"], 3);
+    EXPECT_EQ(pushed["passes"], json({"view", "tone_map"})) << pushed.dump();
+    ws.send({{"seq", 3}, {"patch", {{"camera", {{"position", {0.6, 1.0, 3.5}}}}}}, {"quality", "still"}, {"refine", 4}});
+    auto [asked, asked_png] = ws.read_frame();
+    EXPECT_EQ(asked["seq"], 3);
+    EXPECT_EQ(asked["level"], 3);
+    EXPECT_EQ(asked["passes"], json({"view", "tone_map"})) << asked.dump();
+    auto [next, next_png] = ws.read_frame();
+    EXPECT_EQ(next["level"], 4);
+    EXPECT_EQ(next["photon_batches"], 4);
+    // The HTTP frame stays the document's own photon count unless a level is asked for.
+    EXPECT_EQ(client.Get(("/api/scenes/" + id + "/frame.png").c_str())->get_header_value("X-Refract-Level"), "1");
+    expect_alive(daemon);
+}
+
 // A played animation: its frames come in order with their place in it, from the animation's
 // documents, and the scene itself never changes; stop (or any edit) ends it, bad plays change nothing.
 TEST(Daemon, WebSocketPlaysKeyframesIntoTheViewerAndStops) {

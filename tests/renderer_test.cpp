@@ -150,6 +150,14 @@ TEST_F(RendererTest, AnExposureEditOnlyToneMapsTheResidentFrame) {
     const FrameResult refined = renderer.render("a", brighter, no_assets, {Quality::still, kDefaultBudgetMs, 3});
     EXPECT_EQ(refined.rerun, kPhotons | kView | kToneMap);
     EXPECT_EQ(refined.png, fresh.render("b", brighter, no_assets, {Quality::still, kDefaultBudgetMs, 3}).png);
+    // A still that may resume re-tones the refined frame rather than dropping to a lower level.
+    const auto darker = protocol::apply_merge_patch(brighter, {{"image", {{"exposure", 0.5}}}});
+    FrameOptions resume{Quality::still, kDefaultBudgetMs, 1};
+    resume.resume_up_to = kMaxRefinementLevel;
+    const FrameResult resumed = renderer.render("a", darker, no_assets, resume);
+    EXPECT_EQ(resumed.rerun, kToneMap);
+    EXPECT_EQ(resumed.level, 3u);
+    EXPECT_EQ(resumed.png, fresh.render("b", darker, no_assets, {Quality::still, kDefaultBudgetMs, 3}).png);
     EXPECT_NE(retoned.png, renderer.render("a", doc, no_assets).png);
     // A refinement level that gave way in its photons leaves the frame before it whole: an exposure edit
     // of that frame is still a tone map, and the level after it starts from new photons.
@@ -316,30 +324,38 @@ TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
 
 // The still frame after a camera drag over a refined grid is its level's bytes however reached: from the
 // photon batches the grid holds (the view alone) when the level holds as many or more, else from new
-// photons.
+// photons. A still that may resume (FrameOptions::resume_up_to) takes the level of the batches the grid
+// holds, within its cap, rather than rerunning photons for a lower one.
 TEST_F(RendererTest, StillFramesAfterACameraDragAreTheirLevelsBytes) {
     const SceneDocument doc = small();
     const auto camera = protocol::apply_merge_patch(doc, {{"camera", {{"position", {1, 1, 4}}}}});
     const struct {
-        uint32_t refined, asked;
+        uint32_t refined, asked, resume_up_to, level;
         PassSet rerun;
-    } cases[] = {{3, 3, kView | kToneMap},
-                 {3, 4, kPhotons | kView | kToneMap},
-                 {3, 1, kPhotons | kView | kToneMap},
-                 {kMaxPhotonBatches + 2, kMaxPhotonBatches + 1, kView | kToneMap}};
+    } cases[] = {{3, 3, 0, 3, kView | kToneMap},
+                 {3, 4, 0, 4, kPhotons | kView | kToneMap},
+                 {3, 1, 0, 1, kPhotons | kView | kToneMap},
+                 {kMaxPhotonBatches + 2, kMaxPhotonBatches + 1, 0, kMaxPhotonBatches + 1, kView | kToneMap},
+                 {3, 1, kMaxRefinementLevel, 3, kView | kToneMap},
+                 {3, 1, 2, 1, kPhotons | kView | kToneMap},
+                 {3, 4, kMaxRefinementLevel, 4, kPhotons | kView | kToneMap},
+                 {kMaxPhotonBatches + 2, 1, kMaxRefinementLevel, kMaxPhotonBatches, kView | kToneMap}};
     Renderer fresh(*context);
     for (const auto& c : cases) {
-        SCOPED_TRACE(::testing::Message() << c.refined << " then " << c.asked);
+        SCOPED_TRACE(::testing::Message() << c.refined << " then " << c.asked << " up to " << c.resume_up_to);
         Renderer renderer(*context);
         renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, c.refined});
         const FrameResult dragged = renderer.render("a", camera, no_assets, {Quality::interactive});
         EXPECT_EQ(pass_names(dragged.rerun), pass_names(kView | kToneMap));
         EXPECT_EQ(dragged.refinement.photon_batches, refinement_at(c.refined).photon_batches);
-        const FrameResult released = renderer.render("a", camera, no_assets, {Quality::still, kDefaultBudgetMs, c.asked});
+        FrameOptions options{Quality::still, kDefaultBudgetMs, c.asked};
+        options.resume_up_to = c.resume_up_to;
+        const FrameResult released = renderer.render("a", camera, no_assets, options);
         EXPECT_EQ(pass_names(released.rerun), pass_names(c.rerun));
-        EXPECT_EQ(released.refinement.photon_batches, refinement_at(c.asked).photon_batches);
+        EXPECT_EQ(released.level, c.level);
+        EXPECT_EQ(released.refinement.photon_batches, refinement_at(c.level).photon_batches);
         EXPECT_EQ(released.png,
-                  fresh.render(std::to_string(c.asked), camera, no_assets, {Quality::still, kDefaultBudgetMs, c.asked}).png);
+                  fresh.render(std::to_string(c.level), camera, no_assets, {Quality::still, kDefaultBudgetMs, c.level}).png);
     }
 }
 

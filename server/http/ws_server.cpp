@@ -341,15 +341,18 @@ private:
         newer_message_->store(true);
         wanted_seq_ = seq;
         wanted_options_ = {quality, budget_ms_, 1};
+        // A still starts this session's refinement: from the level the resident state gives for the work
+        // of level 1 (after a camera drag, the batches already in its grid), which the next levels follow.
+        wanted_options_.resume_up_to = refine_to_;
         want_frame_ = true;
         submit_frame();
     }
 
-    // After a frame, with nothing newer asked for: keep improving it. A still frame is followed by its
-    // next refinement level (renderer.h) up to the session's `refine`; an interactive frame, after
-    // kIdleBeforeStill without another message, by the still frame (the user has let go). `refine` 0
-    // pushes only the frames asked for.
-    void refine_after(const json& seq, const scene::FrameOptions& rendered, uint64_t revision) {
+    // After a frame, with nothing newer asked for: keep improving it. A still frame (holding `level`) is
+    // followed by the next refinement level (renderer.h) up to the session's `refine`; an interactive
+    // frame, after kIdleBeforeStill without another message, by the still frame (the user has let go).
+    // `refine` 0 pushes only the frames asked for.
+    void refine_after(const json& seq, const scene::FrameOptions& rendered, uint32_t level, uint64_t revision) {
         if (want_frame_ || closing_ || refine_to_ == 0) return;
         std::optional<scene::SceneSnapshot> current;
         try {
@@ -359,9 +362,9 @@ private:
         }
         if (!current || current->revision != revision) return;
         if (rendered.quality == scene::Quality::still) {
-            if (rendered.level >= refine_to_) return;
+            if (level >= refine_to_) return;
             wanted_seq_ = seq;
-            wanted_options_ = yielding_still(rendered.level + 1);
+            wanted_options_ = yielding_still(level + 1);
             want_frame_ = true;
             return submit_frame();
         }
@@ -370,6 +373,7 @@ private:
             if (ec || self->want_frame_ || self->in_flight_ || self->closing_) return;
             self->wanted_seq_ = seq;
             self->wanted_options_ = self->yielding_still(1);
+            self->wanted_options_.resume_up_to = self->refine_to_;
             self->want_frame_ = true;
             self->submit_frame();
         });
@@ -491,7 +495,7 @@ private:
             // A slow reader gets the newest frame only: an unsent older one is dropped, never queued.
             pending_frame_ = {std::make_shared<const std::string>(dump_json(header)), outcome.frame};
             write_next();
-            if (!played) refine_after(seq, options, outcome.revision);
+            if (!played) refine_after(seq, options, frame.level, outcome.revision);
         }
         submit_frame();
     }

@@ -26,8 +26,13 @@ std::string RenderQueue::key_of(const FrameRequest& request) {
                       std::to_string(request.document.image.height) + "|" + to_string(request.options.quality);
     // Viewers with other budgets get frames of other sizes; refinement levels are frames of their own.
     key += '|';  // appended: GCC 12 reports a false -Wrestrict for "|" + std::string (its bug 105329)
-    key += request.options.quality == Quality::interactive ? std::to_string(request.options.budget_ms)
-                                                           : std::to_string(request.options.level);
+    const FrameOptions& options = request.options;
+    if (options.quality == Quality::interactive) {
+        key += std::to_string(options.budget_ms);
+    } else {
+        key += std::to_string(options.level);
+        if (options.resume_up_to > options.level) key += "-" + std::to_string(options.resume_up_to);
+    }
     if (!request.playback.empty()) {
         key += "|play:";
         key += request.playback;

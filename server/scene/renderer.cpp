@@ -204,11 +204,17 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     // its own and, to refine it further, the radiance grid holds that level's batches; else from the
     // photon batches the grid holds, when it is a still frame's and holds no more than this level's
     // (their view at pixel centres is the frame of the level with that many); else from new photons.
-    const uint32_t level = quality == Quality::still ? std::clamp(options.level, 1u, kMaxRefinementLevel) : 1u;
+    uint32_t level = quality == Quality::still ? std::clamp(options.level, 1u, kMaxRefinementLevel) : 1u;
     uint32_t resident_level = 0;  // the level whose linear frame (or, with the view stale, photons) is resident
     if (quality == Quality::still && held) {
         const uint32_t batches =
             stale & kPhotons ? 0u : held->gpu->photon_batches(document, run_options_for(Quality::still));
+        const uint32_t up_to = std::min(options.resume_up_to, kMaxRefinementLevel);
+        if (!(stale & ~kToneMap) && held->level > level && held->level <= up_to &&
+            batches == refinement_at(held->level).photon_batches)
+            level = held->level;
+        else if (batches > refinement_at(level).photon_batches && batches <= up_to)
+            level = batches;  // levels 1..kMaxPhotonBatches hold as many batches as their number
         if (!(stale & ~kToneMap) && held->level != 0 && held->level <= level &&
             (held->level == level || batches == refinement_at(held->level).photon_batches)) {
             resident_level = held->level;

@@ -97,6 +97,11 @@ struct FrameOptions {
     // work is waiting: a user's next edit waits for one part (passes::kWorkPart photons or pixels), not a
     // whole frame. The refinement state is then dropped, so levels stay the same bytes however reached.
     std::function<bool()> give_way;
+    // Still frames: when above `level`, the frame may hold any level up to this one, and holds the highest
+    // that the resident state already gives for no more work than `level` (the batches its radiance grid
+    // holds, or the refined frame an exposure edit re-tones). The still after a camera drag then shows
+    // the grid that drag was shaded from instead of rerunning the photons of level 1. 0: exactly `level`.
+    uint32_t resume_up_to = 0;
 };
 
 struct FrameResult {
