@@ -299,7 +299,9 @@ TEST_F(RendererTest, ACameraDragAfterAStillFrameShadesFromItsRadianceGrid) {
 
 // A drag that begins while a refinement level renders makes that level give way: during its view (here
 // an eye-ray sample over 512 x 128 pixels, two parts) the radiance grid is whole and the drag's first
-// frame shades from it; during its photons the grid holds part of a batch and the frame traces anew.
+// frame shades from it; during its photons, before the batch is resolved into the grid, the grid holds
+// the batches before it, whole, and the frame shades from them too; once the resolve has begun the grid
+// holds part of a batch and the frame traces anew.
 TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
     const auto give_way = [] { return true; };
     const SceneDocument wide = small({{"image", {{"width", 512}, {"height", passes::kWorkPart / 256}}}});
@@ -312,14 +314,41 @@ TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
     EXPECT_EQ(pass_names(over_grid.rerun), pass_names(kView | kToneMap));
     EXPECT_EQ(over_grid.refinement.photon_batches, kMaxPhotonBatches);
 
-    const SceneDocument doc = small();
+    // Level 2's chances to give way, in order: between the parts of its photons (the direct light, the
+    // trace's parts), after their resolve, and before its view (whose one part ends the level).
+    const SceneDocument doc = small({{"photons", {{"count", 3 * passes::kWorkPart}}}});
     const auto camera = protocol::apply_merge_patch(doc, {{"camera", {{"position", {1, 1, 4}}}}});
-    Renderer in_photons(*context), fresh(*context);
-    in_photons.render("a", doc, no_assets);
-    EXPECT_THROW(in_photons.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, give_way}), Superseded);
-    const FrameResult traced = in_photons.render("a", camera, no_assets, {Quality::interactive});
-    EXPECT_EQ(pass_names(traced.rerun), pass_names(kPhotons | kView | kToneMap));
-    EXPECT_EQ(traced.png, fresh.render("b", camera, no_assets, {Quality::interactive}).png);
+    int chances = 0;
+    {
+        Renderer counting(*context);
+        counting.render("a", doc, no_assets);
+        counting.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, [&] { return ++chances, false; }});
+    }
+    ASSERT_GE(chances, 4);
+    Renderer fresh(*context), undisturbed(*context);
+    undisturbed.render("a", doc, no_assets);
+    const FrameResult over_first_batch = undisturbed.render("a", camera, no_assets, {Quality::interactive});
+    for (int at = 1; at <= chances - 1; ++at) {
+        SCOPED_TRACE(::testing::Message() << "gave way at chance " << at << " of " << chances);
+        const bool resolved = at == chances - 1;
+        Renderer renderer(*context);
+        renderer.render("a", doc, no_assets);
+        int asked = 0;
+        EXPECT_THROW(renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, [&] { return ++asked == at; }}),
+                     Superseded);
+        const FrameResult dragged = renderer.render("a", camera, no_assets, {Quality::interactive});
+        EXPECT_EQ(pass_names(dragged.rerun), pass_names(resolved ? kPhotons | kView | kToneMap : kView | kToneMap));
+        EXPECT_EQ(dragged.refinement.photon_batches, 1u);
+        if (!resolved) {
+            EXPECT_EQ(dragged.png, over_first_batch.png);
+        }
+        // The still after it resumes from the one whole batch (or traces it anew): level 1's bytes.
+        FrameOptions resume{Quality::still, kDefaultBudgetMs, 1};
+        resume.resume_up_to = kMaxRefinementLevel;
+        const FrameResult released = renderer.render("a", camera, no_assets, resume);
+        EXPECT_EQ(released.level, 1u);
+        EXPECT_EQ(released.png, fresh.render("b", camera, no_assets).png);
+    }
 }
 
 // The still frame after a camera drag over a refined grid is its level's bytes however reached: from the

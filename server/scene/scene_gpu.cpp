@@ -180,6 +180,10 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     sampled_deposits_ = options.sampled_deposits;
     bounces_ = bounces;
     const PassSet asked = stale;
+    // A refinement step adds a batch to the running mean of those before it. Given way before its first
+    // resolve, it leaves that mean in the images, and the frame made from it, as they were (each photon
+    // run clears the sums it adds to first): a drag that interrupts it shades from those batches.
+    bool mean_untouched = options.photon_batch > 0 && (built_ & kPhotons) && photon_batches_ == options.photon_batch;
     stale = passes_for(stale) & options.limit;
     allocate_frame(document.image.width, document.image.height);
 
@@ -263,7 +267,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         for (auto& timing : timer_.read()) earlier_ms.push_back(std::move(timing));
         if (options.give_way()) {
             // A pass after `pass` that runs only because an earlier one does keeps its output, made before.
-            built_ = (built_ | (stale & (pass - 1))) & ~((asked | pass) & ~(pass - 1));
+            if (!(pass == kPhotons && mean_untouched))
+                built_ = (built_ | (stale & (pass - 1))) & ~((asked | pass) & ~(pass - 1));
             throw Superseded();
         }
         cmd = recorder_.begin();
@@ -422,6 +427,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                                      bounces > 0, between_parts(kPhotons));
             recorder_.compute_barrier();
             kit_.radiance_resolve.record(recorder_, params_buffers_[i], *accum_, grey(), radiance_, flux_, floor_map_);
+            mean_untouched = false;
             recorder_.compute_barrier();
             if (gap) gap();
         }
