@@ -1079,9 +1079,12 @@ TEST_F(EnergyTest, FloorUnderSeveralLightsTakesEachLightsIrradiance) {
 // At smoothing 1 (a shell a voxel wide on each side): 1.03 (bar 1.05), where central differences and
 // shell steps at the lattice's phase gave 1.12. At the default 0.75 the trilinear fetch between
 // voxel centres still leaves 1.037 over 48 seeds (bar 1.027): an imprint 0.27 of one batch's noise
-// (README, "Ring moire in caustics"). REFRACT_IMPRINT_SMOOTHING sets volume.smoothing.
+// (README, "Ring moire in caustics"); over the first 40 of those seeds 1.027 (bar 1.029), so at 0.75 the
+// imprint sits at the edge of what this test can see. REFRACT_IMPRINT_SMOOTHING sets volume.smoothing,
+// REFRACT_IMPRINT_SEEDS the number of seeds (8).
 TEST_F(EnergyTest, LatticeLeavesNoImprintOnACausticAboveThePhotonNoise) {
-    constexpr uint32_t kSeeds = 8;
+    const char* seeds_text = std::getenv("REFRACT_IMPRINT_SEEDS");
+    const uint32_t kSeeds = seeds_text ? static_cast<uint32_t>(std::max(2, std::atoi(seeds_text))) : 8u;
     const double h = 2.7 / 96.0;
     const char* smoothing_text = std::getenv("REFRACT_IMPRINT_SMOOTHING");
     const double smoothing = smoothing_text ? std::atof(smoothing_text) : 1.0;
