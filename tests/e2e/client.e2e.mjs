@@ -244,6 +244,20 @@ async function main() {
     assert(info.draw.frame[0] === info.w && info.draw.canvas[0] >= info.w, `draw ${JSON.stringify(info.draw)}`);
     assert(info.sceneId === sceneId, `client uses scene ${info.sceneId}, expected ${sceneId}`);
     assert(info.conn === 'live', `connection state ${info.conn}`);
+    // The viewport keeps its size whatever the timings line shows: a frame that ran every pass lists
+    // seven, and a line that wrapped resized the stage, which re-rendered the scene at a new image size.
+    const stageHeights = await page.evaluate(() => {
+      const list = document.getElementById('timings');
+      const kept = list.innerHTML;
+      const height = () => document.getElementById('stage').getBoundingClientRect().height;
+      const before = height();
+      list.innerHTML = ['voxelize', 'index_field', 'octree', 'photons', 'view', 'tone_map', 'encode']
+        .map((name) => `<li class="pass pass-${name}">${name} 1234.5 ms</li>`).join('');
+      const after = height();
+      list.innerHTML = kept;
+      return { before, after };
+    });
+    assert(stageHeights.after === stageHeights.before, `a long timings line resized the stage (${JSON.stringify(stageHeights)})`);
     await shot(page, '01-first-frame.png');
   });
 
