@@ -25,7 +25,6 @@ vec4 batch_mean(vec4 before, vec4 batch) {
 }
 
 layout(constant_id = RESOLVE_CONSTANT_FLOOR) const bool kFloorMap = false;
-layout(constant_id = RESOLVE_CONSTANT_REPLACE) const bool kReplace = false;
 
 void resolve_voxel(uint i) {
     uvec3 dims = params.radiance_grid.xyz;
@@ -53,22 +52,13 @@ void resolve_voxel(uint i) {
         net[a] += float(int(int64_t(word) >> 32));
     }
     float mean = blue;  // grey transport: the blue slot holds the channels' mean
-    vec3 colour = vec3(mean);
     if (!kGreyTransport) {
         uint64_t rg = accum_rg.words[i];
-        colour = vec3(float(uint(rg & 0xffffffffUL)), float(uint(rg >> 32)), blue);
+        vec3 colour = vec3(float(uint(rg & 0xffffffffUL)), float(uint(rg >> 32)), blue);
         mean = (colour.r + colour.g + colour.b) * (1.0 / 3.0);
+        imageStore(radiance, v, batch_mean(imageLoad(radiance, v), vec4(colour * to_fluence, 0.0)));
     }
-    vec4 batch_fluence = vec4(colour * to_fluence, 0.0), batch_flux = vec4(net * to_fluence, mean * to_fluence);
-    if (kReplace) {
-        // Unlit: the cleared images hold its zeros already.
-        if (max(colour.r, max(colour.g, colour.b)) == 0.0 && net == vec3(0.0)) return;
-        if (!kGreyTransport) imageStore(radiance, v, batch_fluence);
-        imageStore(flux, v, batch_flux);
-        return;
-    }
-    if (!kGreyTransport) imageStore(radiance, v, batch_mean(imageLoad(radiance, v), batch_fluence));
-    imageStore(flux, v, batch_mean(imageLoad(flux, v), batch_flux));
+    imageStore(flux, v, batch_mean(imageLoad(flux, v), vec4(net * to_fluence, mean * to_fluence)));
 }
 
 void resolve_floor_texel(uint texel) {
@@ -81,7 +71,7 @@ void resolve_floor_texel(uint texel) {
     vec3 irradiance = vec3(float(int(accum_floor[3u * texel])), float(int(accum_floor[3u * texel + 1u])),
                            float(int(accum_floor[3u * texel + 2u]))) * to_irradiance;
     ivec3 t = ivec3(texel % side, texel / side, 0);
-    imageStore(floor_map, t, kReplace ? vec4(irradiance, 0.0) : batch_mean(imageLoad(floor_map, t), vec4(irradiance, 0.0)));
+    imageStore(floor_map, t, batch_mean(imageLoad(floor_map, t), vec4(irradiance, 0.0)));
 }
 
 // Two dispatches, one per job (kFloorMap): lavapipe would run both jobs' code in every invocation.

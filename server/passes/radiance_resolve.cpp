@@ -19,40 +19,27 @@ constexpr vk::BindingLayout kLayout[] = {
 
 RadianceResolvePass::RadianceResolvePass(vk::Context& context) {
     // Dispersive transport resolves as RGB does: per-channel sums either way.
-    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && RESOLVE_CONSTANT_FLOOR == 5 && RESOLVE_CONSTANT_REPLACE == 6 &&
-                  CHANNELS_RGB == 0 && CHANNELS_GREY == 1);
-    const char* names[] = {"radiance resolve",
-                           "radiance resolve (grey)",
-                           "floor map resolve",
-                           "floor map resolve (grey)",
-                           "radiance resolve, replacing",
-                           "radiance resolve (grey), replacing",
-                           "floor map resolve, replacing",
-                           "floor map resolve (grey), replacing"};
-    pipelines_.reserve(8);
-    for (uint32_t i = 0; i < 8; ++i) {
+    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && RESOLVE_CONSTANT_FLOOR == 5 && CHANNELS_RGB == 0 &&
+                  CHANNELS_GREY == 1);
+    const char* names[] = {"radiance resolve", "radiance resolve (grey)", "floor map resolve",
+                           "floor map resolve (grey)"};
+    pipelines_.reserve(4);
+    for (uint32_t i = 0; i < 4; ++i) {
         // The coverage fetch, Fresnel, films and materials are never used here.
-        const std::array<uint32_t, 7> constants{i & 1u, 0u, 0u, 0u, 0u, (i >> 1) & 1u, i >> 2};
+        const std::array<uint32_t, 6> constants{i & 1u, 0u, 0u, 0u, 0u, i >> 1};
         pipelines_.emplace_back(context, radiance_resolve_spv, kLayout, 0, names[i], constants);
     }
 }
 
 void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer& params,
-                                 const PhotonAccumulators& accum, bool grey, bool replaces,
-                                 const vk::Image3D& radiance, const vk::Image3D& flux,
-                                 const vk::Image3D& floor_map) const {
-    if (replaces) {
-        const float zero[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-        if (!grey) recorder.clear(radiance, zero);
-        recorder.clear(flux, zero);
-        recorder.transfer_to_compute_barrier();
-    }
+                                 const PhotonAccumulators& accum, bool grey, const vk::Image3D& radiance,
+                                 const vk::Image3D& flux, const vk::Image3D& floor_map) const {
     const vk::Binding bindings[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
                                     vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map)};
-    const uint32_t variant = (grey ? 1u : 0u) + (replaces ? 4u : 0u);
+    const uint32_t variant = grey ? 1u : 0u;
     const auto voxel_groups = vk::linear_groups(flux.extent().count(), TRANSPORT_GROUP_SIZE);
     pipelines_[variant].dispatch(recorder.get(), bindings, nullptr, 0, voxel_groups.x, voxel_groups.y);
     const auto texel_groups =

@@ -11,16 +11,12 @@ namespace refract::passes {
 class RadianceResolvePass {
 public:
     explicit RadianceResolvePass(vk::Context& context);
-    // `replaces`: this resolve's batch replaces what the images hold (the first light's share of a
-    // frame's first batch) instead of joining their running mean; they are cleared first.
     void record(vk::CommandRecorder& recorder, const vk::Buffer& params, const PhotonAccumulators& accum,
-                bool grey, bool replaces, const vk::Image3D& radiance, const vk::Image3D& flux,
-                const vk::Image3D& floor_map) const;
+                bool grey, const vk::Image3D& radiance, const vk::Image3D& flux, const vk::Image3D& floor_map) const;
     // `radiance` (rgb fluence) is written by coloured transport only; grey transport binds any image.
 
 private:
-    // Indexed grey + 2 x floor + 4 x replaces: grey or coloured transport, radiance-grid voxels or
-    // floor-map texels, replacing or blending.
+    // Indexed grey + 2 x floor: grey or coloured transport, radiance-grid voxels or floor-map texels.
     std::vector<vk::ComputePipeline> pipelines_;
 };
 

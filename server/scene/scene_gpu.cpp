@@ -426,8 +426,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             kit_.photon_trace.record(recorder_, light_inputs, *accum_, light.photon_info.x, options.sampled_deposits,
                                      bounces > 0, between_parts(kPhotons));
             recorder_.compute_barrier();
-            kit_.radiance_resolve.record(recorder_, params_buffers_[i], *accum_, grey(), i == 0 && options.photon_batch == 0,
-                                         radiance_, flux_, floor_map_);
+            kit_.radiance_resolve.record(recorder_, params_buffers_[i], *accum_, grey(), radiance_, flux_, floor_map_);
             mean_untouched = false;
             recorder_.compute_barrier();
             if (gap) gap();

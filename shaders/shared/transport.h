@@ -271,11 +271,6 @@ REFRACT_INLINE vec3 grey_colour(vec4 photon_flux) {
 // The radiance resolve, one specialization per job (constant RESOLVE_CONSTANT_FLOOR, after the transport
 // constants): true for the dispatch that resolves the floor map, false for the radiance grid's voxels.
 #define RESOLVE_CONSTANT_FLOOR TRANSPORT_CONSTANT_COUNT
-// And RESOLVE_CONSTANT_REPLACE: true where the resolve replaces what the images held (the first light's
-// share of a frame's first photon batch) rather than blending into them; the host clears the grid's
-// images first, so voxels no photon reached are left as the clear made them, which is most of a
-// spot-lit scene (a third of the resolve's time in the default scene).
-#define RESOLVE_CONSTANT_REPLACE (TRANSPORT_CONSTANT_COUNT + 1)
 
 // The lit-pyramid pass, one specialization per job (constant LIT_CONSTANT_MODE, after the transport
 // constants, which every transport shader declares): find level 0 from the radiance grid; merge a
