@@ -209,12 +209,17 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     if (quality == Quality::still && held) {
         const uint32_t batches =
             stale & kPhotons ? 0u : held->gpu->photon_batches(document, run_options_for(Quality::still));
-        const uint32_t up_to = std::min(options.resume_up_to, kMaxRefinementLevel);
-        if (!(stale & ~kToneMap) && held->level > level && held->level <= up_to &&
-            batches == refinement_at(held->level).photon_batches)
-            level = held->level;
-        else if (batches > refinement_at(level).photon_batches && batches <= up_to)
-            level = batches;  // levels 1..kMaxPhotonBatches hold as many batches as their number
+        // A still that may resume takes the highest level the resident state gives for no more work: its
+        // frame re-toned, else the view over its batches (levels 1..kMaxPhotonBatches hold as many as
+        // their number).
+        const uint32_t retoned =
+            !(stale & ~kToneMap) && batches == refinement_at(held->level).photon_batches ? held->level : 0u;
+        for (const uint32_t resumed : {retoned, batches}) {
+            if (resumed > level && resumed <= std::min(options.resume_up_to, kMaxRefinementLevel)) {
+                level = resumed;
+                break;
+            }
+        }
         if (!(stale & ~kToneMap) && held->level != 0 && held->level <= level &&
             (held->level == level || batches == refinement_at(held->level).photon_batches)) {
             resident_level = held->level;
