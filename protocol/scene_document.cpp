@@ -232,13 +232,14 @@ private:
         return it == obj.end() ? dflt : number_value(*it, child(base, key), r);
     }
 
+    // An integer in [lo, hi]; `rule` replaces the default wording where the field has more to say.
     static uint32_t uinteger(const json& obj, const std::string& base, const char* key, uint32_t dflt,
-                             uint32_t lo, uint32_t hi) {
+                             uint32_t lo, uint32_t hi, std::string rule = {}) {
         const auto it = obj.find(key);
         if (it == obj.end()) return dflt;
         const std::string pointer = child(base, key);
-        const std::string rule =
-            "must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+        if (rule.empty())
+            rule = "must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
         const json& v = *it;
         if (v.is_number_unsigned()) {
             const auto x = v.get<uint64_t>();
@@ -427,8 +428,8 @@ private:
 
     void read_object(const json& object, const std::string& base, Object& o) const {
         check_object(object, base,
-                     {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "abbe", "fresnel",
-                      "film", "extinction", "scattering", "phase", "grid"},
+                     {"mesh", "position", "rotation_deg", "scale", "resolution", "index_field", "ior", "maxwell_n0",
+                      "abbe", "fresnel", "film", "extinction", "scattering", "phase", "grid"},
                      "must be a JSON object");
         static constexpr const char* kMeshRule =
             "must be \"sphere\", \"cube\", \"torus\", \"prism\", \"bunny\" or \"upload:NAME\" with NAME 1..64 characters of "
@@ -445,6 +446,14 @@ private:
         o.position = vec3(object, base, "position", o.position, kCoord);
         o.rotation_deg = vec3(object, base, "rotation_deg", o.rotation_deg, kCoord);
         o.scale = number(object, base, "scale", o.scale, kScale);
+        // 0 takes the scene's voxel; fewer than 16 voxels across would not resolve the object at all.
+        const std::string resolution_rule = "must be 0 (the scene's voxel) or an integer in [" +
+                                            std::to_string(kMinObjectResolution) + ", " +
+                                            std::to_string(limits_.max_resolution) + "]";
+        o.resolution =
+            uinteger(object, base, "resolution", o.resolution, 0, limits_.max_resolution, resolution_rule);
+        if (o.resolution != 0 && o.resolution < kMinObjectResolution)
+            fail(child(base, "resolution"), resolution_rule);
         o.index_field = enumeration(object, base, "index_field", o.index_field,
                                     {{"uniform", IndexFieldKind::uniform},
                                      {"luneburg", IndexFieldKind::luneburg},
@@ -646,6 +655,7 @@ json object_json(const Object& o) {
             {"position", vec(o.position)},
             {"rotation_deg", vec(o.rotation_deg)},
             {"scale", o.scale},
+            {"resolution", o.resolution},
             {"index_field", name(o.index_field)},
             {"ior", o.ior},
             {"maxwell_n0", o.maxwell_n0},

@@ -72,6 +72,7 @@ struct Object {
     Vec3 position{0.0, 0.0, 0.0};
     Vec3 rotation_deg{0.0, 0.0, 0.0};  // XYZ Euler angles, applied X then Y then Z
     double scale = 1.0;
+    uint32_t resolution = 0;  // voxels along its own bounds' longest side; 0: the scene's voxel
     IndexFieldKind index_field = IndexFieldKind::uniform;
     double ior = 1.5;        // for uniform; luneburg ignores it; maxwell uses it as n0 when set via maxwell_n0
     double maxwell_n0 = 2.0; // n0 of the Maxwell fish-eye
@@ -161,6 +162,8 @@ struct Environment {
 // How many lights and objects a scene may hold.
 inline constexpr size_t kMaxLights = 8;
 inline constexpr size_t kMaxObjects = 64;
+// The fewest voxels an object may ask for along its longest side (Object::resolution, when not 0).
+inline constexpr uint32_t kMinObjectResolution = 16;
 
 struct SceneDocument {
     Camera camera;

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "protocol/animation.h"
 #include "protocol/scene_document.h"
 
 namespace refract::protocol {
@@ -49,6 +50,7 @@ SceneDocument customised() {
     d.object().position = {0.5, 0.25, -0.125};
     d.object().rotation_deg = {10.0, 20.0, 30.0};
     d.object().scale = 0.7;
+    d.object().resolution = 96;
     d.object().index_field = IndexFieldKind::grid;
     d.object().ior = 1.0 / 3.0 + 1.0;
     d.object().maxwell_n0 = 2.5;
@@ -157,8 +159,8 @@ TEST(SceneDocument, ToJsonEmitsEveryField) {
         {"/image", {"width", "height", "exposure"}},
         {"/lights/light", {"type", "position", "direction", "color", "intensity", "cone_deg"}},
         {"/objects/object",
-         {"mesh", "position", "rotation_deg", "scale", "index_field", "ior", "maxwell_n0", "abbe", "fresnel", "film",
-          "extinction", "scattering", "phase", "grid"}},
+         {"mesh", "position", "rotation_deg", "scale", "resolution", "index_field", "ior", "maxwell_n0", "abbe",
+          "fresnel", "film", "extinction", "scattering", "phase", "grid"}},
         {"/medium", {"ior", "extinction", "scattering", "phase"}},
         {"/volume", {"resolution", "smoothing", "octree_epsilon", "margin"}},
         {"/photons", {"count", "seed", "max_bounces"}},
@@ -247,6 +249,110 @@ TEST(SceneDocument, BoundaryValuesAccepted) {
     const SceneDocument d = parse_scene(j);
     EXPECT_EQ(d.photons.seed, 4294967295u);
     EXPECT_EQ(parse_scene(to_json(d)), d);
+}
+
+// ---- an object's own resolution -------------------------------------------------------------------------
+
+TEST(ObjectResolution, RoundTripsAndDefaultsToTheScenesVoxel) {
+    const SceneDocument d = parse_scene(json::parse(R"({"objects": {"a": {"resolution": 200}, "b": {}}})"));
+    EXPECT_EQ(d.objects.at("a").resolution, 200u);
+    EXPECT_EQ(d.objects.at("b").resolution, 0u);  // absent: the scene's voxel
+    EXPECT_EQ(Object{}.resolution, 0u);
+    const json j = to_json(d);
+    EXPECT_EQ(j["objects"]["a"]["resolution"], 200);
+    EXPECT_EQ(j["objects"]["b"]["resolution"], 0);  // the stored form always has it
+    EXPECT_EQ(parse_scene(j), d);
+    EXPECT_EQ(parse_scene(json::parse(j.dump())), d);
+    // A document from before the field loads as it did: every object at the scene's voxel.
+    json old = to_json(SceneDocument{});
+    old["objects"]["object"].erase("resolution");
+    EXPECT_EQ(parse_scene(old), SceneDocument{});
+    // The older one-object form takes it too; 0, the bounds and a whole float are accepted.
+    EXPECT_EQ(parse_scene(json::parse(R"({"object": {"resolution": 64}})")).object().resolution, 64u);
+    for (const uint32_t r : {0u, 16u, 512u}) {
+        EXPECT_EQ(parse_scene(json{{"objects", {{"a", {{"resolution", r}}}}}}).objects.at("a").resolution, r);
+    }
+    EXPECT_EQ(parse_scene(json::parse(R"({"objects": {"a": {"resolution": 48.0}}})")).objects.at("a").resolution,
+              48u);
+}
+
+TEST(ObjectResolution, HostileValuesAreRejectedAtItsPointer) {
+    const Limits limits;
+    const std::vector<json> values = {8, 1, 15, limits.max_resolution + 1, -5, 2.5, "fine", nullptr, true,
+                                      json::array({64}), json::object(), std::numeric_limits<double>::quiet_NaN(),
+                                      1e300, 4294967296.0};
+    for (const json& v : values) {
+        SCOPED_TRACE(v.dump());
+        // As a whole document (null included: only a merge patch removes a field with it)...
+        EXPECT_EQ(rejected_pointer([&] { (void)parse_scene(json{{"objects", {{"a", {{"resolution", v}}}}}}); }),
+                  "/objects/a/resolution");
+        // ...and as an edit, which changes nothing.
+        if (v.is_null()) continue;
+        const SceneDocument current = parse_scene(json::parse(R"({"objects": {"a": {}}})"));
+        const SceneDocument before = current;
+        EXPECT_EQ(rejected_pointer([&] {
+                      (void)apply_merge_patch(current, json{{"objects", {{"a", {{"resolution", v}}}}}});
+                  }),
+                  "/objects/a/resolution");
+        EXPECT_EQ(current, before);
+    }
+    // The rule says what is allowed.
+    try {
+        (void)parse_scene(json::parse(R"({"objects": {"a": {"resolution": 8}}})"));
+        ADD_FAILURE() << "accepted";
+    } catch (const ValidationError& e) {
+        EXPECT_EQ(e.rule(), "must be 0 (the scene's voxel) or an integer in [16, 512]");
+    }
+}
+
+TEST(ObjectResolution, FollowsTheResolutionLimit) {
+    Limits limits;
+    limits.max_resolution = 128;
+    EXPECT_EQ(parse_scene(json::parse(R"({"objects": {"a": {"resolution": 128}}})"), limits).objects.at("a").resolution,
+              128u);
+    try {
+        (void)apply_merge_patch(SceneDocument{}, json::parse(R"({"objects": {"object": {"resolution": 129}}})"),
+                                limits);
+        ADD_FAILURE() << "accepted";
+    } catch (const ValidationError& e) {
+        EXPECT_EQ(e.pointer(), "/objects/object/resolution");
+        EXPECT_EQ(e.rule(), "must be 0 (the scene's voxel) or an integer in [16, 128]");
+    }
+}
+
+TEST(ObjectResolution, MergePatchEditsOnlyThatObjectsFieldAndNullRestoresTheDefault) {
+    const SceneDocument two = parse_scene(json::parse(
+        R"({"objects": {"a": {"scale": 0.5, "resolution": 200}, "b": {"position": [2, 0, 0], "resolution": 32}}})"));
+    const SceneDocument edited = apply_merge_patch(two, json::parse(R"({"objects": {"a": {"resolution": 64}}})"));
+    SceneDocument expected = two;
+    expected.objects.at("a").resolution = 64;
+    EXPECT_EQ(edited, expected);
+    EXPECT_EQ(edited.objects.at("b"), two.objects.at("b"));
+    EXPECT_DOUBLE_EQ(edited.objects.at("a").scale, 0.5);
+    // null removes the field, and an absent field is the scene's voxel.
+    const SceneDocument reset = apply_merge_patch(edited, json::parse(R"({"objects": {"a": {"resolution": null}}})"));
+    EXPECT_EQ(reset.objects.at("a").resolution, 0u);
+    EXPECT_EQ(reset.objects.at("b").resolution, 32u);
+    // The older form edits the one object's.
+    EXPECT_EQ(apply_merge_patch(SceneDocument{}, json::parse(R"({"object": {"resolution": 256}})")).object().resolution,
+              256u);
+    EXPECT_EQ(rejected_pointer([] {
+                  (void)apply_merge_patch(SceneDocument{}, json::parse(R"({"object": {"resolution": 8}})"));
+              }),
+              "/object/resolution");
+}
+
+TEST(ObjectResolution, AnimationHoldsItUntilTheNextKeyframe) {
+    const Animation a(SceneDocument{}, json::parse(R"([
+        {"time": 0, "patch": {"object": {"resolution": 64}}},
+        {"time": 1, "patch": {"object": {"resolution": 128}}}])"));
+    EXPECT_EQ(a.at(0.5).object().resolution, 64u);
+    EXPECT_EQ(a.at(0.99).object().resolution, 64u);
+    EXPECT_EQ(a.at(1.0).object().resolution, 128u);
+    const Animation from_zero(SceneDocument{}, json::parse(R"([
+        {"time": 0, "patch": {}}, {"time": 1, "patch": {"object": {"resolution": 256}}}])"));
+    EXPECT_EQ(from_zero.at(0.5).object().resolution, 0u);
+    EXPECT_EQ(from_zero.at(1.0).object().resolution, 256u);
 }
 
 // ---- merge patch ----------------------------------------------------------------------------------------
@@ -619,6 +725,9 @@ std::vector<BadPatch> bad_patches() {
         {"zero scale", json::parse(R"({"object": {"scale": 0}})"), "/object/scale"},
         {"scale too big", json::parse(R"({"object": {"scale": 1001}})"), "/object/scale"},
         {"non-uniform scale", json::parse(R"({"object": {"scale": [1, 1, 1]}})"), "/object/scale"},
+        {"object resolution below 16", json::parse(R"({"object": {"resolution": 15}})"), "/object/resolution"},
+        {"object resolution above 512", json::parse(R"({"object": {"resolution": 513}})"), "/object/resolution"},
+        {"object resolution as string", json::parse(R"({"object": {"resolution": "64"}})"), "/object/resolution"},
         {"rotation of four", json::parse(R"({"object": {"rotation_deg": [0, 0, 0, 0]}})"),
          "/object/rotation_deg"},
         {"position infinite", json{{"object", {{"position", {0.0, inf, 0.0}}}}}, "/object/position/1"},

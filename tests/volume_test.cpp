@@ -1014,7 +1014,7 @@ TEST_F(VolumeTest, MovingAnObjectAcrossTopLevelNodesGivesTheOctreeOfAFreshBuild)
 
 
 // The memory estimate the renderer budgets with covers what a scene holds once built, one object or
-// several (their boxes rather than the lattice), and does not overstate it by more than the transient
+// several (their field atlas rather than the lattice), and does not overstate it by more than the transient
 // buffers and the conservative per-voxel sums it adds (2x).
 TEST_F(VolumeTest, MemoryEstimateCoversWhatASceneHolds) {
     const SceneDocument one = protocol::parse_scene({{"image", {{"width", 64}, {"height", 64}}}, {"volume", {{"resolution", 64}}}});
@@ -1030,7 +1030,8 @@ TEST_F(VolumeTest, MemoryEstimateCoversWhatASceneHolds) {
         uint64_t object_voxels = 0;
         for (const auto& [name, box] : scene::object_boxes(gpu.grid(), worlds(*doc), doc->volume.smoothing))
             object_voxels += box.box.dims.count();
-        const int64_t estimate = scene::estimate_scene_bytes(gpu.grid(), object_voxels, doc->image.width, doc->image.height);
+        const int64_t estimate = scene::estimate_scene_bytes(gpu.grid(), gpu.field_atlas().dims.count(), object_voxels,
+                                                             gpu.grid().dims.count(), doc->image.width, doc->image.height);
         std::printf("[ info ] %zu object(s): holds %.1f MiB, estimate %.1f MiB\n", doc->objects.size(),
                     static_cast<double>(held) / (1 << 20), static_cast<double>(estimate) / (1 << 20));
         EXPECT_GE(estimate, held);

@@ -1,5 +1,7 @@
 #include "passes/index_field.h"
 
+#include <algorithm>
+
 #include "index_field_spv.h"
 #include "volume_build.h"
 
@@ -24,18 +26,32 @@ IndexFieldPass::IndexFieldPass(vk::Context& context)
                   INDEX_KIND_GRID == 3);
 }
 
-void IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol::Medium& medium,
-                            const scene::GridGeometry& lattice, std::span<const ObjectField> objects, VoxelRange region, const vk::Buffer& zeros,
-                            const vk::Buffer& grid_values, const vk::Image3D& index_field,
-                            const vk::Image3D& coverage_image) const {
+namespace {
+VoxelRange part_in(const FieldBlock& block, VoxelRange region) {
+    return {glm::max(region.first, block.lattice.first), glm::min(region.end, block.lattice.end)};
+}
+}  // namespace
+
+uint64_t largest_part(std::span<const FieldBlock> blocks, VoxelRange region) {
+    uint64_t most = 0;
+    for (const FieldBlock& block : blocks) most = std::max(most, part_in(block, region).count());
+    return most;
+}
+
+VoxelRange IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol::Medium& medium,
+                                  const scene::GridGeometry& lattice, std::span<const ObjectField> objects,
+                                  std::span<const FieldBlock> blocks, VoxelRange region, const vk::Buffer* zeros,
+                                  const vk::Buffer& grid_values, const vk::Image3D& index_field,
+                                  const vk::Image3D& coverage_image) const {
     using protocol::IndexFieldKind;
     const float n_medium = static_cast<float>(medium.ior);
     // One dispatch: `object` over the part of `box` (its coverage's extent, at `offset` in the lattice)
-    // inside the region; `number` 0 writes, else joins (IndexFieldPush::offset).
+    // inside `within`, written `shift` voxels from its place in the lattice; `number` 0 writes, else
+    // joins (IndexFieldPush::offset).
     auto dispatch = [&](const protocol::Object& object, const scene::GridGeometry& box, glm::uvec3 offset,
-                        const vk::Buffer& coverage, uint32_t number) {
+                        const vk::Buffer& coverage, uint32_t number, VoxelRange within, glm::ivec3 shift) {
         const glm::uvec3 box_end = offset + glm::uvec3(box.dims.x, box.dims.y, box.dims.z);
-        const VoxelRange part{glm::max(region.first, offset), glm::min(region.end, box_end)};
+        const VoxelRange part{glm::max(within.first, offset), glm::min(within.end, box_end)};
         if (part.empty()) return;
         uint32_t kind = INDEX_KIND_UNIFORM;
         float n_object = static_cast<float>(object.ior);
@@ -52,7 +68,7 @@ void IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol::Mediu
         IndexFieldPush push{};
         push.dims = glm::uvec4(box.dims.x, box.dims.y, box.dims.z, 0);
         push.origin = glm::vec4(box.origin, box.voxel_size);
-        push.offset = glm::uvec4(offset, number);
+        push.offset = glm::uvec4(glm::uvec3(glm::ivec3(offset) + shift), number);
         push.first = glm::uvec4(part.first - offset, 0u);
         push.extent = glm::uvec4(extent, 0u);
         push.sphere = glm::vec4(static_cast<float>(object.position[0]), static_cast<float>(object.position[1]),
@@ -69,20 +85,34 @@ void IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol::Mediu
     };
     if (objects.size() == 1 && objects.front().number == 0) {
         const ObjectField& only = objects.front();
-        dispatch(only.object, only.box, only.offset, only.coverage, 0u);
-        return;
+        dispatch(only.object, only.box, only.offset, only.coverage, 0u, region, glm::ivec3(0));
+        return region;
     }
-    // The region to the medium: a uniform object of the medium's index and no coverage, numbered none.
+    // Block by block, the part of the region there to the medium (a uniform object of the medium's
+    // index and no coverage, numbered none), then the objects over it.
     protocol::Object medium_object;
     medium_object.ior = medium.ior;
-    const glm::uvec3 size = region.end - region.first;
-    const scene::GridGeometry region_box{lattice.origin + lattice.voxel_size * glm::vec3(region.first),
-                                         lattice.voxel_size, {size.x, size.y, size.z}};
-    dispatch(medium_object, region_box, region.first, zeros, 0u);
-    for (const ObjectField& part : objects) {
-        recorder.compute_barrier();  // each object's voxels join what those before it left
-        dispatch(part.object, part.box, part.offset, part.coverage, part.number);
+    VoxelRange written;
+    for (const FieldBlock& block : blocks) {
+        const VoxelRange part = part_in(block, region);
+        if (part.empty()) continue;
+        const glm::ivec3 shift = glm::ivec3(block.atlas_first) - glm::ivec3(block.lattice.first);
+        const glm::uvec3 size = part.end - part.first;
+        const scene::GridGeometry part_box{lattice.origin + lattice.voxel_size * glm::vec3(part.first),
+                                           lattice.voxel_size, {size.x, size.y, size.z}};
+        if (zeros) dispatch(medium_object, part_box, part.first, *zeros, 0u, part, shift);
+        bool first = !zeros;
+        for (const ObjectField& object : objects) {
+            const glm::uvec3 box_end = object.offset + glm::uvec3(object.box.dims.x, object.box.dims.y, object.box.dims.z);
+            if (glm::any(glm::greaterThanEqual(glm::max(part.first, object.offset), glm::min(part.end, box_end)))) continue;
+            if (!first) recorder.compute_barrier();  // each object's voxels join what those before it left
+            first = false;
+            dispatch(object.object, object.box, object.offset, object.coverage, object.number, part, shift);
+        }
+        const VoxelRange stored{glm::uvec3(glm::ivec3(part.first) + shift), glm::uvec3(glm::ivec3(part.end) + shift)};
+        written = written.empty() ? stored : VoxelRange{glm::min(written.first, stored.first), glm::max(written.end, stored.end)};
     }
+    return written;
 }
 
 }  // namespace refract::passes

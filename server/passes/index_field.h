@@ -32,19 +32,33 @@ struct ObjectField {
                                  // one object of a scene of one, whose box is the whole lattice
 };
 
+// Where a part of the lattice lies in the field images: its voxels from atlas_first on (the whole
+// lattice at the origin when the images are the lattice's; scene/field_atlas.h).
+struct FieldBlock {
+    VoxelRange lattice;
+    glm::uvec3 atlas_first{0u};
+};
+
+// The most voxels `region` holds in any one block: the medium's coverage the pass reads (`zeros`).
+uint64_t largest_part(std::span<const FieldBlock> blocks, VoxelRange region);
+
 class IndexFieldPass {
 public:
     explicit IndexFieldPass(vk::Context& context);
 
-    // Records the field of `objects` over `region` of the lattice's images; the rest keeps what it holds.
-    // The one object of a scene of one (number 0) writes the whole lattice.
-    // One object's box is the whole lattice, and so is the region. Several objects' fields join voxel by
-    // voxel over the medium (index_field.comp says how), in the order given: `zeros` is a float per
-    // voxel of the region, all 0 (the medium's coverage). `grid_values` is the imported index grid (the
-    // lattice's size) for index_field == grid; any small buffer otherwise.
-    void record(vk::CommandRecorder& recorder, const protocol::Medium& medium, const scene::GridGeometry& lattice,
-                std::span<const ObjectField> objects, VoxelRange region, const vk::Buffer& zeros, const vk::Buffer& grid_values,
-                const vk::Image3D& index_field, const vk::Image3D& coverage_image) const;
+    // Records the field of `objects` over `region` of the lattice into the images, where `blocks` store
+    // it; the rest keeps what it holds. Returns the images' voxels it wrote (the smallest box holding them).
+    // The one object of a scene of one (number 0) writes the whole lattice, its one block.
+    // Several objects' fields join voxel by voxel over the medium (index_field.comp says how), block by
+    // block, in the order given; each object's box lies in one block. `zeros` is a float per voxel of
+    // the largest part of the region in one block (largest_part), all 0 (the medium's coverage), which
+    // resets the region to the medium first; none when the images hold the medium there already.
+    // `grid_values` is the imported index grid (the lattice's size) for index_field == grid; any small
+    // buffer otherwise.
+    VoxelRange record(vk::CommandRecorder& recorder, const protocol::Medium& medium, const scene::GridGeometry& lattice,
+                      std::span<const ObjectField> objects, std::span<const FieldBlock> blocks, VoxelRange region,
+                      const vk::Buffer* zeros, const vk::Buffer& grid_values, const vk::Image3D& index_field,
+                      const vk::Image3D& coverage_image) const;
 
 private:
     ModePipelines pipelines_;  // by INDEX_KIND_*

@@ -31,7 +31,9 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
         const protocol::Object& a = a_it->second;
         const protocol::Object& b = b_it->second;
         // Geometry: the voxelize pass onwards (it voxelizes the objects whose world mesh changed only).
+        // An object's resolution sets the lattice's voxel, so it changes everything.
         if (a.mesh != b.mesh || a.position != b.position || a.rotation_deg != b.rotation_deg || a.scale != b.scale ||
+            a.resolution != b.resolution ||
             (a.index_field == protocol::IndexFieldKind::grid) != (b.index_field == protocol::IndexFieldKind::grid) ||
             a.grid != b.grid)
             stale |= kAllPasses;

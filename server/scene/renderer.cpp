@@ -1,6 +1,7 @@
 #include "scene/renderer.h"
 
 #include <algorithm>
+#include <limits>
 #include <chrono>
 #include <list>
 #include <map>
@@ -102,10 +103,16 @@ WorldMeshes worlds_of(const protocol::SceneDocument& document, const ResolvedAss
 int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes& worlds, const IndexGrid* grid) {
     const GridGeometry g = grid ? GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : grid_for(document, worlds);
     uint64_t object_voxels = 0;
+    std::map<std::string, ObjectBox> boxes;
     if (grid) object_voxels = g.dims.count();
     else
-        for (const auto& [name, box] : object_boxes(g, worlds, document.volume.smoothing)) object_voxels += box.box.dims.count();
-    return estimate_scene_bytes(g, object_voxels, document.image.width, document.image.height);
+        boxes = object_boxes(g, worlds, document.volume.smoothing);
+    for (const auto& [name, box] : boxes) object_voxels += box.box.dims.count();
+    // An atlas wider than any device allows is refused when the scene is built; here it counts as is.
+    const uint64_t field_voxels =
+        field_atlas_for(g, boxes, grid || document.objects.size() < 2, std::numeric_limits<uint32_t>::max()).dims.count();
+    return estimate_scene_bytes(g, field_voxels, object_voxels, g.dims.count(), document.image.width,
+                                document.image.height);
 }
 
 }  // namespace
@@ -240,7 +247,8 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         // for its boxes: an estimate).
         auto held_by = [](const Impl::Resident& r) {
             const GridGeometry& held_grid = r.gpu->grid();
-            return r.gpu->built() ? estimate_scene_bytes(held_grid, held_grid.dims.count(), r.gpu->width(), r.gpu->height())
+            return r.gpu->built() ? estimate_scene_bytes(held_grid, r.gpu->field_atlas().dims.count(), held_grid.dims.count(),
+                                                         held_grid.dims.count(), r.gpu->width(), r.gpu->height())
                                   : int64_t{0};
         };
         const int64_t replaced = it != impl_->scenes.end() ? held_by(it->second) : 0;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <stdexcept>
 #include <string_view>
 
 #include "scene/renderer.h"
@@ -23,20 +24,32 @@ PassKit::PassKit(vk::Context& ctx)
       tone_map(ctx),
       linear_sampler(vk::make_linear_sampler(ctx)) {}
 
-int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t object_voxels, uint32_t width, uint32_t height) {
-    const int64_t voxels = static_cast<int64_t>(grid.dims.count());
-    // Per lattice voxel: index field (16), coverage image (8), pyramid (8 x 1/7: levels 1 and up), levels
-    // (4 / 8), packed accumulators (RADIANCE_FLUX_WORDS x 8, and 8 for red and green in colour), net flux
-    // (16), coloured radiance (16); the direct light's edge list (4) and reach bits (1/8 + rows). Per voxel
-    // of the objects' boxes: coverage and the voxelize pass's scratch (4 + 4), and its per-axis scratch
-    // (12) while it runs.
-    const int64_t per_voxel = 16 + 8 + 2 + 1 + (RADIANCE_FLUX_WORDS + 1) * 8 + 16 + 16 + 4 + 1;
+int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t field_voxels, uint64_t object_voxels,
+                             uint64_t radiance_voxels, uint32_t width, uint32_t height) {
+    // Per field voxel: index field (16), coverage image (8), pyramid (8 x 1/7: levels 1 and up), levels
+    // (4 / 8). Per radiance voxel: packed accumulators (RADIANCE_FLUX_WORDS x 8, and 8 for red and green
+    // in colour), net flux (16), coloured radiance (16); the direct light's edge list (4) and reach bits
+    // (1/8 + rows). Per voxel of the objects' boxes: coverage and the voxelize pass's scratch (4 + 4), and
+    // its per-axis scratch (12) while it runs. Over the lattice: the lit pyramid and a field atlas's map.
+    const int64_t per_field_voxel = 16 + 8 + 2 + 1;
+    const int64_t per_radiance_voxel = (RADIANCE_FLUX_WORDS + 1) * 8 + 16 + 16 + 4 + 1;
     const int64_t per_object_voxel = 4 + 4 + 12;
+    const int64_t lattice = int64_t{passes::lit_pyramid_offsets(grid.dims)[LIT_LEVELS]} * 4 +
+                            static_cast<int64_t>(grid.dims.count() / (FIELD_CELL * FIELD_CELL * FIELD_CELL));
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
     const int64_t light_map = int64_t{passes::light_map_capacity(grid)} * passes::light_map_capacity(grid) * 2 * 4;
     // Per pixel: HDR (16), sRGB (4), a slot in the refinement list (4).
-    return voxels * per_voxel + static_cast<int64_t>(object_voxels) * per_object_voxel + floor + light_map +
+    return static_cast<int64_t>(field_voxels) * per_field_voxel + static_cast<int64_t>(object_voxels) * per_object_voxel +
+           static_cast<int64_t>(radiance_voxels) * per_radiance_voxel + lattice + floor + light_map +
            int64_t{width} * height * 24;
+}
+
+FieldAtlas field_atlas_for(const GridGeometry& lattice, const std::map<std::string, ObjectBox>& boxes, bool dense,
+                           uint32_t max_side) {
+    if (dense) return dense_field_atlas(lattice);
+    std::vector<std::pair<glm::uvec3, glm::uvec3>> ranges;
+    for (const auto& [name, b] : boxes) ranges.push_back({b.offset, b.offset + glm::uvec3(b.box.dims.x, b.box.dims.y, b.box.dims.z)});
+    return sparse_field_atlas(lattice, ranges, passes::octree_layout(lattice.dims).max_level, max_side);
 }
 
 uint32_t object_apron(double sigma) {
@@ -77,27 +90,43 @@ size_t mesh_hash(const mesh::Mesh& mesh) {
 SceneGpu::SceneGpu(PassKit& kit) : kit_(kit), recorder_(kit.context, "scene passes"), timer_(kit.context) {}
 
 void SceneGpu::allocate_volume(const GridGeometry& grid) {
-    vk::Context& ctx = kit_.context;
-    const auto storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
-                         VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
     // Drop the old volume first so peak memory is one volume, not two.
     objects_.clear();
     pyramid_ = {};
     levels_ = {};
     index_field_ = {};
     coverage_image_ = {};
+    atlas_ = {};
     accum_.reset();
     radiance_ = {};
     flux_ = {};
     floor_map_ = {};
-    index_field_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "index field");
-    coverage_image_ = vk::Image3D(ctx, grid.dims, VK_FORMAT_R32G32_SFLOAT, "coverage and object image");
-    const passes::OctreeLayout octree = passes::octree_layout(grid.dims);
+    grid_ = grid;
+    built_ = 0;
+}
+
+void SceneGpu::allocate_field(FieldAtlas atlas) {
+    vk::Context& ctx = kit_.context;
+    const auto storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                         VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+    pyramid_ = {};
+    levels_ = {};
+    index_field_ = {};
+    coverage_image_ = {};
+    index_field_ = vk::Image3D(ctx, atlas.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "index field");
+    coverage_image_ = vk::Image3D(ctx, atlas.dims, VK_FORMAT_R32G32_SFLOAT, "coverage and object image");
+    const passes::OctreeLayout octree = passes::octree_layout(atlas.dims);
     pyramid_ = vk::Buffer(ctx, std::max<uint64_t>(octree.node_count, 1) * 2 * sizeof(float), storage,
                           vk::MemoryUse::device, "octree pyramid");
     levels_ = vk::Buffer(ctx, octree.cell_count * sizeof(uint32_t), storage, vk::MemoryUse::device, "octree levels");
-    grid_ = grid;
-    built_ = 0;
+    atlas_map_ = {};
+    if (!atlas.dense) {
+        atlas_map_ = vk::Buffer(ctx, std::max<size_t>(atlas.map.size(), 1) * sizeof(uint32_t),
+                                VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT, vk::MemoryUse::upload, "field atlas map");
+        atlas_map_.write(atlas.map.data(), atlas.map.size() * sizeof(uint32_t));
+    }
+    atlas_ = std::move(atlas);
+    built_ &= ~(kIndexField | kOctree);
 }
 
 void SceneGpu::allocate_transport(uint32_t photon_exit_count, bool record_exits, uint32_t radiance_factor,
@@ -186,6 +215,34 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     bool mean_untouched = options.photon_batch > 0 && (built_ & kPhotons) && photon_batches_ == options.photon_batch;
     stale = passes_for(stale) & options.limit;
     allocate_frame(document.image.width, document.image.height);
+    const bool several = document.objects.size() > 1;
+    // The objects' boxes, and where their field is stored: a new layout means new field images.
+    const double sigma = document.volume.smoothing;
+    const std::map<std::string, ObjectBox> boxes = imported ? std::map<std::string, ObjectBox>{} : object_boxes(grid_, worlds, sigma);
+    // A new layout of an atlas built before carries the clusters that stay over from the old images
+    // (held until the submission completes), so that an edit of one object composes that one's cluster.
+    bool field_fresh = false;
+    struct {
+        vk::Image3D index_field, coverage;
+        FieldAtlas atlas;
+    } carried;
+    if (stale & kVoxelize) {
+        FieldAtlas layout;
+        try {
+            layout = field_atlas_for(grid_, boxes, imported || !several, kit_.context.limits().maxImageDimension3D);
+        } catch (const std::length_error& e) {
+            throw RenderError(e.what());
+        }
+        if (!(layout == atlas_) || !index_field_.get()) {
+            if ((built_ & kIndexField) && !atlas_.dense && !layout.dense) {
+                carried.index_field = std::move(index_field_);
+                carried.coverage = std::move(coverage_image_);
+                carried.atlas = atlas_;
+            }
+            allocate_field(std::move(layout));
+            field_fresh = true;
+        }
+    }
 
     passes::TransportOptions transport_options;
     transport_options.fixed_step = options.fixed_step;
@@ -217,7 +274,6 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     transport_options.environment = &environment_light_;
     light_params_ = passes::make_transport_params(document, grid_, transport_options);
     // Several objects: their materials, by the object numbers the index field holds per voxel.
-    const bool several = document.objects.size() > 1;
     if (several) {
         std::vector<shaders::Material> table;
         for (const auto& [name, object] : document.objects) table.push_back(passes::material_for(object, document.medium, grid_));
@@ -241,6 +297,9 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         if (accum_) params.radiance_sums = glm::uvec4(halves(accum_->red_green.address()), halves(accum_->flux.address()));
         params.environment_map = glm::uvec4(halves(environment_map_.address()), 0u, 0u);
         if (several) params.materials = glm::uvec4(halves(materials_.address()), params.materials.z, 0u);
+        if (!atlas_.dense)
+            params.field_atlas = glm::uvec4(halves(atlas_map_.address()), 0u, 0u);
+        params.atlas_dims = glm::uvec4(atlas_.dims.x, atlas_.dims.y, atlas_.dims.z, 0u);
         params_buffers_[i].write(&params, sizeof(params));
     }
     const shaders::TransportParams& params = light_params_.front();
@@ -292,9 +351,9 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     passes::VoxelRange moved;  // where the objects voxelized now lay before and lie now
     vk::Buffer zeros;          // the medium's coverage over the region the index field is remade over
     const passes::VoxelRange whole_lattice{glm::uvec3(0u), glm::uvec3(grid_.dims.x, grid_.dims.y, grid_.dims.z)};
-    passes::VoxelRange field_changed = whole_lattice;  // where the index field changed since the octree was made
-    const bool first_use = built_ == 0;
-    if (first_use) {
+    const passes::VoxelRange whole_field{glm::uvec3(0u), glm::uvec3(atlas_.dims.x, atlas_.dims.y, atlas_.dims.z)};
+    passes::VoxelRange field_changed = whole_field;  // where the field images changed since the octree was made
+    if (field_fresh) {
         for (const vk::Image3D* image : {&index_field_, &coverage_image_}) recorder_.init_image(*image);
     }
     if (stale & kPhotons && !(built_ & kPhotons)) {
@@ -324,8 +383,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             voxelized.push_back(document.objects.begin()->first);
         } else {
             // Only the objects whose coverage no longer fits their world mesh, box or smoothing.
-            const double sigma = document.volume.smoothing;
-            for (const auto& [name, box] : object_boxes(grid_, worlds, sigma)) {
+            for (const auto& [name, box] : boxes) {
                 const mesh::Mesh& world = worlds.at(name);
                 const size_t hash = mesh_hash(world);
                 auto held = objects_.find(name);
@@ -366,7 +424,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         passes::VoxelRange region{glm::uvec3(0u), glm::uvec3(grid_.dims.x, grid_.dims.y, grid_.dims.z)};
         const bool same_objects = std::equal(composed_objects_.begin(), composed_objects_.end(), document.objects.begin(),
                                              document.objects.end(), [](const auto& a, const auto& b) { return a.first == b.first; });
-        if (several && (built_ & kIndexField) && same_objects && composed_medium_ior_ == document.medium.ior) {
+        const bool resident = (built_ & kIndexField) || carried.index_field.get();
+        if (several && resident && same_objects && composed_medium_ior_ == document.medium.ior) {
             region = moved;
             for (const auto& [name, object] : document.objects) {
                 const protocol::Object& was = composed_objects_.at(name);
@@ -374,16 +433,46 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                     region = joined(region, range_of(objects_.at(name).box));
             }
         }
-        if (several && !region.empty()) {
-            zeros = vk::Buffer(kit_.context, region.count() * sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
-                               VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::device, "medium coverage");
+        // New atlas images, or a field composed whole, start as the medium everywhere, the room between
+        // the clusters too (the octree's ranges read a voxel past a cluster's edge, as in the lattice).
+        const bool whole = region.first == whole_lattice.first && region.end == whole_lattice.end;
+        const bool cleared = !atlas_.dense && (field_fresh || whole);
+        if (cleared) {
+            const float n_medium = static_cast<float>(document.medium.ior);
+            recorder_.clear(index_field_, {n_medium, 0.0f, 0.0f, 0.0f});
+            recorder_.clear(coverage_image_, {0.0f, 0.0f, 0.0f, 0.0f});
+            recorder_.compute_barrier();
+        }
+        // The clusters that stay are copied across; the others are composed anew, whole.
+        if (carried.index_field.get() && !whole) {
+            for (const FieldAtlas::Cluster& c : atlas_.clusters) {
+                const auto was = std::find_if(carried.atlas.clusters.begin(), carried.atlas.clusters.end(),
+                                              [&](const FieldAtlas::Cluster& o) { return o.first == c.first && o.end == c.end; });
+                if (was == carried.atlas.clusters.end()) {
+                    region = joined(region, {c.first, c.end});
+                    continue;
+                }
+                const glm::uvec3 e = c.extent();
+                for (const auto& [from, to] : {std::pair{&carried.index_field, &index_field_}, std::pair{&carried.coverage, &coverage_image_}})
+                    recorder_.copy(*from, {was->atlas_first.x, was->atlas_first.y, was->atlas_first.z}, *to,
+                                   {c.atlas_first.x, c.atlas_first.y, c.atlas_first.z}, {e.x, e.y, e.z});
+            }
+            recorder_.compute_barrier();
+        }
+        std::vector<passes::FieldBlock> blocks;
+        for (const FieldAtlas::Cluster& c : atlas_.clusters) blocks.push_back({{c.first, c.end}, c.atlas_first});
+        if (several && !region.empty() && !cleared) {
+            zeros = vk::Buffer(kit_.context, std::max<uint64_t>(passes::largest_part(blocks, region), 1) * sizeof(float),
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                               vk::MemoryUse::device, "medium coverage");
             recorder_.fill(zeros, 0u);
             recorder_.transfer_to_compute_barrier();
         }
+        field_changed = {};
         if (!region.empty())
-            kit_.index_field.record(recorder_, document.medium, grid_, fields, region, several ? zeros : grid_values_,
-                                    grid_values_, index_field_, coverage_image_);
-        field_changed = region;
+            field_changed = kit_.index_field.record(recorder_, document.medium, grid_, fields, blocks, region,
+                                                    cleared ? nullptr : (several ? &zeros : &grid_values_), grid_values_,
+                                                    index_field_, coverage_image_);
         composed_objects_ = document.objects;
         composed_medium_ior_ = document.medium.ior;
         recorder_.compute_barrier();
@@ -394,7 +483,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         // Over what the changed voxels reach, when the resident octree is the old field's at this epsilon.
         const float epsilon = passes::octree_epsilon(document);
         const bool resident = (built_ & kOctree) && epsilon == octree_epsilon_;
-        kit_.octree.record(recorder_, index_field_, epsilon, resident ? field_changed : whole_lattice, pyramid_, levels_);
+        kit_.octree.record(recorder_, index_field_, epsilon, resident ? field_changed : whole_field, pyramid_, levels_);
         octree_epsilon_ = epsilon;
         recorder_.compute_barrier();
         timer_.end(cmd);
@@ -431,7 +520,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             recorder_.compute_barrier();
             if (gap) gap();
         }
-        kit_.lit_pyramid.record(recorder_, params_buffer, flux_, accum_->lit_blocks, index_field_.extent());
+        kit_.lit_pyramid.record(recorder_, params_buffer, flux_, accum_->lit_blocks, grid_.dims);
         recorder_.compute_barrier();
         timer_.end(cmd);
         photon_batches_ = options.photon_batch + 1;
@@ -552,21 +641,51 @@ std::vector<glm::vec4> widen(const std::vector<uint16_t>& half) {
 }
 }  // namespace
 
+template <typename T>
+std::vector<T> SceneGpu::on_lattice(const std::vector<T>& texels, T outside) const {
+    if (atlas_.dense) return texels;
+    std::vector<T> out(grid_.dims.count(), outside);
+    for (const FieldAtlas::Cluster& c : atlas_.clusters)
+        for (uint32_t z = c.first.z; z < c.end.z; ++z)
+            for (uint32_t y = c.first.y; y < c.end.y; ++y)
+                for (uint32_t x = c.first.x; x < c.end.x; ++x) {
+                    const glm::uvec3 a = glm::uvec3(x, y, z) - c.first + c.atlas_first;
+                    out[(size_t{z} * grid_.dims.y + y) * grid_.dims.x + x] =
+                        texels[(size_t{a.z} * atlas_.dims.y + a.y) * atlas_.dims.x + a.x];
+                }
+    return out;
+}
+
 std::vector<float> SceneGpu::read_coverage() const {
-    const std::vector<glm::vec2> texels = read_image<glm::vec2>(coverage_image_);
+    const std::vector<glm::vec2> texels = on_lattice(read_image<glm::vec2>(coverage_image_), glm::vec2(0.0f));
     std::vector<float> out(texels.size());
     for (size_t i = 0; i < texels.size(); ++i) out[i] = texels[i].x;
     return out;
 }
 std::vector<uint32_t> SceneGpu::read_object_numbers() const {
-    const std::vector<glm::vec2> texels = read_image<glm::vec2>(coverage_image_);
+    const std::vector<glm::vec2> texels = on_lattice(read_image<glm::vec2>(coverage_image_), glm::vec2(0.0f));
     std::vector<uint32_t> out(texels.size());
     for (size_t i = 0; i < texels.size(); ++i) out[i] = static_cast<uint32_t>(texels[i].y);
     return out;
 }
-std::vector<glm::vec4> SceneGpu::read_index_field() const { return read_image<glm::vec4>(index_field_); }
+std::vector<glm::vec4> SceneGpu::read_index_field() const {
+    return on_lattice(read_image<glm::vec4>(index_field_), glm::vec4(static_cast<float>(composed_medium_ior_), 0.0f, 0.0f, 0.0f));
+}
 std::vector<uint32_t> SceneGpu::read_levels() const {
-    return passes::levels_per_voxel(read_buffer<uint32_t>(levels_), grid_.dims);
+    const std::vector<uint32_t> stored = passes::levels_per_voxel(read_buffer<uint32_t>(levels_), atlas_.dims);
+    if (atlas_.dense) return stored;
+    // As octree_level() in transport_common.glsl finds them: the map's outside the clusters, the atlas's
+    // inside, up to a map cell's.
+    std::vector<uint32_t> out(grid_.dims.count());
+    for (uint32_t z = 0; z < grid_.dims.z; ++z)
+        for (uint32_t y = 0; y < grid_.dims.y; ++y)
+            for (uint32_t x = 0; x < grid_.dims.x; ++x) {
+                const std::optional<glm::uvec3> a = atlas_.atlas_voxel({x, y, z});
+                out[(size_t{z} * grid_.dims.y + y) * grid_.dims.x + x] =
+                    a ? std::min(stored[(size_t{a->z} * atlas_.dims.y + a->y) * atlas_.dims.x + a->x], FIELD_CELL_LEVEL)
+                      : atlas_.map_entry(glm::uvec3(x, y, z) / FIELD_CELL) - FIELD_EMPTY;
+            }
+    return out;
 }
 std::vector<glm::vec2> SceneGpu::read_pyramid() const { return read_buffer<glm::vec2>(pyramid_); }
 std::vector<glm::vec4> SceneGpu::read_flux() const { return read_image<glm::vec4>(flux_); }

@@ -23,6 +23,7 @@
 #include "passes/view.h"
 #include "passes/voxelize.h"
 #include "protocol/scene_document.h"
+#include "scene/field_atlas.h"
 #include "scene/grid_geometry.h"
 #include "scene/object_mesh.h"
 #include "scene/passes.h"
@@ -94,9 +95,16 @@ struct RunOptions {
     std::function<bool()> give_way;
 };
 
-// Device memory a scene holds (bytes), for budgets before allocating: its lattice `grid`, objects'
-// boxes of `object_voxels` in all (the lattice's count for a scene of one object) and the frame.
-int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t object_voxels, uint32_t width, uint32_t height);
+// Device memory a scene holds (bytes), for budgets before allocating: its lattice `grid`, the field's
+// voxels (field_atlas: the lattice's for a scene of one object), objects' boxes of `object_voxels` in
+// all, the radiance grid's voxels and the frame.
+int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t field_voxels, uint64_t object_voxels,
+                             uint64_t radiance_voxels, uint32_t width, uint32_t height);
+
+// Where the field of objects in `boxes` lives: the dense lattice for one object (or an imported grid),
+// else a sparse atlas of their boxes (scene/field_atlas.h) no wider than `max_side`.
+FieldAtlas field_atlas_for(const GridGeometry& lattice, const std::map<std::string, ObjectBox>& boxes, bool dense,
+                           uint32_t max_side);
 
 // The voxels around an object's world bounds its box takes (object_box) for a smoothing of `sigma`
 // voxels: where the B-spline and the lattice Gaussian (passes::VoxelizePass) leave coverage, and one
@@ -123,6 +131,7 @@ public:
                  const image::EnvironmentMap* environment = nullptr);
 
     const GridGeometry& grid() const { return grid_; }
+    const FieldAtlas& field_atlas() const { return atlas_; }
     // The passes whose results are resident and whole.
     PassSet built() const { return built_; }
     // The passes a run asked for `stale` runs (before RunOptions::limit, on this grid and radiance grid):
@@ -139,7 +148,9 @@ public:
     uint32_t width() const { return width_; }
     uint32_t height() const { return height_; }
 
-    // Read-backs (each a separate submission): float per voxel / texel, x fastest.
+    // Read-backs (each a separate submission): float per voxel / texel, x fastest. The field's (coverage,
+    // objects, index field, levels) are per voxel of the lattice, what the transport's lookups see there
+    // (the medium's outside a field atlas's clusters); the pyramid is the field images' own.
     std::vector<float> read_coverage() const;
     std::vector<uint32_t> read_object_numbers() const;  // per voxel: 1 + the number of the object it holds, 0: none
     std::vector<glm::vec4> read_index_field() const;
@@ -167,6 +178,10 @@ public:
 
 private:
     void allocate_volume(const GridGeometry& grid);
+    void allocate_field(FieldAtlas atlas);
+    // The field images' texels spread over the lattice: `outside` where no cluster holds a voxel.
+    template <typename T>
+    std::vector<T> on_lattice(const std::vector<T>& texels, T outside) const;
     void allocate_transport(uint32_t photon_exit_count, bool record_exits, uint32_t radiance_factor, uint32_t channels);
     void allocate_frame(uint32_t width, uint32_t height);
     bool grid_made_for(const protocol::SceneDocument& document, const RunOptions& options) const;
@@ -199,7 +214,9 @@ private:
     std::map<std::string, protocol::Object> composed_objects_;
     double composed_medium_ior_ = 0.0;
     vk::Buffer grid_values_, pyramid_, levels_, materials_;
-    vk::Image3D index_field_, coverage_image_;
+    vk::Image3D index_field_, coverage_image_;  // at atlas_.dims
+    FieldAtlas atlas_;
+    vk::Buffer atlas_map_;  // a sparse atlas's map (transport.h)
     // Transport (photons, resolve)
     std::optional<passes::PhotonAccumulators> accum_;
     std::vector<vk::Buffer> params_buffers_;  // one per entry of light_params_

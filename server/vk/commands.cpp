@@ -117,4 +117,15 @@ void CommandRecorder::copy(const Image3D& src, const Buffer& dst) {
     vkCmdCopyImageToBuffer(command_buffer_, src.get(), VK_IMAGE_LAYOUT_GENERAL, dst.get(), 1, &region);
 }
 
+void CommandRecorder::copy(const Image3D& src, Extent3 src_first, const Image3D& dst, Extent3 dst_first, Extent3 extent) {
+    auto offset = [](Extent3 e) { return VkOffset3D{static_cast<int32_t>(e.x), static_cast<int32_t>(e.y), static_cast<int32_t>(e.z)}; };
+    VkImageCopy region{};
+    region.srcSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    region.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    region.srcOffset = offset(src_first);
+    region.dstOffset = offset(dst_first);
+    region.extent = {extent.x, extent.y, extent.z};
+    vkCmdCopyImage(command_buffer_, src.get(), VK_IMAGE_LAYOUT_GENERAL, dst.get(), VK_IMAGE_LAYOUT_GENERAL, 1, &region);
+}
+
 }  // namespace refract::vk

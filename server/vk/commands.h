@@ -36,6 +36,8 @@ public:
     void copy(const Buffer& src, const Buffer& dst, VkDeviceSize bytes);
     void copy(const Buffer& src, const Image3D& dst);
     void copy(const Image3D& src, const Buffer& dst);
+    // The texels of `extent` from `src_first` in `src` to `dst_first` in `dst` (same format).
+    void copy(const Image3D& src, Extent3 src_first, const Image3D& dst, Extent3 dst_first, Extent3 extent);
 
 private:
     Context& context_;

@@ -163,6 +163,16 @@ struct Material {
     uvec4 model;      // x: phase model (PHASE_*_ID); yzw: unused
 };
 
+// The field atlas of a scene of several objects (scene/field_atlas.h): the index field, coverage and
+// octree are stored only in clusters of the objects' boxes, packed into one atlas image. A map holds a
+// word per cell of FIELD_CELL^3 lattice voxels: where the cell lies in the atlas (in cells, 10 bits an
+// axis, x lowest), or FIELD_EMPTY + the octree level of the largest aligned cube around it that no
+// cluster meets (the medium there: a ray steps to its exit).
+#define FIELD_CELL 4u
+#define FIELD_CELL_LEVEL 2u  // log2(FIELD_CELL): the highest octree level inside a cluster
+#define FIELD_EMPTY 0x80000000u
+#define FIELD_AXIS_BITS 10u   // so the atlas is at most FIELD_CELL << FIELD_AXIS_BITS voxels a side
+
 // How a pass finds the coverage that mixes medium and object coefficients: not at all when both are
 // equal, from n when the field is the uniform object's (n is linear in coverage), else by a fetch.
 // Ordered by cost: the larger of two modes serves both (see coverage_for).
@@ -245,6 +255,9 @@ struct TransportParams {
                               // add to it); zw: unused
     uvec4 materials;          // xy: device address (low, high) of the Material table, one per object in
                               // name order (TRANSPORT_CONSTANT_MATERIALS); z: objects; w: unused
+    uvec4 field_atlas;        // several objects (TRANSPORT_CONSTANT_MATERIALS): xy: device address (low, high)
+                              // of the field atlas's map (FIELD_* above); zw: unused
+    uvec4 atlas_dims;         // xyz: the atlas's voxels (the index field's and coverage image's size); w: unused
     LightParams lights[TRANSPORT_MAX_LIGHTS];
 };
 
@@ -348,7 +361,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == (43 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == (45 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
 static_assert(sizeof(refract::shaders::Material) == 80);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);

@@ -37,18 +37,50 @@ float voxel_size() { return params.grid_origin.w; }
 vec3 to_voxel(vec3 world) { return (world - params.grid_origin.xyz) / params.grid_origin.w; }
 vec3 to_world(vec3 voxel) { return params.grid_origin.xyz + voxel * params.grid_origin.w; }
 
-// (n, dn/dx, dn/dy, dn/dz) per voxel length, trilinearly interpolated.
-vec4 index_at(vec3 p) { return textureLod(index_field, p / grid_dims(), 0.0); }
-float coverage_at(vec3 p) { return textureLod(coverage_field, p / grid_dims(), 0.0).r; }
-
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer Materials { Material material[]; };
+layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer FieldMap { uint cells[]; };
+
+// The voxel holding p, clamped to the lattice (as the images' edges clamp a fetch).
+ivec3 voxel_of(vec3 p) { return ivec3(clamp(p, vec3(0.0), grid_dims() - 1.0)); }
+
+// Several objects (kMaterials): the field atlas's map entry of the cell holding p (FIELD_*).
+uint field_entry(vec3 p) {
+    uvec3 cell = uvec3(voxel_of(p)) / FIELD_CELL;
+    uvec3 cells = (params.grid_dims.xyz + FIELD_CELL - 1u) / FIELD_CELL;
+    return FieldMap(params.field_atlas.xy).cells[(cell.z * cells.y + cell.y) * cells.x + cell.x];
+}
+
+// How far the atlas lies from the lattice (voxels) in the cell of map entry `entry` (not FIELD_EMPTY),
+// which holds p. A cluster's outermost voxels hold the medium, as does all the atlas around its
+// clusters: a trilinear fetch that reaches past a cluster's edge reads what the lattice holds there.
+vec3 atlas_shift(uint entry, vec3 p) {
+    uvec3 atlas_cell = (uvec3(entry) >> uvec3(0u, FIELD_AXIS_BITS, 2u * FIELD_AXIS_BITS)) & ((1u << FIELD_AXIS_BITS) - 1u);
+    return vec3(atlas_cell * FIELD_CELL) - vec3((uvec3(voxel_of(p)) / FIELD_CELL) * FIELD_CELL);
+}
+
+// (n, dn/dx, dn/dy, dn/dz) per voxel length, trilinearly interpolated: the medium's outside every
+// object's cluster.
+vec4 index_at(vec3 p) {
+    if (!kMaterials) return textureLod(index_field, p / grid_dims(), 0.0);
+    uint entry = field_entry(p);
+    if (entry >= FIELD_EMPTY) return vec4(params.medium_extinction.w, 0.0, 0.0, 0.0);
+    return textureLod(index_field, (p + atlas_shift(entry, p)) / vec3(params.atlas_dims.xyz), 0.0);
+}
+float coverage_at(vec3 p) {
+    if (!kMaterials) return textureLod(coverage_field, p / grid_dims(), 0.0).r;
+    uint entry = field_entry(p);
+    if (entry >= FIELD_EMPTY) return 0.0;
+    return textureLod(coverage_field, (p + atlas_shift(entry, p)) / vec3(params.atlas_dims.xyz), 0.0).r;
+}
 
 // The object whose material mixes with the medium's at p: the one the index-field pass left in the voxel
 // holding p (the object of most coverage there; the first where no object's box reaches, as coverage is
 // 0 there); always 0 in a scene of one object.
 uint object_at(vec3 p) {
     if (!kMaterials) return 0u;
-    float held = texelFetch(coverage_field, ivec3(clamp(p, vec3(0.0), grid_dims() - 1.0)), 0).g;
+    uint entry = field_entry(p);
+    if (entry >= FIELD_EMPTY) return 0u;
+    float held = texelFetch(coverage_field, voxel_of(p) + ivec3(atlas_shift(entry, p)), 0).g;
     return uint(max(held - 1.0, 0.0));
 }
 
@@ -90,11 +122,22 @@ float coverage_as(uint mode, float coverage) { return mode == COVERAGE_CONSTANT 
 
 bool inside_grid(vec3 p) { return all(greaterThanEqual(p, vec3(0.0))) && all(lessThan(p, grid_dims())); }
 
-// The leaf level at p, from the level-1 node holding p's voxel (octree.comp).
+// The leaf level at p, from the level-1 node holding p's voxel (octree.comp). In a field atlas the
+// octree is the atlas's, whose nodes above a map cell span other clusters: there the level stops at the
+// cell's, and outside every cluster it is the map's.
 uint octree_level(vec3 p) {
-    uvec3 c = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) >> 1u;
-    uvec3 cells = (params.grid_dims.xyz + 1u) >> 1u;
-    return levels[(c.z * cells.y + c.y) * cells.x + c.x];
+    ivec3 v = voxel_of(p);
+    uvec3 dims = params.grid_dims.xyz;
+    if (kMaterials) {
+        uint entry = field_entry(p);
+        if (entry >= FIELD_EMPTY) return entry - FIELD_EMPTY;
+        v += ivec3(atlas_shift(entry, p));
+        dims = params.atlas_dims.xyz;
+    }
+    uvec3 c = uvec3(v) >> 1u;
+    uvec3 cells = (dims + 1u) >> 1u;
+    uint level = levels[(c.z * cells.y + c.y) * cells.x + c.x];
+    return kMaterials ? min(level, FIELD_CELL_LEVEL) : level;
 }
 
 // Distance along unit direction d from p to the exit of the axis-aligned cube of side `size` (voxels)
