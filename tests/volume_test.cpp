@@ -1031,7 +1031,8 @@ TEST_F(VolumeTest, MemoryEstimateCoversWhatASceneHolds) {
         for (const auto& [name, box] : scene::object_boxes(gpu.grid(), worlds(*doc), doc->volume.smoothing))
             object_voxels += box.box.dims.count();
         const int64_t estimate = scene::estimate_scene_bytes(gpu.grid(), gpu.field_atlas().dims.count(), object_voxels,
-                                                             gpu.grid().dims.count(), doc->image.width, doc->image.height);
+                                                             gpu.grid().coarsened(gpu.grid().light_factor).count(),
+                                                             doc->image.width, doc->image.height);
         std::printf("[ info ] %zu object(s): holds %.1f MiB, estimate %.1f MiB\n", doc->objects.size(),
                     static_cast<double>(held) / (1 << 20), static_cast<double>(estimate) / (1 << 20));
         EXPECT_GE(estimate, held);

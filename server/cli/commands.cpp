@@ -101,6 +101,7 @@ json grid_json(const scene::GridGeometry& g) {
     const glm::vec3 hi = g.max_corner();
     return {{"dims", {g.dims.x, g.dims.y, g.dims.z}},
             {"voxel_size", g.voxel_size},
+            {"light_factor", g.light_factor},
             {"bounds", {{"min", {g.origin.x, g.origin.y, g.origin.z}}, {"max", {hi.x, hi.y, hi.z}}}}};
 }
 
@@ -199,8 +200,8 @@ int trace_command(const Arguments& args) {
     std::vector<float> log_fluence(fluence.size());
     for (size_t i = 0; i < fluence.size(); ++i)
         log_fluence[i] = std::log10(std::max(fluence[i], p999 * 1e-3f) / std::max(p999, 1e-30f));
-    write_slice_png((dir / "radiance_xy.png").string(), log_fluence, gpu.grid().dims, SliceAxis::xy, -3.0f, 0.0f);
-    write_slice_png((dir / "radiance_xz.png").string(), log_fluence, gpu.grid().dims, SliceAxis::xz, -3.0f, 0.0f);
+    write_slice_png((dir / "radiance_xy.png").string(), log_fluence, gpu.grid().coarsened(gpu.grid().light_factor), SliceAxis::xy, -3.0f, 0.0f);
+    write_slice_png((dir / "radiance_xz.png").string(), log_fluence, gpu.grid().coarsened(gpu.grid().light_factor), SliceAxis::xz, -3.0f, 0.0f);
     const auto floor = gpu.read_floor_map();
     float floor_peak = 0.0f;
     for (const auto& v : floor) floor_peak = std::max(floor_peak, (v.r + v.g + v.b) / 3.0f);

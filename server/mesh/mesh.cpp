@@ -804,7 +804,7 @@ MeshReport inspect(const Mesh& mesh) {
     return report;
 }
 
-Mesh transformed(const Mesh& mesh, float scale, glm::vec3 rotation_deg, glm::vec3 translation) {
+glm::dmat3 rotation(glm::vec3 rotation_deg) {
     const glm::dvec3 r = glm::dvec3(rotation_deg) * (std::numbers::pi / 180.0);
     const double cx = std::cos(r.x), sx = std::sin(r.x), cy = std::cos(r.y), sy = std::sin(r.y),
                  cz = std::cos(r.z), sz = std::sin(r.z);
@@ -812,7 +812,11 @@ Mesh transformed(const Mesh& mesh, float scale, glm::vec3 rotation_deg, glm::vec
     const glm::dmat3 rx(glm::dvec3(1, 0, 0), glm::dvec3(0, cx, sx), glm::dvec3(0, -sx, cx));
     const glm::dmat3 ry(glm::dvec3(cy, 0, -sy), glm::dvec3(0, 1, 0), glm::dvec3(sy, 0, cy));
     const glm::dmat3 rz(glm::dvec3(cz, sz, 0), glm::dvec3(-sz, cz, 0), glm::dvec3(0, 0, 1));
-    const glm::dmat3 m = rz * ry * rx * static_cast<double>(scale);
+    return rz * ry * rx;
+}
+
+Mesh transformed(const Mesh& mesh, float scale, glm::vec3 rotation_deg, glm::vec3 translation) {
+    const glm::dmat3 m = rotation(rotation_deg) * static_cast<double>(scale);
     const glm::dvec3 t(translation);
 
     Mesh out;

@@ -76,6 +76,9 @@ Mesh load_obj_file(const std::string& path, const MeshLimits& limits = {});
 // Degenerate: a repeated (welded) index, or an area that is zero to float precision.
 MeshReport inspect(const Mesh& mesh);
 
+// The rotation of XYZ Euler angles (degrees): X first, then Y, then Z.
+glm::dmat3 rotation(glm::vec3 rotation_deg);
+
 // Applies scale, then rotation (degrees, X then Y then Z), then translation. A negative scale mirrors the
 // mesh, so the triangles are flipped to stay outward-facing.
 Mesh transformed(const Mesh& mesh, float scale, glm::vec3 rotation_deg, glm::vec3 translation);

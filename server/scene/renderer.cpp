@@ -111,7 +111,7 @@ int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes&
     // An atlas wider than any device allows is refused when the scene is built; here it counts as is.
     const uint64_t field_voxels =
         field_atlas_for(g, boxes, grid || document.objects.size() < 2, std::numeric_limits<uint32_t>::max()).dims.count();
-    return estimate_scene_bytes(g, field_voxels, object_voxels, g.dims.count(), document.image.width,
+    return estimate_scene_bytes(g, field_voxels, object_voxels, g.coarsened(g.light_factor).count(), document.image.width,
                                 document.image.height);
 }
 
@@ -248,7 +248,8 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         auto held_by = [](const Impl::Resident& r) {
             const GridGeometry& held_grid = r.gpu->grid();
             return r.gpu->built() ? estimate_scene_bytes(held_grid, r.gpu->field_atlas().dims.count(), held_grid.dims.count(),
-                                                         held_grid.dims.count(), r.gpu->width(), r.gpu->height())
+                                                         held_grid.coarsened(held_grid.light_factor).count(), r.gpu->width(),
+                                                         r.gpu->height())
                                   : int64_t{0};
         };
         const int64_t replaced = it != impl_->scenes.end() ? held_by(it->second) : 0;

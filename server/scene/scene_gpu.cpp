@@ -136,7 +136,7 @@ void SceneGpu::allocate_transport(uint32_t photon_exit_count, bool record_exits,
     const uint32_t floor_texels = passes::floor_map_texels(grid_);
     const uint32_t exits = record_exits ? photon_exit_count : 1u;
     const uint32_t f = radiance_factor;
-    const vk::Extent3 radiance_dims = grid_.coarsened(f);
+    const vk::Extent3 radiance_dims = grid_.coarsened(f * grid_.light_factor);
     if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_ ||
         to_grey != grey()) {
         accum_.reset();
@@ -248,7 +248,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     transport_options.fixed_step = options.fixed_step;
     transport_options.view_step = options.view_step;
     transport_options.max_level = passes::octree_layout(grid_.dims).max_level;
-    transport_options.radiance_factor = options.radiance_factor;
+    transport_options.radiance_factor = options.radiance_factor * grid_.light_factor;
     transport_options.direct_light = options.direct_light;
     transport_options.photon_batch = options.photon_batch;
     transport_options.view_sample = options.view_sample;
@@ -508,7 +508,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             if (i > 0) passes::clear_for_next_light(recorder_, *accum_, grey());
             if (light.direct_light.w > 0.5f) {
                 kit_.direct_light.record(recorder_, light_inputs, *accum_, static_cast<uint32_t>(light.direct_light.x),
-                                         grid_.coarsened(options.radiance_factor));
+                                         grid_.coarsened(transport_options.radiance_factor));
                 recorder_.compute_barrier();
                 if (gap) gap();
             }

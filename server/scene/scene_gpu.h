@@ -76,7 +76,8 @@ struct RunOptions {
     // stay; set, it voxelizes every object again (what a benchmark of a whole rebuild measures).
     bool revoxelize = false;
     float view_step = 1.0f;       // eye-ray step in scattering media (voxels); interactive frames use 2
-    uint32_t radiance_factor = 1; // index-field voxels per radiance-grid voxel per axis; interactive: 3
+    uint32_t radiance_factor = 1; // scene voxels (GridGeometry::light_factor lattice voxels each) per
+                                  // radiance-grid voxel per axis; interactive: 3
     bool sampled_deposits = false; // photons deposit once per radiance voxel of path, not exactly per
                                    // voxel crossed (photon_trace.comp); interactive
     bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
