@@ -252,6 +252,38 @@ TEST_F(OpticsTest, BallLensAmongOtherObjectsFocusesAtItsFocalLength) {
     EXPECT_NEAR(median, ball_focus(n), tolerance);
 }
 
+// The ball lens in a scene 20 m across whose voxel is 8 times the ball's: asking for that voxel
+// (resolution, over its own diameter), the ball takes a lattice as fine as alone, its field in an atlas
+// beside two far objects that ask the same, and focuses within the tolerance it has alone on that
+// voxel. The beam spans the whole box, so four times the photons keep about as many through the ball.
+TEST_F(OpticsTest, BallLensInAWideSceneAskingForItsVoxelFocusesAsAlone) {
+    const double n = 1.5, h = 0.025;
+    json alone = ball_lens_patch(n, 0.0);
+    json ball = alone["object"];
+    ball["resolution"] = static_cast<int>(std::lround(2.0 * kBallR / h));
+    json patch = {{"volume", alone["volume"]}, {"photons", {{"count", 1 << 19}}}};
+    patch["volume"]["bounds"] = {{"min", {-10, -2.6, -10}}, {"max", {10, 2.6, 10}}};
+    patch["volume"]["resolution"] = 100;  // 0.2 m: 8 ball voxels
+    auto clear = [](json object) {
+        object["extinction"] = {0, 0, 0};
+        object["scattering"] = {0, 0, 0};
+        return object;
+    };
+    patch["objects"] = {{"object", nullptr},
+                        {"ball", clear(ball)},
+                        {"cube", clear({{"mesh", "cube"}, {"position", {6, 1, -6}}, {"scale", 0.4}, {"ior", 1.33}, {"resolution", 32}})},
+                        {"lens", clear({{"index_field", "luneburg"}, {"position", {-7, -1, 6}}, {"scale", 0.4}, {"resolution", 32}})}};
+    const protocol::SceneDocument doc = protocol::apply_merge_patch(optics_scene(json::object()), patch);
+    ASSERT_EQ(doc.objects.size(), 3u);
+    const Traced t = trace(doc);
+    EXPECT_EQ(t.grid.light_factor, 8u);
+    EXPECT_NEAR(t.grid.voxel_size, h, 1e-6);
+    const double median = median_ball_focus(t.exits, n), tolerance = ball_focus_tolerance(n, h);
+    std::printf("ball lens in a wide scene: f %.3f, focus median %.4f, tolerance %.4f (h %.4f)\n", ball_focus(n), median,
+                tolerance, h);
+    EXPECT_NEAR(median, ball_focus(n), tolerance);
+}
+
 // Dispersion (abbe V): each channel's photons see n_c - 1 = (n - 1) s_c and focus at f(n_c), blue nearest.
 // Each channel's median focus must lie within the ball lens's own tolerance of f(n_c). The ratio of the
 // blue and red foci is a sharper check: the shell's effective radius, the tolerance's main term, scales

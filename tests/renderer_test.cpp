@@ -78,6 +78,7 @@ TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
         {"floor height", {{"floor", {{"height", -1.2}}}}, kPhotons | kView | kToneMap},
         {"octree epsilon", {{"volume", {{"octree_epsilon", 0.01}}}}, kOctree | kPhotons | kView | kToneMap},
         {"dispersion", {{"object", {{"abbe", 30}}}}, kOctree | kPhotons | kView | kToneMap},
+        {"object resolution", {{"object", {{"resolution", 64}}}}, kAllPasses},
         {"ior", {{"object", {{"ior", 1.33}}}}, kIndexField | kOctree | kPhotons | kView | kToneMap},
         {"index field kind", {{"object", {{"index_field", "luneburg"}}}}, kIndexField | kOctree | kPhotons | kView | kToneMap},
         {"mesh", {{"object", {{"mesh", "torus"}}}}, kAllPasses},

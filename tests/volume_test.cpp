@@ -23,6 +23,8 @@
 #include "passes/octree.h"
 #include "passes/voxelize.h"
 #include "protocol/scene_document.h"
+#include "scene/field_atlas.h"
+#include "scene/grid_geometry.h"
 #include "scene/passes.h"
 #include "vk/commands.h"
 #include "vk/resources.h"
@@ -1013,6 +1015,196 @@ TEST_F(VolumeTest, MovingAnObjectAcrossTopLevelNodesGivesTheOctreeOfAFreshBuild)
 }
 
 
+// --- Field atlas (several objects) ------------------------------------------------------------------
+
+using AtlasBox = std::pair<glm::uvec3, glm::uvec3>;
+
+// The layout of several boxes: whole map cells, no cell in two clusters, every box in one, slots that
+// keep the octree's nodes of up to a cell whole and do not overlap; the map finds each lattice voxel of
+// a cluster where its slot holds it, and around the rest the largest aligned cube that holds no cluster.
+TEST(FieldAtlas, ClustersHoldEveryBoxAndTheMapFindsEachVoxelAndTheMediumAroundThem) {
+    scene::GridGeometry lattice;
+    lattice.voxel_size = 0.01f;
+    lattice.dims = {150, 37, 130};  // not whole cells: clusters at the far faces are clipped
+    const uint32_t max_level = passes::octree_layout(lattice.dims).max_level;
+    // Two boxes that overlap (one cluster), one that touches neither, one cut by the lattice's far face,
+    // and an empty one.
+    const std::vector<AtlasBox> boxes = {{{10, 3, 10}, {30, 20, 35}}, {{27, 5, 30}, {45, 30, 50}},
+                                         {{90, 0, 70}, {101, 13, 89}}, {{130, 20, 120}, {150, 37, 130}},
+                                         {{60, 10, 60}, {60, 20, 70}}};
+    const scene::FieldAtlas atlas = scene::sparse_field_atlas(lattice, boxes, max_level, 4096);
+    ASSERT_FALSE(atlas.dense);
+    ASSERT_EQ(atlas.clusters.size(), 3u);
+    const glm::uvec3 dims(lattice.dims.x, lattice.dims.y, lattice.dims.z);
+    for (const AtlasBox& b : boxes) {
+        if (glm::any(glm::greaterThanEqual(b.first, b.second))) continue;
+        const auto holder = std::find_if(atlas.clusters.begin(), atlas.clusters.end(), [&](const auto& c) {
+            return glm::all(glm::lessThanEqual(c.first, b.first)) && glm::all(glm::greaterThanEqual(c.end, b.second));
+        });
+        EXPECT_NE(holder, atlas.clusters.end());
+    }
+    auto slot_end = [](const scene::FieldAtlas::Cluster& c) {
+        return c.atlas_first + (c.extent() + FIELD_CELL - 1u) / FIELD_CELL * FIELD_CELL;
+    };
+    for (size_t i = 0; i < atlas.clusters.size(); ++i) {
+        const auto& c = atlas.clusters[i];
+        EXPECT_EQ(c.first % FIELD_CELL, glm::uvec3(0u));
+        EXPECT_EQ(c.atlas_first % FIELD_CELL, glm::uvec3(0u));
+        EXPECT_TRUE(glm::all(glm::equal(c.end, dims) || glm::equal(c.end % FIELD_CELL, glm::uvec3(0u))));
+        EXPECT_TRUE(glm::all(glm::lessThanEqual(slot_end(c), glm::uvec3(atlas.dims.x, atlas.dims.y, atlas.dims.z))));
+        for (size_t j = i + 1; j < atlas.clusters.size(); ++j) {
+            const auto& o = atlas.clusters[j];
+            EXPECT_FALSE(glm::all(glm::lessThan(c.first, o.end)) && glm::all(glm::lessThan(o.first, c.end)));
+            EXPECT_FALSE(glm::all(glm::lessThan(c.atlas_first, slot_end(o))) && glm::all(glm::lessThan(o.atlas_first, slot_end(c))));
+        }
+    }
+    for (uint32_t z = 0; z < dims.z; ++z)
+        for (uint32_t y = 0; y < dims.y; ++y)
+            for (uint32_t x = 0; x < dims.x; ++x) {
+                const glm::uvec3 v(x, y, z);
+                const auto in = std::find_if(atlas.clusters.begin(), atlas.clusters.end(), [&](const auto& c) { return c.contains(v); });
+                const std::optional<glm::uvec3> stored = atlas.atlas_voxel(v);
+                ASSERT_EQ(stored.has_value(), in != atlas.clusters.end()) << x << " " << y << " " << z;
+                if (stored) {
+                    ASSERT_EQ(*stored, v - in->first + in->atlas_first);
+                }
+            }
+    // Around the clusters, the map's level L: the aligned cube of 2^L voxels around the cell holds no
+    // cluster, and (below the top level) the one of 2^(L+1) does.
+    auto cube_is_clear = [&](glm::uvec3 cell, uint32_t level) {
+        const glm::uvec3 first = (cell * FIELD_CELL) >> level << level, end = first + (1u << level);
+        return std::none_of(atlas.clusters.begin(), atlas.clusters.end(), [&](const auto& c) {
+            return glm::all(glm::lessThan(c.first, end)) && glm::all(glm::lessThan(first, c.end));
+        });
+    };
+    uint32_t empty_cells = 0;
+    for (uint32_t z = 0; z < atlas.cells.z; ++z)
+        for (uint32_t y = 0; y < atlas.cells.y; ++y)
+            for (uint32_t x = 0; x < atlas.cells.x; ++x) {
+                const uint32_t entry = atlas.map_entry({x, y, z});
+                if (!(entry & FIELD_EMPTY)) continue;
+                ++empty_cells;
+                const uint32_t level = entry - FIELD_EMPTY;
+                ASSERT_GE(level, FIELD_CELL_LEVEL);
+                ASSERT_LE(level, max_level);
+                ASSERT_TRUE(cube_is_clear({x, y, z}, level));
+                if (level < max_level) {
+                    ASSERT_FALSE(cube_is_clear({x, y, z}, level + 1));
+                }
+            }
+    EXPECT_GT(empty_cells, 0u);
+    // The same boxes in another order give the same layout.
+    std::vector<AtlasBox> reversed(boxes.rbegin(), boxes.rend());
+    EXPECT_TRUE(scene::sparse_field_atlas(lattice, reversed, max_level, 4096) == atlas);
+    // Clusters that do not fit the device's image sides are refused, not clipped.
+    EXPECT_THROW(scene::sparse_field_atlas(lattice, boxes, max_level, 32), std::length_error);
+}
+
+// An object's resolution sets the lattice's voxel: the scene's divided by the smallest whole factor
+// that gives the object at least that many voxels along its own longest side, whatever its rotation;
+// at most kMaxLightFactor; the finest object decides.
+TEST(FieldAtlas, ObjectResolutionDividesTheScenesVoxelByAWholeFactor) {
+    auto grid_of = [](const nlohmann::json& objects) {
+        const SceneDocument doc = protocol::parse_scene(
+            {{"objects", objects}, {"volume", {{"resolution", 64}, {"bounds", {{"min", {-8, -1, -8}}, {"max", {8, 1, 8}}}}}}});
+        return scene::grid_for(doc, scene::world_meshes(doc, nullptr));
+    };
+    const scene::GridGeometry plain = grid_of({{"a", {{"scale", 0.5}}}});
+    EXPECT_EQ(plain.light_factor, 1u);
+    EXPECT_FLOAT_EQ(plain.voxel_size, 0.25f);
+    // A sphere of diameter 1 at 16 voxels: 1/16 m asked of a 1/4 m scene voxel -> factor 4.
+    const scene::GridGeometry fine = grid_of({{"a", {{"scale", 0.5}, {"resolution", 16}}}, {"b", {{"scale", 0.3}}}});
+    EXPECT_EQ(fine.light_factor, 4u);
+    EXPECT_FLOAT_EQ(fine.voxel_size, 0.0625f);
+    EXPECT_EQ(fine.dims, (vk::Extent3{256, 32, 256}));
+    EXPECT_EQ(fine.coarsened(fine.light_factor), plain.dims);
+    // 17 voxels: 4 no longer suffices.
+    EXPECT_EQ(grid_of({{"a", {{"scale", 0.5}, {"resolution", 17}}}}).light_factor, 5u);
+    // A cube turned 45 degrees is as long along its own sides as unturned.
+    EXPECT_EQ(grid_of({{"a", {{"mesh", "cube"}, {"scale", 0.5}, {"resolution", 16}, {"rotation_deg", {0, 45, 30}}}}}).light_factor, 4u);
+    EXPECT_EQ(grid_of({{"a", {{"scale", 0.5}, {"resolution", 512}}}}).light_factor, scene::kMaxLightFactor);
+}
+
+// A scene of several objects stores its field in an atlas; the lookups see there, voxel for voxel,
+// the field a dense lattice holds: an object next to a far one has the index field and coverage it has
+// alone on the same lattice, to the float rounding of its voxelization, and its frame is the frame it
+// makes alone but for the few photons whose steps round differently.
+TEST_F(VolumeTest, AnObjectInAFieldAtlasHasTheFieldAndFrameItHasInADenseLattice) {
+    const nlohmann::json ball = {{"position", {-0.6, 0, 0}}, {"scale", 0.45}, {"ior", 1.5},
+                                 {"extinction", {0, 0, 0}}, {"scattering", {0, 0, 0}}};
+    // The far object: a small cube in the lattice's corner, behind the camera's view and the light's cone.
+    const nlohmann::json far = {{"mesh", "cube"}, {"position", {1.3, -0.8, -0.8}}, {"scale", 0.1}};
+    auto document = [&](const nlohmann::json& objects) {
+        return protocol::parse_scene(
+            {{"objects", objects},
+             {"volume", {{"resolution", 96}, {"bounds", {{"min", {-1.5, -1, -1}}, {"max", {1.5, 1, 1}}}}}},
+             {"medium", {{"ior", 1.0}, {"extinction", {0.3, 0.3, 0.3}}, {"scattering", {0.3, 0.3, 0.3}}}},
+             {"lights", {{"spot", {{"type", "spot"}, {"position", {-0.6, 0.95, 0}}, {"direction", {0, -1, 0}}, {"cone_deg", 30}}}}},
+             {"camera", {{"position", {-0.6, 0, 3}}, {"target", {-0.6, 0, 0}}, {"fov_deg", 40}}},
+             {"floor", {{"enabled", false}}},
+             {"image", {{"width", 64}, {"height", 64}}},
+             {"photons", {{"count", 65536}}}});
+    };
+    const SceneDocument alone = document({{"ball", ball}});
+    const SceneDocument pair = document({{"ball", ball}, {"far", far}});
+    scene::SceneGpu dense(kit()), sparse(kit());
+    dense.run(scene::kAllPasses, alone, worlds(alone), nullptr);
+    sparse.run(scene::kAllPasses, pair, worlds(pair), nullptr);
+    ASSERT_TRUE(dense.field_atlas().dense);
+    ASSERT_FALSE(sparse.field_atlas().dense);
+    ASSERT_EQ(sparse.field_atlas().clusters.size(), 2u);
+    const scene::GridGeometry& g = dense.grid();
+    ASSERT_TRUE(g == sparse.grid());
+    EXPECT_LT(sparse.field_atlas().dims.count(), g.dims.count() / 2);
+    // Voxel for voxel outside the far cube's box.
+    const scene::ObjectBox far_box = scene::object_boxes(g, worlds(pair), pair.volume.smoothing).at("far");
+    const auto dense_field = dense.read_index_field(), sparse_field = sparse.read_index_field();
+    const auto dense_coverage = dense.read_coverage(), sparse_coverage = sparse.read_coverage();
+    size_t compared = 0;
+    float field_error = 0.0f, coverage_error = 0.0f;
+    for (uint32_t z = 0; z < g.dims.z; ++z)
+        for (uint32_t y = 0; y < g.dims.y; ++y)
+            for (uint32_t x = 0; x < g.dims.x; ++x) {
+                const glm::uvec3 v(x, y, z), first = far_box.offset;
+                const glm::uvec3 end = first + glm::uvec3(far_box.box.dims.x, far_box.box.dims.y, far_box.box.dims.z);
+                if (glm::all(glm::greaterThanEqual(v, first)) && glm::all(glm::lessThan(v, end))) continue;
+                const size_t i = (size_t{z} * g.dims.y + y) * g.dims.x + x;
+                for (int c = 0; c < 4; ++c) field_error = std::max(field_error, std::abs(dense_field[i][c] - sparse_field[i][c]));
+                coverage_error = std::max(coverage_error, std::abs(dense_coverage[i] - sparse_coverage[i]));
+                ++compared;
+            }
+    EXPECT_GT(compared, g.dims.count() * 9 / 10);
+    // Alone, the ball is voxelized over the whole lattice, here over its own box: the same sums of
+    // coverage from positions relative to another corner, a few float roundings (2^-23 relative) of
+    // values of at most 1, and n and grad n are linear in them with weights below 1.
+    std::printf("[ info ] atlas against dense: field %.3e, coverage %.3e\n", double{field_error}, double{coverage_error});
+    EXPECT_LT(field_error, 1e-6f);
+    EXPECT_LT(coverage_error, 1e-6f);
+    // The frames: the same photons through the same field, but a trilinear fetch at an atlas position
+    // rounds its weights differently from one at the lattice's, the voxelizer's sums over another box
+    // round differently (the 2e-7 above), and the octree's leaves stop at a map cell: a photon's path
+    // may part in the last bits and one of its deposits' stochastic roundings fall the other way. If a
+    // fraction q of the photons drew anew, the frames would differ by sqrt(q) times what two seeds'
+    // frames differ by (photon noise adds in quadrature): under half of that says fewer than a quarter
+    // of the photons part. A field seen wrongly (the ball a voxel off, the medium where glass is) moves
+    // the caustic and the ball's pixels by far more than the noise.
+    SceneDocument reseeded = alone;
+    reseeded.photons.seed = alone.photons.seed + 1;
+    scene::SceneGpu other(kit());
+    other.run(scene::kAllPasses, reseeded, worlds(reseeded), nullptr);
+    auto difference = [](const std::vector<glm::vec4>& a, const std::vector<glm::vec4>& b) {
+        double d = 0.0;
+        for (size_t i = 0; i < a.size(); ++i) d += glm::length(glm::dvec3(a[i]) - glm::dvec3(b[i]));
+        return d;
+    };
+    const auto frame = dense.read_hdr();
+    const double atlas_difference = difference(frame, sparse.read_hdr());
+    const double seed_difference = difference(frame, other.read_hdr());
+    std::printf("[ info ] atlas against dense: frames differ by %.3e, two seeds by %.3e\n", atlas_difference, seed_difference);
+    EXPECT_GT(seed_difference, 0.0);
+    EXPECT_LT(atlas_difference, 0.5 * seed_difference);
+}
+
 // The memory estimate the renderer budgets with covers what a scene holds once built, one object or
 // several (their field atlas rather than the lattice), and does not overstate it by more than the transient
 // buffers and the conservative per-voxel sums it adds (2x).
@@ -1021,12 +1213,23 @@ TEST_F(VolumeTest, MemoryEstimateCoversWhatASceneHolds) {
     const SceneDocument three = objects_document({{"ball", {{"position", {-1.0, 0, 0}}, {"scale", 0.35}}},
                                                   {"cube", {{"mesh", "cube"}, {"scale", 0.3}}},
                                                   {"lens", {{"index_field", "luneburg"}, {"position", {1.0, 0, 0}}, {"scale", 0.35}}}});
-    for (const SceneDocument* doc : {&one, &three}) {
+    // Objects far apart asking for voxels four times finer than the scene's: a field atlas on a lattice
+    // of light_factor 4, the radiance grid at the scene's voxel.
+    const SceneDocument sparse = protocol::parse_scene(
+        {{"image", {{"width", 64}, {"height", 64}}},
+         {"objects", {{"ball", {{"position", {-1.5, 0, 0}}, {"scale", 0.3}, {"resolution", 22}}},
+                      {"cube", {{"mesh", "cube"}, {"position", {1.5, 0, 1}}, {"scale", 0.25}, {"resolution", 20}}}}},
+         {"volume", {{"resolution", 40}, {"bounds", {{"min", {-2, -1, -2}}, {"max", {2, 1, 2}}}}}}});
+    for (const SceneDocument* doc : {&one, &three, &sparse}) {
         SCOPED_TRACE(doc->objects.size());
         const int64_t before = context().allocated_bytes();
         scene::SceneGpu gpu(kit());
         gpu.run(scene::kAllPasses, *doc, worlds(*doc), nullptr);
         const int64_t held = context().allocated_bytes() - before;
+        if (doc == &sparse) {
+            EXPECT_EQ(gpu.grid().light_factor, 4u);
+            EXPECT_LT(gpu.field_atlas().dims.count(), gpu.grid().dims.count() / 10);
+        }
         uint64_t object_voxels = 0;
         for (const auto& [name, box] : scene::object_boxes(gpu.grid(), worlds(*doc), doc->volume.smoothing))
             object_voxels += box.box.dims.count();

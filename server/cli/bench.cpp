@@ -145,9 +145,9 @@ std::vector<BenchCase> standard_suite(bool gpu) {
         cases.push_back({"gallery move one", gallery, scene::kAllPasses, "move", scene::Quality::still, move});
         json alone = gallery;
         alone["objects"] = {{"bunny", bunny}};
-        const auto& bounds = gallery["volume"]["bounds"];
-        const double voxel = (bounds["max"][0].get<double>() - bounds["min"][0].get<double>()) /
-                             gallery["volume"]["resolution"].get<double>();
+        // The gallery's lattice voxel, which its objects' resolutions set.
+        const protocol::SceneDocument parsed = protocol::parse_scene(gallery);
+        const double voxel = scene::grid_for(parsed, scene::world_meshes(parsed, nullptr)).voxel_size;
         const double half = 0.65;  // around the bunny (scale 0.5) and its move
         json lo = json::array(), hi = json::array();
         for (size_t a = 0; a < 3; ++a) {
@@ -390,6 +390,14 @@ int bench_command(const Arguments& args) {
         json entry = {{"case", c.name}, {"edit", c.edit_name}, {"quality", c.quality == scene::Quality::interactive ? "interactive" : "still"}, {"device_memory_mib", static_cast<double>(memory) / (1 << 20)},
                       {"voxels", scene_gpu.grid().dims.count()}, {"photons", document.photons.count},
                       {"pixels", uint64_t{document.image.width} * document.image.height}, {"passes", json::object()}};
+        // What a dense lattice of the same voxel over the same box would hold, field and light alike (the
+        // budget's estimate; the measured memory's counterpart for a scene of one object).
+        const scene::GridGeometry& lattice = scene_gpu.grid();
+        const int64_t dense = scene::estimate_scene_bytes(lattice, lattice.dims.count(), 0, lattice.dims.count(),
+                                                          document.image.width, document.image.height);
+        entry["field_atlas"] = {{"clusters", scene_gpu.field_atlas().dense ? 0 : scene_gpu.field_atlas().clusters.size()},
+                                {"voxels", scene_gpu.field_atlas().dims.count()}};
+        entry["dense_lattice_mib"] = static_cast<double>(dense) / (1 << 20);
         double gpu_total = 0.0;
         for (const auto& [name, samples] : pass_ms) {
             const Summary s = summarize(samples);
@@ -422,6 +430,10 @@ int bench_command(const Arguments& args) {
                 std::printf(" %s %.1f (%.1f-%.1f)", pass, s.median, s.min, s.max);
             }
             std::printf(" | encode %.1f host %.1f ms | %.0f MiB", encode.median, host.median, static_cast<double>(memory) / (1 << 20));
+            if (!scene_gpu.field_atlas().dense)
+                std::printf(" (a dense lattice: %.0f MiB; field atlas of %zu clusters, %.2f Mvoxels)",
+                            static_cast<double>(dense) / (1 << 20), scene_gpu.field_atlas().clusters.size(),
+                            static_cast<double>(scene_gpu.field_atlas().dims.count()) * 1e-6);
             if (entry.contains("photons_per_s"))
                 std::printf(" | %.2f Mphotons/s %.1f steps/photon %.2f bounces/photon %.1f Msteps/s",
                             entry["photons_per_s"].get<double>() * 1e-6, entry["mean_steps_per_photon"].get<double>(),
