@@ -40,8 +40,8 @@ float straight_run(vec2 s) {
     bool fixed_step = params.photon_info.w == 1u;
     float near = params.direct_light.y;
     for (uint steps = 0u; steps < params.photon_info.z; ++steps) {
-        if (!flat_medium(ray.field, coverage_for(params.flags.y, ray.p, ray.field.x))) return along;
-        float ds = safe_step(fixed_step ? 0u : octree_level(ray.p), ray.p, ray.d, params.stepping.x);
+        if (!flat_medium(ray.field, coverage_for(params.flags.y, ray))) return along;
+        float ds = safe_step(fixed_step ? 0u : octree_level(ray), ray.p, ray.d, params.stepping.x);
         if (along < near) ds = min(ds, max(near - along, 1e-3));  // the photons' step there (photon_trace.comp)
         float to_exit = grid_interval(ray.p, ray.d).y;
         if (floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y && (ray.p.y - floor_y) / -ray.d.y < to_exit)
@@ -49,8 +49,10 @@ float straight_run(vec2 s) {
         // Photons of the texel's other rays start their steps elsewhere: look for the object or a
         // gradient of n every voxel along this step, not only where it starts.
         for (float t = 1.0; t < min(ds, to_exit); t += 1.0) {
-            vec4 field = index_at(ray.p + t * ray.d);
-            if (!flat_medium(field, coverage_for(params.flags.y, ray.p + t * ray.d, field.x))) return along + t - 1.0;
+            vec3 q = ray.p + t * ray.d;
+            uint cell = field_entry(q);
+            vec4 field = index_at(q, cell);
+            if (!flat_medium(field, coverage_for(params.flags.y, q, cell, field.x))) return along + t - 1.0;
         }
         if (to_exit <= ds) return kStraightOn;
         ray_step(ray, ds);

@@ -310,7 +310,7 @@ void main() {
                 direct_to = -1.0;  // what direct light counts is light that never scattered
                 if (!survives_roulette(weight, next_unit())) break;
             }
-            uint level = fixed_step ? 0u : octree_level(ray.p);
+            uint level = fixed_step ? 0u : octree_level(ray);
             float ds = safe_step(level, ray.p, ray.d, shell_step_for(ray, shell_step));
             // A leaf ends on a plane of the lattice, so the shell steps after it would all start at the
             // same phase of the lattice, and what the steps make of a shell a voxel or two wide depends
@@ -319,10 +319,9 @@ void main() {
             // fraction, so each photon crosses the shell at its own phase.
             if (level == 0u && after_leaf) ds *= 1.0 - to_unit(hash(step_seed ^ hash(steps)));
             after_leaf = level != 0u;
-            float coverage = coverage_for(kRandomWalks ? max(params.flags.y, params.flags.z) : params.flags.y, ray.p,
-                                          ray.field.x);
+            float coverage = coverage_for(kRandomWalks ? max(params.flags.y, params.flags.z) : params.flags.y, ray);
             if (kRandomWalks) coverage = walk_step(ray.p, ray.d, ds, coverage, max(params.flags.y, params.flags.z), shell_step);
-            uint object = object_at(ray.p);
+            uint object = object_at(ray);
             vec3 kappa = extinction_at(coverage, object) * h;  // per voxel length
             overlap = overlap || (jumped && !flat_medium(ray.field, coverage));
             bool in_direct = along >= direct_from && along < direct_to;
@@ -381,7 +380,7 @@ void main() {
                 if (chance > 0.0) {
                     bool reflects = next_fresnel_unit() < chance;
                     if (kFilm) weight *= reflects ? reflectance / chance : (1.0 - reflectance) / (1.0 - chance);
-                    if (reflects) ray = Ray(before.p, reflected, before.field);
+                    if (reflects) ray = Ray(before.p, reflected, before.field, before.cell);
                 }
             }
             along += ds;

@@ -192,13 +192,13 @@ void shade(uvec2 pixel) {
         // pass, and the inner loop, which holds the only in-scattering fetches, takes its view steps.
         while (marches && steps < 8192u) {
             if (into_leaf == 0.0) leaf_start = ray;
-            float coverage = coverage_for(max(params.flags.y, params.flags.z), ray.p, ray.field.x);
+            float coverage = coverage_for(max(params.flags.y, params.flags.z), ray);
             float scatter_coverage = coverage_as(params.flags.z, coverage);
-            uint object = object_at(ray.p);
+            uint object = object_at(ray);
             vec3 sigma_s = scattering_at(scatter_coverage, object) * h;
             vec3 kappa = extinction_at(coverage_as(params.flags.y, coverage), object) * h;
             bool scatters = max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0;
-            uint level = octree_level(ray.p);
+            uint level = octree_level(ray);
             float to_exit = grid_interval(ray.p, ray.d).y;
             float to_floor = (floor_on && ray.d.y < 0.0) ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
             float to_end = min(to_exit, to_floor);
@@ -263,6 +263,7 @@ void shade(uvec2 pixel) {
             if (piece) {
                 into_leaf += run;
                 ray.p = leaf_start.p + into_leaf * leaf_start.d;
+                ray.cell = field_entry(ray.p);
                 continue;
             }
             run += into_leaf;
@@ -284,7 +285,7 @@ void shade(uvec2 pixel) {
                 vec3 reflected;
                 vec3 reflectance = shell_reflectance(before, ray, reflected);
                 float mean_reflectance = (reflectance.r + reflectance.g + reflectance.b) * (1.0 / 3.0);
-                Ray mirrored = Ray(before.p, reflected, before.field);
+                Ray mirrored = Ray(before.p, reflected, before.field, before.cell);
                 vec3 reflected_share = transmittance * reflectance;
                 // The reflection gets a path of its own unless the pixel has traced all it may or the share
                 // is too small to see (the march's own cut-off below); then the ray takes all of the light

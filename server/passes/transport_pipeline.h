@@ -30,6 +30,7 @@ struct TransportVariant {
     bool fresnel = false;              // the object's boundary reflects (TRANSPORT_CONSTANT_FRESNEL)
     bool film = false;                 // ... through a thin film (TRANSPORT_CONSTANT_FILM; with fresnel only)
     bool materials = false;            // several objects, a material each (TRANSPORT_CONSTANT_MATERIALS)
+    bool field_atlas = false;          // their field in a field atlas (TRANSPORT_CONSTANT_FIELD_ATLAS; with materials)
 };
 
 // What every transport pass reads first: the frame's parameters, the index field, its coverage and the
@@ -72,7 +73,7 @@ std::array<vk::Binding, kTransportInputCount + N> transport_bindings(const Trans
     return bindings;
 }
 
-// Each variant is compiled the first time a frame needs it: most scenes use one or two of the 18, and
+// Each variant is compiled the first time a frame needs it: most scenes use one or two of the 54, and
 // every pipeline created costs a driver compile (LLVM, on lavapipe). Not thread-safe (one thread records).
 class TransportPipeline {
 public:
@@ -84,8 +85,8 @@ public:
     const vk::ComputePipeline& operator()(TransportVariant variant) const;
 
 private:
-    // CHANNELS_* x coverage fetch x (none, Fresnel, film) x material table
-    static constexpr size_t kVariants = 3 * 2 * 3 * 2;
+    // CHANNELS_* x coverage fetch x (none, Fresnel, film) x (one object, several, several in a field atlas)
+    static constexpr size_t kVariants = 3 * 2 * 3 * 3;
 
     vk::Context& context_;
     std::span<const uint32_t> spirv_;

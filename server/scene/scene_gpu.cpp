@@ -49,7 +49,11 @@ FieldAtlas field_atlas_for(const GridGeometry& lattice, const std::map<std::stri
     if (dense) return dense_field_atlas(lattice);
     std::vector<std::pair<glm::uvec3, glm::uvec3>> ranges;
     for (const auto& [name, b] : boxes) ranges.push_back({b.offset, b.offset + glm::uvec3(b.box.dims.x, b.box.dims.y, b.box.dims.z)});
-    return sparse_field_atlas(lattice, ranges, passes::octree_layout(lattice.dims).max_level, max_side);
+    FieldAtlas sparse = sparse_field_atlas(lattice, ranges, passes::octree_layout(lattice.dims).max_level, max_side);
+    // A step through the atlas's map costs a quarter more (transport.h): worth it where the atlas holds
+    // under half the lattice's voxels.
+    if (2 * sparse.dims.count() >= lattice.dims.count()) return dense_field_atlas(lattice);
+    return sparse;
 }
 
 uint32_t object_apron(double sigma) {
@@ -489,7 +493,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         timer_.end(cmd);
     }
     const passes::TransportVariant variant{channels_, params.flags.y == COVERAGE_FETCH || params.flags.z == COVERAGE_FETCH,
-                                           passes::fresnel_reflects(document), passes::film_reflects(document), several};
+                                           passes::fresnel_reflects(document), passes::film_reflects(document), several,
+                                           !atlas_.dense};
     auto inputs_for = [&](const vk::Buffer& light_params) {
         return passes::TransportInputs{light_params, index_field_, coverage_image_, levels_, kit_.linear_sampler.get(), variant};
     };

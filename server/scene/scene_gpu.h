@@ -102,8 +102,9 @@ struct RunOptions {
 int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t field_voxels, uint64_t object_voxels,
                              uint64_t radiance_voxels, uint32_t width, uint32_t height);
 
-// Where the field of objects in `boxes` lives: the dense lattice for one object (or an imported grid),
-// else a sparse atlas of their boxes (scene/field_atlas.h) no wider than `max_side`.
+// Where the field of objects in `boxes` lives: a sparse atlas of their boxes (scene/field_atlas.h) no
+// wider than `max_side` where it holds under half the lattice's voxels, else the dense lattice; the
+// lattice always for one object or an imported grid (`dense`).
 FieldAtlas field_atlas_for(const GridGeometry& lattice, const std::map<std::string, ObjectBox>& boxes, bool dense,
                            uint32_t max_side);
 

@@ -55,7 +55,7 @@ vec3 shell_reflectance(Ray before, Ray after, out vec3 reflected) {
     // In a scene of several objects the boundary is that of the object whose shell the step starts in.
     Material object;
     if (kMaterials) {
-        object = material_of(object_at(before.p));
+        object = material_of(object_at(before));
         if (object.shell.x < 0.5) return vec3(0.0);  // its Fresnel is off
     }
     vec4 shell = kMaterials ? vec4(object.extinction.w, object.shell.yzw) : params.shell;

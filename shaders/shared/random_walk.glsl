@@ -59,11 +59,13 @@ float walk_free_path(inout Walk w, float c, uint o, float h, inout float len) {
 float walk_step(vec3 p, vec3 d, inout float ds, float coverage, uint mode, float shell_step) {
     if (mode == COVERAGE_CONSTANT) return coverage;
     vec3 q = p + d * ds;
-    float far = coverage_for(mode, q, index_at(q).x);
+    uint cell = field_entry(q);
+    float far = coverage_for(mode, q, cell, index_at(q, cell).x);
     if (abs(far - coverage) > 1e-3 && ds > shell_step) {
         ds = shell_step;
         q = p + d * ds;
-        far = coverage_for(mode, q, index_at(q).x);
+        cell = field_entry(q);
+        far = coverage_for(mode, q, cell, index_at(q, cell).x);
     }
     return 0.5 * (coverage + far);
 }

@@ -134,7 +134,13 @@ struct LightParams {
 // index-field pass). Off for a scene of one object, whose material is TransportParams' object_*, shell
 // and film: such scenes run the shaders they ran before several objects existed.
 #define TRANSPORT_CONSTANT_MATERIALS 4
-#define TRANSPORT_CONSTANT_COUNT 5  // a pass's own constants are numbered from here
+// Specialization constant of the same passes, with several objects only: their field is stored in a
+// field atlas (scene/field_atlas.h), found through its map (TransportParams::field_atlas), rather than in
+// images the lattice's size. A lookup through the map costs the photon and viewing passes a quarter more
+// on lavapipe (docs/benchmarks.md), so a scene takes the atlas only where it saves memory
+// (scene::field_atlas_for).
+#define TRANSPORT_CONSTANT_FIELD_ATLAS 5
+#define TRANSPORT_CONSTANT_COUNT 6  // a pass's own constants are numbered from here
 // Specialization constant of the photon pass (after the transport constants): deposits are sampled, one
 // per radiance voxel of path, rather than exact per voxel crossed (photon_trace.comp, deposit).
 #define PHOTON_CONSTANT_SAMPLED_DEPOSITS TRANSPORT_CONSTANT_COUNT
@@ -150,6 +156,7 @@ layout(constant_id = TRANSPORT_CONSTANT_COVERAGE_FETCH) const bool kCoverageFetc
 layout(constant_id = TRANSPORT_CONSTANT_FRESNEL) const bool kFresnel = false;
 layout(constant_id = TRANSPORT_CONSTANT_FILM) const bool kFilm = false;
 layout(constant_id = TRANSPORT_CONSTANT_MATERIALS) const bool kMaterials = false;
+layout(constant_id = TRANSPORT_CONSTANT_FIELD_ATLAS) const bool kFieldAtlas = false;
 #endif
 
 // One object's material, as the table of a scene of several objects holds it (TRANSPORT_CONSTANT_MATERIALS):
@@ -255,7 +262,7 @@ struct TransportParams {
                               // add to it); zw: unused
     uvec4 materials;          // xy: device address (low, high) of the Material table, one per object in
                               // name order (TRANSPORT_CONSTANT_MATERIALS); z: objects; w: unused
-    uvec4 field_atlas;        // several objects (TRANSPORT_CONSTANT_MATERIALS): xy: device address (low, high)
+    uvec4 field_atlas;        // a field atlas (TRANSPORT_CONSTANT_FIELD_ATLAS): xy: device address (low, high)
                               // of the field atlas's map (FIELD_* above); zw: unused
     uvec4 atlas_dims;         // xyz: the atlas's voxels (the index field's and coverage image's size); w: unused
     LightParams lights[TRANSPORT_MAX_LIGHTS];

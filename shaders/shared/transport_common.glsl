@@ -43,8 +43,11 @@ layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer Fie
 // The voxel holding p, clamped to the lattice (as the images' edges clamp a fetch).
 ivec3 voxel_of(vec3 p) { return ivec3(clamp(p, vec3(0.0), grid_dims() - 1.0)); }
 
-// Several objects (kMaterials): the field atlas's map entry of the cell holding p (FIELD_*).
+// The field atlas's map entry of the cell holding p (FIELD_*); 0 where the field is the lattice's (no
+// kFieldAtlas). The lookups below take it, so that a ray fetches
+// it once per step (Ray::cell) for all of them.
 uint field_entry(vec3 p) {
+    if (!kFieldAtlas) return 0u;
     uvec3 cell = uvec3(voxel_of(p)) / FIELD_CELL;
     uvec3 cells = (params.grid_dims.xyz + FIELD_CELL - 1u) / FIELD_CELL;
     return FieldMap(params.field_atlas.xy).cells[(cell.z * cells.y + cell.y) * cells.x + cell.x];
@@ -60,15 +63,14 @@ vec3 atlas_shift(uint entry, vec3 p) {
 
 // (n, dn/dx, dn/dy, dn/dz) per voxel length, trilinearly interpolated: the medium's outside every
 // object's cluster.
-vec4 index_at(vec3 p) {
-    if (!kMaterials) return textureLod(index_field, p / grid_dims(), 0.0);
-    uint entry = field_entry(p);
+vec4 index_at(vec3 p, uint entry) {
+    if (!kFieldAtlas) return textureLod(index_field, p / grid_dims(), 0.0);
     if (entry >= FIELD_EMPTY) return vec4(params.medium_extinction.w, 0.0, 0.0, 0.0);
     return textureLod(index_field, (p + atlas_shift(entry, p)) / vec3(params.atlas_dims.xyz), 0.0);
 }
-float coverage_at(vec3 p) {
-    if (!kMaterials) return textureLod(coverage_field, p / grid_dims(), 0.0).r;
-    uint entry = field_entry(p);
+vec4 index_at(vec3 p) { return index_at(p, field_entry(p)); }
+float coverage_at(vec3 p, uint entry) {
+    if (!kFieldAtlas) return textureLod(coverage_field, p / grid_dims(), 0.0).r;
     if (entry >= FIELD_EMPTY) return 0.0;
     return textureLod(coverage_field, (p + atlas_shift(entry, p)) / vec3(params.atlas_dims.xyz), 0.0).r;
 }
@@ -76,11 +78,14 @@ float coverage_at(vec3 p) {
 // The object whose material mixes with the medium's at p: the one the index-field pass left in the voxel
 // holding p (the object of most coverage there; the first where no object's box reaches, as coverage is
 // 0 there); always 0 in a scene of one object.
-uint object_at(vec3 p) {
+uint object_at(vec3 p, uint entry) {
     if (!kMaterials) return 0u;
-    uint entry = field_entry(p);
-    if (entry >= FIELD_EMPTY) return 0u;
-    float held = texelFetch(coverage_field, voxel_of(p) + ivec3(atlas_shift(entry, p)), 0).g;
+    ivec3 v = voxel_of(p);
+    if (kFieldAtlas) {
+        if (entry >= FIELD_EMPTY) return 0u;
+        v += ivec3(atlas_shift(entry, p));
+    }
+    float held = texelFetch(coverage_field, v, 0).g;
     return uint(max(held - 1.0, 0.0));
 }
 
@@ -110,9 +115,9 @@ float phase_g_at(float c, uint o) {
 // runs both sides of a branch, so a pass that needs coverage for several modes should call this once
 // with the most demanding mode and derive the others with coverage_as; and the fetch is compiled out
 // of pipelines whose frames never need it (kCoverageFetch).
-float coverage_for(uint mode, vec3 p, float n) {
+float coverage_for(uint mode, vec3 p, uint entry, float n) {
     if (mode == COVERAGE_CONSTANT) return 0.0;
-    if (mode == COVERAGE_FETCH && kCoverageFetch) return coverage_at(p);
+    if (mode == COVERAGE_FETCH && kCoverageFetch) return coverage_at(p, entry);
     float n_medium = params.medium_extinction.w, n_object = params.object_extinction.w;
     return clamp((n - n_medium) / (n_object - n_medium), 0.0, 1.0);
 }
@@ -125,11 +130,10 @@ bool inside_grid(vec3 p) { return all(greaterThanEqual(p, vec3(0.0))) && all(les
 // The leaf level at p, from the level-1 node holding p's voxel (octree.comp). In a field atlas the
 // octree is the atlas's, whose nodes above a map cell span other clusters: there the level stops at the
 // cell's, and outside every cluster it is the map's.
-uint octree_level(vec3 p) {
+uint octree_level(vec3 p, uint entry) {
     ivec3 v = voxel_of(p);
     uvec3 dims = params.grid_dims.xyz;
-    if (kMaterials) {
-        uint entry = field_entry(p);
+    if (kFieldAtlas) {
         if (entry >= FIELD_EMPTY) return entry - FIELD_EMPTY;
         v += ivec3(atlas_shift(entry, p));
         dims = params.atlas_dims.xyz;
@@ -137,7 +141,7 @@ uint octree_level(vec3 p) {
     uvec3 c = uvec3(v) >> 1u;
     uvec3 cells = (dims + 1u) >> 1u;
     uint level = levels[(c.z * cells.y + c.y) * cells.x + c.x];
-    return kMaterials ? min(level, FIELD_CELL_LEVEL) : level;
+    return kFieldAtlas ? min(level, FIELD_CELL_LEVEL) : level;
 }
 
 // Distance along unit direction d from p to the exit of the axis-aligned cube of side `size` (voxels)
@@ -166,15 +170,24 @@ float safe_step(uint level, vec3 p, vec3 d, float shell_step) {
     return max(cell_exit(p, d, float(1u << level)) + params.stepping.y, shell_step);
 }
 
-// A ray in the index field: position, unit direction and the field sample (n, grad n) at the position,
-// carried from one step to the next so each step fetches the field once.
+// A ray in the index field: position, unit direction, the field sample (n, grad n) at the position and
+// the field atlas's map entry there, carried from one step to the next so each step fetches them once.
 struct Ray {
     vec3 p;
     vec3 d;
     vec4 field;
+    uint cell;
 };
 
-Ray start_ray(vec3 p, vec3 d) { return Ray(p, d, index_at(p)); }
+Ray start_ray(vec3 p, vec3 d) {
+    uint cell = field_entry(p);
+    return Ray(p, d, index_at(p, cell), cell);
+}
+
+// The lookups at a ray's position.
+uint octree_level(Ray ray) { return octree_level(ray.p, ray.cell); }
+uint object_at(Ray ray) { return object_at(ray.p, ray.cell); }
+float coverage_for(uint mode, Ray ray) { return coverage_for(mode, ray.p, ray.cell, ray.field.x); }
 
 // The channel's scale of the index contrast (TransportParams::dispersion) for the ray being traced:
 // under dispersive transport a ray carries one channel, and its steps see n_medium + scale (n - n_medium).
@@ -204,7 +217,8 @@ void ray_step(inout Ray ray, float ds) {
     vec3 g = contrast * ray.field.yzw;
     vec3 across = g - dot(g, ray.d) * ray.d;
     ray.p += ds * ray.d + (0.5 * ds * ds / n) * across;
-    vec4 next = index_at(ray.p);
+    ray.cell = field_entry(ray.p);
+    vec4 next = index_at(ray.p, ray.cell);
     vec3 g_mean = 0.5 * (g + contrast * next.yzw);
     vec3 v = n * ray.d + ds * g_mean;
     ray.field = next;
