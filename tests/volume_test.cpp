@@ -943,34 +943,51 @@ TEST_F(VolumeTest, OverlappingObjectsTakeTheFieldOfTheOneMoreInsideAndInsideBoth
 
 // Moving one object of three voxelizes that object only and remakes the index field over its boxes
 // (before and after) only, and the volume it leaves is the one a fresh build of the moved scene makes,
-// to the bit; so does an index edit of one object, and removing one.
+// to the bit; so does an index edit of one object, and removing one. Both where the lattice holds the
+// field and where a field atlas does: there the move gives the cube a cluster of its own anew, and the
+// clusters that stay are carried over from the old atlas.
 TEST_F(VolumeTest, MovingOneObjectVoxelizesItAloneAndGivesTheVolumeOfAFreshBuild) {
     const nlohmann::json objects = {{"ball", {{"position", {-1.0, 0, 0}}, {"scale", 0.35}}},
                                     {"cube", {{"mesh", "cube"}, {"position", {0.0, 0, 0}}, {"scale", 0.3}, {"ior", 1.33}}},
                                     {"lens", {{"index_field", "luneburg"}, {"position", {1.0, 0, 0}}, {"scale", 0.35}}}};
-    const SceneDocument before = objects_document(objects);
-    const SceneDocument after = protocol::apply_merge_patch(
-        before, {{"objects", {{"cube", {{"position", {0.1, 0.2, -0.1}}, {"rotation_deg", {0, 30, 0}}}}}}});
-    scene::RunOptions options;
-    options.limit = scene::kVoxelize | scene::kIndexField | scene::kOctree;
-    scene::SceneGpu resident(kit());
-    EXPECT_EQ(resident.run(scene::kAllPasses, before, worlds(before), nullptr, options).voxelized,
-              (std::vector<std::string>{"ball", "cube", "lens"}));
-    const scene::PassSet stale = scene::passes_invalidated(before, after);
-    EXPECT_TRUE(stale & scene::kVoxelize);
-    EXPECT_EQ(resident.run(stale, after, worlds(after), nullptr, options).voxelized, std::vector<std::string>{"cube"});
-    expect_volume_of_a_fresh_build(resident, after, options);
-    // An index edit of one object remakes the field over its box only, to the same bits.
-    const SceneDocument denser = protocol::apply_merge_patch(after, {{"objects", {{"cube", {{"ior", 1.9}}}}}});
-    EXPECT_TRUE(resident.run(scene::passes_invalidated(after, denser), denser, worlds(denser), nullptr, options)
-                    .voxelized.empty());
-    expect_volume_of_a_fresh_build(resident, denser, options);
-    // Removing an object voxelizes nothing (the others keep their coverage), and the field then is
-    // that of the two left.
-    const SceneDocument removed = protocol::apply_merge_patch(denser, {{"objects", {{"ball", nullptr}}}});
-    EXPECT_TRUE(resident.run(scene::passes_invalidated(denser, removed), removed, worlds(removed), nullptr, options)
-                    .voxelized.empty());
-    expect_volume_of_a_fresh_build(resident, removed, options);
+    // A box their boxes fill, and one twice as wide at the same voxel, of which they hold under half.
+    SceneDocument crowded = objects_document(objects);
+    crowded.volume.bounds = protocol::Bounds{{-1.5, -0.6, -0.6}, {1.5, 0.6, 0.6}};
+    SceneDocument wide = crowded;
+    wide.volume.bounds = protocol::Bounds{{-3, -1.2, -1.2}, {3, 1.2, 1.2}};
+    wide.volume.resolution = 2 * crowded.volume.resolution;
+    for (const SceneDocument* doc : {&crowded, &wide}) {
+        const bool atlas = doc == &wide;
+        SCOPED_TRACE(atlas ? "field atlas" : "lattice");
+        const SceneDocument& before = *doc;
+        const SceneDocument after = protocol::apply_merge_patch(
+            before, {{"objects", {{"cube", {{"position", {0.1, 0.2, -0.1}}, {"rotation_deg", {0, 30, 0}}}}}}});
+        scene::RunOptions options;
+        options.limit = scene::kVoxelize | scene::kIndexField | scene::kOctree;
+        scene::SceneGpu resident(kit());
+        EXPECT_EQ(resident.run(scene::kAllPasses, before, worlds(before), nullptr, options).voxelized,
+                  (std::vector<std::string>{"ball", "cube", "lens"}));
+        const scene::FieldAtlas layout = resident.field_atlas();
+        EXPECT_EQ(layout.dense, !atlas);
+        const scene::PassSet stale = scene::passes_invalidated(before, after);
+        EXPECT_TRUE(stale & scene::kVoxelize);
+        EXPECT_EQ(resident.run(stale, after, worlds(after), nullptr, options).voxelized, std::vector<std::string>{"cube"});
+        if (atlas) {
+            EXPECT_FALSE(resident.field_atlas() == layout);
+        }
+        expect_volume_of_a_fresh_build(resident, after, options);
+        // An index edit of one object remakes the field over its box only, to the same bits.
+        const SceneDocument denser = protocol::apply_merge_patch(after, {{"objects", {{"cube", {{"ior", 1.9}}}}}});
+        EXPECT_TRUE(resident.run(scene::passes_invalidated(after, denser), denser, worlds(denser), nullptr, options)
+                        .voxelized.empty());
+        expect_volume_of_a_fresh_build(resident, denser, options);
+        // Removing an object voxelizes nothing (the others keep their coverage), and the field then is
+        // that of the two left.
+        const SceneDocument removed = protocol::apply_merge_patch(denser, {{"objects", {{"ball", nullptr}}}});
+        EXPECT_TRUE(resident.run(scene::passes_invalidated(denser, removed), removed, worlds(removed), nullptr, options)
+                        .voxelized.empty());
+        expect_volume_of_a_fresh_build(resident, removed, options);
+    }
 }
 
 // The octree is remade over what the moved object's boxes reach, and its level map under the top-level

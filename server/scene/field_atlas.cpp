@@ -68,8 +68,8 @@ FieldAtlas sparse_field_atlas(const GridGeometry& lattice, std::span<const std::
         atlas.clusters.push_back({b.first * FIELD_CELL, glm::min(b.second * FIELD_CELL, dims), glm::uvec3(0u)});
 
     // Packing: slots of whole cells (the octree's nodes up to FIELD_CELL voxels then lie in one cluster, as
-    // in the lattice), deepest first, in rows along x, rows along y into layers, layers along z; a row and
-    // a layer as wide as the cube that would hold them all, so that the atlas stays near a cube.
+    // in the lattice), deepest first, in rows along x, rows along y into layers, layers along z; of the
+    // row widths and layer heights tried, the one that gives the smallest atlas.
     std::vector<size_t> order(joined.size());
     std::iota(order.begin(), order.end(), size_t{0});
     auto slot = [&](size_t i) { return (joined[i].second - joined[i].first) * FIELD_CELL; };
@@ -77,38 +77,60 @@ FieldAtlas sparse_field_atlas(const GridGeometry& lattice, std::span<const std::
         const glm::uvec3 sa = slot(a), sb = slot(b);
         return std::tie(sb.z, sb.y, sb.x, a) < std::tie(sa.z, sa.y, sa.x, b);
     });
-    double total = 0.0;
-    uint32_t widest = FIELD_CELL;
-    for (size_t i : order) {
-        const glm::uvec3 s = slot(i);
-        total += double(s.x) * s.y * s.z;
-        widest = std::max({widest, s.x, s.y});
-    }
-    const uint32_t cube = static_cast<uint32_t>(std::ceil(std::cbrt(total) / FIELD_CELL)) * FIELD_CELL;
     max_side = std::min(max_side, FIELD_CELL << FIELD_AXIS_BITS);
-    const uint32_t side = std::min(std::max(widest, cube), max_side);
-    glm::uvec3 at(0u), used(0u);
-    uint32_t row_height = 0, layer_depth = 0;
+    glm::uvec3 widest(FIELD_CELL), total(0u);
     for (size_t i : order) {
-        const glm::uvec3 s = slot(i);
-        if (at.x > 0 && at.x + s.x > side) {  // the next row
-            at = {0u, at.y + row_height, at.z};
-            row_height = 0;
-        }
-        if (at.y > 0 && at.y + s.y > side) {  // the next layer
-            at = {0u, 0u, at.z + layer_depth};
-            layer_depth = 0;
-        }
-        atlas.clusters[i].atlas_first = at;
-        used = glm::max(used, at + s);
-        at.x += s.x;
-        row_height = std::max(row_height, s.y);
-        layer_depth = std::max(layer_depth, s.z);
+        widest = glm::max(widest, slot(i));
+        total += slot(i);
     }
-    if (glm::any(glm::greaterThan(used, glm::uvec3(max_side))))
+    struct Packing {
+        std::vector<glm::uvec3> at;
+        glm::uvec3 used{0u};
+    };
+    auto pack = [&](uint32_t row_width, uint32_t layer_height) {
+        Packing p{std::vector<glm::uvec3>(joined.size()), glm::uvec3(0u)};
+        glm::uvec3 at(0u);
+        uint32_t row_height = 0, layer_depth = 0;
+        for (size_t i : order) {
+            const glm::uvec3 s = slot(i);
+            if (at.x > 0 && at.x + s.x > row_width) {  // the next row
+                at = {0u, at.y + row_height, at.z};
+                row_height = 0;
+            }
+            if (at.y > 0 && at.y + s.y > layer_height) {  // the next layer
+                at = {0u, 0u, at.z + layer_depth};
+                layer_depth = 0;
+            }
+            p.at[i] = at;
+            p.used = glm::max(p.used, at + s);
+            at.x += s.x;
+            row_height = std::max(row_height, s.y);
+            layer_depth = std::max(layer_depth, s.z);
+        }
+        return p;
+    };
+    auto volume = [](glm::uvec3 d) { return double(d.x) * d.y * d.z; };
+    auto fits = [&](const Packing& p) { return glm::all(glm::lessThanEqual(p.used, glm::uvec3(max_side))); };
+    // About 32 widths and heights between the widest slot and all of them side by side.
+    auto tries = [](uint32_t lo, uint32_t hi) {
+        std::vector<uint32_t> out;
+        const uint32_t step = std::max(FIELD_CELL, (hi > lo ? hi - lo : 0u) / 32u / FIELD_CELL * FIELD_CELL);
+        for (uint32_t v = lo; v < hi; v += step) out.push_back(v);
+        out.push_back(std::max(lo, hi));
+        return out;
+    };
+    Packing best = pack(max_side, max_side);
+    for (uint32_t width : tries(widest.x, total.x))
+        for (uint32_t height : tries(widest.y, total.y)) {
+            Packing p = pack(width, height);
+            if (fits(p) && (!fits(best) || volume(p.used) < volume(best.used))) best = std::move(p);
+        }
+    const glm::uvec3 used = best.used;
+    if (!fits(best))
         throw std::length_error("the objects' boxes need a field atlas of " + std::to_string(used.x) + " x " +
                                 std::to_string(used.y) + " x " + std::to_string(used.z) + " voxels; the device allows " +
                                 std::to_string(max_side) + " a side");
+    for (size_t i = 0; i < joined.size(); ++i) atlas.clusters[i].atlas_first = best.at[i];
     atlas.dims = {std::max(used.x, 1u), std::max(used.y, 1u), std::max(used.z, 1u)};
 
     // The map: where each cluster's cells lie in the atlas, then for each empty cell the largest aligned cube of cells around it
