@@ -57,6 +57,8 @@ export const SECTIONS = [
       { kind: 'range', ptr: '/object/film/ior', label: 'Thin film: index (soap 1.33, MgF₂ 1.38)',
         min: 1, max: 2.5, step: 0.01, showIf: (doc) => doc.object?.fresnel !== false },
       { kind: 'range', ptr: '/object/scale', label: 'Scale', min: -3, max: 2, step: 0.01, ...LOG10_SLIDER },
+      { kind: 'range', ptr: '/object/resolution', label: 'Own resolution (voxels across it; 0 = the scene’s voxel)',
+        min: 0, max: 256, step: 16 },
       { kind: 'vec3', ptr: '/object/position', label: 'Position (m)', step: 0.05 },
       { kind: 'vec3', ptr: '/object/rotation_deg', label: 'Rotation (°, about x, then y, then z)', step: 5 },
       { kind: 'rgb', ptr: '/object/extinction', label: 'Extinction (per m)', min: 0, max: 10, step: 0.01 },

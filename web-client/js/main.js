@@ -635,6 +635,7 @@ async function fetchHealth() {
   state.wsPort = health?.ws_on_http_port ? pagePort : Number(health?.ws_port) || pagePort + 1;
   const limits = health?.limits || {};
   controls.setMax('/volume/resolution', Number(limits.max_resolution));
+  controls.setMax('/object/resolution', Number(limits.max_resolution));
   controls.setMax('/photons/count', Number(limits.max_photons));
   return health;
 }
