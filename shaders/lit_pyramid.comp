@@ -17,18 +17,20 @@ layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) buffer LitBlocks { uint l
 layout(push_constant) uniform Push { LitPyramidPush push; };
 
 uint cell_index(uint level, uvec3 c) {
-    uvec3 cells = lit_cells(params.grid_dims.xyz, level);
+    uvec3 cells = lit_cells(params.lit_grid.xyz, level);
     return params.lit_offsets[level] + (c.z * cells.y + c.y) * cells.x + c.x;
 }
 
 // Whether light reaches level-0 block b: whether a radiance voxel with fluence lies within one radiance
-// voxel of it, so that trilinear fetches in the block can see it. A radiance voxel v spans index-field
+// voxel of it, so that trilinear fetches in the block can see it. A radiance voxel v spans lattice
 // voxels [f v, f (v + 1)); with its neighbours, [f (v - 1), f (v + 2)). That meets the block's voxels
-// [4 b, 4 b + 3] for v from ceil((4 b + 1) / f) - 2 to floor((4 b + 3) / f) + 1.
+// [B b, B b + B - 1] (B = LIT_BLOCK lit_grid.w) for v from ceil((B b + 1) / f) - 2 to
+// floor((B b + B - 1) / f) + 1.
 bool block_lit(uvec3 b) {
     ivec3 f = ivec3(params.radiance_grid.w);
-    ivec3 first = max((LIT_BLOCK * ivec3(b) + f) / f - 2, ivec3(0));
-    ivec3 last = min((LIT_BLOCK * ivec3(b) + LIT_BLOCK - 1) / f + 1, ivec3(params.radiance_grid.xyz) - 1);
+    int side = int(LIT_BLOCK * params.lit_grid.w);
+    ivec3 first = max((side * ivec3(b) + f) / f - 2, ivec3(0));
+    ivec3 last = min((side * ivec3(b) + side - 1) / f + 1, ivec3(params.radiance_grid.xyz) - 1);
     bool lit = false;
     for (int z = first.z; z <= last.z; ++z)
         for (int y = first.y; y <= last.y; ++y)
@@ -38,7 +40,7 @@ bool block_lit(uvec3 b) {
 
 // Whether any of the (up to) 8 cells below cell c of `level` is lit.
 bool children_lit(uint level, uvec3 c) {
-    uvec3 below = lit_cells(params.grid_dims.xyz, level - 1u) - 1u;
+    uvec3 below = lit_cells(params.lit_grid.xyz, level - 1u) - 1u;
     uint lit = 0u;
     for (uint k = 0u; k < 8u; ++k)  // a child past the grid's edge repeats the last one: harmless in an OR
         lit |= lit_blocks[cell_index(level - 1u, min(2u * c + uvec3(k & 1u, (k >> 1u) & 1u, k >> 2u), below))];
@@ -54,7 +56,7 @@ uint unlit_levels(uvec3 b) {
 
 void main() {
     uint level = kMode == LIT_MODE_MERGE ? push.level : 0u;
-    uvec3 cells = lit_cells(params.grid_dims.xyz, level);
+    uvec3 cells = lit_cells(params.lit_grid.xyz, level);
     uint i = linear_invocation();
     if (i >= cells.x * cells.y * cells.z) return;
     uvec3 c = uvec3(i % cells.x, (i / cells.x) % cells.y, i / (cells.x * cells.y));

@@ -26,10 +26,11 @@ layout(push_constant) uniform Push { ViewPush push; };
 // The side (voxels) of the largest cell of the lit pyramid that holds p and no light; 0 where p's block
 // is lit. Level 0 holds the count of unlit levels per block, so this is one lookup.
 float unlit_cell(vec3 p) {
-    uvec3 b = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / LIT_BLOCK;  // p's level-0 block
-    uvec3 cells = lit_cells(params.grid_dims.xyz, 0u);
+    uint block = LIT_BLOCK * params.lit_grid.w;  // lattice voxels
+    uvec3 b = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / block;  // p's level-0 block
+    uvec3 cells = lit_cells(params.lit_grid.xyz, 0u);
     uint unlit = lit_blocks[params.lit_offsets[0] + (b.z * cells.y + b.y) * cells.x + b.x];
-    return unlit == 0u ? 0.0 : float(uint(LIT_BLOCK) << (unlit - 1u));
+    return unlit == 0u ? 0.0 : float(block << (unlit - 1u));
 }
 
 const float kPi = 3.14159265358979;

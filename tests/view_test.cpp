@@ -380,20 +380,25 @@ TEST_F(ViewTest, SingleScatteringOfASpotBeamMatchesTheAirlightIntegralInItsCone)
 // the radiance grid the photons left: a cell of level k (LIT_BLOCK << k voxels a side) is lit exactly
 // when some radiance voxel with fluence lies within one radiance voxel of it; level 0 holds, per block,
 // the number of levels unlit there. Checked with the radiance grid at full, half and a third of the
-// resolution (interactive frames), for a narrow beam that lights some cells only.
+// resolution (interactive frames), for a narrow beam that lights some cells only; and on a lattice
+// twice as fine as the scene's voxel (an object asking for it), where blocks are LIT_BLOCK of the
+// scene's voxels.
 TEST_F(ViewTest, LitPyramidMarksExactlyTheCellsWithinReachOfLitRadianceVoxels) {
     const json isotropic = {{"model", "isotropic"}, {"g", 0}};
     json scene = airlight_scene(isotropic, kSigma, 6.0);
     scene["photons"]["count"] = 1 << 14;
     const SceneDocument doc = document(scene);
-    for (uint32_t factor : {1u, 2u, 3u}) {
+    scene["object"]["resolution"] = 48;  // 2 cm of the scene's 3.1 cm
+    const SceneDocument fine = document(scene);
+    for (const auto& [d, factor] : {std::pair{&doc, 1u}, std::pair{&doc, 2u}, std::pair{&doc, 3u}, std::pair{&fine, 1u}}) {
         scene::SceneGpu gpu(kit());
         scene::RunOptions options;
         options.radiance_factor = factor;
-        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
+        gpu.run(scene::kAllPasses, *d, worlds(*d), nullptr, options);
+        EXPECT_EQ(gpu.grid().light_factor, d == &fine ? 2u : 1u);
         const auto params = gpu.params();
-        const glm::ivec3 dims(params.grid_dims), radiance(params.radiance_grid);
-        const int f = static_cast<int>(params.radiance_grid.w);
+        const glm::ivec3 dims(params.grid_dims), radiance(params.radiance_grid), lit_dims(params.lit_grid);
+        const int f = static_cast<int>(params.radiance_grid.w), block = LIT_BLOCK * static_cast<int>(params.lit_grid.w);
         const auto flux = gpu.read_flux();
         std::vector<uint32_t> expected(gpu.read_lit_pyramid().size(), 0u);
         for (int z = 0; z < radiance.z; ++z)
@@ -401,10 +406,10 @@ TEST_F(ViewTest, LitPyramidMarksExactlyTheCellsWithinReachOfLitRadianceVoxels) {
                 for (int x = 0; x < radiance.x; ++x) {
                     if (!(flux[static_cast<size_t>((z * radiance.y + y) * radiance.x + x)].w > 0.0f)) continue;
                     const glm::ivec3 v(x, y, z);
-                    const glm::ivec3 lo = glm::max(f * (v - 1), glm::ivec3(0)) / LIT_BLOCK;
-                    const glm::ivec3 hi = glm::min(f * (v + 2) - 1, dims - 1) / LIT_BLOCK;
+                    const glm::ivec3 lo = glm::max(f * (v - 1), glm::ivec3(0)) / block;
+                    const glm::ivec3 hi = glm::min(f * (v + 2) - 1, dims - 1) / block;
                     for (uint32_t level = 0; level < LIT_LEVELS; ++level) {
-                        const glm::ivec3 cells(shaders::lit_cells(glm::uvec3(dims), level));
+                        const glm::ivec3 cells(shaders::lit_cells(glm::uvec3(lit_dims), level));
                         const int offset = static_cast<int>(params.lit_offsets[static_cast<int>(level)]);
                         for (int cz = lo.z >> level; cz <= hi.z >> level; ++cz)
                             for (int cy = lo.y >> level; cy <= hi.y >> level; ++cy)
@@ -412,13 +417,13 @@ TEST_F(ViewTest, LitPyramidMarksExactlyTheCellsWithinReachOfLitRadianceVoxels) {
                                     expected[static_cast<size_t>(offset + (cz * cells.y + cy) * cells.x + cx)] = 1u;
                     }
                 }
-        const glm::ivec3 blocks(shaders::lit_cells(glm::uvec3(dims), 0));
+        const glm::ivec3 blocks(shaders::lit_cells(glm::uvec3(lit_dims), 0));
         for (int z = 0; z < blocks.z; ++z)
             for (int y = 0; y < blocks.y; ++y)
                 for (int x = 0; x < blocks.x; ++x) {
                     uint32_t unlit = 0;
                     for (uint32_t level = 0; level < LIT_LEVELS; ++level) {
-                        const glm::ivec3 cells(shaders::lit_cells(glm::uvec3(dims), level));
+                        const glm::ivec3 cells(shaders::lit_cells(glm::uvec3(lit_dims), level));
                         const glm::ivec3 c = glm::ivec3(x, y, z) >> static_cast<int>(level);
                         const int offset = static_cast<int>(params.lit_offsets[static_cast<int>(level)]);
                         unlit += expected[static_cast<size_t>(offset + (c.z * cells.y + c.y) * cells.x + c.x)] == 0u;

@@ -21,11 +21,11 @@ LitPyramidPass::LitPyramidPass(vk::Context& context)
 }
 
 void LitPyramidPass::record(vk::CommandRecorder& recorder, const vk::Buffer& params, const vk::Image3D& flux,
-                            const vk::Buffer& lit_blocks, vk::Extent3 grid_dims) const {
+                            const vk::Buffer& lit_blocks, vk::Extent3 scene_dims) const {
     const vk::Binding bindings[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
                                     vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, lit_blocks)};
-    const auto offsets = lit_pyramid_offsets(grid_dims);
+    const auto offsets = lit_pyramid_offsets(scene_dims);
     const auto groups_at = [&](uint32_t level) {
         return vk::linear_groups(offsets[level + 1] - offsets[level], TRANSPORT_GROUP_SIZE);
     };

@@ -11,10 +11,11 @@ class LitPyramidPass {
 public:
     explicit LitPyramidPass(vk::Context& context);
     // Reads the fluence (w) of `flux` as the radiance resolve left it; writes every cell of `lit_blocks`
-    // (lit_pyramid_offsets(grid_dims) of them) for an index field of `grid_dims` voxels: 1 where lit
-    // at levels above 0, and at level 0 the count of unlit levels (transport.h).
+    // (lit_pyramid_offsets(scene_dims) of them) for a scene of `scene_dims` voxels of its own
+    // (TransportParams::lit_grid): 1 where lit at levels above 0, and at level 0 the count of unlit
+    // levels (transport.h).
     void record(vk::CommandRecorder& recorder, const vk::Buffer& params, const vk::Image3D& flux,
-                const vk::Buffer& lit_blocks, vk::Extent3 grid_dims) const;
+                const vk::Buffer& lit_blocks, vk::Extent3 scene_dims) const;
 
 private:
     ModePipelines pipelines_;  // by LIT_MODE_*

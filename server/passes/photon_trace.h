@@ -25,7 +25,7 @@ struct PhotonAccumulators {
 // Words of direct_reach for a radiance grid of `radiance_dims` voxels: rows of 32 corners along x.
 uint64_t direct_reach_words(vk::Extent3 radiance_dims);
 
-// `dims`: the index field's voxels (lit blocks cover those); `radiance_dims`: the radiance grid's; `grey`:
+// `dims`: the scene's own voxels (lit blocks cover those); `radiance_dims`: the radiance grid's; `grey`:
 // grey transport, which keeps no red and green sums.
 PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, vk::Extent3 radiance_dims,
                                             uint32_t floor_texels, uint32_t light_map_side, uint32_t exit_count,

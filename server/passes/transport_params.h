@@ -94,7 +94,8 @@ shaders::Material material_for(const protocol::Object& object, const protocol::M
 bool any_scattering(const protocol::SceneDocument& document);
 
 // Where each level of the lit pyramid starts in the lit-blocks buffer; the last entry is its length.
-std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims);
+// `scene_dims`: the scene's own voxels (GridGeometry::coarsened(light_factor)), the blocks' unit.
+std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 scene_dims);
 
 // Texels per side of the floor caustic map for this grid.
 uint32_t floor_map_texels(const scene::GridGeometry& grid);

@@ -34,7 +34,7 @@ int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t field_voxels, ui
     const int64_t per_field_voxel = 16 + 8 + 2 + 1;
     const int64_t per_radiance_voxel = (RADIANCE_FLUX_WORDS + 1) * 8 + 16 + 16 + 4 + 1;
     const int64_t per_object_voxel = 4 + 4 + 12;
-    const int64_t lattice = int64_t{passes::lit_pyramid_offsets(grid.dims)[LIT_LEVELS]} * 4 +
+    const int64_t lattice = int64_t{passes::lit_pyramid_offsets(grid.coarsened(grid.light_factor))[LIT_LEVELS]} * 4 +
                             static_cast<int64_t>(grid.dims.count() / (FIELD_CELL * FIELD_CELL * FIELD_CELL));
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
     const int64_t light_map = int64_t{passes::light_map_capacity(grid)} * passes::light_map_capacity(grid) * 2 * 4;
@@ -144,7 +144,7 @@ void SceneGpu::allocate_transport(uint32_t photon_exit_count, bool record_exits,
     if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_ ||
         to_grey != grey()) {
         accum_.reset();
-        accum_.emplace(passes::make_photon_accumulators(ctx, grid_.dims, radiance_dims, floor_texels,
+        accum_.emplace(passes::make_photon_accumulators(ctx, grid_.coarsened(grid_.light_factor), radiance_dims, floor_texels,
                                                         passes::light_map_capacity(grid_), exits, to_grey));
         exit_capacity_ = exits;
     }
@@ -525,7 +525,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
             recorder_.compute_barrier();
             if (gap) gap();
         }
-        kit_.lit_pyramid.record(recorder_, params_buffer, flux_, accum_->lit_blocks, grid_.dims);
+        kit_.lit_pyramid.record(recorder_, params_buffer, flux_, accum_->lit_blocks, grid_.coarsened(grid_.light_factor));
         recorder_.compute_barrier();
         timer_.end(cmd);
         photon_batches_ = options.photon_batch + 1;

@@ -78,7 +78,8 @@ REFRACT_SHADERS_BEGIN
 // light by under 1e-3 rad and change its extinction by a millionth of the object's.
 #define DIRECT_FLAT 1e-6f
 
-// Eye rays cross unlit fog in whole cells of the lit pyramid: a level-0 cell of LIT_BLOCK^3 voxels is
+// Eye rays cross unlit fog in whole cells of the lit pyramid: a level-0 cell of LIT_BLOCK^3 voxels (of the
+// scene's own voxel: TransportParams::lit_grid) is
 // lit when photons reached any voxel whose trilinear footprint overlaps it; each level above merges 2^3
 // cells of the one below (1 where lit), so a ray far from the light crosses fog in cells of up to
 // LIT_BLOCK << (LIT_LEVELS - 1) voxels. Level 0 finally holds, per block, how many levels are unlit
@@ -265,6 +266,8 @@ struct TransportParams {
     uvec4 field_atlas;        // a field atlas (TRANSPORT_CONSTANT_FIELD_ATLAS): xy: device address (low, high)
                               // of the field atlas's map (FIELD_* above); zw: unused
     uvec4 atlas_dims;         // xyz: the atlas's voxels (the index field's and coverage image's size); w: unused
+    uvec4 lit_grid;           // xyz: the scene's own voxels (the lattice's, GridGeometry::light_factor to one),
+                              // in which the lit pyramid's blocks are LIT_BLOCK a side; w: that factor
     LightParams lights[TRANSPORT_MAX_LIGHTS];
 };
 
@@ -368,7 +371,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == (45 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == (46 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
 static_assert(sizeof(refract::shaders::Material) == 80);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
