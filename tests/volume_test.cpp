@@ -26,6 +26,8 @@
 #include "scene/field_atlas.h"
 #include "scene/grid_geometry.h"
 #include "scene/passes.h"
+#include "scene/renderer.h"
+#include "scene/scene_gpu.h"
 #include "vk/commands.h"
 #include "vk/resources.h"
 
@@ -1113,8 +1115,16 @@ TEST(FieldAtlas, ClustersHoldEveryBoxAndTheMapFindsEachVoxelAndTheMediumAroundTh
     // The same boxes in another order give the same layout.
     std::vector<AtlasBox> reversed(boxes.rbegin(), boxes.rend());
     EXPECT_TRUE(scene::sparse_field_atlas(lattice, reversed, max_level, 4096) == atlas);
-    // Clusters that do not fit the device's image sides are refused, not clipped.
+    // Clusters that do not fit the device's image sides are refused, not clipped; the renderer reports
+    // that as a scene it cannot render.
     EXPECT_THROW(scene::sparse_field_atlas(lattice, boxes, max_level, 32), std::length_error);
+    std::map<std::string, scene::ObjectBox> object_boxes;
+    for (size_t i = 0; i < boxes.size(); ++i) {
+        const glm::uvec3 size = glm::max(boxes[i].second, boxes[i].first) - boxes[i].first;
+        object_boxes[std::to_string(i)] = {{lattice.origin, lattice.voxel_size, {size.x, size.y, size.z}}, boxes[i].first};
+    }
+    EXPECT_FALSE(scene::field_atlas_for(lattice, object_boxes, false, 4096).dense);
+    EXPECT_THROW(scene::field_atlas_for(lattice, object_boxes, false, 32), scene::RenderError);
 }
 
 // An object's resolution sets the lattice's voxel: the scene's divided by the smallest whole factor

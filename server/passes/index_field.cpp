@@ -30,6 +30,11 @@ namespace {
 VoxelRange part_in(const FieldBlock& block, VoxelRange region) {
     return {glm::max(region.first, block.lattice.first), glm::min(region.end, block.lattice.end)};
 }
+
+// The part of a box of `dims` voxels at `offset` in the lattice that lies inside `within`.
+VoxelRange part_of_box(glm::uvec3 offset, vk::Extent3 dims, VoxelRange within) {
+    return {glm::max(within.first, offset), glm::min(within.end, offset + glm::uvec3(dims.x, dims.y, dims.z))};
+}
 }  // namespace
 
 uint64_t largest_part(std::span<const FieldBlock> blocks, VoxelRange region) {
@@ -50,8 +55,7 @@ VoxelRange IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol:
     // joins (IndexFieldPush::offset).
     auto dispatch = [&](const protocol::Object& object, const scene::GridGeometry& box, glm::uvec3 offset,
                         const vk::Buffer& coverage, uint32_t number, VoxelRange within, glm::ivec3 shift) {
-        const glm::uvec3 box_end = offset + glm::uvec3(box.dims.x, box.dims.y, box.dims.z);
-        const VoxelRange part{glm::max(within.first, offset), glm::min(within.end, box_end)};
+        const VoxelRange part = part_of_box(offset, box.dims, within);
         if (part.empty()) return;
         uint32_t kind = INDEX_KIND_UNIFORM;
         float n_object = static_cast<float>(object.ior);
@@ -103,8 +107,7 @@ VoxelRange IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol:
         if (zeros) dispatch(medium_object, part_box, part.first, *zeros, 0u, part, shift);
         bool first = !zeros;
         for (const ObjectField& object : objects) {
-            const glm::uvec3 box_end = object.offset + glm::uvec3(object.box.dims.x, object.box.dims.y, object.box.dims.z);
-            if (glm::any(glm::greaterThanEqual(glm::max(part.first, object.offset), glm::min(part.end, box_end)))) continue;
+            if (part_of_box(object.offset, object.box.dims, part).empty()) continue;
             if (!first) recorder.compute_barrier();  // each object's voxels join what those before it left
             first = false;
             dispatch(object.object, object.box, object.offset, object.coverage, object.number, part, shift);

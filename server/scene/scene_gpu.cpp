@@ -35,7 +35,7 @@ int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t field_voxels, ui
     const int64_t per_radiance_voxel = (RADIANCE_FLUX_WORDS + 1) * 8 + 16 + 16 + 4 + 1;
     const int64_t per_object_voxel = 4 + 4 + 12;
     const int64_t lattice = int64_t{passes::lit_pyramid_offsets(grid.coarsened(grid.light_factor))[LIT_LEVELS]} * 4 +
-                            static_cast<int64_t>(grid.dims.count() / (FIELD_CELL * FIELD_CELL * FIELD_CELL));
+                            static_cast<int64_t>(grid.dims.count() / (FIELD_CELL * FIELD_CELL * FIELD_CELL)) * 4;
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) * (12 + 8);
     const int64_t light_map = int64_t{passes::light_map_capacity(grid)} * passes::light_map_capacity(grid) * 2 * 4;
     // Per pixel: HDR (16), sRGB (4), a slot in the refinement list (4).
@@ -49,7 +49,12 @@ FieldAtlas field_atlas_for(const GridGeometry& lattice, const std::map<std::stri
     if (dense) return dense_field_atlas(lattice);
     std::vector<std::pair<glm::uvec3, glm::uvec3>> ranges;
     for (const auto& [name, b] : boxes) ranges.push_back({b.offset, b.offset + glm::uvec3(b.box.dims.x, b.box.dims.y, b.box.dims.z)});
-    FieldAtlas sparse = sparse_field_atlas(lattice, ranges, passes::octree_layout(lattice.dims).max_level, max_side);
+    FieldAtlas sparse;
+    try {
+        sparse = sparse_field_atlas(lattice, ranges, passes::octree_layout(lattice.dims).max_level, max_side);
+    } catch (const std::length_error& e) {
+        throw RenderError(e.what());
+    }
     // A step through the atlas's map costs a quarter more (transport.h): worth it where the atlas holds
     // under half the lattice's voxels.
     if (2 * sparse.dims.count() >= lattice.dims.count()) return dense_field_atlas(lattice);
@@ -220,9 +225,11 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     stale = passes_for(stale) & options.limit;
     allocate_frame(document.image.width, document.image.height);
     const bool several = document.objects.size() > 1;
-    // The objects' boxes, and where their field is stored: a new layout means new field images.
+    // The objects' boxes (when the voxelize pass runs, which reads `worlds`), and where their field is
+    // stored: a new layout means new field images.
     const double sigma = document.volume.smoothing;
-    const std::map<std::string, ObjectBox> boxes = imported ? std::map<std::string, ObjectBox>{} : object_boxes(grid_, worlds, sigma);
+    std::map<std::string, ObjectBox> boxes;
+    if ((stale & kVoxelize) && !imported) boxes = object_boxes(grid_, worlds, sigma);
     // A new layout of an atlas built before carries the clusters that stay over from the old images
     // (held until the submission completes), so that an edit of one object composes that one's cluster.
     bool field_fresh = false;
@@ -231,12 +238,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         FieldAtlas atlas;
     } carried;
     if (stale & kVoxelize) {
-        FieldAtlas layout;
-        try {
-            layout = field_atlas_for(grid_, boxes, imported || !several, kit_.context.limits().maxImageDimension3D);
-        } catch (const std::length_error& e) {
-            throw RenderError(e.what());
-        }
+        FieldAtlas layout = field_atlas_for(grid_, boxes, imported || !several, kit_.context.limits().maxImageDimension3D);
         if (!(layout == atlas_) || !index_field_.get()) {
             if ((built_ & kIndexField) && !atlas_.dense && !layout.dense) {
                 carried.index_field = std::move(index_field_);

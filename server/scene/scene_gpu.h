@@ -104,7 +104,8 @@ int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t field_voxels, ui
 
 // Where the field of objects in `boxes` lives: a sparse atlas of their boxes (scene/field_atlas.h) no
 // wider than `max_side` where it holds under half the lattice's voxels, else the dense lattice; the
-// lattice always for one object or an imported grid (`dense`).
+// lattice always for one object or an imported grid (`dense`). Throws RenderError when the atlas would
+// not fit `max_side`.
 FieldAtlas field_atlas_for(const GridGeometry& lattice, const std::map<std::string, ObjectBox>& boxes, bool dense,
                            uint32_t max_side);
 

@@ -44,8 +44,7 @@ layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer Fie
 ivec3 voxel_of(vec3 p) { return ivec3(clamp(p, vec3(0.0), grid_dims() - 1.0)); }
 
 // The field atlas's map entry of the cell holding p (FIELD_*); 0 where the field is the lattice's (no
-// kFieldAtlas). The lookups below take it, so that a ray fetches
-// it once per step (Ray::cell) for all of them.
+// kFieldAtlas). The lookups below take it, so that a ray reads it once per step (Ray::cell) for all.
 uint field_entry(vec3 p) {
     if (!kFieldAtlas) return 0u;
     uvec3 cell = uvec3(voxel_of(p)) / FIELD_CELL;
@@ -68,7 +67,6 @@ vec4 index_at(vec3 p, uint entry) {
     if (entry >= FIELD_EMPTY) return vec4(params.medium_extinction.w, 0.0, 0.0, 0.0);
     return textureLod(index_field, (p + atlas_shift(entry, p)) / vec3(params.atlas_dims.xyz), 0.0);
 }
-vec4 index_at(vec3 p) { return index_at(p, field_entry(p)); }
 float coverage_at(vec3 p, uint entry) {
     if (!kFieldAtlas) return textureLod(coverage_field, p / grid_dims(), 0.0).r;
     if (entry >= FIELD_EMPTY) return 0.0;
