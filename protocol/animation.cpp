@@ -119,11 +119,19 @@ std::string pointer(size_t i, const std::string& field = {}) {
 
 }  // namespace
 
+namespace {
+// A keyframe's document from the one before it; an empty patch leaves it as it is (and costs nothing).
+SceneDocument patched(const SceneDocument& before, const json& patch, const Limits& limits) {
+    return patch.empty() ? before : apply_merge_patch(before, patch, limits);
+}
+}  // namespace
+
 Animation::Animation(const SceneDocument& base, const json& keyframes, const Limits& limits) : limits_(limits) {
     if (!keyframes.is_array()) throw ValidationError("", "keyframes must be a list of {\"time\", \"patch\"}");
     if (keyframes.empty()) throw ValidationError("", "keyframes must not be empty");
     if (keyframes.size() > kMaxKeyframes)
         throw ValidationError("", "at most " + std::to_string(kMaxKeyframes) + " keyframes");
+    stride_ = (keyframes.size() + kMaxCheckpoints - 1) / kMaxCheckpoints;
     SceneDocument document = base;
     for (size_t i = 0; i < keyframes.size(); ++i) {
         const std::string at = pointer(i);
@@ -141,22 +149,40 @@ Animation::Animation(const SceneDocument& base, const json& keyframes, const Lim
         if (!key.contains("patch") || !key["patch"].is_object())
             throw ValidationError(pointer(i, "patch"), "must be a merge patch (a JSON object)");
         try {
-            document = apply_merge_patch(document, key["patch"], limits);
+            document = patched(document, key["patch"], limits);
         } catch (const ValidationError& e) {
             throw ValidationError(pointer(i, "patch") + e.pointer(), e.rule());
         }
         times_.push_back(time);
-        documents_.push_back(to_json(document));
+        patches_.push_back(key["patch"]);
+        if (i % stride_ == 0) checkpoints_.push_back(document);
     }
+    current_document_ = checkpoints_.front();
 }
 
-SceneDocument Animation::at(double t) const {
+const SceneDocument& Animation::document(size_t i) {
+    // From the checkpoint at or before i, unless the current keyframe lies between the two.
+    const size_t checkpoint = i / stride_;
+    if (current_ > i || current_ < checkpoint * stride_) {
+        current_ = checkpoint * stride_;
+        current_document_ = checkpoints_[checkpoint];
+    }
+    while (current_ < i) current_document_ = patched(current_document_, patches_[++current_], limits_);
+    return current_document_;
+}
+
+SceneDocument Animation::at(double t) {
     const auto next = std::upper_bound(times_.begin(), times_.end(), t);
-    if (next == times_.begin()) return parse_scene(documents_.front(), limits_);
-    if (next == times_.end()) return parse_scene(documents_.back(), limits_);
+    if (next == times_.begin()) return document(0);
+    if (next == times_.end()) return document(times_.size() - 1);
     const auto i = static_cast<size_t>(next - times_.begin()) - 1;
+    if (pair_ != i) {
+        pair_from_ = to_json(document(i));
+        pair_to_ = to_json(document(i + 1));
+        pair_ = i;
+    }
     const double u = (t - times_[i]) / (times_[i + 1] - times_[i]);
-    return parse_scene(between(documents_[i], documents_[i + 1], u, {}), limits_);
+    return parse_scene(between(pair_from_, pair_to_, u, {}), limits_);
 }
 
 }  // namespace refract::protocol

@@ -20,7 +20,8 @@ public:
     // `keyframes` is a JSON list of {"time": seconds, "patch": merge patch}: times from 0 to
     // kMaxAnimationSeconds, strictly increasing; each patch applies to the document of the keyframe
     // before it (the first to `base`). Throws ValidationError whose pointer points into the list
-    // (e.g. /2/patch/object/ior for a patch that makes an invalid document).
+    // (e.g. /2/patch/object/ior for a patch that makes an invalid document). Keeps the patches and at
+    // most kMaxCheckpoints documents, so its memory follows the message, not keyframes x scene size.
     Animation(const SceneDocument& base, const nlohmann::json& keyframes, const Limits& limits = {});
 
     // The last keyframe's time: the animation runs from 0 to it.
@@ -32,12 +33,27 @@ public:
     // shortest arc between the two orientations (spherical) unless only one of its angles changes (a
     // turntable turn keeps every degree asked for, 0 to 720 turns twice), and a light's direction turns
     // at a constant rate; whole numbers (image size, photon count, resolution), names and switches keep
-    // the earlier keyframe's value until the next keyframe.
-    SceneDocument at(double t) const;
+    // the earlier keyframe's value until the next keyframe. Keyframe documents are made as they are
+    // reached: playing forward costs one patch per keyframe passed; a jump starts from the checkpoint
+    // before it. Not const: it remembers where it is.
+    SceneDocument at(double t);
+
+    static constexpr size_t kMaxCheckpoints = 64;
 
 private:
+    // Keyframe i's document.
+    const SceneDocument& document(size_t i);
+
     std::vector<double> times_;
-    std::vector<nlohmann::json> documents_;  // to_json of each keyframe's document
+    std::vector<nlohmann::json> patches_;
+    size_t stride_ = 1;                     // keyframes between two checkpoints
+    std::vector<SceneDocument> checkpoints_;  // keyframe k * stride_'s document
+    size_t current_ = 0;                    // the keyframe whose document `current_document_` is
+    SceneDocument current_document_;
+    // The last pair of keyframes interpolated between (to_json of each): frames between two keyframes
+    // reuse them.
+    size_t pair_ = static_cast<size_t>(-1);
+    nlohmann::json pair_from_, pair_to_;
     Limits limits_;
 };
 

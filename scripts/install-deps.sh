@@ -7,7 +7,7 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
 # REFRACT_RUNTIME_ONLY=1: only what the built binaries need to run (the container image's final stage).
-runtime=(libvulkan1 mesa-vulkan-drivers libpng16-16 libpq5 libopenexr-3-1-30 curl ca-certificates)
+runtime=(libvulkan1 mesa-vulkan-drivers libpng16-16 libpq5 libopenexr-3-1-30 libcpp-httplib0.11 curl ca-certificates)
 
 packages=(
   build-essential cmake pkg-config git ca-certificates curl

@@ -17,7 +17,7 @@ using nlohmann::json;
 SceneDocument base() { return parse_scene(json::object()); }
 
 TEST(Animation, NumbersMoveLinearlyBetweenKeyframesAndHoldOutsideThem) {
-    const Animation a(base(), json::parse(R"([
+    Animation a(base(), json::parse(R"([
         {"time": 1, "patch": {"light": {"intensity": 10, "position": [0, 2, 0]}, "image": {"exposure": 0}}},
         {"time": 3, "patch": {"light": {"intensity": 30, "position": [4, 2, -2]}, "image": {"exposure": 2}}}])"));
     EXPECT_EQ(a.keyframes(), 2u);
@@ -30,7 +30,7 @@ TEST(Animation, NumbersMoveLinearlyBetweenKeyframesAndHoldOutsideThem) {
 }
 
 TEST(Animation, PatchesAccumulateFromKeyframeToKeyframe) {
-    const Animation a(base(), json::parse(R"([
+    Animation a(base(), json::parse(R"([
         {"time": 0, "patch": {"object": {"ior": 1.3}}},
         {"time": 1, "patch": {"light": {"intensity": 5}}}])"));
     EXPECT_DOUBLE_EQ(a.at(1.0).object().ior, 1.3);  // the second keyframe keeps the first one's patch
@@ -38,7 +38,7 @@ TEST(Animation, PatchesAccumulateFromKeyframeToKeyframe) {
 }
 
 TEST(Animation, WholeNumbersNamesAndSwitchesHoldUntilTheNextKeyframe) {
-    const Animation a(base(), json::parse(R"([
+    Animation a(base(), json::parse(R"([
         {"time": 0, "patch": {"image": {"width": 100}, "object": {"mesh": "sphere"}, "floor": {"enabled": true}}},
         {"time": 1, "patch": {"image": {"width": 300}, "object": {"mesh": "cube"}, "floor": {"enabled": false}}}])"));
     const SceneDocument mid = a.at(0.9);
@@ -52,7 +52,7 @@ TEST(Animation, WholeNumbersNamesAndSwitchesHoldUntilTheNextKeyframe) {
 }
 
 TEST(Animation, ATurnAboutOneAxisKeepsEveryDegree) {
-    const Animation a(base(), json::parse(R"([
+    Animation a(base(), json::parse(R"([
         {"time": 0, "patch": {"object": {"rotation_deg": [10, 0, 0]}}},
         {"time": 2, "patch": {"object": {"rotation_deg": [10, 720, 0]}}}])"));
     EXPECT_EQ(a.at(0.5).object().rotation_deg, (Vec3{10.0, 180.0, 0.0}));
@@ -80,7 +80,7 @@ double angle_between(const Vec3& p, const Vec3& q) {
 
 TEST(Animation, ATurnAboutSeveralAxesFollowsTheShortestArcAtAConstantRate) {
     const Vec3 from{0.0, 0.0, 0.0}, to{90.0, 90.0, 0.0};
-    const Animation a(base(), json::parse(R"([
+    Animation a(base(), json::parse(R"([
         {"time": 0, "patch": {"object": {"rotation_deg": [0, 0, 0]}}},
         {"time": 1, "patch": {"object": {"rotation_deg": [90, 90, 0]}}}])"));
     // Ry(90) Rx(90) is one turn of 120 degrees (about (1, 1, 1) / sqrt 3 up to sign): trace 0.
@@ -94,7 +94,7 @@ TEST(Animation, ATurnAboutSeveralAxesFollowsTheShortestArcAtAConstantRate) {
 }
 
 TEST(Animation, ALightTurnsAtAConstantRate) {
-    const Animation a(base(), json::parse(R"([
+    Animation a(base(), json::parse(R"([
         {"time": 0, "patch": {"light": {"direction": [1, 0, 0]}}},
         {"time": 1, "patch": {"light": {"direction": [0, 0, 3]}}}])"));
     const Vec3 d = a.at(1.0 / 3.0).lights.at("light").direction;  // a third of 90 degrees
@@ -106,7 +106,7 @@ TEST(Animation, ALightTurnsAtAConstantRate) {
 // Keyframes address lights by name: each named light moves on its own, a light a keyframe adds appears
 // from that keyframe on, and one it removes stays until then.
 TEST(Animation, NamedLightsMoveOnTheirOwnAndAppearOrLeaveAtTheirKeyframe) {
-    const Animation a(base(), json::parse(R"([
+    Animation a(base(), json::parse(R"([
         {"time": 0, "patch": {"lights": {"fill": {"type": "point", "position": [0, 2, 0], "intensity": 4}}}},
         {"time": 2, "patch": {"lights": {"fill": {"position": [2, 2, 0]}, "rim": {"type": "point", "intensity": 1}}}},
         {"time": 4, "patch": {"lights": {"fill": null}}}])"));

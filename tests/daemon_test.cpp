@@ -25,6 +25,7 @@
 #include "daemon/harness.h"
 #include "daemon/ws_client.h"
 #include "http/daemon_config.h"
+#include "protocol/animation.h"
 #include "http/examples.h"
 #include "http/metrics.h"
 #include "http/service.h"
@@ -552,6 +553,142 @@ TEST(DaemonRenderQueue, RoundRobinBetweenScenes) {
     queue.stop();
     EXPECT_EQ(renderer.calls,
               (std::vector<std::pair<std::string, uint64_t>>{{"a", 1}, {"a", 2}, {"b", 1}, {"a", 3}}));
+}
+
+// A render function whose frames run in parts, asking the queue between them (as SceneGpu::run does):
+// scene "heavy" takes `parts` parts of `part` each, any other scene one part.
+struct PartedRenderer {
+    std::mutex mutex;
+    std::vector<std::string> log;  // "heavy:0", "light", ... in the order the parts ran
+    uint32_t parts = 50;
+    std::chrono::milliseconds part{20};
+
+    void note(const std::string& entry) {
+        std::lock_guard lock(mutex);
+        log.push_back(entry);
+    }
+    size_t count(const std::string& prefix) {
+        std::lock_guard lock(mutex);
+        return static_cast<size_t>(std::count_if(log.begin(), log.end(), [&](const std::string& e) {
+            return e.compare(0, prefix.size(), prefix) == 0;
+        }));
+    }
+    scene::FrameResult render(const scene::FrameRequest& request) {
+        const bool heavy = request.scene_id == "heavy";
+        for (uint32_t i = 0; i < (heavy ? parts : 1u); ++i) {
+            if (i > 0 && request.options.give_way && request.options.give_way()) throw scene::Superseded();
+            std::string entry = request.scene_id;  // appended: GCC 12's false -Wrestrict (its bug 105329)
+            entry += ':';
+            entry += std::to_string(i);
+            note(entry);
+            std::this_thread::sleep_for(part);
+        }
+        scene::FrameResult frame;
+        frame.png = {1};
+        return frame;
+    }
+};
+
+bool wait_until(const std::function<bool()>& done, std::chrono::milliseconds limit) {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (!done()) {
+        if (std::chrono::steady_clock::now() > end) return false;
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    return true;
+}
+
+TEST(DaemonRenderQueue, OtherScenesRenderBetweenThePartsOfAHeavyFrame) {
+    PartedRenderer renderer;
+    scene::RenderQueue queue([&](const scene::FrameRequest& r) { return renderer.render(r); }, {});
+    std::atomic<int> heavy_done{0};
+    std::atomic<size_t> heavy_parts_when_light_done{0};
+    ASSERT_TRUE(queue.submit(request_for("heavy", 1), [&](const scene::FrameOutcome& o) {
+        EXPECT_EQ(o.status, scene::FrameOutcome::Status::ok);
+        heavy_done = 1;
+    }));
+    ASSERT_TRUE(wait_until([&] { return renderer.count("heavy:") >= 2; }, std::chrono::seconds(10)));
+    auto light = queue.render_and_wait(request_for("light", 1), std::chrono::seconds(10));
+    heavy_parts_when_light_done = renderer.count("heavy:");
+    ASSERT_TRUE(light);
+    EXPECT_EQ(light->status, scene::FrameOutcome::Status::ok);
+    // Answered within a part or two of the heavy frame, which then goes on to its end.
+    EXPECT_EQ(heavy_done.load(), 0);
+    EXPECT_LT(heavy_parts_when_light_done.load(), renderer.parts / 2);
+    ASSERT_TRUE(wait_until([&] { return heavy_done.load() == 1; }, std::chrono::seconds(20)));
+    EXPECT_EQ(renderer.count("heavy:"), renderer.parts);
+    queue.stop();
+}
+
+TEST(DaemonRenderQueue, AFrameNobodyWaitsForIsDroppedOrAbandonedAtItsNextPart) {
+    PartedRenderer renderer;
+    scene::RenderQueue queue([&](const scene::FrameRequest& r) { return renderer.render(r); }, {});
+    // The asker's timeout passes: the frame stops at its next part.
+    auto outcome = queue.render_and_wait(request_for("heavy", 1), std::chrono::milliseconds(100));
+    ASSERT_TRUE(outcome);
+    EXPECT_EQ(outcome->status, scene::FrameOutcome::Status::timed_out);
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    const size_t parts = renderer.count("heavy:");
+    EXPECT_LT(parts, 10u) << "a frame whose asker left must stop, not render its " << renderer.parts << " parts";
+    EXPECT_EQ(queue.waiting(), 0u);
+
+    // The asker hangs up while the frame waits behind another: it is never rendered.
+    scene::RenderQueueOptions one;
+    one.max_waiters = 2;
+    SteppedRenderer stepped;
+    scene::RenderQueue small([&](const scene::FrameRequest& r) { return stepped.render(r); }, one);
+    ASSERT_TRUE(small.submit(request_for("a", 1), [](const scene::FrameOutcome&) {}));
+    stepped.wait_calls(1);
+    auto gone = std::make_shared<std::atomic<bool>>(false);
+    std::atomic<int> dropped{0};
+    ASSERT_TRUE(small.submit(request_for("b", 1), [&](const scene::FrameOutcome& o) {
+        EXPECT_EQ(o.status, scene::FrameOutcome::Status::abandoned);
+        ++dropped;
+    }, gone));
+    gone->store(true);
+    // Full but for the client that left: its place goes to the next.
+    ASSERT_TRUE(small.submit(request_for("c", 1), [](const scene::FrameOutcome&) {}));
+    EXPECT_EQ(dropped.load(), 1);
+    stepped.allow(5);
+    ASSERT_TRUE(wait_until([&] { return small.frames_rendered() == 2; }, std::chrono::seconds(10)));
+    small.stop();
+    EXPECT_EQ(stepped.calls, (std::vector<std::pair<std::string, uint64_t>>{{"a", 1}, {"c", 1}}));
+}
+
+TEST(DaemonRenderQueue, StopAbandonsTheFrameInProgressAtItsNextPart) {
+    PartedRenderer renderer;
+    renderer.parts = 1000;  // 20 s whole
+    scene::RenderQueue queue([&](const scene::FrameRequest& r) { return renderer.render(r); }, {});
+    std::atomic<int> status{-1};
+    ASSERT_TRUE(queue.submit(request_for("heavy", 1),
+                             [&](const scene::FrameOutcome& o) { status = static_cast<int>(o.status); }));
+    ASSERT_TRUE(wait_until([&] { return renderer.count("heavy:") >= 1; }, std::chrono::seconds(10)));
+    const auto start = std::chrono::steady_clock::now();
+    queue.stop();
+    EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(1));
+    EXPECT_EQ(status.load(), static_cast<int>(scene::FrameOutcome::Status::shutting_down));
+}
+
+TEST(DaemonRenderQueue, PlayedFramesAndEditsTakeTurns) {
+    SteppedRenderer renderer;
+    scene::RenderQueue queue([&](const scene::FrameRequest& r) { return renderer.render(r); }, {});
+    auto ignore = [](const scene::FrameOutcome&) {};
+    queue.submit(request_for("busy", 1), ignore);
+    renderer.wait_calls(1);
+    for (uint64_t session = 1; session <= 3; ++session) {
+        std::string id = "s";
+        id += std::to_string(session);
+        auto played = request_for(id, 100 + session);
+        played.playback = std::to_string(session);
+        queue.submit(played, ignore);
+    }
+    queue.submit(request_for("edited", 7), ignore);  // queued behind three played frames
+    renderer.allow(6);
+    renderer.wait_calls(5);
+    queue.stop();
+    // The edit waits for one played frame at most; the played ones keep their order.
+    EXPECT_EQ(renderer.calls, (std::vector<std::pair<std::string, uint64_t>>{
+                                  {"busy", 1}, {"s1", 101}, {"edited", 7}, {"s2", 102}, {"s3", 103}}));
 }
 
 TEST(DaemonRenderQueue, UnrenderableScenesAndMissingDevicesAreReported) {
@@ -1728,15 +1865,6 @@ std::string one_answer(uint16_t port, const std::string& request,
 
 // A memory figure of a process in KiB from /proc/PID/status ("VmRSS" resident now, "VmHWM" its peak),
 // -1 when unknown.
-long memory_kib(pid_t pid, const std::string& field) {
-    std::ifstream status("/proc/" + std::to_string(pid) + "/status");
-    std::string line;
-    while (std::getline(status, line))
-        if (line.compare(0, field.size() + 1, field + ":") == 0)
-            return std::stol(line.substr(field.size() + 1));
-    return -1;
-}
-
 const char kWsUpgrade[] =
     "Host: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
     "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
@@ -1963,6 +2091,284 @@ std::string etag_of(int revision) {
     tag += std::to_string(revision);
     tag += '"';
     return tag;
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// What one client can make the daemon hold or do: every row a bound (memory, time, status), the daemon
+// alive and its stored data intact after it.
+
+// A frame far heavier than any other: 2^22 photons scattering up to 1024 times in dense white fog (albedo
+// 1) take minutes on two cores; a part of them (passes::kWorkPart, 2^15) about a second.
+const json kHeavyScene = {{"image", {{"width", 64}, {"height", 64}}},
+                          {"volume", {{"resolution", 32}}},
+                          {"medium", {{"extinction", {50, 50, 50}}, {"scattering", {50, 50, 50}}}},
+                          {"photons", {{"count", 4194304}, {"max_bounces", 1024}}}};
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+json light_edit(double intensity) { return {{"light", {{"intensity", intensity}}}}; }
+
+TEST(DaemonHostile, AHeavyFrameDelaysOtherScenesByAPartAndStopsWhenNobodyWaits) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--request-timeout", "3"});
+    auto client = daemon.client();
+    create_scene(client, "heavy", kHeavyScene);
+    create_scene(client, "light");
+    get_frame(client, "light");  // its volume and pipelines made: what follows measures turns
+    const double abandoned_before = metric(client, "refract_frames_abandoned_total");
+    std::thread heavy([&] {
+        auto c = daemon.client();
+        c.set_read_timeout(60);
+        auto res = c.Get("/api/scenes/heavy/frame.png");
+        ASSERT_TRUE(res);
+        EXPECT_EQ(res->status, 503) << "the request timeout answers: " << res->body;
+    });
+    std::this_thread::sleep_for(std::chrono::seconds(1));
+    // Another scene's edits, each with its frame, while the heavy frame renders: each comes between two
+    // of its parts (about a second each on two cores; the whole frame takes minutes).
+    double worst_s = 0.0;
+    for (int i = 0; i < 3; ++i) {
+        const auto start = std::chrono::steady_clock::now();
+        auto res = client.Post("/api/scenes/light/frame.png", light_edit(10.0 + i).dump(), kMergePatch);
+        ASSERT_TRUE(res);
+        EXPECT_EQ(res->status, 200) << res->body;
+        worst_s = std::max(worst_s, seconds_since(start));
+    }
+    EXPECT_LT(worst_s, 6.0);
+    RecordProperty("edit_during_heavy_frame_ms", static_cast<int>(worst_s * 1000));
+    heavy.join();
+    // Its asker gone (timed out), the heavy frame stops at its next part, and the render thread is free.
+    EXPECT_TRUE(wait_until([&] { return metric(client, "refract_frames_abandoned_total") > abandoned_before; },
+                           std::chrono::seconds(10)));
+    auto start = std::chrono::steady_clock::now();
+    get_frame(client, "light", "?width=32&height=32");
+    EXPECT_LT(seconds_since(start), 3.0);
+
+    // SIGTERM while a heavy frame renders: the daemon is out within 5 s, its acknowledged edit kept.
+    std::thread again([&] {
+        auto c = daemon.client();
+        c.set_read_timeout(60);
+        c.Get("/api/scenes/heavy/frame.png?width=48&height=48");
+    });
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    start = std::chrono::steady_clock::now();
+    EXPECT_EQ(daemon.stop(SIGTERM), 0) << daemon.log();
+    EXPECT_LT(seconds_since(start), 5.0);
+    again.join();
+    Daemon restarted(dir.path() / "data");
+    auto after = restarted.client();
+    EXPECT_EQ(get_json(after, "/api/scenes/light")["scene"]["lights"]["light"]["intensity"], 12.0);
+}
+
+TEST(DaemonHostile, FrameRequestsWhoseClientsLeftAreNeverRendered) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--request-timeout", "4", "--max-queue", "8"});
+    auto client = daemon.client();
+    create_scene(client, "heavy", kHeavyScene);
+    create_scene(client, "light");
+    get_frame(client, "light");
+    const double rendered_before = get_json(client, "/api/health")["frames_rendered"].get<double>();
+    const double abandoned_before = metric(client, "refract_frames_abandoned_total");
+    std::thread heavy([&] {  // keeps the render thread busy with the heavy scene until its timeout
+        auto c = daemon.client();
+        c.set_read_timeout(60);
+        c.Get("/api/scenes/heavy/frame.png");
+    });
+    std::this_thread::sleep_for(std::chrono::seconds(1));
+    // 20 more frames of the heavy scene (of other sizes, so 20 frames, more than the queue holds; a
+    // scene's frames wait for its frame in progress), each client gone within 50 ms.
+    for (int i = 0; i < 20; ++i) {
+        int fd = connect_loopback(daemon.port());
+        ASSERT_GE(fd, 0);
+        const std::string request = std::string("GET /api/scenes/heavy/frame.png?width=")
+                                        .append(std::to_string(20 + i))
+                                        .append(" HTTP/1.1\r\nHost: x\r\n\r\n");
+        ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        ::close(fd);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    // A client that stays is answered (between two parts of the heavy frame), not refused as if the
+    // queue were full.
+    auto res = client.Get("/api/scenes/light/frame.png?width=44&height=44");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 200) << res->body;
+    heavy.join();
+    // The heavy frame stops at its next part after its timeout, and the 20 are dropped unrendered.
+    EXPECT_TRUE(wait_until([&] { return metric(client, "refract_frames_abandoned_total") - abandoned_before >= 2.0; },
+                           std::chrono::seconds(10)));
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    EXPECT_EQ(get_json(client, "/api/health")["render_waiting"], 0);
+    const double rendered = get_json(client, "/api/health")["frames_rendered"].get<double>() - rendered_before;
+    EXPECT_EQ(rendered, 1.0) << "only the frame of the client that stayed renders";
+    expect_alive(daemon);
+}
+
+// A scene of the most objects and lights a document may hold, small and cheap to render.
+json crowded_scene() {
+    json document = kSmallScene;
+    json objects = json::object(), lights = json::object();
+    for (size_t i = 0; i < protocol::kMaxObjects; ++i)
+        objects[std::string("o").append(std::to_string(i))] = {{"position", {-1.6 + 0.4 * double(i % 8), 0.0, -1.6 + 0.4 * double(i / 8)}},
+                                            {"scale", 0.1}};
+    for (size_t i = 0; i < protocol::kMaxLights; ++i)
+        lights[std::string("l").append(std::to_string(i))] = {{"position", {double(i) - 4.0, 3.0, 2.0}}, {"intensity", 2.0}};
+    document["objects"] = objects;
+    document["lights"] = lights;
+    return document;
+}
+
+// A play of `count` keyframes that change nothing, `seconds` long.
+json idle_play(size_t count, double seconds, int fps) {
+    json keyframes = json::array();
+    for (size_t i = 0; i < count; ++i)
+        keyframes.push_back({{"time", seconds * double(i) / double(count - 1)}, {"patch", json::object()}});
+    return {{"type", "play"}, {"fps", fps}, {"keyframes", keyframes}};
+}
+
+TEST(DaemonHostile, PlaysOfManyKeyframesHoldLittleMemoryAndEditsKeepTheirLatency) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    create_scene(client, "crowd", crowded_scene());
+    WsClient editor(daemon.ws_port(), "/api/scenes/crowd/ws");
+    editor.send({{"seq", 0}, {"refine", 0}});
+    editor.read_frame();
+    auto edit_s = [&](int seq) {
+        const auto start = std::chrono::steady_clock::now();
+        const json patch = {{"lights", {{"l0", {{"intensity", 2.0 + seq}}}}}};
+        editor.send({{"seq", seq}, {"refine", 0}, {"patch", patch}});
+        for (;;) {
+            auto [header, png] = editor.read_frame();
+            if (header["seq"] == seq) return seconds_since(start);
+        }
+    };
+    double alone_s = 0.0;
+    for (int seq = 1; seq <= 3; ++seq) alone_s = std::max(alone_s, edit_s(seq));
+
+    const long rss_before = memory_kib(daemon.pid(), "VmRSS");
+    const json play = idle_play(protocol::kMaxKeyframes, 30.0, 60);
+    std::vector<std::unique_ptr<WsClient>> players;
+    for (int i = 0; i < 4; ++i) {
+        players.push_back(std::make_unique<WsClient>(daemon.ws_port(), "/api/scenes/crowd/ws"));
+        players.back()->send(play);
+    }
+    for (auto& player : players) {
+        auto [header, png] = player->read_frame();
+        EXPECT_TRUE(header.contains("play")) << header.dump();
+    }
+    const long rss_playing = memory_kib(daemon.pid(), "VmRSS");
+    double playing_s = 0.0;
+    for (int seq = 4; seq <= 6; ++seq) playing_s = std::max(playing_s, edit_s(seq));
+    // Four plays of 10,000 keyframes over 64 objects and 8 lights: the patches and a few checkpoints
+    // each (about 2 MiB), not a document per keyframe (1.85 GB each before).
+    EXPECT_LT(rss_playing - rss_before, 64 * 1024) << "VmRSS " << rss_before << " -> " << rss_playing << " KiB";
+    // An edit waits for one played frame at most besides its own.
+    EXPECT_LT(playing_s, 3.0 * alone_s + 1.0) << "alone " << alone_s << " s, beside four plays " << playing_s << " s";
+    RecordProperty("rss_growth_kib", static_cast<int>(rss_playing - rss_before));
+    for (auto& player : players) player->send({{"type", "stop"}});
+    players.clear();
+    expect_alive(daemon);
+    EXPECT_EQ(get_json(client, "/api/scenes/crowd")["scene"]["objects"].size(), protocol::kMaxObjects);
+}
+
+TEST(DaemonHostile, FortySessionsPlayingAtSixtyFramesASecondAllGetFrames) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    // Frames of the default budget (100 ms): the queue's 16 places stay taken while they render.
+    create_scene(client, "shared", {{"image", {{"width", 512}, {"height", 512}}}, {"volume", {{"resolution", 32}}}});
+    get_frame(client, "shared", "?quality=interactive");
+    const json play = idle_play(2, 20.0, 60);
+    std::vector<std::thread> sessions;
+    std::atomic<int> served{0};
+    const auto start = std::chrono::steady_clock::now();
+    for (int i = 0; i < 40; ++i) {
+        sessions.emplace_back([&] {
+            WsClient ws(daemon.ws_port(), "/api/scenes/shared/ws");
+            ws.send(play);
+            auto [header, png] = ws.read_frame();
+            if (header.contains("play") && is_png(png) && seconds_since(start) < 20.0) ++served;
+            ws.send({{"type", "stop"}});
+        });
+    }
+    for (auto& session : sessions) session.join();
+    EXPECT_EQ(served.load(), 40) << "every session gets played frames within 20 s";
+    expect_alive(daemon);
+}
+
+// An 8192 x 4096 Radiance map of one colour, run-length encoded (about 2 MiB; 512 MiB as the device's
+// texels).
+std::string huge_hdr() {
+    const uint32_t width = 8192, height = 4096;
+    std::string file = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y ";
+    file.append(std::to_string(height)).append(" +X ").append(std::to_string(width)).append("\n");
+    std::string row = {2, 2, static_cast<char>(width >> 8), static_cast<char>(width & 0xff)};
+    const unsigned char rgbe[4] = {128, 128, 128, 129};
+    for (unsigned char value : rgbe)
+        for (uint32_t left = width; left > 0;) {
+            const uint32_t run = std::min<uint32_t>(left, 127);
+            row += static_cast<char>(128 + run);
+            row += static_cast<char>(value);
+            left -= run;
+        }
+    for (uint32_t y = 0; y < height; ++y) file += row;
+    return file;
+}
+
+TEST(DaemonHostile, TheDeviceBudgetCountsEverythingAndRefusesFromAnEstimate) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--max-device-memory", "256M", "--max-resolution", "512"});
+    auto client = daemon.client();
+    create_scene(client, "kept");
+    get_frame(client, "kept");
+    auto upload = client.Put("/api/environments/huge", huge_hdr(), "application/octet-stream");
+    ASSERT_TRUE(upload);
+    ASSERT_EQ(upload->status, 201) << upload->body;
+
+    // Lit by the huge map: its 512 MiB on the device are over the budget, refused before they are made.
+    create_scene(client, "lit", {{"image", {{"width", 64}, {"height", 64}}},
+                                 {"volume", {{"resolution", 32}}},
+                                 {"environment", {{"type", "image"}, {"image", "huge"}}}});
+    auto res = client.Get("/api/scenes/lit/frame.png");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 422) << res->body;
+    EXPECT_NE(res->body.find("device memory"), std::string::npos) << res->body;
+    EXPECT_LT(get_json(client, "/api/health")["device_bytes"].get<double>(), 256.0 * (1 << 20));
+
+    // Two objects at the largest resolution, far apart: about 17 GiB, refused from the estimate at once.
+    const long rss_before = memory_kib(daemon.pid(), "VmRSS");
+    create_scene(client, "vast", {{"image", {{"width", 64}, {"height", 64}}},
+                                  {"volume", {{"resolution", 512}}},
+                                  {"objects", {{"a", {{"position", {-6, 0, 0}}, {"resolution", 512}}},
+                                               {"b", {{"position", {6, 0, 0}}, {"resolution", 512}}}}}});
+    const auto start = std::chrono::steady_clock::now();
+    res = client.Get("/api/scenes/vast/frame.png");
+    const double refused_s = seconds_since(start);
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 422) << res->body;
+    EXPECT_LT(refused_s, 2.0);
+    EXPECT_LT(memory_kib(daemon.pid(), "VmRSS") - rss_before, 64 * 1024);
+    RecordProperty("vast_refused_ms", static_cast<int>(refused_s * 1000));
+    get_frame(client, "kept", "?width=40&height=40");  // what fits still renders
+    expect_alive(daemon);
+}
+
+TEST(DaemonHostile, TheTokenIsAskedBeforeAnyEndpointIsNamed) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--token", "s3cret"});
+    for (const char* method : {"GET", "DELETE", "OPTIONS", "PATCH"}) {
+        const std::string answer =
+            raw_http(daemon.port(), std::string(method).append(" /api/nonexistent HTTP/1.1\r\nHost: x\r\n"
+                                                               "Connection: close\r\n\r\n"));
+        EXPECT_EQ(status_of(answer), 401) << method << ": " << answer;
+    }
+    const std::string with_token = raw_http(
+        daemon.port(),
+        "GET /api/nonexistent HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer s3cret\r\nConnection: close\r\n\r\n");
+    EXPECT_EQ(status_of(with_token), 404) << with_token;
 }
 
 TEST(DaemonHostile, AnEditWithoutItsFrameIsAnsweredAsApplied) {

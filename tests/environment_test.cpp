@@ -14,6 +14,7 @@
 #include <fstream>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -100,6 +101,101 @@ TEST(EnvironmentMapTest, HostileFilesAreRefusedWithTheReason) {
         poisoned.rgb[3 * (7 * 64 + 9) + 2] = bad;
         EXPECT_NE(refusal(exr_bytes(poisoned)).find("pixel (9, 7)"), std::string::npos) << bad;
     }
+}
+
+std::string le32(uint32_t value) {
+    std::string out(4, '\0');
+    for (size_t i = 0; i < 4; ++i) out[i] = static_cast<char>((value >> (8 * i)) & 0xff);
+    return out;
+}
+
+std::string exr_attribute(const std::string& name, const std::string& type, const std::string& value,
+                          std::optional<uint32_t> declared = std::nullopt) {
+    return name + '\0' + type + '\0' + le32(declared.value_or(static_cast<uint32_t>(value.size()))) + value;
+}
+
+// `exr` (written by the library) with `attributes` inserted before its first one.
+std::string with_attributes(const std::string& exr, const std::string& attributes) {
+    return exr.substr(0, 8) + attributes + exr.substr(8);
+}
+
+TEST(EnvironmentMapTest, OpenExrHeadersAreBoundedBeforeTheLibraryReadsThem) {
+    const image::EnvironmentMap map = constant_map(64, 32, 1.0f);
+    const std::string exr = exr_bytes(map);
+    // The library takes a declared size at its word and allocates it: 2 GiB for this string, 16 GiB for
+    // the preview, and again for each string of the vector.
+    const std::string bomb = with_attributes(exr, exr_attribute("comment", "string", "abc", 0x7fffffff));
+    EXPECT_NE(refusal(bomb).find("'comment' declares 2147483647 bytes"), std::string::npos) << refusal(bomb);
+    const std::string present = with_attributes(exr, exr_attribute("comment", "string", "abc", 1000));
+    EXPECT_NE(refusal(present.substr(0, 8 + 30)).find("truncated"), std::string::npos) << refusal(present.substr(0, 38));
+    const std::string preview = with_attributes(exr, exr_attribute("preview", "preview", le32(65535) + le32(65535)));
+    EXPECT_NE(refusal(preview).find("does not hold the pixels"), std::string::npos) << refusal(preview);
+    const std::string strings =
+        with_attributes(exr, exr_attribute("multiView", "stringvector", le32(0x7fffffff) + "left"));
+    EXPECT_NE(refusal(strings).find("'multiView'"), std::string::npos) << refusal(strings);
+    std::string many;
+    for (int i = 0; i < 300; ++i) many += exr_attribute(std::string("a").append(std::to_string(i)), "int", le32(0));
+    EXPECT_NE(refusal(with_attributes(exr, many)).find("more than 256 attributes"), std::string::npos);
+    const std::string long_name = with_attributes(exr, exr_attribute(std::string(40, 'n'), "int", le32(0)));
+    EXPECT_NE(refusal(long_name).find("longer than 31"), std::string::npos) << refusal(long_name);
+    // A thousand channels of a full-size image: 2^35 samples in the library's line buffers.
+    std::string channels;
+    for (int i = 0; i < 1000; ++i) {
+        channels.append("c").append(std::to_string(i)).append(1, '\0');
+        channels.append(le32(1)).append(4, '\0').append(le32(1)).append(le32(1));
+    }
+    channels += '\0';
+    const std::string wide = exr_attribute("channels", "chlist", channels) +
+                             exr_attribute("dataWindow", "box2i", le32(0) + le32(0) + le32(8191) + le32(4095));
+    // After the library's last attribute (they are sorted by name), so that these override its own.
+    const size_t end = exr.find(std::string("screenWindowWidth") + '\0') + 18 + 6 + 4 + 4;
+    const std::string wide_exr = exr.substr(0, end) + wide + exr.substr(end);
+    EXPECT_NE(refusal(wide_exr).find("1000 channels of 8192 x 4096"), std::string::npos) << refusal(wide_exr);
+    // Tiles of one pixel over 8192 x 4096: 256 MiB of tile offsets, of which the file holds none.
+    std::string tiled = with_attributes(exr, exr_attribute("tiles", "tiledesc", le32(1) + le32(1) + std::string(1, '\0')) +
+                                                 exr_attribute("dataWindow", "box2i", le32(0) + le32(0) + le32(8191) + le32(4095)));
+    tiled[5] = 0x02;  // the version's tiled flag
+    EXPECT_NE(refusal(tiled).find("tile offsets are missing"), std::string::npos) << refusal(tiled);
+    EXPECT_NE(refusal(exr.substr(0, 4) + le32(2) + std::string("x", 1)).find("truncated"), std::string::npos);
+
+    const image::EnvironmentSize size = image::environment_size(exr);
+    EXPECT_EQ(size.width, 64u);
+    EXPECT_EQ(size.height, 32u);
+    EXPECT_EQ(size.decoded_bytes(), 64u * 32 * 3 * sizeof(float));
+}
+
+// A Radiance file of `height` rows of `width` pixels: the first `rle_rows` run-length encoded, then
+// `flat_pixels` flat RGBE pixels.
+std::string mixed_hdr(uint32_t width, uint32_t height, uint32_t rle_rows, size_t flat_pixels) {
+    std::string file = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y " + std::to_string(height) + " +X " +
+                       std::to_string(width) + "\n";
+    for (uint32_t row = 0; row < rle_rows; ++row) {
+        file += {2, 2, static_cast<char>(width >> 8), static_cast<char>(width & 0xff)};
+        for (char value : {'\x80', '\x80', '\x80', '\x81'}) file += {static_cast<char>(128 + width), value};
+    }
+    for (size_t pixel = 0; pixel < flat_pixels; ++pixel) file += "\x80\x80\x80\x81";
+    return file;
+}
+
+TEST(EnvironmentMapTest, RadianceFilesAreRefusedWhenAnyMixOfRowsEndsEarly) {
+    // A flat scanline after run-length encoded ones makes stb_image decode the whole image again, flat,
+    // from there: it needs width x height flat pixels, not just the rows left.
+    constexpr uint32_t kWidth = 16, kHeight = 6;
+    for (uint32_t rle_rows = 0; rle_rows <= kHeight; ++rle_rows) {
+        const std::string complete = mixed_hdr(kWidth, kHeight, rle_rows, rle_rows == kHeight ? 0 : kWidth * kHeight);
+        EXPECT_EQ(refusal(complete), "") << rle_rows;
+        if (rle_rows > 0 && rle_rows < kHeight) {
+            const std::string rows_left = mixed_hdr(kWidth, kHeight, rle_rows, size_t{kWidth} * (kHeight - rle_rows));
+            EXPECT_NE(refusal(rows_left).find("truncated"), std::string::npos) << rle_rows;
+        }
+        for (size_t cut = 1; cut < 40; cut += 3)
+            EXPECT_NE(refusal(complete.substr(0, complete.size() - cut)), "") << rle_rows << " " << cut;
+    }
+    const std::string wrong_length = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 16\n" + std::string("\x02\x02\x00\x11", 4);
+    EXPECT_NE(refusal(wrong_length + std::string(64, '\x81')).find("length"), std::string::npos);
+    const image::EnvironmentSize size = image::environment_size(mixed_hdr(kWidth, kHeight, kHeight, 0));
+    EXPECT_EQ(size.width, kWidth);
+    EXPECT_EQ(size.height, kHeight);
 }
 
 TEST(EnvironmentMapTest, TheBuiltInSkyHasASunAboveTheHorizon) {

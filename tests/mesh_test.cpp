@@ -601,4 +601,15 @@ TEST(Bunny, CommittedFileIsReproducibleWatertightAndBigEnough) {
 }
 
 }  // namespace
+TEST(ObjLimits, VerticesAreCountedBeforeTheyAreKept) {
+    // Vertices no face uses cost memory all the same: 64 MiB of "v 0 0 0" lines are 8 M of them.
+    MeshLimits limits;
+    limits.max_vertices = 4;
+    const std::string tetrahedron = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    EXPECT_EQ(parse_obj(tetrahedron, limits).positions.size(), 4u);
+    const std::string message = error_of([&] { parse_obj("v 5 5 5\n" + tetrahedron, limits); });
+    EXPECT_NE(message.find("more than the limit of 4 vertices (on line 5)"), std::string::npos) << message;
+    EXPECT_EQ(MeshLimits{}.max_vertices, 3 * MeshLimits{}.max_triangles);
+}
+
 }  // namespace refract::mesh

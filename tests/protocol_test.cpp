@@ -343,13 +343,13 @@ TEST(ObjectResolution, MergePatchEditsOnlyThatObjectsFieldAndNullRestoresTheDefa
 }
 
 TEST(ObjectResolution, AnimationHoldsItUntilTheNextKeyframe) {
-    const Animation a(SceneDocument{}, json::parse(R"([
+    Animation a(SceneDocument{}, json::parse(R"([
         {"time": 0, "patch": {"object": {"resolution": 64}}},
         {"time": 1, "patch": {"object": {"resolution": 128}}}])"));
     EXPECT_EQ(a.at(0.5).object().resolution, 64u);
     EXPECT_EQ(a.at(0.99).object().resolution, 64u);
     EXPECT_EQ(a.at(1.0).object().resolution, 128u);
-    const Animation from_zero(SceneDocument{}, json::parse(R"([
+    Animation from_zero(SceneDocument{}, json::parse(R"([
         {"time": 0, "patch": {}}, {"time": 1, "patch": {"object": {"resolution": 256}}}])"));
     EXPECT_EQ(from_zero.at(0.5).object().resolution, 0u);
     EXPECT_EQ(from_zero.at(1.0).object().resolution, 256u);

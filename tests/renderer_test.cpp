@@ -205,16 +205,17 @@ TEST_F(RendererTest, RefinementLevelsAreDeterministicHoweverTheyAreReached) {
     EXPECT_EQ(after.rerun & kVoxelize, 0u) << pass_names(after.rerun);
 }
 
-// A still frame's step runs in parts (passes::kWorkPart photons or pixels, a submission each) and asks
+// A still frame's step runs in parts (passes::kWorkPart photons or kViewPart pixels, a submission each) and asks
 // whether to give way after each: the parts make the same bytes as one submission, and giving way after
 // the first part leaves no trace in the level asked for next.
 TEST_F(RendererTest, RefinementStepsGiveWayBetweenPartsAndKeepTheirBytes) {
+    using passes::kViewPart;
     using passes::kWorkPart;
     // Level 2 adds a photon batch: checks after the direct light, between the 2 parts of photons, after
     // the resolve and before the view (one part: 32 x 32).
     // Level 17 adds an eye-ray sample: a 512 x 256 image is 2 parts of pixels.
     const SceneDocument photons = small({{"photons", {{"count", 2 * kWorkPart}}}});
-    const SceneDocument pixels = small({{"image", {{"width", 512}, {"height", kWorkPart / 256}}}});
+    const SceneDocument pixels = small({{"image", {{"width", 512}, {"height", kViewPart / 256}}}});
     for (const auto& [doc, level, checks] : {std::tuple{photons, 2u, 4}, std::tuple{pixels, kMaxPhotonBatches + 1, 1}}) {
         SCOPED_TRACE(level);
         Renderer whole(*context), parted(*context), yielded(*context);
@@ -299,13 +300,13 @@ TEST_F(RendererTest, ACameraDragAfterAStillFrameShadesFromItsRadianceGrid) {
 }
 
 // A drag that begins while a refinement level renders makes that level give way: during its view (here
-// an eye-ray sample over 512 x 128 pixels, two parts) the radiance grid is whole and the drag's first
+// an eye-ray sample over 512 x 256 pixels, two parts) the radiance grid is whole and the drag's first
 // frame shades from it; during its photons, before the batch is resolved into the grid, the grid holds
 // the batches before it, whole, and the frame shades from them too; once the resolve has begun the grid
 // holds part of a batch and the frame traces anew.
 TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
     const auto give_way = [] { return true; };
-    const SceneDocument wide = small({{"image", {{"width", 512}, {"height", passes::kWorkPart / 256}}}});
+    const SceneDocument wide = small({{"image", {{"width", 512}, {"height", passes::kViewPart / 256}}}});
     Renderer in_view(*context);
     in_view.render("a", wide, no_assets, {Quality::still, kDefaultBudgetMs, kMaxPhotonBatches});
     EXPECT_THROW(in_view.render("a", wide, no_assets, {Quality::still, kDefaultBudgetMs, kMaxPhotonBatches + 1, give_way}),
@@ -349,6 +350,35 @@ TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
         const FrameResult released = renderer.render("a", camera, no_assets, resume);
         EXPECT_EQ(released.level, 1u);
         EXPECT_EQ(released.png, fresh.render("b", camera, no_assets).png);
+    }
+}
+
+// A frame stopped at any of its parts (the render queue stops one nobody waits for any more) leaves the
+// scene's state consistent: rendered again, it is the undisturbed frame's bytes. Its chances, in order:
+// after the voxelize, index-field and octree passes, between the photons' parts, after their resolve,
+// and before the view; for one object and for two in a field atlas.
+TEST_F(RendererTest, AFrameStoppedAtAnyPartIsWholeWhenRenderedAgain) {
+    const json two = {{"objects", {{"a", {{"position", {-1.2, 0, 0}}, {"scale", 0.4}}},
+                                   {"b", {{"position", {1.2, 0, 0}}, {"scale", 0.4}}}}}};
+    for (const json& patch : {json{{"photons", {{"count", 2 * passes::kWorkPart}}}}, two}) {
+        SCOPED_TRACE(patch.dump());
+        const SceneDocument doc = small(patch);
+        Renderer reference(*context);
+        const FrameResult whole = reference.render("a", doc, no_assets);
+        int chances = 0;
+        {
+            Renderer counting(*context);
+            counting.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 1, [&] { return ++chances, false; }});
+        }
+        ASSERT_GE(chances, 4);
+        for (int at = 1; at <= chances; ++at) {
+            SCOPED_TRACE(::testing::Message() << "stopped at chance " << at << " of " << chances);
+            Renderer renderer(*context);
+            int asked = 0;
+            EXPECT_THROW(renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 1, [&] { return ++asked == at; }}),
+                         Superseded);
+            EXPECT_EQ(renderer.render("a", doc, no_assets).png, whole.png);
+        }
     }
 }
 

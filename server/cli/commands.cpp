@@ -256,7 +256,7 @@ int render_command(const Arguments& args) {
 int animate_command(const Arguments& args) {
     const Loaded loaded = load(args);
     const std::string& keyframes_file = args.positional[1];
-    const protocol::Animation animation = [&] {
+    protocol::Animation animation = [&] {
         try {
             return protocol::Animation(loaded.document, read_json_file(keyframes_file));
         } catch (const protocol::ValidationError& e) {

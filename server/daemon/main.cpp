@@ -59,9 +59,9 @@ int run(const http::DaemonConfig& config) {
     mesh_limits.max_bytes = config.max_body;
     std::unique_ptr<scene::Store> store_owner;
     if (config.store.empty())
-        store_owner = std::make_unique<scene::SceneStore>(config.data_dir, limits, mesh_limits);
+        store_owner = std::make_unique<scene::SceneStore>(config.data_dir, limits, mesh_limits, config.max_host_memory);
     else
-        store_owner = std::make_unique<scene::PgSceneStore>(config.store, limits, mesh_limits);
+        store_owner = std::make_unique<scene::PgSceneStore>(config.store, limits, mesh_limits, config.max_host_memory);
     scene::Store& store = *store_owner;
     if (store.size() == 0) {
         try {
@@ -187,12 +187,13 @@ int run(const http::DaemonConfig& config) {
     sigwait(&stop_signals, &signal_number);
     std::fprintf(stderr, "refractd: %s received, stopping\n", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
 
-    // Listeners first (no new work; WebSocket first, as its sessions on the HTTP port close on that port's
-    // threads); then the render thread finishes the frame it is on and answers every other waiter "shutting
-    // down"; then the HTTP workers, which no longer wait on anything, are joined.
+    // The render thread first: the frame it is on stops at its next part (acknowledged edits are durable
+    // already), and every waiter is answered "shutting down", so that no HTTP worker waits on a frame.
+    // Then the listeners (WebSocket first, as its sessions on the HTTP port close on that port's threads),
+    // and the HTTP workers are joined.
+    queue.stop();
     ws.stop();
     api.stop();
-    queue.stop();
     http_thread.join();
     renderer.reset();
     context.reset();

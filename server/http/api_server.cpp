@@ -219,8 +219,8 @@ struct ApiServer::Impl {
 
     // Renders `snapshot` at the requested size and quality through the render queue and answers the PNG.
     // `edited`: the request's edit made this revision; an answer without a frame then still says so.
-    void answer_frame(Response& res, const scene::SceneSnapshot& snapshot, const FrameQuery& options,
-                      bool edited = false) {
+    void answer_frame(const Request& req, Response& res, const scene::SceneSnapshot& snapshot,
+                      const FrameQuery& options, bool edited = false) {
         if (edited) res.set_header("ETag", etag(snapshot.revision));
         const auto& width = options.width;
         const auto& height = options.height;
@@ -236,8 +236,8 @@ struct ApiServer::Impl {
         bool threads_left = frame_waiters.fetch_add(1) + 4 < config().threads;
         std::optional<scene::FrameOutcome> outcome;
         if (threads_left)
-            outcome = service.queue().render_and_wait(std::move(request),
-                                                      std::chrono::seconds(config().request_timeout_s));
+            outcome = service.queue().render_and_wait(
+                std::move(request), std::chrono::seconds(config().request_timeout_s), req.client_gone);
         if (!outcome) {
             res.set_header("Retry-After", "1");
             if (edited) return answer_edit_without_frame(res, snapshot, "the render queue is full");
@@ -259,6 +259,7 @@ struct ApiServer::Impl {
                 return;
             case Status::no_device:
             case Status::superseded:  // only refinement the WebSocket pushes gives way
+            case Status::abandoned:   // only frames whose askers left are abandoned
             case Status::timed_out:
             case Status::shutting_down:
                 res.set_header("Retry-After", "5");
@@ -393,7 +394,7 @@ struct ApiServer::Impl {
             if (!snapshot) return;
             auto options = frame_options(req, res);
             if (!options) return;
-            answer_frame(res, *snapshot, *options);
+            answer_frame(req, res, *snapshot, *options);
         });
 
         route("POST", R"(/api/scenes/([^/]+)/frame\.png)", [this](const Request& req, Response& res) {
@@ -408,12 +409,19 @@ struct ApiServer::Impl {
                 if (!result) return;
                 snapshot = result->after;
             }
-            answer_frame(res, *snapshot, *options, !req.body.empty());
+            answer_frame(req, res, *snapshot, *options, !req.body.empty());
         });
 
         route("PUT", R"(/api/scenes/([^/]+)/index-field)", [this](const Request& req, Response& res) {
             if (!authorize(req, res)) return;
             put_index_field(req, res, req.matches[1], req.body);
+        });
+
+        route("DELETE", R"(/api/scenes/([^/]+)/index-field)", [this](const Request& req, Response& res) {
+            if (!authorize(req, res)) return;
+            const std::string id = req.matches[1];
+            remove_asset(res, [&] { return service.store().remove_index_grid(id); },
+                         "scene '" + id + "' has no imported index grid");
         });
 
         route("GET", "/api/meshes", [this](const Request& req, Response& res) {
@@ -445,6 +453,12 @@ struct ApiServer::Impl {
             }
         });
 
+        route("DELETE", R"(/api/meshes/([^/]+))", [this](const Request& req, Response& res) {
+            if (!authorize(req, res)) return;
+            const std::string name = req.matches[1];
+            remove_asset(res, [&] { return service.store().remove_mesh(name); }, "no uploaded mesh named '" + name + "'");
+        });
+
         route("GET", "/api/environments", [this](const Request& req, Response& res) {
             if (!authorize(req, res)) return;
             json list = json::array();
@@ -469,6 +483,18 @@ struct ApiServer::Impl {
             }
         });
 
+        route("DELETE", R"(/api/environments/([^/]+))", [this](const Request& req, Response& res) {
+            if (!authorize(req, res)) return;
+            const std::string name = req.matches[1];
+            if (image::built_in_environment(name)) {
+                res.set_header("Allow", "GET");
+                send_error(res, 405, "\"" + name + "\" is a built-in environment; it cannot be deleted");
+                return;
+            }
+            remove_asset(res, [&] { return service.store().remove_environment(name); },
+                         "no uploaded environment named '" + name + "'");
+        });
+
         // Example scenes (logic in http/examples.cpp).
         route("GET", "/api/examples", [this](const Request& req, Response& res) {
             if (authorize(req, res)) send_json(res, 200, examples_index(config().examples_dir));
@@ -480,11 +506,30 @@ struct ApiServer::Impl {
             else send_error(res, example.status, example.error);
         });
 
-        route("GET", R"(/api/.*)", [](const Request& req, Response& res) {
-            send_error(res, 404, "no such endpoint: " + req.path);
+        // Whether an endpoint exists is told only to a client that may use it.
+        route("*", R"(/api/.*)", [this](const Request& req, Response& res) {
+            if (authorize(req, res)) send_error(res, 404, "no such endpoint: " + req.path);
         });
 
         route("GET", R"(/.*)", [this](const Request& req, Response& res) { serve_static(req, res); });
+    }
+
+    // Answers a DELETE of an asset: 204 when `remove` deleted it, 404 with `unknown` when there was none,
+    // 409 with the ids of the scenes that still use it.
+    template <typename Remove>
+    void remove_asset(Response& res, Remove remove, const std::string& unknown) {
+        try {
+            if (!remove()) {
+                send_error(res, 404, unknown);
+                return;
+            }
+        } catch (const scene::AssetInUse& e) {
+            send_json(res, 409, {{"error", e.what()}, {"scenes", e.scenes()}});
+            return;
+        }
+        // Frames rendered with it answer no more, as after an upload (none should use it: nothing names it).
+        service.queue().forget_cached_frames();
+        res.status = 204;
     }
 
     void put_index_field(const Request& req, Response& res, const std::string& id, const std::string& body) {

@@ -104,6 +104,8 @@ CommandLine parse_command_line(const std::vector<std::string>& args, DaemonConfi
             c.max_scenes = parse_unsigned(flag, next(), 1, 1024);
         } else if (flag == "--max-device-memory") {
             c.max_device_memory = parse_unsigned(flag, next(), uint64_t{64} << 20, uint64_t{1} << 40, true);
+        } else if (flag == "--max-host-memory") {
+            c.max_host_memory = parse_unsigned(flag, next(), uint64_t{16} << 20, uint64_t{1} << 40, true);
         } else if (flag == "--max-body") {
             c.max_body = parse_unsigned(flag, next(), 1024, uint64_t{4} << 30, true);
         } else if (flag == "--max-queue") {
@@ -157,6 +159,10 @@ std::string usage_text(const DaemonConfig& d) {
         << "  --max-device-memory BYTES  device memory for resident scenes, K/M/G suffixes allowed; least\n"
         << "                         recently used scenes are dropped to make room (default "
         << (d.max_device_memory >> 20) << "M)\n"
+        << "  --max-host-memory BYTES  host memory for decoded uploads (environment maps, meshes, index\n"
+        << "                         grids), K/M/G suffixes allowed; least recently used are dropped and\n"
+        << "                         decoded again from the store when needed, an upload over the whole\n"
+        << "                         budget is refused (default " << (d.max_host_memory >> 20) << "M)\n"
         << "  --max-body BYTES       largest request body, K/M/G suffixes allowed (default " << d.max_body
         << ")\n"
         << "  --max-queue N          requests waiting for frames before 503 (default " << d.max_queue << ")\n"

@@ -22,6 +22,7 @@ struct DaemonConfig {
     std::string examples_dir;  // example scene documents served at /api/examples
     size_t max_scenes = 8;  // scenes whose GPU state stays resident (LRU)
     uint64_t max_device_memory = uint64_t{4} << 30;  // bytes of device memory for resident scenes (LRU)
+    uint64_t max_host_memory = uint64_t{1} << 30;  // bytes of decoded uploads held in memory (LRU)
     size_t max_body = size_t{64} << 20;  // bytes of one request body
     size_t max_queue = 16;               // requests waiting for a frame, all scenes together
     uint32_t max_resolution = 256;       // volume voxels along the longest axis

@@ -1,7 +1,10 @@
 // One of the two translation units that include Boost.Beast (it compiles slowly).
 #include "http/http_server.h"
 
+#include <sys/socket.h>
+
 #include <array>
+#include <cerrno>
 #include <atomic>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
@@ -276,7 +279,7 @@ private:
 
     const Route* find_route() {
         for (const auto& route : server_.routes) {
-            if (route.method != request_.method) continue;
+            if (route.method != request_.method && route.method != "*") continue;
             std::smatch match;
             if (!std::regex_match(request_.path, match, route.pattern)) continue;
             request_.matches.assign(match.begin(), match.end());
@@ -288,6 +291,13 @@ private:
     // The handler runs on a worker; its answer comes back to this connection's strand.
     void run_handler() {
         stream_.expires_never();  // a frame may take a while; the handler bounds its own waits
+        // Nothing reads the socket while the handler runs: a peek that finds its end (or an error) means
+        // the client hung up. Bytes waiting (a pipelined request) mean it is still there.
+        request_.client_gone = [fd = stream_.socket().native_handle()] {
+            char byte = 0;
+            const ssize_t got = ::recv(fd, &byte, 1, MSG_PEEK | MSG_DONTWAIT);
+            return got == 0 || (got < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR);
+        };
         auto self = shared_from_this();
         bool queued = server_.pool.submit([self] {
             Response res;

@@ -30,6 +30,9 @@ struct Request {
     std::multimap<std::string, std::string, FieldLess> headers;
     std::vector<std::string> matches;  // the route's regex groups, [0] the whole path
     std::string body;
+    // True once the client has closed its connection (asked while the handler runs; never blocks):
+    // work for a client that left can stop. Unset: never.
+    std::function<bool()> client_gone;
 
     bool has_header(const std::string& name) const { return headers.count(name) != 0; }
     // The first value of a header; empty when absent.
@@ -92,7 +95,8 @@ public:
     HttpServer(const HttpServer&) = delete;
     HttpServer& operator=(const HttpServer&) = delete;
 
-    // Adds a route: `pattern` must match the whole decoded path (std::regex). The first match wins.
+    // Adds a route: `pattern` must match the whole decoded path (std::regex); `method` "*" takes every
+    // method. The first match wins.
     void route(const std::string& method, const std::string& pattern, Handler handler);
 
     // Binds and listens (backlog at the system's maximum; SO_REUSEADDR, never SO_REUSEPORT). Throws

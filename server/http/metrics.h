@@ -19,6 +19,7 @@ struct Gauges {
     size_t scenes_resident = 0;
     int64_t device_bytes = 0;
     size_t render_waiting = 0;
+    uint64_t frames_abandoned = 0;
     size_t ws_sessions = 0;
     size_t quarantined_files = 0;
     double uptime_s = 0.0;

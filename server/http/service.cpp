@@ -53,6 +53,7 @@ Gauges Service::read_gauges(std::string& store_error) const {
     g.scenes_resident = scenes_resident.load();
     g.device_bytes = device_bytes.load();
     g.render_waiting = queue_.waiting();
+    g.frames_abandoned = queue_.frames_abandoned();
     g.ws_sessions = ws_sessions.load();
     g.quarantined_files = store_.quarantined().size();
     g.uptime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
@@ -80,6 +81,7 @@ nlohmann::json Service::health() const {
         {"device_bytes", g.device_bytes},
         {"render_waiting", g.render_waiting},
         {"frames_rendered", queue_.frames_rendered()},
+        {"frames_abandoned", queue_.frames_abandoned()},
         {"warming_up", queue_.warming_up()},
         {"ws_port", config_.effective_ws_port()},
         {"ws_sessions", g.ws_sessions},

@@ -39,6 +39,9 @@ constexpr auto kIdleBeforeStill = std::chrono::milliseconds(250);
 constexpr size_t kMaxSeqBytes = 256;                  // a string `seq`; it is echoed in every answer
 constexpr int64_t kMaxPlayFps = 60;                   // frames per second a played animation may ask for
 
+// Plays started, by every session: each play's frames are keyed apart in the render queue.
+std::atomic<uint64_t> plays_started{0};
+
 // The value of `name` in a query string ("a=1&token=x"), decoded; empty when absent.
 std::string query_value(std::string_view query, std::string_view name) {
     while (!query.empty()) {
@@ -117,6 +120,7 @@ public:
     void close() {
         net::post(ws_.get_executor(), [self = shared_from_this()] {
             self->closing_ = true;
+            self->gone_->store(true);
             self->timer_.cancel();
             self->idle_timer_.cancel();
             beast::error_code ignored;
@@ -228,6 +232,7 @@ private:
         ws_.async_read(incoming_, [self = shared_from_this()](beast::error_code ec, size_t) {
             if (ec) {
                 self->closing_ = true;
+                self->gone_->store(true);
                 self->timer_.cancel();
                 self->idle_timer_.cancel();
                 return;
@@ -439,10 +444,12 @@ private:
         scene::FrameOptions options = wanted_options_;
         auto self = shared_from_this();
         bool accepted = service_.queue().submit(
-            std::move(request), [self, seq, options, played](const scene::FrameOutcome& outcome) {
+            std::move(request),
+            [self, seq, options, played](const scene::FrameOutcome& outcome) {
                 net::post(self->ws_.get_executor(),
                           [self, seq, options, played, outcome] { self->on_frame(seq, options, outcome, played); });
-            });
+            },
+            gone_, scene::Admission::one_per_caller);
         if (!accepted) {
             // Queue full: try again shortly rather than dropping the newest state.
             timer_.expires_after(std::chrono::milliseconds(50));
@@ -516,7 +523,7 @@ private:
         try {
             protocol::Animation animation(current->document, message["keyframes"], service_.store().limits());
             const auto frames = static_cast<uint64_t>(std::floor(animation.duration() * fps)) + 1;
-            return Play{std::move(animation), fps, frames, ++plays_, std::nullopt, 0, 0, seq};
+            return Play{std::move(animation), fps, frames, ++plays_started, std::nullopt, 0, 0, seq};
         } catch (const protocol::ValidationError& e) {
             std::string pointer = "/keyframes";
             pointer += e.pointer();
@@ -558,6 +565,7 @@ private:
             self->current_ = {};
             if (ec) {
                 self->closing_ = true;
+                self->gone_->store(true);
                 return;
             }
             self->write_next();
@@ -593,7 +601,8 @@ private:
     // Set by a message that arrives while a refinement level renders: the level gives way to it.
     std::shared_ptr<std::atomic<bool>> newer_message_ = std::make_shared<std::atomic<bool>>(false);
     std::optional<Play> play_;  // the animation playing, if any
-    uint64_t plays_ = 0;        // plays started: each play's frames are keyed apart in the render queue
+    // Set when the connection ends: the render queue drops or abandons this session's frames.
+    scene::Withdrawn gone_ = std::make_shared<std::atomic<bool>>(false);
 
     bool writing_ = false;
     Outgoing current_;

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <limits>
 #include <numbers>
+#include <optional>
 
 #define STB_IMAGE_IMPLEMENTATION
 #define STBI_ONLY_HDR
@@ -39,11 +40,15 @@ void check_pixels(const EnvironmentMap& map) {
 }
 
 bool starts_with(std::string_view bytes, std::string_view prefix) { return bytes.substr(0, prefix.size()) == prefix; }
+bool is_hdr(std::string_view bytes) { return starts_with(bytes, "#?RADIANCE\n") || starts_with(bytes, "#?RGBE\n"); }
+bool is_exr(std::string_view bytes) { return starts_with(bytes, std::string_view("\x76\x2f\x31\x01", 4)); }
+constexpr const char* kNotAnEnvironment = "not a Radiance .hdr (#?RADIANCE) or OpenEXR file";
 
 // stb_image reads past the end of a Radiance file as zeros, so a truncated upload would decode as a map
-// with a black bottom. Its scanlines are walked here first, the way stb_image decodes them (a scanline
-// not marked run-length encoded makes the rest of the image flat RGBE), and a file that ends early is
-// refused.
+// with a black bottom. Its scanlines are walked here first, the way stb_image decodes them, and a file
+// that ends early is refused. A scanline not marked run-length encoded sends stb_image back to the first
+// row, decoding the whole image again as flat RGBE from there: that takes 4 bytes per pixel of the image
+// from where that scanline starts, whatever the rows before it held.
 void check_hdr_complete(std::string_view bytes, uint32_t width, uint32_t height) {
     size_t at = bytes.find("\n\n");
     if (at == std::string_view::npos) throw EnvironmentError("the Radiance header has no end");
@@ -53,18 +58,20 @@ void check_hdr_complete(std::string_view bytes, uint32_t width, uint32_t height)
     auto need = [&](size_t count) {
         if (bytes.size() - at < count) throw EnvironmentError("the Radiance file is truncated");
     };
-    const size_t pixels = size_t{width} * height;
+    const size_t flat_image = 4 * size_t{width} * height;
     if (width < 8 || width >= 32768) {
-        need(4 * pixels);
+        need(flat_image);
         return;
     }
     for (uint32_t row = 0; row < height; ++row) {
         need(4);
         const auto byte = [&](size_t i) { return static_cast<unsigned char>(bytes[at + i]); };
         if (byte(0) != 2 || byte(1) != 2 || (byte(2) & 0x80) != 0) {
-            need(4 * (pixels - size_t{row} * width));
+            need(flat_image);
             return;
         }
+        if ((uint32_t{byte(2)} << 8 | byte(3)) != width)
+            throw EnvironmentError("a Radiance scanline's length is not the image's width");
         at += 4;
         for (int channel = 0; channel < 4; ++channel) {
             for (uint32_t filled = 0; filled < width;) {
@@ -81,22 +88,170 @@ void check_hdr_complete(std::string_view bytes, uint32_t width, uint32_t height)
     }
 }
 
-EnvironmentMap decode_hdr(std::string_view bytes) {
+// The size a Radiance header declares, read by stb_image without allocating any pixel.
+EnvironmentSize hdr_size(std::string_view bytes) {
     if (bytes.size() > static_cast<size_t>(std::numeric_limits<int>::max()))
         throw EnvironmentError("the file is larger than 2 GiB");
+    int width = 0, height = 0, channels = 0;
+    if (!stbi_info_from_memory(reinterpret_cast<const stbi_uc*>(bytes.data()), static_cast<int>(bytes.size()), &width,
+                               &height, &channels))
+        throw EnvironmentError(std::string("unreadable Radiance header: ") + stbi_failure_reason());
+    check_size(width, height);
+    return {static_cast<uint32_t>(width), static_cast<uint32_t>(height)};
+}
+
+EnvironmentMap decode_hdr(std::string_view bytes) {
+    const EnvironmentSize size = hdr_size(bytes);
+    EnvironmentMap map{size.width, size.height, {}};
+    check_hdr_complete(bytes, map.width, map.height);
     const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
     const int length = static_cast<int>(bytes.size());
     int width = 0, height = 0, channels = 0;
-    if (!stbi_info_from_memory(data, length, &width, &height, &channels))
-        throw EnvironmentError(std::string("unreadable Radiance header: ") + stbi_failure_reason());
-    check_size(width, height);
-    EnvironmentMap map{static_cast<uint32_t>(width), static_cast<uint32_t>(height), {}};
-    check_hdr_complete(bytes, map.width, map.height);
     float* pixels = stbi_loadf_from_memory(data, length, &width, &height, &channels, 3);
     if (pixels == nullptr) throw EnvironmentError(std::string("corrupt Radiance file: ") + stbi_failure_reason());
     map.rgb.assign(pixels, pixels + size_t{map.width} * map.height * 3);
     stbi_image_free(pixels);
     return map;
+}
+
+// The OpenEXR library allocates what a header declares before it reads it: a string attribute declared
+// 2^31 - 1 bytes long took 2 GiB for a 332-byte upload, a preview declared 65535 x 65535 would take
+// 16 GiB. So the header is walked here first (magic, version, then attributes: name\0 type\0 int32 size,
+// value, up to an empty name) and every size is held against the bytes actually present and the bounds
+// below; the library reads only a header that passed.
+constexpr size_t kMaxExrAttributes = 256;
+constexpr uint64_t kMaxExrAttributeBytes = uint64_t{1} << 20;
+constexpr uint64_t kMaxExrHeaderBytes = uint64_t{4} << 20;
+// Samples decoded at most: RGBA at the largest size (the library's line buffers hold every channel).
+constexpr uint64_t kMaxExrSamples = uint64_t{kMaxEnvironmentWidth} * kMaxEnvironmentHeight * 4;
+
+constexpr uint32_t kExrTiled = 0x200, kExrLongNames = 0x400, kExrDeep = 0x800, kExrMultiPart = 0x1000;
+
+// Little-endian reads within a header; every read is checked against the end first.
+class ExrReader {
+public:
+    ExrReader(std::string_view bytes, size_t at) : bytes_(bytes), at_(at) {}
+    size_t at() const { return at_; }
+    size_t left() const { return bytes_.size() - at_; }
+    void need(uint64_t count, const std::string& what) const {
+        if (left() < count) throw EnvironmentError("the OpenEXR header is truncated in " + what);
+    }
+    uint32_t u32(const std::string& what) {
+        need(4, what);
+        uint32_t value = 0;
+        for (int i = 3; i >= 0; --i) value = value << 8 | static_cast<unsigned char>(bytes_[at_ + static_cast<size_t>(i)]);
+        at_ += 4;
+        return value;
+    }
+    int32_t i32(const std::string& what) { return static_cast<int32_t>(u32(what)); }
+    uint8_t u8(const std::string& what) {
+        need(1, what);
+        return static_cast<uint8_t>(bytes_[at_++]);
+    }
+    // A NUL-terminated name of at most `longest` characters ("" for the NUL that ends a list).
+    std::string_view name(size_t longest, const std::string& what) {
+        const size_t end = bytes_.find('\0', at_);
+        if (end == std::string_view::npos) throw EnvironmentError("the OpenEXR header is truncated in " + what);
+        if (end - at_ > longest)
+            throw EnvironmentError("an OpenEXR " + what + " is longer than " + std::to_string(longest) + " characters");
+        const std::string_view text = bytes_.substr(at_, end - at_);
+        at_ = end + 1;
+        return text;
+    }
+    void skip(uint64_t count, const std::string& what) {
+        need(count, what);
+        at_ += static_cast<size_t>(count);
+    }
+
+private:
+    std::string_view bytes_;
+    size_t at_;
+};
+
+struct ExrLayout {
+    int64_t width = 0, height = 0;
+};
+
+// The channel list's channels, each checked to be whole; their count.
+uint64_t exr_channels(ExrReader value) {
+    uint64_t channels = 0;
+    while (!value.name(255, "channel name").empty()) {
+        value.skip(16, "a channel");  // pixel type, pLinear and 3 reserved bytes, x and y sampling
+        ++channels;
+    }
+    return channels;
+}
+
+ExrLayout check_exr_header(std::string_view bytes) {
+    ExrReader in(bytes, 4);  // past the magic number
+    const uint32_t version = in.u32("the version");
+    if ((version & 0xff) != 2) throw EnvironmentError("unsupported OpenEXR version " + std::to_string(version & 0xff));
+    if ((version & (kExrDeep | kExrMultiPart)) != 0)
+        throw EnvironmentError("multi-part and deep OpenEXR files are not environments: save a single-part image");
+    const size_t longest_name = (version & kExrLongNames) != 0 ? 255 : 31;
+    std::optional<ExrLayout> layout;
+    uint64_t channels = 0;
+    uint32_t tile_width = 0, tile_height = 0;
+    for (size_t count = 0;; ++count) {
+        const std::string_view name = in.name(longest_name, "attribute name");
+        if (name.empty()) break;
+        if (count == kMaxExrAttributes)
+            throw EnvironmentError("the OpenEXR header has more than " + std::to_string(kMaxExrAttributes) + " attributes");
+        const std::string attribute = "attribute '" + std::string(name) + "'";
+        const std::string_view type = in.name(longest_name, "attribute type");
+        const int32_t size = in.i32(attribute);
+        if (size < 0) throw EnvironmentError("the OpenEXR " + attribute + " has a negative size");
+        if (static_cast<uint64_t>(size) > kMaxExrAttributeBytes)
+            throw EnvironmentError("the OpenEXR " + attribute + " declares " + std::to_string(size) +
+                                   " bytes, over the limit of " + std::to_string(kMaxExrAttributeBytes));
+        in.need(static_cast<uint64_t>(size), attribute + " (it declares " + std::to_string(size) + " bytes)");
+        ExrReader value(bytes.substr(0, in.at() + static_cast<size_t>(size)), in.at());
+        if (type == "box2i" && name == "dataWindow") {
+            const int64_t x_min = value.i32(attribute), y_min = value.i32(attribute);
+            const int64_t x_max = value.i32(attribute), y_max = value.i32(attribute);
+            layout = ExrLayout{x_max - x_min + 1, y_max - y_min + 1};
+        } else if (type == "chlist" && name == "channels") {
+            channels = exr_channels(value);
+        } else if (type == "tiledesc" && name == "tiles") {
+            tile_width = value.u32(attribute);
+            tile_height = value.u32(attribute);
+        } else if (type == "preview") {
+            // Its pixels are allocated from the two sides before they are read.
+            const uint64_t width = value.u32(attribute), height = value.u32(attribute);
+            if (value.left() % 4 != 0 || width * height != value.left() / 4)
+                throw EnvironmentError("the OpenEXR " + attribute + " does not hold the pixels it declares");
+        } else if (type == "stringvector") {
+            while (value.left() > 0) {
+                const int32_t length = value.i32(attribute);
+                if (length < 0) throw EnvironmentError("the OpenEXR " + attribute + " holds a string of negative size");
+                value.skip(static_cast<uint64_t>(length), attribute);
+            }
+        }
+        in.skip(static_cast<uint64_t>(size), attribute);
+        if (in.at() > kMaxExrHeaderBytes)
+            throw EnvironmentError("the OpenEXR header is over the limit of " + std::to_string(kMaxExrHeaderBytes) +
+                                   " bytes");
+    }
+    if (!layout) throw EnvironmentError("the OpenEXR header has no dataWindow");
+    check_size(layout->width, layout->height);
+    if (channels == 0) throw EnvironmentError("the OpenEXR header lists no channels");
+    const uint64_t samples = static_cast<uint64_t>(layout->width * layout->height) * channels;
+    if (samples > kMaxExrSamples)
+        throw EnvironmentError("the OpenEXR image holds " + std::to_string(channels) + " channels of " +
+                               std::to_string(layout->width) + " x " + std::to_string(layout->height) +
+                               " pixels; at most " + std::to_string(kMaxExrSamples) + " samples are decoded");
+    if ((version & kExrTiled) != 0) {
+        // The library allocates the tile offset table (8 bytes a tile, more for mipmap levels) from the
+        // tile size: the file must hold at least the offsets of its full-resolution level.
+        if (tile_width == 0 || tile_height == 0 || tile_width > kMaxEnvironmentWidth ||
+            tile_height > kMaxEnvironmentHeight)
+            throw EnvironmentError("the OpenEXR tiles are " + std::to_string(tile_width) + " x " +
+                                   std::to_string(tile_height) + " pixels; tiles must fit an environment");
+        const uint64_t tiles = (static_cast<uint64_t>(layout->width) + tile_width - 1) / tile_width *
+                               ((static_cast<uint64_t>(layout->height) + tile_height - 1) / tile_height);
+        if (8 * tiles > in.left()) throw EnvironmentError("the OpenEXR file is truncated: its tile offsets are missing");
+    }
+    return *layout;
 }
 
 // The upload as an OpenEXR input stream (the library reads from files or streams, never from memory).
@@ -128,6 +283,7 @@ EnvironmentMap decode_exr(std::string_view bytes) {
         return true;
     }();
     (void)limited;
+    check_exr_header(bytes);
     try {
         MemoryStream stream(bytes);
         Imf::RgbaInputFile file(stream);
@@ -194,11 +350,18 @@ EnvironmentMap sky_sun() {
 
 EnvironmentMap decode_environment(std::string_view bytes) {
     EnvironmentMap map;
-    if (starts_with(bytes, "#?RADIANCE\n") || starts_with(bytes, "#?RGBE\n")) map = decode_hdr(bytes);
-    else if (starts_with(bytes, std::string_view("\x76\x2f\x31\x01", 4))) map = decode_exr(bytes);
-    else throw EnvironmentError("not a Radiance .hdr (#?RADIANCE) or OpenEXR file");
+    if (is_hdr(bytes)) map = decode_hdr(bytes);
+    else if (is_exr(bytes)) map = decode_exr(bytes);
+    else throw EnvironmentError(kNotAnEnvironment);
     check_pixels(map);
     return map;
+}
+
+EnvironmentSize environment_size(std::string_view bytes) {
+    if (is_hdr(bytes)) return hdr_size(bytes);
+    if (!is_exr(bytes)) throw EnvironmentError(kNotAnEnvironment);
+    const ExrLayout layout = check_exr_header(bytes);
+    return {static_cast<uint32_t>(layout.width), static_cast<uint32_t>(layout.height)};
 }
 
 std::string encode_hdr(const EnvironmentMap& map) {

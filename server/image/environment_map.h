@@ -36,6 +36,17 @@ public:
 // and any pixel that is NaN, infinite or negative.
 EnvironmentMap decode_environment(std::string_view bytes);
 
+// A map's size as its header declares it.
+struct EnvironmentSize {
+    uint32_t width = 0, height = 0;
+    // The host memory the decoded map takes (EnvironmentMap::rgb).
+    uint64_t decoded_bytes() const { return uint64_t{width} * height * 3 * sizeof(float); }
+};
+
+// The size `bytes` declare, from the header alone (checked as decode_environment checks headers), so a
+// caller can tell what decoding would take before anything is allocated. Throws EnvironmentError.
+EnvironmentSize environment_size(std::string_view bytes);
+
 // Writes `map` as an uncompressed Radiance .hdr (RGBE); for tests and tools.
 std::string encode_hdr(const EnvironmentMap& map);
 

@@ -195,6 +195,10 @@ ObjScan scan_obj(std::string_view text, const MeshLimits& limits) {
                 throw MeshError("OBJ vertex on " + line_ref(line_number) +
                                 " has fewer than 3 coordinates (expected 'v x y z')");
             }
+            if (scan.vertices == limits.max_vertices) {
+                throw MeshError("OBJ has more than the limit of " + std::to_string(limits.max_vertices) +
+                                " vertices (on " + line_ref(line_number) + "); simplify the model");
+            }
             glm::vec3 p;
             for (int k = 0; k < 3; ++k) {
                 p[k] = static_cast<float>(

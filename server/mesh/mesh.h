@@ -26,6 +26,9 @@ public:
 struct MeshLimits {
     size_t max_bytes = 64u << 20;      // OBJ text
     size_t max_triangles = 2'000'000;  // after triangulation
+    // 'v' lines, counted before each is kept: vertices no face uses cost memory too. Three a triangle is
+    // the most a mesh of max_triangles separate triangles needs.
+    size_t max_vertices = 6'000'000;
     // Polygons: a convex face is fanned in O(n) whatever its size; any other face is ear-clipped in O(n^2),
     // so its corners are limited, and so is the sum over such faces of corners^2 (the triangulation work).
     size_t max_concave_polygon_corners = 4096;

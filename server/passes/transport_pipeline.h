@@ -20,6 +20,10 @@ namespace refract::passes {
 // their work items from a queue in order (take_from_queue) can stop after any part, and a refinement
 // step submits between parts, so that waiting work comes before the rest of it (scene::RunOptions).
 constexpr uint32_t kWorkPart = 32768;
+// Pixels per part of the viewing pass: an eye ray costs about half a photon (the default scene on two
+// cores: 1 against 2.2 microseconds), so its parts take about as long as the photons', and a 512 x 512
+// frame is 4 submissions, not 8 (each costs a wait for the device).
+constexpr uint32_t kViewPart = 2 * kWorkPart;
 // Runs between two parts of a split dispatch; it may submit the command buffer and begin another (the
 // pass records the next part into recorder.get()), or throw to abandon the rest. Empty: no parts.
 using BetweenParts = std::function<void()>;

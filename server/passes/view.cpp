@@ -55,7 +55,7 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
     if (!adaptive) {
         // Pixels come from a queue in order (take_from_queue): parts of the group rows trace consecutive ones.
         const uint32_t columns = vk::group_count(width, VIEW_GROUP_SIZE), rows = vk::group_count(height, VIEW_GROUP_SIZE);
-        const uint32_t part = between ? std::max(1u, kWorkPart / (columns * VIEW_GROUP_SIZE * VIEW_GROUP_SIZE)) : rows;
+        const uint32_t part = between ? std::max(1u, kViewPart / (columns * VIEW_GROUP_SIZE * VIEW_GROUP_SIZE)) : rows;
         for (uint32_t first = 0; first < rows; first += part) {
             if (first > 0) between();
             view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_ALL}, columns,

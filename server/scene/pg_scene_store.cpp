@@ -29,26 +29,45 @@ std::string text_of(uint64_t number) {
     return std::to_string(number);
 }
 
-// A payload of refract_notify() (pg_schema.cpp) as an event; nullopt for one this build does not know.
-std::optional<StoreEvent> parse_notification(std::string_view payload) {
+// Announcements of deleted assets, sent by the deleting transaction (the tables' triggers announce
+// uploads only): "deleted-mesh NAME", "deleted-environment NAME", "deleted-grid SCENE".
+constexpr std::string_view kDeletedMesh = "deleted-mesh", kDeletedEnvironment = "deleted-environment",
+                           kDeletedGrid = "deleted-grid";
+
+// A payload of refract_notify() (pg_schema.cpp) or of a deletion as an event, and whether it deletes an
+// asset; nullopt for one this build does not know.
+std::optional<std::pair<StoreEvent, bool>> parse_notification(std::string_view payload) {
     const size_t space = payload.find(' ');
     if (space == std::string_view::npos) return std::nullopt;
     const std::string_view kind = payload.substr(0, space), rest = payload.substr(space + 1);
-    if (kind == "deleted") return StoreEvent{StoreEvent::Kind::deleted, std::string(rest), 0};
-    if (kind == "mesh") return StoreEvent{StoreEvent::Kind::mesh, std::string(rest), 0};
-    if (kind == "environment") return StoreEvent{StoreEvent::Kind::environment, std::string(rest), 0};
+    const auto event = [&](StoreEvent::Kind k, bool deletion) {
+        return std::pair{StoreEvent{k, std::string(rest), 0}, deletion};
+    };
+    if (kind == "deleted") return event(StoreEvent::Kind::deleted, false);
+    if (kind == "mesh") return event(StoreEvent::Kind::mesh, false);
+    if (kind == "environment") return event(StoreEvent::Kind::environment, false);
+    if (kind == kDeletedMesh) return event(StoreEvent::Kind::mesh, true);
+    if (kind == kDeletedEnvironment) return event(StoreEvent::Kind::environment, true);
+    if (kind == kDeletedGrid) return event(StoreEvent::Kind::grid, true);
     const size_t split = rest.find(' ');
     uint64_t revision = 0;
     if (kind != "revision" || split == std::string_view::npos ||
         std::from_chars(rest.data() + split + 1, rest.data() + rest.size(), revision).ec != std::errc())
         return std::nullopt;
-    return StoreEvent{StoreEvent::Kind::revision, std::string(rest.substr(0, split)), revision};
+    return std::pair{StoreEvent{StoreEvent::Kind::revision, std::string(rest.substr(0, split)), revision}, false};
+}
+
+AssetKind asset_kind(StoreEvent::Kind kind) {
+    return kind == StoreEvent::Kind::mesh ? AssetKind::mesh
+           : kind == StoreEvent::Kind::grid ? AssetKind::grid
+                                            : AssetKind::environment;
 }
 
 }  // namespace
 
-PgSceneStore::PgSceneStore(const std::string& url, protocol::Limits limits, mesh::MeshLimits mesh_limits)
-    : pool_(url, kPoolSize), limits_(limits), mesh_limits_(mesh_limits) {
+PgSceneStore::PgSceneStore(const std::string& url, protocol::Limits limits, mesh::MeshLimits mesh_limits,
+                           uint64_t max_host_memory)
+    : pool_(url, kPoolSize), limits_(limits), mesh_limits_(mesh_limits), cache_(max_host_memory) {
     {
         pg::Pool::Lease connection = pool_.acquire();
         pg::migrate(*connection);
@@ -100,8 +119,12 @@ std::optional<SceneSnapshot> PgSceneStore::get(const std::string& id) const {
 
 std::vector<SceneSnapshot> PgSceneStore::list() const {
     pg::Pool::Lease connection = pool_.acquire();
+    return all_scenes(*connection);
+}
+
+std::vector<SceneSnapshot> PgSceneStore::all_scenes(pg::Connection& connection) const {
     pg::Result rows =
-        connection->exec("SELECT id, revision, document::text FROM scenes ORDER BY id", {}, "listing scenes");
+        connection.exec("SELECT id, revision, document::text FROM scenes ORDER BY id", {}, "listing scenes");
     std::vector<SceneSnapshot> all;
     for (int i = 0; i < rows.rows(); ++i) all.push_back(snapshot(rows.text(i, 0), rows.number(i, 1), rows.text(i, 2)));
     return all;
@@ -205,6 +228,8 @@ PgSceneStore::LostUpdate PgSceneStore::outcome_of_lost_update(const pg::Connecti
 MeshEntry PgSceneStore::put_mesh(const std::string& name, const std::string& obj_text) {
     if (!valid_mesh_name(name)) throw StoreError(400, "mesh name must match [A-Za-z0-9_.-]{1,64}");
     auto parsed = std::make_shared<const mesh::Mesh>(mesh::parse_obj(obj_text, mesh_limits_));
+    const uint64_t size = host_bytes(*parsed);
+    cache_.check_fits("mesh '" + name + "'", size);
     MeshEntry entry{name, mesh::inspect(*parsed)};
     pg::Pool::Lease connection = pool_.acquire();
     // bytea, not text: an OBJ file need not be UTF-8.
@@ -212,8 +237,7 @@ MeshEntry PgSceneStore::put_mesh(const std::string& name, const std::string& obj
         "INSERT INTO meshes (name, obj, report) VALUES ($1, $2, $3::jsonb) ON CONFLICT (name) DO UPDATE "
         "SET obj = EXCLUDED.obj, report = EXCLUDED.report, version = meshes.version + 1 RETURNING version",
         {{name}, {obj_text, true}, {to_json(entry.report).dump()}}, "storing mesh '" + name + "'");
-    std::lock_guard lock(asset_mutex_);
-    meshes_[name] = {stored.number(0, 0), std::move(parsed)};
+    cache_.insert(AssetKind::mesh, name, stored.number(0, 0), std::move(parsed), size);
     return entry;
 }
 
@@ -232,8 +256,8 @@ struct PgSceneStore::AssetTable {
 };
 
 template <typename T, typename Parse>
-std::shared_ptr<const T> PgSceneStore::load_asset(std::map<std::string, Cached<T>>& cache, const AssetTable& where,
-                                                  const std::string& key, Parse parse) const {
+std::shared_ptr<const T> PgSceneStore::load_asset(AssetKind kind, const AssetTable& where, const std::string& key,
+                                                  Parse parse) const {
     const std::string what = std::string(where.what) + " '" + key + "'";
     const std::string condition = " FROM " + std::string(where.table) + " WHERE " + std::string(where.key) + " = $1";
     pg::Pool::Lease connection = pool_.acquire();
@@ -242,11 +266,7 @@ std::shared_ptr<const T> PgSceneStore::load_asset(std::map<std::string, Cached<T
     // A re-upload between the two reads leaves the older version number with the newer bytes: the
     // next lookup parses again, nothing worse.
     const uint64_t stored_version = version.number(0, 0);
-    {
-        std::lock_guard lock(asset_mutex_);
-        auto it = cache.find(key);
-        if (it != cache.end() && it->second.version == stored_version) return it->second.value;
-    }
+    if (auto cached = cache_.find<T>(kind, key, stored_version)) return cached;
     pg::Result row = connection->exec("SELECT " + std::string(where.data) + condition, {{key}}, "reading " + what, true);
     if (row.rows() == 0) return nullptr;
     std::shared_ptr<const T> loaded;
@@ -255,21 +275,47 @@ std::shared_ptr<const T> PgSceneStore::load_asset(std::map<std::string, Cached<T
     } catch (const std::exception& e) {
         throw RenderError("stored " + what + " cannot be read: " + e.what());
     }
-    std::lock_guard lock(asset_mutex_);
-    cache[key] = {stored_version, loaded};
-    return loaded;
+    const uint64_t size = host_bytes(*loaded);
+    return cache_.insert(kind, key, stored_version, std::move(loaded), size);
+}
+
+bool PgSceneStore::remove_asset(AssetKind kind, const AssetTable& where, const std::string& key,
+                                const std::string& what, const std::string& notification) {
+    const std::string condition = " FROM " + std::string(where.table) + " WHERE " + std::string(where.key) + " = $1";
+    pg::Pool::Lease connection = pool_.acquire();
+    const bool removed = pg::in_transaction(*connection, "deleting " + what, [&] {
+        // The row stays locked until the commit: an upload of the same name waits for the deletion.
+        if (connection->exec("SELECT 1" + condition + " FOR UPDATE", {{key}}, "looking up " + what).rows() == 0)
+            return false;
+        check_unused(all_scenes(*connection), kind, key, what);
+        connection->exec("DELETE" + condition, {{key}}, "deleting " + what);
+        connection->exec("SELECT pg_notify('refract_scenes', $1)", {{notification + " " + key}},
+                         "announcing the deletion of " + what);
+        return true;
+    });
+    if (removed) cache_.forget(kind, key);
+    return removed;
 }
 
 std::shared_ptr<const mesh::Mesh> PgSceneStore::mesh(const std::string& name_or_reference) const {
     std::string name = strip_upload_prefix(name_or_reference);
     if (!valid_mesh_name(name)) return nullptr;
-    return load_asset(meshes_, {"meshes", "name", "obj", "mesh"}, name,
-                      [this](const std::string& obj) { return mesh::parse_obj(obj, mesh_limits_); });
+    return load_asset<mesh::Mesh>(AssetKind::mesh, {"meshes", "name", "obj", "mesh"}, name,
+                                  [this](const std::string& obj) { return mesh::parse_obj(obj, mesh_limits_); });
+}
+
+bool PgSceneStore::remove_mesh(const std::string& name_or_reference) {
+    const std::string name = strip_upload_prefix(name_or_reference);
+    if (!valid_mesh_name(name)) return false;
+    return remove_asset(AssetKind::mesh, {"meshes", "name", "obj", "mesh"}, name, "mesh '" + name + "'",
+                        std::string(kDeletedMesh));
 }
 
 EnvironmentEntry PgSceneStore::put_environment(const std::string& name, const std::string& bytes) {
     if (!valid_mesh_name(name)) throw StoreError(400, "environment name must match [A-Za-z0-9_.-]{1,64}");
     if (image::built_in_environment(name)) throw StoreError(400, "\"" + name + "\" is a built-in environment");
+    // Refused on its header before anything is decoded when it could never be held.
+    cache_.check_fits("environment '" + name + "'", image::environment_size(bytes).decoded_bytes());
     auto decoded = std::make_shared<const image::EnvironmentMap>(image::decode_environment(bytes));
     EnvironmentEntry entry{name, decoded->width, decoded->height, false};
     pg::Pool::Lease connection = pool_.acquire();
@@ -279,8 +325,8 @@ EnvironmentEntry PgSceneStore::put_environment(const std::string& name, const st
         "version = environments.version + 1 RETURNING version",
         {{name}, {bytes, true}, {std::to_string(entry.width)}, {std::to_string(entry.height)}},
         "storing environment '" + name + "'");
-    std::lock_guard lock(asset_mutex_);
-    environments_[name] = {stored.number(0, 0), std::move(decoded)};
+    const uint64_t size = host_bytes(*decoded);
+    cache_.insert(AssetKind::environment, name, stored.number(0, 0), std::move(decoded), size);
     return entry;
 }
 
@@ -301,12 +347,20 @@ std::vector<EnvironmentEntry> PgSceneStore::list_stored_environments() const {
 }
 
 std::shared_ptr<const image::EnvironmentMap> PgSceneStore::stored_environment(const std::string& name) const {
-    return load_asset(environments_, {"environments", "name", "data", "environment"}, name,
-                      [](const std::string& bytes) { return image::decode_environment(bytes); });
+    if (!valid_mesh_name(name)) return nullptr;
+    return load_asset<image::EnvironmentMap>(AssetKind::environment, {"environments", "name", "data", "environment"},
+                                             name, [](const std::string& bytes) { return image::decode_environment(bytes); });
+}
+
+bool PgSceneStore::remove_environment(const std::string& name) {
+    if (!valid_mesh_name(name) || image::built_in_environment(name)) return false;
+    return remove_asset(AssetKind::environment, {"environments", "name", "data", "environment"}, name,
+                        "environment '" + name + "'", std::string(kDeletedEnvironment));
 }
 
 EditResult PgSceneStore::put_index_grid(const std::string& scene_id, IndexGrid grid) {
     validate_index_grid(grid);
+    cache_.check_fits("the index grid", host_bytes(grid));
     std::vector<char> bytes = encode_grid(grid);
     pg::Pool::Lease connection = pool_.acquire();
     EditResult result = pg::in_transaction(*connection, "storing the index grid of scene '" + scene_id + "'", [&] {
@@ -330,15 +384,20 @@ EditResult PgSceneStore::put_index_grid(const std::string& scene_id, IndexGrid g
                          {{scene_id}, {dump(edit.after.document)}}, "pointing the scene at its grid");
         return edit;
     });
-    std::lock_guard lock(asset_mutex_);
-    grids_.erase(scene_id);  // parsed again, with its new version, when the renderer asks
+    cache_.forget(AssetKind::grid, scene_id);  // parsed again, with its new version, when the renderer asks
     return result;
 }
 
 std::shared_ptr<const IndexGrid> PgSceneStore::grid(const std::string& name) const {
     if (!valid_scene_id(name)) return nullptr;
-    return load_asset(grids_, {"grids", "scene_id", "data", "index grid"}, name,
-                      [](const std::string& bytes) { return decode_grid(bytes); });
+    return load_asset<IndexGrid>(AssetKind::grid, {"grids", "scene_id", "data", "index grid"}, name,
+                                 [](const std::string& bytes) { return decode_grid(bytes); });
+}
+
+bool PgSceneStore::remove_index_grid(const std::string& scene_id) {
+    if (!valid_scene_id(scene_id)) return false;
+    return remove_asset(AssetKind::grid, {"grids", "scene_id", "data", "index grid"}, scene_id,
+                        "the index grid of scene '" + scene_id + "'", std::string(kDeletedGrid));
 }
 
 void PgSceneStore::listen() {
@@ -356,9 +415,12 @@ void PgSceneStore::listen() {
                     throw StoreError(503, std::string("lost the notification connection: ") +
                                               PQerrorMessage(connection.raw()));
                 while (PGnotify* note = PQnotifies(connection.raw())) {
-                    std::optional<StoreEvent> event = parse_notification(note->extra);
+                    std::optional<std::pair<StoreEvent, bool>> event = parse_notification(note->extra);
                     PQfreemem(note);
-                    if (event) publish(*event);
+                    if (!event) continue;
+                    // A deletion by any replica: nothing asks for the asset again, so nothing would replace it.
+                    if (event->second) cache_.forget(asset_kind(event->first.kind), event->first.name);
+                    publish(event->first);
                 }
             }
         } catch (const std::exception& e) {

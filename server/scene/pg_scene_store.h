@@ -1,7 +1,7 @@
 // The shared scene store: scene documents, revisions, meshes and index grids in PostgreSQL, so that any
 // number of refractd replicas serve the same scenes. The database enforces the revision rules (see
 // pg_schema.cpp); an edit is acknowledged only once its transaction has committed. Nothing is cached
-// but parsed meshes and grids, keyed by their stored version, so a replica always answers with the
+// but decoded assets (within a budget of host memory), keyed by their stored version, so a replica always answers with the
 // newest committed revision, whoever committed it.
 #pragma once
 
@@ -18,7 +18,9 @@ class PgSceneStore final : public Store {
 public:
     // Connects to `url`, migrates the schema (pg_schema.h) and starts listening for other replicas'
     // edits. Throws StoreError: 503 when the database cannot be reached, 500 when its schema is newer.
-    PgSceneStore(const std::string& url, protocol::Limits limits, mesh::MeshLimits mesh_limits);
+    // At most `max_host_memory` bytes of decoded assets are held.
+    PgSceneStore(const std::string& url, protocol::Limits limits, mesh::MeshLimits mesh_limits,
+                 uint64_t max_host_memory = kDefaultMaxHostMemory);
     ~PgSceneStore() override;
     PgSceneStore(const PgSceneStore&) = delete;
     PgSceneStore& operator=(const PgSceneStore&) = delete;
@@ -33,11 +35,14 @@ public:
     MeshEntry put_mesh(const std::string& name, const std::string& obj_text) override;
     std::vector<MeshEntry> list_meshes() const override;
     std::shared_ptr<const mesh::Mesh> mesh(const std::string& name) const override;
+    bool remove_mesh(const std::string& name) override;
     EnvironmentEntry put_environment(const std::string& name, const std::string& bytes) override;
     std::vector<EnvironmentEntry> list_stored_environments() const override;
     std::shared_ptr<const image::EnvironmentMap> stored_environment(const std::string& name) const override;
+    bool remove_environment(const std::string& name) override;
     EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) override;
     std::shared_ptr<const IndexGrid> grid(const std::string& name) const override;
+    bool remove_index_grid(const std::string& scene_id) override;
     const std::vector<QuarantinedFile>& quarantined() const override { return no_quarantine_; }
     const protocol::Limits& limits() const override { return limits_; }
     std::string location() const override { return location_; }
@@ -62,24 +67,22 @@ private:
     std::string location_;
     std::vector<QuarantinedFile> no_quarantine_;
 
-    // Parsed assets by name with the stored version they were parsed from (the renderer holds on to
-    // the pointer: a new pointer is what tells it a mesh or grid changed).
-    template <typename T>
-    struct Cached {
-        uint64_t version = 0;
-        std::shared_ptr<const T> value;
-    };
     struct AssetTable;
-    // The asset stored under `key`, parsed by `parse` from its bytes unless the cached copy is of the
-    // stored version; nullptr when none is stored, RenderError when it cannot be parsed.
+    // The asset stored under `key`, parsed by `parse` from its bytes unless the cache holds the stored
+    // version; nullptr when none is stored, RenderError when it cannot be parsed.
     template <typename T, typename Parse>
-    std::shared_ptr<const T> load_asset(std::map<std::string, Cached<T>>& cache, const AssetTable& where,
-                                        const std::string& key, Parse parse) const;
+    std::shared_ptr<const T> load_asset(AssetKind kind, const AssetTable& where, const std::string& key,
+                                        Parse parse) const;
+    // Deletes the row of `key` in a transaction that first checks no scene names it (AssetInUse) and
+    // announces the deletion with `notification` to every replica; false when there is no row.
+    bool remove_asset(AssetKind kind, const AssetTable& where, const std::string& key, const std::string& what,
+                      const std::string& notification);
+    // Every scene, read on a connection the caller holds.
+    std::vector<SceneSnapshot> all_scenes(pg::Connection& connection) const;
 
-    mutable std::mutex asset_mutex_;
-    mutable std::map<std::string, Cached<mesh::Mesh>> meshes_;
-    mutable std::map<std::string, Cached<IndexGrid>> grids_;
-    mutable std::map<std::string, Cached<image::EnvironmentMap>> environments_;
+    // Decoded assets by name and the stored version they were decoded from (the renderer holds on to
+    // the pointer: a new pointer is what tells it an asset changed).
+    mutable AssetCache cache_;
 
     std::atomic<bool> stopping_{false};
     std::thread listener_;

@@ -6,6 +6,7 @@
 #include <list>
 #include <map>
 #include <mutex>
+#include <set>
 
 #include "image/png.h"
 #include "mesh/mesh.h"
@@ -100,7 +101,8 @@ WorldMeshes worlds_of(const protocol::SceneDocument& document, const ResolvedAss
 
 // Device memory the scene `document` holds once rendered, estimated on the lattice it asks for before
 // anything is allocated (the objects' boxes in it, or the imported grid's own lattice).
-int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes& worlds, const IndexGrid* grid) {
+int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes& worlds, const IndexGrid* grid,
+                     const image::EnvironmentMap* environment) {
     const GridGeometry g = grid ? GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : grid_for(document, worlds);
     uint64_t object_voxels = 0;
     std::map<std::string, ObjectBox> boxes;
@@ -112,7 +114,8 @@ int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes&
     const uint64_t field_voxels =
         field_atlas_for(g, boxes, grid || document.objects.size() < 2, std::numeric_limits<uint32_t>::max()).dims.count();
     return estimate_scene_bytes(g, field_voxels, object_voxels, g.coarsened(g.light_factor).count(), document.image.width,
-                                document.image.height);
+                                document.image.height) +
+           estimate_environment_bytes(environment);
 }
 
 }  // namespace
@@ -143,12 +146,19 @@ struct Renderer::Impl {
 
     Impl(vk::Context& ctx, RendererOptions opts) : context(ctx), options(opts), kit(ctx) {}
 
+    // The least recently used scene other than `keep` and those whose frame is in progress; end() if none.
+    std::map<std::string, Resident>::iterator least_recent(const std::string& keep) {
+        auto oldest = scenes.end();
+        for (auto it = scenes.begin(); it != scenes.end(); ++it)
+            if (it->first != keep && !rendering.contains(it->first) &&
+                (oldest == scenes.end() || it->second.last_used < oldest->second.last_used))
+                oldest = it;
+        return oldest;
+    }
+
     void evict_least_recent(const std::string& keep) {
         while (scenes.size() > std::max<size_t>(options.max_resident_scenes, 1)) {
-            auto oldest = scenes.end();
-            for (auto it = scenes.begin(); it != scenes.end(); ++it)
-                if (it->first != keep && (oldest == scenes.end() || it->second.last_used < oldest->second.last_used))
-                    oldest = it;
+            auto oldest = least_recent(keep);
             if (oldest == scenes.end()) return;
             scenes.erase(oldest);
         }
@@ -158,6 +168,7 @@ struct Renderer::Impl {
     RendererOptions options;
     PassKit kit;
     std::map<std::string, Resident> scenes;
+    std::set<std::string> rendering;  // scenes whose render() is in progress (one, or two nested)
     uint64_t clock = 0;
     mutable std::mutex mutex;  // guards `scenes` for the read-only queries from other threads
 };
@@ -241,27 +252,31 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     const bool rebuild = (stale & kVoxelize) != 0;
     const WorldMeshes worlds = rebuild ? worlds_of(document, resolved) : WorldMeshes{};
     const int64_t budget = impl_->options.device_memory_budget;
-    if (budget > 0 && rebuild) {
-        const int64_t need = needed_bytes(document, worlds, grid.get());
-        // This scene's old volume is released before the new one is made (the lattice's own voxels stand
-        // for its boxes: an estimate).
-        auto held_by = [](const Impl::Resident& r) {
-            const GridGeometry& held_grid = r.gpu->grid();
-            return r.gpu->built() ? estimate_scene_bytes(held_grid, r.gpu->field_atlas().dims.count(), held_grid.dims.count(),
-                                                         held_grid.coarsened(held_grid.light_factor).count(), r.gpu->width(),
-                                                         r.gpu->height())
-                                  : int64_t{0};
-        };
+    // What a resident scene holds (the lattice's own voxels stand for its boxes: an estimate).
+    auto held_by = [](const Impl::Resident& r) {
+        const GridGeometry& held_grid = r.gpu->grid();
+        return r.gpu->built() ? estimate_scene_bytes(held_grid, r.gpu->field_atlas().dims.count(), held_grid.dims.count(),
+                                                     held_grid.coarsened(held_grid.light_factor).count(), r.gpu->width(),
+                                                     r.gpu->height()) +
+                                    estimate_environment_bytes(r.environment.get())
+                              : int64_t{0};
+    };
+    // Checked before anything is built: a new volume, or a new environment map on the old one.
+    const bool new_environment = !held || held->environment != environment;
+    if (budget > 0 && (rebuild || new_environment)) {
         const int64_t replaced = it != impl_->scenes.end() ? held_by(it->second) : 0;
-        // Make room by dropping least recently used scenes (their documents live on in the store).
+        const int64_t need =
+            rebuild ? needed_bytes(document, worlds, grid.get(), environment.get())
+                    : replaced - estimate_environment_bytes(held->environment.get()) + estimate_environment_bytes(environment.get());
+        // This scene's old state is released before the new one is made. Make room by dropping least
+        // recently used scenes (their documents live on in the store).
         while (impl_->context.allocated_bytes() - replaced + need > budget) {
-            auto oldest = impl_->scenes.end();
-            for (auto s = impl_->scenes.begin(); s != impl_->scenes.end(); ++s)
-                if (s->first != scene_id && (oldest == impl_->scenes.end() || s->second.last_used < oldest->second.last_used))
-                    oldest = s;
-            if (oldest == impl_->scenes.end())
+            auto oldest = impl_->least_recent(scene_id);
+            if (oldest == impl_->scenes.end()) {
+                if (!impl_->rendering.empty()) throw Deferred();
                 throw RenderError("scene needs about " + std::to_string(need >> 20) +
                                   " MiB of device memory; the budget is " + std::to_string(budget >> 20) + " MiB");
+            }
             impl_->scenes.erase(oldest);
         }
     }
@@ -272,7 +287,27 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     }
     Impl::Resident& resident = it->second;
     resident.last_used = ++impl_->clock;
+    // Pinned while its frame is in progress: a frame rendered between its parts must not evict it.
+    impl_->rendering.insert(scene_id);
+    struct Unpin {
+        Impl& impl;
+        const std::string& scene_id;
+        ~Unpin() {
+            std::lock_guard relock(impl.mutex);
+            impl.rendering.erase(scene_id);
+        }
+    } unpin{*impl_, scene_id};
     lock.unlock();
+    // What the queue does between parts (other scenes' frames) is not this frame's time.
+    double paused_ms = 0.0;
+    std::function<bool()> give_way;
+    if (options.give_way)
+        give_way = [&] {
+            const auto paused = Clock::now();
+            const bool stop = options.give_way();
+            paused_ms += ms_since(paused);
+            return stop;
+        };
     // An interactive frame whose photons need not run shades from the resident radiance grid, whatever
     // quality made it: the first frame of a camera drag after a still frame runs no photons. Photons
     // that run go into the interactive grid.
@@ -301,7 +336,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
                 }
             }
             // Each step runs in parts and gives way between them when the caller says other work waits.
-            run_options.give_way = options.give_way;
+            run_options.give_way = give_way;
             RunStats stats;
             try {
                 stats = resident.gpu->run(passes, document, worlds, grid.get(), run_options, environment.get());
@@ -359,7 +394,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     resident.level = quality == Quality::still ? level : 0;
     if (quality == Quality::interactive) {
         const double photons = photon_ms(frame);
-        resident.budget.observe(requested, settings, photons, ms_since(start) - photons - volume_ms(frame));
+        resident.budget.observe(requested, settings, photons, ms_since(start) - paused_ms - photons - volume_ms(frame));
     }
     std::lock_guard relock(impl_->mutex);
     impl_->evict_least_recent(scene_id);
@@ -392,7 +427,8 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
     // Only into room there is: a scene nobody has asked for yet never evicts one that somebody has.
     if (impl_->scenes.size() >= std::max<size_t>(impl_->options.max_resident_scenes, 1)) return false;
     const int64_t budget = impl_->options.device_memory_budget;
-    if (budget > 0 && impl_->context.allocated_bytes() + needed_bytes(document, worlds, resolved.grid.get()) > budget)
+    if (budget > 0 &&
+        impl_->context.allocated_bytes() + needed_bytes(document, worlds, resolved.grid.get(), resolved.environment.get()) > budget)
         return false;
     Impl::Resident& resident = impl_->scenes[scene_id];
     resident.gpu = std::make_unique<SceneGpu>(impl_->kit);

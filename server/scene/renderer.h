@@ -92,10 +92,12 @@ struct FrameOptions {
     Quality quality = Quality::still;
     double budget_ms = kDefaultBudgetMs;  // interactive frames: the frame-time budget (frame_budget.h)
     uint32_t level = 1;                   // still frames: the refinement level, 1 to kMaxRefinementLevel
-    // When set, each step of a still frame (level 1, and each level past it) asks it between the parts of
-    // its photon and view dispatches (RunOptions::give_way), and gives way (Superseded) if it says other
-    // work is waiting: a user's next edit waits for one part (passes::kWorkPart photons or pixels), not a
-    // whole frame. The refinement state is then dropped, so levels stay the same bytes however reached.
+    // When set, each step of a frame (level 1, and each refinement level past it) asks it between the parts
+    // of its photon and view dispatches (RunOptions::give_way), and stops (Superseded) if it says so: the
+    // render queue sets it for every frame (it renders other scenes' frames there, and stops a frame
+    // nobody waits for), and a refinement level gives way to its viewer's next edit, which then waits for
+    // one part (passes::kWorkPart photons or kViewPart pixels), not a whole frame. The step's refinement
+    // state is then dropped, so levels stay the same bytes however reached.
     std::function<bool()> give_way;
     // Still frames: when above `level`, the frame may hold any level up to this one, and holds the highest
     // that the resident state already gives for no more work than `level` (the batches its radiance grid
@@ -130,6 +132,13 @@ public:
     Superseded() : std::runtime_error("a newer request came first") {}
 };
 
+// Raised for a frame asked for while another scene's frame is in progress (between its parts) when it
+// would fit the memory budget only by evicting that scene: it must wait for that frame to end.
+class Deferred : public std::runtime_error {
+public:
+    Deferred() : std::runtime_error("the frame waits for the frame in progress to end") {}
+};
+
 struct RendererOptions {
     size_t max_resident_scenes = 8;     // least recently used scene's GPU state is dropped past this
     int64_t device_memory_budget = 0;  // bytes; 0 = no budget beyond the device's own
@@ -143,6 +152,9 @@ public:
     Renderer& operator=(const Renderer&) = delete;
 
     // Renders `document` for scene `scene_id`, reusing whatever resident state is still valid for it.
+    // May be called again from `options.give_way` for another scene (the render queue renders other
+    // scenes' frames between the parts of one): a scene whose frame is in progress is never evicted for
+    // it, and a frame that would need that throws Deferred. Time spent in give_way is not the frame's.
     // Interactive frames choose their image size and photon count to land within `options.budget_ms`
     // (frame_budget.h), and shade from the resident radiance grid, whatever quality made it, when their
     // edit leaves its photons valid; still frames render the document as it is, refined to `options.level`.

@@ -44,6 +44,11 @@ int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t field_voxels, ui
            int64_t{width} * height * 24;
 }
 
+int64_t estimate_environment_bytes(const image::EnvironmentMap* image) {
+    const int64_t texels = image ? int64_t{image->width} * image->height + image->height : 2;
+    return texels * static_cast<int64_t>(sizeof(glm::vec4));
+}
+
 FieldAtlas field_atlas_for(const GridGeometry& lattice, const std::map<std::string, ObjectBox>& boxes, bool dense,
                            uint32_t max_side) {
     if (dense) return dense_field_atlas(lattice);
@@ -273,6 +278,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         environment_map_ = vk::Buffer(kit_.context, bytes, VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
                                       vk::MemoryUse::upload, "environment map");
         environment_map_.write(environment_light_.texels.data(), bytes);
+        environment_light_.texels = {};  // the device holds the map; a large one is not kept twice
         environment_image_ = environment;
         environment_document_ = document.environment;
         environment_floor_ = document.floor.enabled;
@@ -319,8 +325,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         if (imported) grid_values_.write(grid_asset->n.data(), count * sizeof(float));
     }
 
-    // One submission for every stale pass (a refinement step: one per part of its photons and view, so
-    // that it can give way after any); each pass is bracketed by timestamps.
+    // One submission for every stale pass (with give_way: one per volume pass and per part of the photons
+    // and view, so that the run can stop after any); each pass is bracketed by timestamps.
     VkCommandBuffer cmd = recorder_.begin();
     timer_.reset(cmd);
     std::vector<std::pair<std::string, double>> earlier_ms;  // pass times of this run's earlier submissions
@@ -414,6 +420,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         }
         recorder_.compute_barrier();
         timer_.end(cmd);
+        if (options.give_way && (stale & kIndexField)) submit_part(kIndexField);
     }
     if (stale & kIndexField) {
         timer_.begin(cmd, "index_field");
@@ -483,6 +490,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         composed_medium_ior_ = document.medium.ior;
         recorder_.compute_barrier();
         timer_.end(cmd);
+        if (options.give_way && (stale & kOctree)) submit_part(kOctree);
     }
     if (stale & kOctree) {
         timer_.begin(cmd, "octree");
@@ -493,6 +501,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
         octree_epsilon_ = epsilon;
         recorder_.compute_barrier();
         timer_.end(cmd);
+        if (options.give_way && (stale & kPhotons)) submit_part(kPhotons);
     }
     const passes::TransportVariant variant{channels_, params.flags.y == COVERAGE_FETCH || params.flags.z == COVERAGE_FETCH,
                                            passes::fresnel_reflects(document), passes::film_reflects(document), several,

@@ -88,9 +88,9 @@ struct RunOptions {
     // a jittered sample into the frame's running mean of s + 1 samples. Runs must come in order.
     uint32_t photon_batch = 0;
     uint32_t view_sample = 0;
-    // Set for refinement steps: the photon and view dispatches then run in parts of about
-    // passes::kWorkPart photons or pixels, a submission each, and this is asked after each; when it says
-    // other work waits, the run stops there (Superseded), and what its photon and view passes hold is
+    // Set (the render queue sets it for every frame): the photon and view dispatches then run in parts of
+    // about passes::kWorkPart photons or kViewPart pixels, a submission each, and this is asked after
+    // each; when it says to stop, the run stops there (Superseded), and what its photon and view passes hold is
     // partial: built() leaves out the pass it stopped in and those asked for after it (the renderer
     // keeps the refinement level before the step only where its view is left whole).
     std::function<bool()> give_way;
@@ -101,6 +101,10 @@ struct RunOptions {
 // all, the radiance grid's voxels and the frame.
 int64_t estimate_scene_bytes(const GridGeometry& grid, uint64_t field_voxels, uint64_t object_voxels,
                              uint64_t radiance_voxels, uint32_t width, uint32_t height);
+
+// Device memory an image environment's map and its sampling rows take (passes/environment_light.h);
+// `image` nullptr for a uniform environment or the sky (a placeholder of a few texels).
+int64_t estimate_environment_bytes(const image::EnvironmentMap* image);
 
 // Where the field of objects in `boxes` lives: a sparse atlas of their boxes (scene/field_atlas.h) no
 // wider than `max_side` where it holds under half the lattice's voxels, else the dense lattice; the

@@ -90,8 +90,9 @@ void write_file_atomically(const fs::path& path, const void* bytes, size_t size)
     fsync_directory(path.parent_path());
 }
 
-SceneStore::SceneStore(fs::path data_dir, protocol::Limits limits, mesh::MeshLimits mesh_limits)
-    : data_dir_(std::move(data_dir)), limits_(limits), mesh_limits_(mesh_limits) {
+SceneStore::SceneStore(fs::path data_dir, protocol::Limits limits, mesh::MeshLimits mesh_limits,
+                       uint64_t max_host_memory)
+    : data_dir_(std::move(data_dir)), limits_(limits), mesh_limits_(mesh_limits), cache_(max_host_memory) {
     std::error_code ec;
     for (const char* sub : {"scenes", "meshes", "grids", "environments"}) {
         fs::create_directories(data_dir_ / sub, ec);
@@ -284,7 +285,8 @@ bool SceneStore::remove(const std::string& id) {
     {
         std::lock_guard assets(asset_mutex_);
         fs::remove(grid_path(id), ec);
-        grids_.erase(id);
+        next_version(AssetKind::grid, id);
+        cache_.forget(AssetKind::grid, id);
     }
     publish({StoreEvent::Kind::deleted, id});
     return true;
@@ -329,16 +331,81 @@ EditResult SceneStore::patch(const std::string& id, const nlohmann::json& merge_
 MeshEntry SceneStore::put_mesh(const std::string& name, const std::string& obj_text) {
     if (!valid_mesh_name(name)) throw StoreError(400, "mesh name must match [A-Za-z0-9_.-]{1,64}");
     auto parsed = std::make_shared<const mesh::Mesh>(mesh::parse_obj(obj_text, mesh_limits_));
+    cache_.check_fits("mesh '" + name + "'", host_bytes(*parsed));
     MeshEntry entry{name, mesh::inspect(*parsed)};
     std::string report = to_json(entry.report).dump(2);
-
-    std::lock_guard lock(asset_mutex_);
-    write_file_atomically(mesh_path(name), obj_text.data(), obj_text.size());
-    fs::path report_path = data_dir_ / "meshes" / (name + ".json");
-    write_file_atomically(report_path, report.data(), report.size());
-    meshes_[name] = std::move(parsed);  // a new pointer: the renderer sees the re-upload and re-voxelizes
+    {
+        std::lock_guard lock(asset_mutex_);
+        write_file_atomically(mesh_path(name), obj_text.data(), obj_text.size());
+        fs::path report_path = data_dir_ / "meshes" / (name + ".json");
+        write_file_atomically(report_path, report.data(), report.size());
+        // A new pointer: the renderer sees the re-upload and re-voxelizes.
+        const uint64_t size = host_bytes(*parsed);
+        cache_.insert(AssetKind::mesh, name, next_version(AssetKind::mesh, name), std::move(parsed), size);
+    }
     publish({StoreEvent::Kind::mesh, name});
     return entry;
+}
+
+uint64_t SceneStore::version_of(AssetKind kind, const std::string& name) const {
+    auto it = versions_.find({kind, name});
+    return it == versions_.end() ? 0 : it->second;
+}
+
+uint64_t SceneStore::next_version(AssetKind kind, const std::string& name) {
+    return versions_[{kind, name}] = ++last_version_;
+}
+
+template <typename T, typename Decode>
+std::shared_ptr<const T> SceneStore::load(AssetKind kind, const std::string& name, const fs::path& path,
+                                          const std::string& what, Decode decode) const {
+    uint64_t version = 0;
+    std::string bytes;
+    {
+        std::lock_guard lock(asset_mutex_);
+        version = version_of(kind, name);
+        if (auto cached = cache_.find<T>(kind, name, version)) return cached;
+        if (!fs::exists(path)) return nullptr;
+        bytes = read_text_file(path);
+    }
+    // Decoded without the lock: a large map takes a while, and uploads and lookups of others go on.
+    try {
+        auto loaded = std::make_shared<const T>(decode(bytes));
+        const uint64_t size = host_bytes(*loaded);
+        return cache_.insert(kind, name, version, std::move(loaded), size);
+    } catch (const std::exception& e) {
+        std::cerr << "refractd: cannot load stored " << what << " " << path << ": " << e.what() << "\n";
+        throw RenderError("stored " + what + " '" + name + "' cannot be read: " + e.what());
+    }
+}
+
+bool SceneStore::remove_upload(AssetKind kind, const std::string& name, const fs::path& main_file,
+                               const std::string& what, StoreEvent::Kind event) {
+    {
+        std::lock_guard lock(asset_mutex_);
+        if (!fs::exists(main_file)) return false;
+        check_unused(list(), kind, name, what);
+        std::error_code ec;
+        // The main file goes first: a report is listed only beside its file, so a crash between the two
+        // leaves the asset deleted, with a report nothing reads until the next upload of the name replaces
+        // it (a grid has none).
+        if (!fs::remove(main_file, ec)) {
+            if (ec) throw StoreError(500, "cannot delete " + main_file.string() + ": " + ec.message());
+            return false;
+        }
+        fs::remove(fs::path(main_file).replace_extension(".json"), ec);
+        fsync_directory(main_file.parent_path());
+        next_version(kind, name);
+        cache_.forget(kind, name);
+    }
+    publish({event, name});
+    return true;
+}
+
+bool SceneStore::remove_mesh(const std::string& name_or_reference) {
+    const std::string name = strip_upload_prefix(name_or_reference);
+    return valid_mesh_name(name) &&
+           remove_upload(AssetKind::mesh, name, mesh_path(name), "mesh '" + name + "'", StoreEvent::Kind::mesh);
 }
 
 std::vector<std::pair<std::string, nlohmann::json>> SceneStore::stored_reports(const char* kind,
@@ -376,40 +443,41 @@ std::vector<MeshEntry> SceneStore::list_meshes() const {
 std::shared_ptr<const mesh::Mesh> SceneStore::mesh(const std::string& name_or_reference) const {
     std::string name = strip_upload_prefix(name_or_reference);
     if (!valid_mesh_name(name)) return nullptr;
-    std::lock_guard lock(asset_mutex_);
-    auto it = meshes_.find(name);
-    if (it != meshes_.end()) return it->second;
-    fs::path path = mesh_path(name);
-    if (!fs::exists(path)) return nullptr;
-    try {
-        auto loaded = std::make_shared<const mesh::Mesh>(mesh::load_obj_file(path.string(), mesh_limits_));
-        meshes_[name] = loaded;
-        return loaded;
-    } catch (const std::exception& e) {
-        std::cerr << "refractd: cannot load stored mesh " << path << ": " << e.what() << "\n";
-        throw RenderError("stored mesh '" + name + "' cannot be read: " + e.what());
-    }
+    return load<mesh::Mesh>(AssetKind::mesh, name, mesh_path(name), "mesh",
+                            [this](const std::string& obj) { return mesh::parse_obj(obj, mesh_limits_); });
 }
 
 EnvironmentEntry SceneStore::put_environment(const std::string& name, const std::string& bytes) {
     if (!valid_mesh_name(name)) throw StoreError(400, "environment name must match [A-Za-z0-9_.-]{1,64}");
     if (image::built_in_environment(name)) throw StoreError(400, "\"" + name + "\" is a built-in environment");
+    // Refused on its header before anything is decoded when it could never be held.
+    cache_.check_fits("environment '" + name + "'", image::environment_size(bytes).decoded_bytes());
     auto decoded = std::make_shared<const image::EnvironmentMap>(image::decode_environment(bytes));
     EnvironmentEntry entry{name, decoded->width, decoded->height, false};
     const std::string report = nlohmann::json{{"width", entry.width}, {"height", entry.height}}.dump();
-
-    std::lock_guard lock(asset_mutex_);
-    write_file_atomically(environment_path(name), bytes.data(), bytes.size());
-    fs::path report_path = data_dir_ / "environments" / (name + ".json");
-    write_file_atomically(report_path, report.data(), report.size());
-    environments_[name] = std::move(decoded);  // a new pointer: the renderer sees the re-upload
+    {
+        std::lock_guard lock(asset_mutex_);
+        write_file_atomically(environment_path(name), bytes.data(), bytes.size());
+        fs::path report_path = data_dir_ / "environments" / (name + ".json");
+        write_file_atomically(report_path, report.data(), report.size());
+        // A new pointer: the renderer sees the re-upload.
+        const uint64_t size = host_bytes(*decoded);
+        cache_.insert(AssetKind::environment, name, next_version(AssetKind::environment, name), std::move(decoded),
+                      size);
+    }
     publish({StoreEvent::Kind::environment, name});
     return entry;
 }
 
 bool SceneStore::has_environment(const std::string& name) const {
     std::lock_guard lock(asset_mutex_);
-    return environments_.count(name) > 0 || fs::exists(environment_path(name));
+    return fs::exists(environment_path(name));
+}
+
+bool SceneStore::remove_environment(const std::string& name) {
+    return valid_mesh_name(name) && !image::built_in_environment(name) &&
+           remove_upload(AssetKind::environment, name, environment_path(name), "environment '" + name + "'",
+                         StoreEvent::Kind::environment);
 }
 
 std::vector<EnvironmentEntry> SceneStore::list_stored_environments() const {
@@ -426,23 +494,14 @@ std::vector<EnvironmentEntry> SceneStore::list_stored_environments() const {
 }
 
 std::shared_ptr<const image::EnvironmentMap> SceneStore::stored_environment(const std::string& name) const {
-    std::lock_guard lock(asset_mutex_);
-    auto it = environments_.find(name);
-    if (it != environments_.end()) return it->second;
-    fs::path path = environment_path(name);
-    if (!fs::exists(path)) return nullptr;
-    try {
-        auto loaded = std::make_shared<const image::EnvironmentMap>(image::decode_environment(read_text_file(path)));
-        environments_[name] = loaded;
-        return loaded;
-    } catch (const std::exception& e) {
-        std::cerr << "refractd: cannot load stored environment " << path << ": " << e.what() << "\n";
-        throw RenderError("stored environment '" + name + "' cannot be read: " + e.what());
-    }
+    if (!valid_mesh_name(name)) return nullptr;
+    return load<image::EnvironmentMap>(AssetKind::environment, name, environment_path(name), "environment",
+                                       [](const std::string& bytes) { return image::decode_environment(bytes); });
 }
 
 EditResult SceneStore::put_index_grid(const std::string& scene_id, IndexGrid grid) {
     validate_index_grid(grid);
+    cache_.check_fits("the index grid", host_bytes(grid));
     std::shared_ptr<Entry> entry = find(scene_id);
     if (!entry) throw StoreError(404, "scene '" + scene_id + "' does not exist");
     std::unique_lock edit(entry->edit_mutex);
@@ -452,7 +511,9 @@ EditResult SceneStore::put_index_grid(const std::string& scene_id, IndexGrid gri
         std::lock_guard lock(asset_mutex_);
         std::vector<char> bytes = encode_grid(grid);
         write_file_atomically(grid_path(scene_id), bytes.data(), bytes.size());
-        grids_[scene_id] = std::make_shared<const IndexGrid>(std::move(grid));
+        auto stored = std::make_shared<const IndexGrid>(std::move(grid));
+        const uint64_t size = host_bytes(*stored);
+        cache_.insert(AssetKind::grid, scene_id, next_version(AssetKind::grid, scene_id), std::move(stored), size);
     }
     nlohmann::json patch = {{"object", {{"index_field", "grid"}, {"grid", scene_id}}}};
     EditResult result = apply(entry, patch, std::nullopt);
@@ -471,19 +532,13 @@ EditResult SceneStore::put_index_grid(const std::string& scene_id, IndexGrid gri
 
 std::shared_ptr<const IndexGrid> SceneStore::grid(const std::string& name) const {
     if (!valid_scene_id(name)) return nullptr;
-    std::lock_guard lock(asset_mutex_);
-    auto it = grids_.find(name);
-    if (it != grids_.end()) return it->second;
-    fs::path path = grid_path(name);
-    if (!fs::exists(path)) return nullptr;
-    try {
-        auto loaded = std::make_shared<const IndexGrid>(decode_grid(read_text_file(path)));
-        grids_[name] = loaded;
-        return loaded;
-    } catch (const std::exception& e) {
-        std::cerr << "refractd: cannot load stored index grid " << path << ": " << e.what() << "\n";
-        throw RenderError("stored index grid '" + name + "' cannot be read: " + e.what());
-    }
+    return load<IndexGrid>(AssetKind::grid, name, grid_path(name), "index grid",
+                           [](const std::string& bytes) { return decode_grid(bytes); });
+}
+
+bool SceneStore::remove_index_grid(const std::string& scene_id) {
+    return valid_scene_id(scene_id) && remove_upload(AssetKind::grid, scene_id, grid_path(scene_id),
+                                                     "the index grid of scene '" + scene_id + "'", StoreEvent::Kind::grid);
 }
 
 }  // namespace refract::scene

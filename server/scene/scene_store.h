@@ -22,7 +22,9 @@ class SceneStore final : public Store {
 public:
     // Opens (creating if needed) the data directory, locks it against a second daemon (StoreError(409)
     // naming the holder's pid) and loads every persisted scene, quarantining those it cannot read.
-    SceneStore(std::filesystem::path data_dir, protocol::Limits limits, mesh::MeshLimits mesh_limits);
+    // Uploaded assets stay on disk; at most `max_host_memory` bytes of them are held decoded.
+    SceneStore(std::filesystem::path data_dir, protocol::Limits limits, mesh::MeshLimits mesh_limits,
+               uint64_t max_host_memory = kDefaultMaxHostMemory);
     ~SceneStore();
     SceneStore(const SceneStore&) = delete;
     SceneStore& operator=(const SceneStore&) = delete;
@@ -48,16 +50,19 @@ public:
     // The mesh named `name` (with or without the "upload:" prefix); nullptr when unknown; RenderError
     // saying why when it is stored but cannot be read.
     std::shared_ptr<const mesh::Mesh> mesh(const std::string& name) const override;
+    bool remove_mesh(const std::string& name) override;
 
     // Decodes and stores an environment upload as it came (its bytes, and its size in a report beside it).
     EnvironmentEntry put_environment(const std::string& name, const std::string& bytes) override;
     std::vector<EnvironmentEntry> list_stored_environments() const override;
     std::shared_ptr<const image::EnvironmentMap> stored_environment(const std::string& name) const override;
+    bool remove_environment(const std::string& name) override;
 
     // Stores `grid` under the scene's id and points the scene at it (a new revision). Throws StoreError.
     EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) override;
     // The grid stored for scene `name`; nullptr when unknown, RenderError when it cannot be read.
     std::shared_ptr<const IndexGrid> grid(const std::string& name) const override;
+    bool remove_index_grid(const std::string& scene_id) override;
 
     // The scene files found unreadable at start, moved to <data dir>/quarantine.
     const std::vector<QuarantinedFile>& quarantined() const override { return quarantined_; }
@@ -89,6 +94,19 @@ private:
     // unreadable ones are skipped with a line on stderr. The caller holds asset_mutex_.
     std::vector<std::pair<std::string, nlohmann::json>> stored_reports(const char* kind,
                                                                        const std::filesystem::path& ending) const;
+    // The asset stored at `path` as (kind, name), decoded from the file by `decode` unless the cache holds
+    // the version stored; nullptr when there is no file, RenderError saying why when it cannot be read.
+    template <typename T, typename Decode>
+    std::shared_ptr<const T> load(AssetKind kind, const std::string& name, const std::filesystem::path& path,
+                                  const std::string& what, Decode decode) const;
+    // The version of (kind, name) this process has stored, 0 for one stored by an earlier run, and the next
+    // one for a write or deletion. The caller holds asset_mutex_.
+    uint64_t version_of(AssetKind kind, const std::string& name) const;
+    uint64_t next_version(AssetKind kind, const std::string& name);
+    // Deletes an uploaded asset (its `main_file` and the report beside it, NAME.json) unless a scene uses it
+    // (StoreError 409 naming them and `what`), and tells the listeners; false when there is none.
+    bool remove_upload(AssetKind kind, const std::string& name, const std::filesystem::path& main_file,
+                       const std::string& what, StoreEvent::Kind event);
 
     std::filesystem::path data_dir_;
     protocol::Limits limits_;
@@ -98,10 +116,12 @@ private:
 
     mutable std::mutex mutex_;  // guards scenes_ and every Entry::current
     std::map<std::string, std::shared_ptr<Entry>> scenes_;
-    mutable std::mutex asset_mutex_;  // guards the asset caches and serializes asset file writes
-    mutable std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes_;  // loaded lazily
-    mutable std::map<std::string, std::shared_ptr<const IndexGrid>> grids_;    // loaded lazily
-    mutable std::map<std::string, std::shared_ptr<const image::EnvironmentMap>> environments_;  // loaded lazily
+    mutable std::mutex asset_mutex_;  // guards versions_ and serializes asset file writes and deletions
+    // Bumped by every write and deletion of an asset: a decode of older bytes, finished after a newer
+    // upload, is never cached over it.
+    std::map<std::pair<AssetKind, std::string>, uint64_t> versions_;
+    uint64_t last_version_ = 0;
+    mutable AssetCache cache_;  // decoded assets, loaded lazily
 };
 
 // Writes `bytes` to `path` so that a crash leaves either the old or the new file: temp file, fsync,

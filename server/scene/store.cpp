@@ -1,5 +1,6 @@
 #include "scene/store.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <random>
@@ -66,6 +67,40 @@ void validate_index_grid(const IndexGrid& grid) {
             throw StoreError(400, message.str());
         }
     }
+}
+
+void check_unused(const std::vector<SceneSnapshot>& scenes, AssetKind kind, const std::string& name,
+                  const std::string& what) {
+    std::vector<std::string> users;
+    for (const auto& scene : scenes) {
+        const protocol::SceneDocument& document = scene.document;
+        bool uses = kind == AssetKind::environment && document.environment.type == protocol::EnvironmentKind::image &&
+                    document.environment.image == name;
+        for (const auto& [object_name, object] : document.objects) {
+            uses = uses || (kind == AssetKind::mesh && object.mesh == "upload:" + name) ||
+                   (kind == AssetKind::grid && object.index_field == protocol::IndexFieldKind::grid && object.grid == name);
+        }
+        if (uses) users.push_back(scene.id);
+    }
+    if (users.empty()) return;
+    std::sort(users.begin(), users.end());
+    std::string list;
+    for (const auto& id : users) list += (list.empty() ? "'" : ", '") + id + "'";
+    throw AssetInUse(what + " is used by scene" + (users.size() == 1 ? " " : "s ") + list +
+                         "; edit them to use another before deleting it",
+                     std::move(users));
+}
+
+uint64_t host_bytes(const mesh::Mesh& mesh) {
+    return sizeof mesh + mesh.positions.capacity() * sizeof(glm::vec3) + mesh.triangles.capacity() * sizeof(glm::uvec3);
+}
+
+uint64_t host_bytes(const IndexGrid& grid) {
+    return sizeof grid + grid.n.capacity() * sizeof(float);
+}
+
+uint64_t host_bytes(const image::EnvironmentMap& map) {
+    return sizeof map + map.rgb.capacity() * sizeof(float);
 }
 
 bool valid_scene_id(const std::string& id) {

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "image/environment_map.h"
+#include "scene/asset_cache.h"
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
 #include "scene/renderer.h"
@@ -47,6 +48,20 @@ private:
     int status_;
 };
 
+// A refused deletion: the asset is named by the documents of `scenes` (their ids, sorted).
+class AssetInUse : public StoreError {
+public:
+    AssetInUse(const std::string& message, std::vector<std::string> scenes)
+        : StoreError(409, message), scenes_(std::move(scenes)) {}
+    const std::vector<std::string>& scenes() const { return scenes_; }
+
+private:
+    std::vector<std::string> scenes_;
+};
+
+// The host memory decoded assets may hold unless the daemon is told otherwise (--max-host-memory).
+inline constexpr uint64_t kDefaultMaxHostMemory = uint64_t{1} << 30;
+
 // A stored file the store could not read at start: moved aside (never deleted or overwritten) and
 // reported by health and metrics until an operator repairs or removes it.
 struct QuarantinedFile {
@@ -77,6 +92,17 @@ struct EnvironmentEntry {
 void check_environment(const protocol::SceneDocument& document,
                        const std::function<bool(const std::string& name)>& stored);
 
+// The ids of the scenes among `scenes` whose documents name the uploaded asset `name` (a mesh as
+// "upload:NAME", an environment image, an imported grid), sorted; throws AssetInUse, with `what` ("mesh
+// 'x'"), when there are any.
+void check_unused(const std::vector<SceneSnapshot>& scenes, AssetKind kind, const std::string& name,
+                  const std::string& what);
+
+// The host memory a decoded asset takes, as the cache counts it.
+uint64_t host_bytes(const mesh::Mesh& mesh);
+uint64_t host_bytes(const IndexGrid& grid);
+uint64_t host_bytes(const image::EnvironmentMap& map);
+
 // Validation of an imported index grid, in the words a user needs; throws StoreError(400).
 void validate_index_grid(const IndexGrid& grid);
 
@@ -97,13 +123,14 @@ std::string strip_upload_prefix(const std::string& name);
 std::string random_hex_id();
 
 // What a store announces once it is committed (by this process or, for a shared store, by any replica):
-// a new revision of a scene, a scene's deletion, or a new version of an uploaded mesh (which changes
-// frames without a new revision); or that announcements may have been lost (a shared store's listener
-// reconnected), so whatever was cached may be stale.
+// a new revision of a scene, a scene's deletion, a new version or the deletion of an uploaded mesh or
+// environment (which changes frames without a new revision), the deletion of an imported grid; or that
+// announcements may have been lost (a shared store's listener reconnected), so whatever was cached may
+// be stale.
 struct StoreEvent {
-    enum class Kind { revision, deleted, mesh, environment, missed };
+    enum class Kind { revision, deleted, mesh, environment, grid, missed };
     Kind kind = Kind::revision;
-    std::string name;       // the scene's id, or the mesh's or environment's name
+    std::string name;       // the scene's id, or the mesh's or environment's name, or the grid's scene id
     uint64_t revision = 0;  // Kind::revision only
 };
 using StoreListener = std::function<void(const StoreEvent&)>;
@@ -150,6 +177,9 @@ public:
     // The mesh named `name` (with or without the "upload:" prefix); nullptr when unknown; RenderError
     // saying why when it is stored but cannot be read.
     virtual std::shared_ptr<const mesh::Mesh> mesh(const std::string& name) const = 0;
+    // Deletes the uploaded mesh `name` for good; false when none is stored. Throws AssetInUse (409) while
+    // any scene's document names it, and deletes nothing then.
+    virtual bool remove_mesh(const std::string& name) = 0;
 
     // Decodes and stores an environment upload (.hdr or .exr bytes), replacing one of the same name.
     // Throws image::EnvironmentError, StoreError(400) for a bad name or a built-in one.
@@ -158,6 +188,9 @@ public:
     virtual std::vector<EnvironmentEntry> list_stored_environments() const = 0;
     // The uploaded environment `name`; nullptr when unknown, RenderError when it cannot be read.
     virtual std::shared_ptr<const image::EnvironmentMap> stored_environment(const std::string& name) const = 0;
+    // Deletes the uploaded environment `name` for good; false when none is stored (a built-in one never
+    // is). Throws AssetInUse (409) while any scene's document names it.
+    virtual bool remove_environment(const std::string& name) = 0;
     // Built-in and uploaded environments, by name.
     std::vector<EnvironmentEntry> list_environments() const;
     // The environment named `name`, built in or uploaded; nullptr when unknown.
@@ -167,6 +200,9 @@ public:
     virtual EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) = 0;
     // The grid stored for scene `name`; nullptr when unknown, RenderError when it cannot be read.
     virtual std::shared_ptr<const IndexGrid> grid(const std::string& name) const = 0;
+    // Deletes the grid imported for scene `scene_id` for good; false when it has none. Throws AssetInUse
+    // (409) while any scene's document names it (its own, until an edit sets another index field).
+    virtual bool remove_index_grid(const std::string& scene_id) = 0;
 
     // Stored scenes found unreadable at start (the file store's quarantine); empty for other stores.
     virtual const std::vector<QuarantinedFile>& quarantined() const = 0;

@@ -116,6 +116,19 @@ void Daemon::start() {
     throw std::runtime_error("refractd did not answer /api/health within 60 s:\n" + log());
 }
 
+int64_t Daemon::rss_bytes() const {
+    const long kib = memory_kib(pid_, "VmRSS");
+    return kib < 0 ? -1 : int64_t{kib} * 1024;
+}
+
+long memory_kib(pid_t pid, const std::string& field) {
+    std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+    std::string line;
+    while (std::getline(status, line))
+        if (line.compare(0, field.size() + 1, field + ":") == 0) return std::stol(line.substr(field.size() + 1));
+    return -1;
+}
+
 bool Daemon::running() {
     if (pid_ <= 0) return false;
     int status = 0;

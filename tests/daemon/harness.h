@@ -50,6 +50,8 @@ public:
     uint16_t ws_port() const { return ws_port_; }
     pid_t pid() const { return pid_; }
     std::string log() const;
+    // Resident set size now (VmRSS), bytes; -1 when the process is gone.
+    int64_t rss_bytes() const;
 
 private:
     void start();
@@ -61,6 +63,9 @@ private:
     uint16_t port_ = 0;
     uint16_t ws_port_ = 0;
 };
+
+// A memory figure of process `pid` from /proc/PID/status ("VmRSS", "VmHWM"), in KiB; -1 when unknown.
+long memory_kib(pid_t pid, const std::string& field);
 
 // A TCP connection to 127.0.0.1:port (a blocking socket with a 30 s receive timeout); -1 when refused.
 int connect_loopback(uint16_t port);
