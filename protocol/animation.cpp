@@ -126,7 +126,9 @@ SceneDocument patched(const SceneDocument& before, const json& patch, const Limi
 }
 }  // namespace
 
-Animation::Animation(const SceneDocument& base, const json& keyframes, const Limits& limits) : limits_(limits) {
+Animation::Animation(const SceneDocument& base, const json& keyframes, const Limits& limits,
+                     const std::function<bool()>& keep_going)
+    : limits_(limits) {
     if (!keyframes.is_array()) throw ValidationError("", "keyframes must be a list of {\"time\", \"patch\"}");
     if (keyframes.empty()) throw ValidationError("", "keyframes must not be empty");
     if (keyframes.size() > kMaxKeyframes)
@@ -135,6 +137,7 @@ Animation::Animation(const SceneDocument& base, const json& keyframes, const Lim
     SceneDocument document = base;
     for (size_t i = 0; i < keyframes.size(); ++i) {
         const std::string at = pointer(i);
+        if (keep_going && i % 64 == 0 && !keep_going()) throw ValidationError(at, "the check was given up");
         const json& key = keyframes[i];
         if (!key.is_object()) throw ValidationError(at, "a keyframe must be an object {\"time\", \"patch\"}");
         for (const auto& [name, value] : key.items())

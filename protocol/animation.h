@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -22,7 +23,10 @@ public:
     // before it (the first to `base`). Throws ValidationError whose pointer points into the list
     // (e.g. /2/patch/object/ior for a patch that makes an invalid document). Keeps the patches and at
     // most kMaxCheckpoints documents, so its memory follows the message, not keyframes x scene size.
-    Animation(const SceneDocument& base, const nlohmann::json& keyframes, const Limits& limits = {});
+    // `keep_going`, when given, is asked every few keyframes; false ends the check (ValidationError at
+    // the keyframe reached): checking 10,000 keyframes over a large scene takes seconds.
+    Animation(const SceneDocument& base, const nlohmann::json& keyframes, const Limits& limits = {},
+              const std::function<bool()>& keep_going = {});
 
     // The last keyframe's time: the animation runs from 0 to it.
     double duration() const { return times_.back(); }

@@ -2259,14 +2259,28 @@ TEST(DaemonHostile, PlaysOfManyKeyframesHoldLittleMemoryAndEditsKeepTheirLatency
         auto [header, png] = player->read_frame();
         EXPECT_TRUE(header.contains("play")) << header.dump();
     }
-    const long rss_playing = memory_kib(daemon.pid(), "VmRSS");
+    // And two whose checks take seconds each (10,000 patches applied in turn to 64 objects), as many as
+    // the threads that serve the sessions: they are checked off those threads, so the edits below do not
+    // wait for them.
+    json keyframes = json::array();
+    for (size_t i = 0; i < protocol::kMaxKeyframes; ++i)
+        keyframes.push_back({{"time", 0.01 * double(i)}, {"patch", {{"lights", {{"l1", {{"intensity", 1.0 + 0.001 * double(i)}}}}}}}});
+    const json costly_play = {{"type", "play"}, {"fps", 60}, {"keyframes", keyframes}};
+    keyframes = nullptr;
+    WsClient costly(daemon.ws_port(), "/api/scenes/crowd/ws"), costlier(daemon.ws_port(), "/api/scenes/crowd/ws");
+    costly.send(costly_play);
+    costlier.send(costly_play);
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
     double playing_s = 0.0;
     for (int seq = 4; seq <= 6; ++seq) playing_s = std::max(playing_s, edit_s(seq));
-    // Four plays of 10,000 keyframes over 64 objects and 8 lights: the patches and a few checkpoints
-    // each (about 2 MiB), not a document per keyframe (1.85 GB each before).
-    EXPECT_LT(rss_playing - rss_before, 64 * 1024) << "VmRSS " << rss_before << " -> " << rss_playing << " KiB";
-    // An edit waits for one played frame at most besides its own.
-    EXPECT_LT(playing_s, 3.0 * alone_s + 1.0) << "alone " << alone_s << " s, beside four plays " << playing_s << " s";
+    const long rss_playing = memory_kib(daemon.pid(), "VmRSS");
+    // Six plays of 10,000 keyframes over 64 objects and 8 lights: the patches and a few checkpoints each,
+    // not a document per keyframe (1.85 GB each before).
+    if (!kSanitized) {
+        EXPECT_LT(rss_playing - rss_before, 64 * 1024) << "VmRSS " << rss_before << " -> " << rss_playing << " KiB";
+    }
+    // An edit waits for one played frame at most besides its own, and for no play's check.
+    EXPECT_LT(playing_s, 3.0 * alone_s + 1.0) << "alone " << alone_s << " s, beside six plays " << playing_s << " s";
     RecordProperty("rss_growth_kib", static_cast<int>(rss_playing - rss_before));
     for (auto& player : players) player->send({{"type", "stop"}});
     players.clear();
@@ -2278,24 +2292,46 @@ TEST(DaemonHostile, FortySessionsPlayingAtSixtyFramesASecondAllGetFrames) {
     TempDir dir;
     Daemon daemon(dir.path() / "data");
     auto client = daemon.client();
-    // Frames of the default budget (100 ms): the queue's 16 places stay taken while they render.
+    // Each session plays its own light, so that each played frame traces photons (interactive frames of
+    // the default 100 ms budget): more sessions than the render queue's 16 places wait at any time.
     create_scene(client, "shared", {{"image", {{"width", 512}, {"height", 512}}}, {"volume", {{"resolution", 32}}}});
     get_frame(client, "shared", "?quality=interactive");
-    const json play = idle_play(2, 20.0, 60);
+    auto timed = std::chrono::steady_clock::now();
+    auto res = client.Post("/api/scenes/shared/frame.png?quality=interactive", light_edit(9.0).dump(), kMergePatch);
+    ASSERT_TRUE(res && res->status == 200);
+    const double frame_s = seconds_since(timed);
+    // Taking turns, every session has a frame within a round of 40 frames; twice that, and 2 s, allowed.
+    const double round_bound_s = 2.0 * 40.0 * frame_s + 2.0;
     std::vector<std::thread> sessions;
     std::atomic<int> served{0};
+    std::atomic<double> all_served_s{-1.0};
     const auto start = std::chrono::steady_clock::now();
     for (int i = 0; i < 40; ++i) {
-        sessions.emplace_back([&] {
-            WsClient ws(daemon.ws_port(), "/api/scenes/shared/ws");
-            ws.send(play);
-            auto [header, png] = ws.read_frame();
-            if (header.contains("play") && is_png(png) && seconds_since(start) < 20.0) ++served;
-            ws.send({{"type", "stop"}});
+        sessions.emplace_back([&, i] {
+            json play = idle_play(2, 20.0, 60);
+            for (json& key : play["keyframes"]) key["patch"] = light_edit(10.0 + i);
+            // Every session goes on playing until all have had a frame: those served first keep asking.
+            try {
+                WsClient ws(daemon.ws_port(), "/api/scenes/shared/ws", 25);
+                ws.send(play);
+                bool counted = false;
+                while (served.load() < 40 && seconds_since(start) < 20.0) {
+                    auto [header, png] = ws.read_frame();
+                    if (!counted && header.contains("play") && is_png(png)) {
+                        counted = true;
+                        if (++served == 40) all_served_s = seconds_since(start);
+                    }
+                }
+                ws.send({{"type", "stop"}});
+            } catch (const std::exception&) {
+                // no frame within 25 s: counted as unserved
+            }
         });
     }
     for (auto& session : sessions) session.join();
-    EXPECT_EQ(served.load(), 40) << "every session gets played frames within 20 s";
+    ASSERT_EQ(served.load(), 40) << "every session gets played frames within 20 s";
+    EXPECT_LT(all_served_s.load(), round_bound_s) << "a frame takes " << frame_s << " s";
+    RecordProperty("all_served_ms", static_cast<int>(all_served_s.load() * 1000));
     expect_alive(daemon);
 }
 
@@ -2349,8 +2385,10 @@ TEST(DaemonHostile, TheDeviceBudgetCountsEverythingAndRefusesFromAnEstimate) {
     const double refused_s = seconds_since(start);
     ASSERT_TRUE(res);
     EXPECT_EQ(res->status, 422) << res->body;
-    EXPECT_LT(refused_s, 2.0);
-    EXPECT_LT(memory_kib(daemon.pid(), "VmRSS") - rss_before, 64 * 1024);
+    if (!kSanitized) {
+        EXPECT_LT(refused_s, 2.0);
+        EXPECT_LT(memory_kib(daemon.pid(), "VmRSS") - rss_before, 64 * 1024);
+    }
     RecordProperty("vast_refused_ms", static_cast<int>(refused_s * 1000));
     get_frame(client, "kept", "?width=40&height=40");  // what fits still renders
     expect_alive(daemon);

@@ -7,6 +7,7 @@
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
+#include <boost/asio/thread_pool.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
@@ -42,6 +43,19 @@ constexpr int64_t kMaxPlayFps = 60;                   // frames per second a pla
 // Plays started, by every session: each play's frames are keyed apart in the render queue.
 std::atomic<uint64_t> plays_started{0};
 
+}  // namespace
+
+// Checks plays off the I/O threads: applying each keyframe's patch in turn takes seconds for 10,000
+// keyframes over a scene of many objects, which would hold up every session served by that thread. One
+// thread; the plays waiting for it hold their messages, at most four of the largest's worth together.
+struct PlayChecker {
+    static constexpr size_t kMaxWaitingBytes = 4 * kMaxMessageBytes;
+    net::thread_pool pool{1};
+    std::atomic<size_t> waiting_bytes{0};
+};
+
+namespace {
+
 // The value of `name` in a query string ("a=1&token=x"), decoded; empty when absent.
 std::string query_value(std::string_view query, std::string_view name) {
     while (!query.empty()) {
@@ -72,11 +86,12 @@ std::string scene_of_path(std::string_view path) {
 // One client connection: the upgrade handshake, then a read loop and a write queue, all on one strand.
 class WsSession : public std::enable_shared_from_this<WsSession> {
 public:
-    WsSession(tcp::socket socket, Service& service, std::function<void(WsSession*)> on_close)
+    WsSession(tcp::socket socket, Service& service, PlayChecker& checker, std::function<void(WsSession*)> on_close)
         : ws_(std::move(socket)),
           timer_(ws_.get_executor()),
           idle_timer_(ws_.get_executor()),
           service_(service),
+          checker_(checker),
           on_close_(std::move(on_close)) {
         service_.ws_sessions.fetch_add(1);
     }
@@ -254,6 +269,7 @@ private:
     }
 
     void on_message(const std::string& text, bool is_text) {
+        messages_.fetch_add(1);  // a play still being checked is superseded
         json seq = nullptr;
         json message;
         try {
@@ -309,16 +325,17 @@ private:
             }
             refine_to = static_cast<uint32_t>(r.get<uint64_t>());
         }
-        // A played animation, checked whole against the scene as it is now.
-        std::optional<Play> play;
         if (type == "play") {
+            double fps = 24.0;
             try {
-                play = start_play(message, seq);
+                fps = play_fps(message);
             } catch (const protocol::ValidationError& e) {
                 service_.metrics().record_ws_message(true);
                 return send_error(seq, e.what(), e.pointer());  // a pointer into the message
             }
-        } else if (type == "stop" && message.contains("patch")) {
+            return check_play(std::move(message), text.size(), seq, quality, budget_ms, refine_to, fps);
+        }
+        if (type == "stop" && message.contains("patch")) {
             service_.metrics().record_ws_message(true);
             return send_error(seq, "stop takes no patch", "/patch");
         }
@@ -333,12 +350,19 @@ private:
                 return send_error(seq, e.what());
             }
         }
+        begin(seq, type == "stop", quality, budget_ms, refine_to, std::nullopt);
+    }
+
+    // A message accepted: its session settings taken, the play it starts (if any) playing, and its frame
+    // asked for (`stop`: none).
+    void begin(const json& seq, bool stop, scene::Quality quality, double budget_ms, uint32_t refine_to,
+               std::optional<Play> play) {
         service_.metrics().record_ws_message(false);
         budget_ms_ = budget_ms;
         refine_to_ = refine_to;
         // Any message ends the animation playing (latest wins); `stop` asks for nothing more.
         if (play_) stop_play(seq);
-        if (type == "stop") return;
+        if (stop) return;
         play_ = std::move(play);
         // Latest wins: remember only the newest request; the frame after the one in flight renders it.
         // Any message stops refinement: the frame it asks for comes next.
@@ -351,6 +375,41 @@ private:
         wanted_options_.resume_up_to = refine_to_;
         want_frame_ = true;
         submit_frame();
+    }
+
+    // Checks a play against the scene as it is now on the PlayChecker's thread, then begins it here
+    // unless a newer message came meanwhile (which supersedes it, as it would end it playing).
+    void check_play(json message, size_t bytes, const json& seq, scene::Quality quality, double budget_ms,
+                    uint32_t refine_to, double fps) {
+        if (checker_.waiting_bytes.fetch_add(bytes) + bytes > PlayChecker::kMaxWaitingBytes) {
+            checker_.waiting_bytes.fetch_sub(bytes);
+            service_.metrics().record_ws_message(true);
+            return send_error(seq, "other plays are being checked; send this one again shortly");
+        }
+        const uint64_t ticket = messages_.load();
+        net::post(checker_.pool, [self = shared_from_this(), message = std::move(message), bytes, seq, quality,
+                                  budget_ms, refine_to, fps, ticket]() mutable {
+            std::optional<Play> play;
+            std::optional<protocol::ValidationError> refused;
+            if (ticket == self->messages_.load()) {
+                try {
+                    play = self->make_play(message["keyframes"], seq, fps, ticket);
+                } catch (const protocol::ValidationError& e) {
+                    refused = e;
+                }
+            }
+            message = nullptr;  // its memory goes before the next check's
+            self->checker_.waiting_bytes.fetch_sub(bytes);
+            net::post(self->ws_.get_executor(), [self, seq, quality, budget_ms, refine_to, ticket, play = std::move(play),
+                                                 refused = std::move(refused)]() mutable {
+                if (self->closing_ || ticket != self->messages_.load()) return;
+                if (refused) {
+                    self->service_.metrics().record_ws_message(true);
+                    return self->send_error(seq, refused->what(), refused->pointer());
+                }
+                self->begin(seq, false, quality, budget_ms, refine_to, std::move(play));
+            });
+        });
     }
 
     // After a frame, with nothing newer asked for: keep improving it. A still frame (holding `level`) is
@@ -507,21 +566,33 @@ private:
         submit_frame();
     }
 
-    // The play a `play` message asks for. Throws ValidationError with a pointer into the message.
-    Play start_play(const json& message, const json& seq) {
+    // The frame rate of a `play` message, after the checks that need no scene. Throws ValidationError with
+    // a pointer into the message.
+    static double play_fps(const json& message) {
         if (message.contains("patch")) throw protocol::ValidationError("/patch", "play takes no patch");
         if (!message.contains("keyframes")) throw protocol::ValidationError("/keyframes", "play needs keyframes");
-        double fps = 24.0;
-        if (message.contains("fps")) {
-            const json& f = message["fps"];
-            if (!f.is_number_unsigned() || f.get<uint64_t>() < 1 || f.get<uint64_t>() > kMaxPlayFps)
-                throw protocol::ValidationError("/fps", "must be an integer in [1, " + std::to_string(kMaxPlayFps) + "]");
-            fps = static_cast<double>(f.get<uint64_t>());
+        if (!message.contains("fps")) return 24.0;
+        const json& f = message["fps"];
+        if (!f.is_number_unsigned() || f.get<uint64_t>() < 1 || f.get<uint64_t>() > kMaxPlayFps)
+            throw protocol::ValidationError("/fps", "must be an integer in [1, " + std::to_string(kMaxPlayFps) + "]");
+        return static_cast<double>(f.get<uint64_t>());
+    }
+
+    // The play of `keyframes` over the scene as it is now (any thread), unless message `ticket` is no longer
+    // the newest. Throws ValidationError with a pointer into the message.
+    Play make_play(const json& keyframes, const json& seq, double fps, uint64_t ticket) const {
+        std::optional<scene::SceneSnapshot> current;
+        try {
+            current = service_.store().get(scene_id_);
+        } catch (const scene::StoreError& e) {
+            throw protocol::ValidationError("", e.what());
         }
-        auto current = service_.store().get(scene_id_);
         if (!current) throw protocol::ValidationError("", "the scene was deleted");
         try {
-            protocol::Animation animation(current->document, message["keyframes"], service_.store().limits());
+            // Given up when the session ends or a newer message supersedes the play.
+            protocol::Animation animation(current->document, keyframes, service_.store().limits(), [this, ticket] {
+                return !gone_->load() && ticket == messages_.load();
+            });
             const auto frames = static_cast<uint64_t>(std::floor(animation.duration() * fps)) + 1;
             return Play{std::move(animation), fps, frames, ++plays_started, std::nullopt, 0, 0, seq};
         } catch (const protocol::ValidationError& e) {
@@ -581,6 +652,7 @@ private:
     net::steady_timer timer_;
     net::steady_timer idle_timer_;  // from an interactive frame to the still one (refine_after)
     Service& service_;
+    PlayChecker& checker_;
     std::function<void(WsSession*)> on_close_;
     beast::flat_buffer buffer_;
     beast::flat_buffer incoming_;
@@ -601,6 +673,8 @@ private:
     // Set by a message that arrives while a refinement level renders: the level gives way to it.
     std::shared_ptr<std::atomic<bool>> newer_message_ = std::make_shared<std::atomic<bool>>(false);
     std::optional<Play> play_;  // the animation playing, if any
+    // Messages received: a play checked meanwhile is begun only if none came after it (check_play).
+    std::atomic<uint64_t> messages_{0};
     // Set when the connection ends: the render queue drops or abandons this session's frames.
     scene::Withdrawn gone_ = std::make_shared<std::atomic<bool>>(false);
 
@@ -630,6 +704,7 @@ struct WsServer::Impl {
     bool started = false;
     std::atomic<bool> stopped{false};
     std::optional<scene::Subscription> edits;  // committed revisions, pushed to the sessions viewing them
+    PlayChecker checker;
 
     explicit Impl(Service& s) : service(s) {}
 
@@ -638,7 +713,7 @@ struct WsServer::Impl {
         beast::error_code ignored;
         socket.set_option(tcp::no_delay(true), ignored);
         auto session =
-            std::make_shared<WsSession>(std::move(socket), service, [registry = registry](WsSession* gone) {
+            std::make_shared<WsSession>(std::move(socket), service, checker, [registry = registry](WsSession* gone) {
                 std::lock_guard lock(registry->mutex);
                 registry->live.erase(gone);
             });
@@ -739,6 +814,8 @@ void WsServer::stop() {
         }
         std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
+    impl_->checker.pool.stop();
+    impl_->checker.pool.join();
     impl_->ioc.stop();
     for (auto& thread : impl_->threads) thread.join();
     impl_->threads.clear();

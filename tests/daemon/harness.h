@@ -15,6 +15,15 @@
 
 namespace refract::test {
 
+// True when the tests, and the daemon they start, are built with AddressSanitizer: its allocator keeps
+// freed memory in quarantine and its checks slow the host code several times, so bounds on a daemon's
+// memory and on host-bound times are asserted in the Release run (scripts/test.sh runs both).
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kSanitized = true;
+#else
+inline constexpr bool kSanitized = false;
+#endif
+
 // A fresh directory under the system temp dir, removed with everything in it on destruction.
 class TempDir {
 public:

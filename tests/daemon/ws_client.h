@@ -18,11 +18,12 @@ namespace refract::test {
 
 class WsClient {
 public:
-    WsClient(uint16_t port, const std::string& target) {
+    // A read that waits longer than `receive_timeout_s` throws.
+    WsClient(uint16_t port, const std::string& target, long receive_timeout_s = 60) {
         namespace net = boost::asio;
         net::ip::tcp::endpoint endpoint(net::ip::make_address("127.0.0.1"), port);
         ws_.next_layer().connect(endpoint);
-        timeval timeout{60, 0};
+        timeval timeout{receive_timeout_s, 0};
         ::setsockopt(ws_.next_layer().native_handle(), SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
         ws_.handshake("127.0.0.1:" + std::to_string(port), target);
     }
