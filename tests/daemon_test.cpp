@@ -2279,8 +2279,11 @@ TEST(DaemonHostile, PlaysOfManyKeyframesHoldLittleMemoryAndEditsKeepTheirLatency
     if (!kSanitized) {
         EXPECT_LT(rss_playing - rss_before, 64 * 1024) << "VmRSS " << rss_before << " -> " << rss_playing << " KiB";
     }
-    // An edit waits for one played frame at most besides its own, and for no play's check.
-    EXPECT_LT(playing_s, 3.0 * alone_s + 1.0) << "alone " << alone_s << " s, beside six plays " << playing_s << " s";
+    // An edit waits for one played frame at most besides its own, and for no play's check (which takes a
+    // core for seconds, ten times as long under AddressSanitizer).
+    if (!kSanitized) {
+        EXPECT_LT(playing_s, 3.0 * alone_s + 1.0) << "alone " << alone_s << " s, beside six plays " << playing_s << " s";
+    }
     RecordProperty("rss_growth_kib", static_cast<int>(rss_playing - rss_before));
     for (auto& player : players) player->send({{"type", "stop"}});
     players.clear();

@@ -355,6 +355,42 @@ TEST_F(ScaleOut, EnvironmentsUploadedToOneReplicaLightScenesOnTheOthers) {
         << frame->get_header_value("X-Refract-Passes");
 }
 
+// Deleting uploads in the shared store: refused through any replica while a scene uses them (409 naming
+// it), then gone for every replica, and the scene's own grid deleted with its document unchanged.
+TEST_F(ScaleOut, UploadsDeletedThroughOneReplicaAreGoneForAll) {
+    auto r1 = client_for(replicas_[0]->port());
+    auto r2 = client_for(replicas_[1]->port());
+    auto r3 = client_for(replicas_[2]->port());
+    const std::string tetrahedron = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    ASSERT_EQ(r1.Put("/api/meshes/doomed", tetrahedron, "text/plain")->status, 201);
+    json document = kSmallScene;
+    document["object"] = {{"mesh", "upload:doomed"}};
+    ASSERT_EQ(r2.Post("/api/scenes?id=user", document.dump(), "application/json")->status, 201);
+    ASSERT_EQ(r3.Get("/api/scenes/user/frame.png")->status, 200);  // held decoded by r3 now
+
+    auto refused = r3.Delete("/api/meshes/doomed");
+    ASSERT_TRUE(refused);
+    EXPECT_EQ(refused->status, 409) << refused->body;
+    EXPECT_EQ(json::parse(refused->body)["scenes"], json::array({"user"})) << refused->body;
+    EXPECT_NE(r1.Get("/api/meshes")->body.find("\"doomed\""), std::string::npos);
+
+    const json sphere = {{"object", {{"mesh", "sphere"}}}};
+    ASSERT_EQ(r1.Patch("/api/scenes/user", sphere.dump(), "application/merge-patch+json")->status, 200);
+    auto deleted = r2.Delete("/api/meshes/doomed");
+    ASSERT_TRUE(deleted);
+    EXPECT_EQ(deleted->status, 204) << deleted->body;
+    for (auto* replica : {&r1, &r2, &r3}) {
+        EXPECT_EQ(replica->Get("/api/meshes")->body.find("\"doomed\""), std::string::npos);
+        EXPECT_EQ(replica->Delete("/api/meshes/doomed")->status, 404);
+    }
+    // Nothing of it is left: a scene that names it again cannot render, on any replica.
+    auto renamed = r3.Patch("/api/scenes/user", json{{"object", {{"mesh", "upload:doomed"}}}}.dump(),
+                            "application/merge-patch+json");
+    ASSERT_TRUE(renamed);
+    ASSERT_EQ(renamed->status, 200) << renamed->body;
+    EXPECT_EQ(r1.Get("/api/scenes/user/frame.png")->status, 422);
+}
+
 TEST_F(ScaleOut, ConnectionsCutMidEditNeitherLoseNorInventAnEdit) {
     auto client = client_for(replicas_[0]->port());
     ASSERT_EQ(client.Post("/api/scenes?id=cut", kSmallScene.dump(), "application/json")->status, 201);
