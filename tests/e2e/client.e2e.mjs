@@ -261,6 +261,29 @@ async function main() {
     await shot(page, '01-first-frame.png');
   });
 
+  await check('the page fits the window and no tab stop scrolls it', async () => {
+    const size = await page.evaluate(() => ({
+      height: document.documentElement.scrollHeight, inner: window.innerHeight,
+    }));
+    assert(size.height <= size.inner, `the page is ${size.height} px tall in a ${size.inner} px window`);
+    await page.evaluate(() => { document.activeElement?.blur(); window.scrollTo(0, 0); window.tabbed = new Set(); });
+    const reached = [];
+    for (let i = 0; i < 300; ++i) {
+      await page.keyboard.press('Tab');
+      const at = await page.evaluate(() => {
+        const el = document.activeElement;
+        const again = window.tabbed.has(el);
+        window.tabbed.add(el);
+        return { x: window.scrollX, y: window.scrollY, id: el ? el.id || el.tagName : 'none', again };
+      });
+      assert(at.x === 0 && at.y === 0, `tabbing onto ${at.id} scrolled the page to ${at.x},${at.y}`);
+      if (at.again) break;  // around once
+      reached.push(at.id);
+    }
+    assert(reached.includes('environment-file'), `the tab order never reached the HDR/EXR upload: ${reached.join(' ')}`);
+    await page.evaluate(() => document.activeElement?.blur());
+  });
+
   await check('the outliner adds a light, edits and renames it, and removes it', async () => {
     await waitSettled(page);
     const rev0 = await page.evaluate(() => window.refract.lastRevision);
