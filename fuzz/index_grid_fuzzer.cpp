@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "fuzz_check.h"
-#include "scene/index_grid_file.h"
-#include "scene/store.h"
+#include "store/index_grid_file.h"
+#include "store/store.h"
 
 using namespace refract::scene;
 

@@ -24,7 +24,7 @@ import time
 import urllib.parse
 
 # Edit kinds, each a function of the frame number giving a merge patch, and what it reruns
-# (server/scene/passes.cpp). Values alternate, so every frame is a real edit.
+# (server/render/invalidation.cpp). Values alternate, so every frame is a real edit.
 EDITS = {
     "camera": lambda i: {"camera": {"position": [0.3 * (1 if i % 2 else -1), 0.5, 5.0]}},
     "light": lambda i: {"light": {"position": [2.0 + 0.2 * (i % 3), 3.0, 1.0]}},

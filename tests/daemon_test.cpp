@@ -31,9 +31,9 @@
 #include "http/service.h"
 #include "http/static_files.h"
 #include "image/environment_map.h"
-#include "scene/passes.h"
-#include "scene/render_queue.h"
-#include "scene/scene_store.h"
+#include "render/invalidation.h"
+#include "render/render_queue.h"
+#include "store/scene_store.h"
 
 namespace refract::test {
 namespace {

@@ -9,8 +9,8 @@
 
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
-#include "scene/object_mesh.h"
-#include "scene/scene_gpu.h"
+#include "render/object_mesh.h"
+#include "render/scene_gpu.h"
 #include "vk/context.h"
 
 namespace refract::testing {

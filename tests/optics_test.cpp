@@ -48,7 +48,7 @@ class OpticsTest : public testing::GpuTest {
 protected:
     struct Traced {
         std::vector<PhotonExit> exits;
-        scene::GridGeometry grid;
+        passes::GridGeometry grid;
         double mean_steps = 0.0;
     };
 
@@ -583,7 +583,7 @@ TEST_F(EnergyTest, NetFluxFollowsTheBeamThroughATiltedSlab) {
                                     {"bounds", {{"min", {-0.2, -0.6, -1.6}}, {"max", {0.2, 0.6, 1.6}}}}}}};
     const auto gpu = photons(protocol::parse_scene(patch));
     const auto flux = gpu->read_flux();
-    const scene::GridGeometry grid = gpu->grid();
+    const passes::GridGeometry grid = gpu->grid();
     const double h = grid.voxel_size;
     // The slab's frame: normal (sin a, 0, cos a), faces at z' = +-1, sides at x' = +-1.
     const glm::dvec3 normal(std::sin(a), 0.0, std::cos(a)), across(std::cos(a), 0.0, -std::sin(a));
@@ -650,7 +650,7 @@ TEST_F(EnergyTest, NetFluxOfAPointLightIsRadialAndCancelsAtTheLight) {
                         {"volume", {{"resolution", 48}, {"bounds", {{"min", {-1, -1, -1}}, {"max", {1, 1, 1}}}}}}};
     const auto gpu = photons(protocol::parse_scene(patch));
     const auto flux = gpu->read_flux();
-    const scene::GridGeometry grid = gpu->grid();
+    const passes::GridGeometry grid = gpu->grid();
     ASSERT_NEAR(grid.voxel_size, h, 1e-6);
     const glm::vec4 at_light = flux[(24u * grid.dims.y + 24u) * grid.dims.x + 24u];
     double worst_cos = 1.0;

@@ -10,10 +10,10 @@
 #include <nlohmann/json.hpp>
 
 #include "image/png.h"
-#include "scene/object_mesh.h"
-#include "scene/passes.h"
-#include "scene/renderer.h"
-#include "scene/scene_gpu.h"
+#include "render/object_mesh.h"
+#include "render/invalidation.h"
+#include "render/renderer.h"
+#include "render/scene_gpu.h"
 #include "vk/context.h"
 
 namespace refract {

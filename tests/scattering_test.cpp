@@ -14,7 +14,7 @@
 
 #include "gpu_fixture.h"
 #include "phase.h"
-#include "scene/renderer.h"
+#include "render/renderer.h"
 
 namespace refract {
 namespace {

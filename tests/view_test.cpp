@@ -19,7 +19,7 @@
 
 #include "gpu_fixture.h"
 #include "passes/transport_params.h"
-#include "scene/renderer.h"
+#include "render/renderer.h"
 #include "phase.h"
 
 namespace refract {

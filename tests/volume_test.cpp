@@ -23,11 +23,11 @@
 #include "passes/octree.h"
 #include "passes/voxelize.h"
 #include "protocol/scene_document.h"
-#include "scene/field_atlas.h"
-#include "scene/grid_geometry.h"
-#include "scene/passes.h"
-#include "scene/renderer.h"
-#include "scene/scene_gpu.h"
+#include "render/field_atlas.h"
+#include "passes/grid_geometry.h"
+#include "render/invalidation.h"
+#include "render/renderer.h"
+#include "render/scene_gpu.h"
 #include "vk/commands.h"
 #include "vk/resources.h"
 
@@ -57,7 +57,7 @@ SceneDocument volume_document(const std::string& mesh, uint32_t resolution, doub
 
 // The volume passes' outputs read back, x fastest.
 struct Volume {
-    scene::GridGeometry grid;
+    passes::GridGeometry grid;
     std::vector<float> coverage;
     std::vector<glm::vec4> field;    // n, dn/dx, dn/dy, dn/dz (per voxel length)
     std::vector<uint32_t> levels;    // octree leaf level per voxel
@@ -231,7 +231,7 @@ TEST_F(VolumeTest, SmoothingConservesTotalCoverage) {
     SceneDocument cut = volume_document("cube", 64, sigma);
     cut.volume.bounds = protocol::Bounds{{-0.5, -1.5, -1.5}, {2.5, 1.5, 1.5}};
     const Volume c = build(cut);
-    const scene::GridGeometry& g = c.grid;
+    const passes::GridGeometry& g = c.grid;
     size_t checked = 0, not_full = 0;
     c.for_each([&](uint32_t x, uint32_t y, uint32_t z, size_t i) {
         const glm::dvec3 p = c.centre(x, y, z);
@@ -923,7 +923,7 @@ TEST_F(VolumeTest, OverlappingObjectsTakeTheFieldOfTheOneMoreInsideAndInsideBoth
         const auto field = gpu.read_index_field();
         const auto numbers = gpu.read_object_numbers();  // 1 + the object's place in name order
         const uint32_t light_number = std::string(light_name) < dense_name ? 1u : 2u;
-        const scene::GridGeometry& g = gpu.grid();
+        const passes::GridGeometry& g = gpu.grid();
         auto voxel_at = [&](glm::vec3 p) {
             const glm::uvec3 v(g.to_voxel(p));
             return (size_t{v.z} * g.dims.y + v.y) * g.dims.x + v.x;
@@ -1004,16 +1004,16 @@ TEST_F(VolumeTest, MovingAnObjectAcrossTopLevelNodesGivesTheOctreeOfAFreshBuild)
     options.limit = scene::kVoxelize | scene::kIndexField | scene::kOctree;
     scene::SceneGpu resident(kit());
     resident.run(scene::kAllPasses, before, worlds(before), nullptr, options);
-    const scene::GridGeometry& g = resident.grid();
+    const passes::GridGeometry& g = resident.grid();
     const uint32_t max_level = passes::octree_layout(g.dims).max_level;
     ASSERT_EQ(max_level, 5u);
     const uint32_t top = 1u << max_level;
     // The ball's box before lies in the top-level node from (0, 32, 32) and after crosses from the node
     // from (32, 32, 32) into the one from (64, 32, 32); the cube's lies below them all.
     const double sigma = before.volume.smoothing;
-    const scene::ObjectBox was = scene::object_boxes(g, worlds(before), sigma).at("ball");
-    const scene::ObjectBox is = scene::object_boxes(g, worlds(after), sigma).at("ball");
-    const scene::ObjectBox cube = scene::object_boxes(g, worlds(after), sigma).at("cube");
+    const passes::ObjectBox was = scene::object_boxes(g, worlds(before), sigma).at("ball");
+    const passes::ObjectBox is = scene::object_boxes(g, worlds(after), sigma).at("ball");
+    const passes::ObjectBox cube = scene::object_boxes(g, worlds(after), sigma).at("cube");
     auto top_node = [&](glm::uvec3 voxel) { return voxel / top; };
     const glm::uvec3 was_last = was.offset + glm::uvec3(was.box.dims.x, was.box.dims.y, was.box.dims.z) - 1u;
     const glm::uvec3 is_last = is.offset + glm::uvec3(is.box.dims.x, is.box.dims.y, is.box.dims.z) - 1u;
@@ -1042,7 +1042,7 @@ using AtlasBox = std::pair<glm::uvec3, glm::uvec3>;
 // keep the octree's nodes of up to a cell whole and do not overlap; the map finds each lattice voxel of
 // a cluster where its slot holds it, and around the rest the largest aligned cube that holds no cluster.
 TEST(FieldAtlas, ClustersHoldEveryBoxAndTheMapFindsEachVoxelAndTheMediumAroundThem) {
-    scene::GridGeometry lattice;
+    passes::GridGeometry lattice;
     lattice.voxel_size = 0.01f;
     lattice.dims = {150, 37, 130};  // not whole cells: clusters at the far faces are clipped
     const uint32_t max_level = passes::octree_layout(lattice.dims).max_level;
@@ -1118,7 +1118,7 @@ TEST(FieldAtlas, ClustersHoldEveryBoxAndTheMapFindsEachVoxelAndTheMediumAroundTh
     // Clusters that do not fit the device's image sides are refused, not clipped; the renderer reports
     // that as a scene it cannot render.
     EXPECT_THROW(scene::sparse_field_atlas(lattice, boxes, max_level, 32), std::length_error);
-    std::map<std::string, scene::ObjectBox> object_boxes;
+    std::map<std::string, passes::ObjectBox> object_boxes;
     for (size_t i = 0; i < boxes.size(); ++i) {
         const glm::uvec3 size = glm::max(boxes[i].second, boxes[i].first) - boxes[i].first;
         object_boxes[std::to_string(i)] = {{lattice.origin, lattice.voxel_size, {size.x, size.y, size.z}}, boxes[i].first};
@@ -1129,18 +1129,18 @@ TEST(FieldAtlas, ClustersHoldEveryBoxAndTheMapFindsEachVoxelAndTheMediumAroundTh
 
 // An object's resolution sets the lattice's voxel: the scene's divided by the smallest whole factor
 // that gives the object at least that many voxels along its own longest side, whatever its rotation;
-// at most kMaxLightFactor; the finest object decides.
+// at most passes::kMaxLightFactor; the finest object decides.
 TEST(FieldAtlas, ObjectResolutionDividesTheScenesVoxelByAWholeFactor) {
     auto grid_of = [](const nlohmann::json& objects) {
         const SceneDocument doc = protocol::parse_scene(
             {{"objects", objects}, {"volume", {{"resolution", 64}, {"bounds", {{"min", {-8, -1, -8}}, {"max", {8, 1, 8}}}}}}});
-        return scene::grid_for(doc, scene::world_meshes(doc, nullptr));
+        return passes::grid_for(doc, scene::world_meshes(doc, nullptr));
     };
-    const scene::GridGeometry plain = grid_of({{"a", {{"scale", 0.5}}}});
+    const passes::GridGeometry plain = grid_of({{"a", {{"scale", 0.5}}}});
     EXPECT_EQ(plain.light_factor, 1u);
     EXPECT_FLOAT_EQ(plain.voxel_size, 0.25f);
     // A sphere of diameter 1 at 16 voxels: 1/16 m asked of a 1/4 m scene voxel -> factor 4.
-    const scene::GridGeometry fine = grid_of({{"a", {{"scale", 0.5}, {"resolution", 16}}}, {"b", {{"scale", 0.3}}}});
+    const passes::GridGeometry fine = grid_of({{"a", {{"scale", 0.5}, {"resolution", 16}}}, {"b", {{"scale", 0.3}}}});
     EXPECT_EQ(fine.light_factor, 4u);
     EXPECT_FLOAT_EQ(fine.voxel_size, 0.0625f);
     EXPECT_EQ(fine.dims, (vk::Extent3{256, 32, 256}));
@@ -1149,7 +1149,7 @@ TEST(FieldAtlas, ObjectResolutionDividesTheScenesVoxelByAWholeFactor) {
     EXPECT_EQ(grid_of({{"a", {{"scale", 0.5}, {"resolution", 17}}}}).light_factor, 5u);
     // A cube turned 45 degrees is as long along its own sides as unturned.
     EXPECT_EQ(grid_of({{"a", {{"mesh", "cube"}, {"scale", 0.5}, {"resolution", 16}, {"rotation_deg", {0, 45, 30}}}}}).light_factor, 4u);
-    EXPECT_EQ(grid_of({{"a", {{"scale", 0.5}, {"resolution", 512}}}}).light_factor, scene::kMaxLightFactor);
+    EXPECT_EQ(grid_of({{"a", {{"scale", 0.5}, {"resolution", 512}}}}).light_factor, passes::kMaxLightFactor);
 }
 
 // A scene of several objects stores its field in an atlas; the lookups see there, voxel for voxel,
@@ -1180,11 +1180,11 @@ TEST_F(VolumeTest, AnObjectInAFieldAtlasHasTheFieldAndFrameItHasInADenseLattice)
     ASSERT_TRUE(dense.field_atlas().dense);
     ASSERT_FALSE(sparse.field_atlas().dense);
     ASSERT_EQ(sparse.field_atlas().clusters.size(), 2u);
-    const scene::GridGeometry& g = dense.grid();
+    const passes::GridGeometry& g = dense.grid();
     ASSERT_TRUE(g == sparse.grid());
     EXPECT_LT(sparse.field_atlas().dims.count(), g.dims.count() / 2);
     // Voxel for voxel outside the far cube's box.
-    const scene::ObjectBox far_box = scene::object_boxes(g, worlds(pair), pair.volume.smoothing).at("far");
+    const passes::ObjectBox far_box = scene::object_boxes(g, worlds(pair), pair.volume.smoothing).at("far");
     const auto dense_field = dense.read_index_field(), sparse_field = sparse.read_index_field();
     const auto dense_coverage = dense.read_coverage(), sparse_coverage = sparse.read_coverage();
     size_t compared = 0;

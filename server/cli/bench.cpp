@@ -21,9 +21,9 @@
 #include "image/png.h"
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
-#include "scene/object_mesh.h"
-#include "scene/renderer.h"
-#include "scene/scene_gpu.h"
+#include "render/object_mesh.h"
+#include "render/renderer.h"
+#include "render/scene_gpu.h"
 #include "vk/commands.h"
 #include "vk/context.h"
 #include "vk/gpu_timer.h"
@@ -147,7 +147,7 @@ std::vector<BenchCase> standard_suite(bool gpu) {
         alone["objects"] = {{"bunny", bunny}};
         // The gallery's lattice voxel, which its objects' resolutions set.
         const protocol::SceneDocument parsed = protocol::parse_scene(gallery);
-        const double voxel = scene::grid_for(parsed, scene::world_meshes(parsed, nullptr)).voxel_size;
+        const double voxel = passes::grid_for(parsed, scene::world_meshes(parsed, nullptr)).voxel_size;
         const double half = 0.65;  // around the bunny (scale 0.5) and its move
         json lo = json::array(), hi = json::array();
         for (size_t a = 0; a < 3; ++a) {
@@ -392,7 +392,7 @@ int bench_command(const Arguments& args) {
                       {"pixels", uint64_t{document.image.width} * document.image.height}, {"passes", json::object()}};
         // What a dense lattice of the same voxel over the same box would hold, field and light alike (the
         // budget's estimate; the measured memory's counterpart for a scene of one object).
-        const scene::GridGeometry& lattice = scene_gpu.grid();
+        const passes::GridGeometry& lattice = scene_gpu.grid();
         const int64_t dense = scene::estimate_scene_bytes(lattice, lattice.dims.count(), 0, lattice.dims.count(),
                                                           document.image.width, document.image.height);
         entry["field_atlas"] = {{"clusters", scene_gpu.field_atlas().dense ? 0 : scene_gpu.field_atlas().clusters.size()},

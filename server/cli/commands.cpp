@@ -17,9 +17,9 @@
 #include "mesh/mesh.h"
 #include "protocol/animation.h"
 #include "protocol/scene_document.h"
-#include "scene/object_mesh.h"
-#include "scene/renderer.h"
-#include "scene/scene_gpu.h"
+#include "render/object_mesh.h"
+#include "render/renderer.h"
+#include "render/scene_gpu.h"
 #include "vk/context.h"
 
 namespace refract::cli {
@@ -97,7 +97,7 @@ json timings_json(const std::vector<std::pair<std::string, double>>& gpu_ms) {
     return t;
 }
 
-json grid_json(const scene::GridGeometry& g) {
+json grid_json(const passes::GridGeometry& g) {
     const glm::vec3 hi = g.max_corner();
     return {{"dims", {g.dims.x, g.dims.y, g.dims.z}},
             {"voxel_size", g.voxel_size},

@@ -19,10 +19,10 @@
 #include "http/service.h"
 #include "http/ws_server.h"
 #include "mesh/mesh.h"
-#include "scene/render_queue.h"
-#include "scene/renderer.h"
-#include "scene/pg_scene_store.h"
-#include "scene/scene_store.h"
+#include "render/render_queue.h"
+#include "render/renderer.h"
+#include "store/pg_scene_store.h"
+#include "store/scene_store.h"
 #include "vk/context.h"
 
 using namespace refract;

@@ -14,7 +14,7 @@
 #include "http/examples.h"
 #include "http/http_server.h"
 #include "http/static_files.h"
-#include "scene/passes.h"
+#include "render/invalidation.h"
 
 namespace refract::http {
 

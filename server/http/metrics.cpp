@@ -3,7 +3,7 @@
 #include <sstream>
 #include <vector>
 
-#include "scene/passes.h"
+#include "render/invalidation.h"
 
 namespace refract::http {
 

@@ -9,7 +9,7 @@
 #include <string>
 #include <tuple>
 
-#include "scene/renderer.h"
+#include "render/renderer.h"
 
 namespace refract::http {
 

@@ -5,7 +5,7 @@
 #include <set>
 #include <sstream>
 
-#include "scene/passes.h"
+#include "render/invalidation.h"
 
 namespace refract::http {
 

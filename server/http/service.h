@@ -12,8 +12,8 @@
 
 #include "http/daemon_config.h"
 #include "http/metrics.h"
-#include "scene/render_queue.h"
-#include "scene/store.h"
+#include "render/render_queue.h"
+#include "store/store.h"
 
 namespace refract::http {
 

@@ -44,7 +44,7 @@ uint64_t largest_part(std::span<const FieldBlock> blocks, VoxelRange region) {
 }
 
 VoxelRange IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol::Medium& medium,
-                                  const scene::GridGeometry& lattice, std::span<const ObjectField> objects,
+                                  const passes::GridGeometry& lattice, std::span<const ObjectField> objects,
                                   std::span<const FieldBlock> blocks, VoxelRange region, const vk::Buffer* zeros,
                                   const vk::Buffer& grid_values, const vk::Image3D& index_field,
                                   const vk::Image3D& coverage_image) const {
@@ -53,7 +53,7 @@ VoxelRange IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol:
     // One dispatch: `object` over the part of `box` (its coverage's extent, at `offset` in the lattice)
     // inside `within`, written `shift` voxels from its place in the lattice; `number` 0 writes, else
     // joins (IndexFieldPush::offset).
-    auto dispatch = [&](const protocol::Object& object, const scene::GridGeometry& box, glm::uvec3 offset,
+    auto dispatch = [&](const protocol::Object& object, const passes::GridGeometry& box, glm::uvec3 offset,
                         const vk::Buffer& coverage, uint32_t number, VoxelRange within, glm::ivec3 shift) {
         const VoxelRange part = part_of_box(offset, box.dims, within);
         if (part.empty()) return;
@@ -102,7 +102,7 @@ VoxelRange IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol:
         if (part.empty()) continue;
         const glm::ivec3 shift = glm::ivec3(block.atlas_first) - glm::ivec3(block.lattice.first);
         const glm::uvec3 size = part.end - part.first;
-        const scene::GridGeometry part_box{lattice.origin + lattice.voxel_size * glm::vec3(part.first),
+        const passes::GridGeometry part_box{lattice.origin + lattice.voxel_size * glm::vec3(part.first),
                                            lattice.voxel_size, {size.x, size.y, size.z}};
         if (zeros) dispatch(medium_object, part_box, part.first, *zeros, 0u, part, shift);
         bool first = !zeros;

@@ -7,7 +7,7 @@
 
 #include "passes/mode_pipelines.h"
 #include "protocol/scene_document.h"
-#include "scene/grid_geometry.h"
+#include "passes/grid_geometry.h"
 #include "vk/commands.h"
 #include "vk/pipeline.h"
 
@@ -25,7 +25,7 @@ struct VoxelRange {
 // One object's part of the index field: its smoothed coverage over its own box of the scene's lattice.
 struct ObjectField {
     const protocol::Object& object;
-    scene::GridGeometry box;     // the lattice's voxels from `offset` on; the coverage's size
+    passes::GridGeometry box;     // the lattice's voxels from `offset` on; the coverage's size
     glm::uvec3 offset;           // the box's min corner in the lattice (voxels)
     const vk::Buffer& coverage;  // float per voxel of the box
     uint32_t number;             // 1 + the object's place in name order (the material table's); 0 for the
@@ -33,7 +33,7 @@ struct ObjectField {
 };
 
 // Where a part of the lattice lies in the field images: its voxels from atlas_first on (the whole
-// lattice at the origin when the images are the lattice's; scene/field_atlas.h).
+// lattice at the origin when the images are the lattice's; render/field_atlas.h).
 struct FieldBlock {
     VoxelRange lattice;
     glm::uvec3 atlas_first{0u};
@@ -55,7 +55,7 @@ public:
     // resets the region to the medium first; none when the images hold the medium there already.
     // `grid_values` is the imported index grid (the lattice's size) for index_field == grid; any small
     // buffer otherwise.
-    VoxelRange record(vk::CommandRecorder& recorder, const protocol::Medium& medium, const scene::GridGeometry& lattice,
+    VoxelRange record(vk::CommandRecorder& recorder, const protocol::Medium& medium, const passes::GridGeometry& lattice,
                       std::span<const ObjectField> objects, std::span<const FieldBlock> blocks, VoxelRange region,
                       const vk::Buffer* zeros, const vk::Buffer& grid_values, const vk::Image3D& index_field,
                       const vk::Image3D& coverage_image) const;

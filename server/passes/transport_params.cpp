@@ -26,7 +26,7 @@ uint32_t phase_model(PhaseModel m) {
     return PHASE_ISOTROPIC_ID;
 }
 
-std::array<glm::vec3, 8> corners(const scene::GridGeometry& grid) {
+std::array<glm::vec3, 8> corners(const passes::GridGeometry& grid) {
     const glm::vec3 lo = grid.origin, hi = grid.max_corner();
     std::array<glm::vec3, 8> c;
     for (int i = 0; i < 8; ++i) c[static_cast<size_t>(i)] = glm::vec3(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
@@ -43,18 +43,18 @@ float power_of_two_below(double x) { return static_cast<float>(std::exp2(std::fl
 
 }  // namespace
 
-uint32_t floor_map_texels(const scene::GridGeometry& grid) {
+uint32_t floor_map_texels(const passes::GridGeometry& grid) {
     // The map spans up to 4 grid extents; about two voxels per texel keeps the photon noise down.
     const float extent = static_cast<float>(std::max({grid.dims.x, grid.dims.y, grid.dims.z}));
     return std::clamp(static_cast<uint32_t>(extent * 4.0f / 2.0f), 64u, 1024u);
 }
 
-uint32_t light_map_capacity(const scene::GridGeometry& grid) {
+uint32_t light_map_capacity(const passes::GridGeometry& grid) {
     // About a texel per voxel across the grid.
     return std::clamp(std::max({grid.dims.x, grid.dims.y, grid.dims.z}), 32u, 512u);
 }
 
-uint32_t light_map_texels(const scene::GridGeometry& grid, uint32_t photons) {
+uint32_t light_map_texels(const passes::GridGeometry& grid, uint32_t photons) {
     // No more rays than a sixteenth of the photons: the map costs a ray each, and a coarser one only
     // leaves more of the light to the photons.
     const auto quarter_root = static_cast<uint32_t>(std::sqrt(static_cast<double>(photons)) / 4.0);
@@ -209,7 +209,7 @@ struct Emitter {
     glm::vec3 flux;
 };
 
-Emitter emitter_for(const shaders::LightParams& light, const scene::GridGeometry& grid) {
+Emitter emitter_for(const shaders::LightParams& light, const passes::GridGeometry& grid) {
     const glm::vec3 centre = 0.5f * (grid.origin + grid.max_corner());
     const float bound_radius = 0.5f * glm::length(grid.max_corner() - grid.origin);
     const glm::vec3 power(light.power);
@@ -281,7 +281,7 @@ std::vector<uint32_t> photon_shares(uint32_t photons, const std::vector<double>&
 }
 
 shaders::Material material_for(const protocol::Object& object, const protocol::Medium& medium,
-                               const scene::GridGeometry& grid) {
+                               const passes::GridGeometry& grid) {
     shaders::Material m{};
     const double surface = surface_index(object, medium);
     m.extinction = glm::vec4(vec(object.extinction), static_cast<float>(surface));
@@ -298,7 +298,7 @@ shaders::Material material_for(const protocol::Object& object, const protocol::M
 }
 
 std::vector<shaders::TransportParams> make_transport_params(const protocol::SceneDocument& document,
-                                                            const scene::GridGeometry& grid,
+                                                            const passes::GridGeometry& grid,
                                                             const TransportOptions& options) {
     shaders::TransportParams p{};
     p.grid_origin = glm::vec4(grid.origin, grid.voxel_size);

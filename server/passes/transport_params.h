@@ -8,7 +8,7 @@
 
 #include "passes/environment_light.h"
 #include "protocol/scene_document.h"
-#include "scene/grid_geometry.h"
+#include "passes/grid_geometry.h"
 #include "transport.h"
 #include "phase.h"
 
@@ -35,7 +35,7 @@ glm::vec2 view_sample_offset(uint32_t index);
 // photon_flux, photon_info, stepping and direct_light; TransportParams::light_set.y numbers them), in the
 // order of document.lights; the first also serves the viewing pass. Never empty.
 std::vector<shaders::TransportParams> make_transport_params(const protocol::SceneDocument& document,
-                                                            const scene::GridGeometry& grid,
+                                                            const passes::GridGeometry& grid,
                                                             const TransportOptions& options);
 
 // Photons per light out of `photons`, in proportion to the flux each sends through its emitter
@@ -88,7 +88,7 @@ bool film_reflects(const protocol::SceneDocument& document);
 // An object's material as the table of a scene of several objects holds it (TRANSPORT_CONSTANT_MATERIALS);
 // the first object's fills TransportParams' object_*, shell and film.
 shaders::Material material_for(const protocol::Object& object, const protocol::Medium& medium,
-                               const scene::GridGeometry& grid);
+                               const passes::GridGeometry& grid);
 
 // Whether anything scatters: photons deposit into the radiance grid (and direct light is computed) only then.
 bool any_scattering(const protocol::SceneDocument& document);
@@ -98,11 +98,11 @@ bool any_scattering(const protocol::SceneDocument& document);
 std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 scene_dims);
 
 // Texels per side of the floor caustic map for this grid.
-uint32_t floor_map_texels(const scene::GridGeometry& grid);
+uint32_t floor_map_texels(const passes::GridGeometry& grid);
 
 // Texels per side of the light map (DirectLightPass) for this grid and photon count, and the most any
 // photon count uses (what a scene allocates).
-uint32_t light_map_texels(const scene::GridGeometry& grid, uint32_t photons);
-uint32_t light_map_capacity(const scene::GridGeometry& grid);
+uint32_t light_map_texels(const passes::GridGeometry& grid, uint32_t photons);
+uint32_t light_map_capacity(const passes::GridGeometry& grid);
 
 }  // namespace refract::passes

@@ -71,7 +71,7 @@ float VoxelizePass::lattice_sigma(float sigma) {
 }
 
 VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::Mesh& mesh_world,
-                                     const scene::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
+                                     const passes::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
                                      const vk::Buffer& coverage) {
     if (mesh_world.triangles.empty()) throw vk::Error("voxelize: the mesh has no triangles");
     const std::array<uint32_t, 3> dims{grid.dims.x, grid.dims.y, grid.dims.z};

@@ -10,7 +10,7 @@
 
 #include "mesh/mesh.h"
 #include "passes/mode_pipelines.h"
-#include "scene/grid_geometry.h"
+#include "passes/grid_geometry.h"
 #include "vk/commands.h"
 #include "vk/gpu_timer.h"
 #include "vk/pipeline.h"
@@ -36,7 +36,7 @@ public:
     // filtered to a Gaussian of `sigma` voxels (0: each voxel's covered fraction). Returns the uploads the
     // recorded commands use.
     VoxelizeUploads record(vk::CommandRecorder& recorder, const mesh::Mesh& mesh_world,
-                           const scene::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
+                           const passes::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
                            const vk::Buffer& coverage);
 
     // The Gaussian (sigma voxels, sampled on ceil(3 sigma) taps each side) left to the lattice once the

@@ -136,7 +136,7 @@ struct LightParams {
 // and film: such scenes run the shaders they ran before several objects existed.
 #define TRANSPORT_CONSTANT_MATERIALS 4
 // Specialization constant of the same passes, with several objects only: their field is stored in a
-// field atlas (scene/field_atlas.h), found through its map (TransportParams::field_atlas), rather than in
+// field atlas (render/field_atlas.h), found through its map (TransportParams::field_atlas), rather than in
 // images the lattice's size. A lookup through the map costs the photon and viewing passes a quarter more
 // on lavapipe (docs/benchmarks.md), so a scene takes the atlas only where it saves memory
 // (scene::field_atlas_for).
@@ -171,7 +171,7 @@ struct Material {
     uvec4 model;      // x: phase model (PHASE_*_ID); yzw: unused
 };
 
-// The field atlas of a scene of several objects (scene/field_atlas.h): the index field, coverage and
+// The field atlas of a scene of several objects (render/field_atlas.h): the index field, coverage and
 // octree are stored only in clusters of the objects' boxes, packed into one atlas image. A map holds a
 // word per cell of FIELD_CELL^3 lattice voxels: where the cell lies in the atlas (in cells, 10 bits an
 // axis, x lowest), or FIELD_EMPTY + the octree level of the largest aligned cube around it that no

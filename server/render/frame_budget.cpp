@@ -1,0 +1,77 @@
+#include "render/frame_budget.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace refract::scene {
+
+namespace {
+
+uint32_t scaled_side(uint32_t side, double scale) {
+    const double floor = std::max(static_cast<double>(std::min(side, FrameBudget::kMinSide)),
+                                  std::ceil(side * FrameBudget::kMinScale));
+    return static_cast<uint32_t>(std::clamp(std::round(side * scale), floor, static_cast<double>(side)));
+}
+
+// A frame's cost is split between the photon pass and the rest; the photon pass may take at most this
+// share of the budget, so that a light drag still leaves the image its resolution.
+constexpr double kPhotonBudgetShare = 0.5;
+// Aim under the budget: a frame's time varies with the view (more refraction, more steps), and the
+// budget is the whole frame's, while this aims its passes: the PNG encode and the frame's delivery
+// (8-10 ms at interactive sizes on two cores) come on top.
+constexpr double kHeadroom = 0.8;
+// How far one frame's measurement may move a cost estimate (a factor), so that one outlier frame (a
+// page fault, another scene's work) does not swing the resolution. The first measurement is taken whole.
+constexpr double kMaxStep = 1.5;
+// Before any measurement: half the document's side.
+constexpr double kFirstScale = 0.5;
+
+// The cost at the document's own size or count that `measured_ms` for `share` of it implies, moved from
+// `estimate` by at most kMaxStep.
+double corrected(double estimate, double measured_ms, double share) {
+    const double implied = measured_ms / share;
+    return estimate > 0.0 ? std::clamp(implied, estimate / kMaxStep, estimate * kMaxStep) : implied;
+}
+
+}  // namespace
+
+InteractiveSettings FrameBudget::choose(const protocol::SceneDocument& document, bool photons_rerun, bool view_rerun,
+                                        const InteractiveSettings* resident, double budget_ms) const {
+    const double target = budget_ms * kHeadroom;
+    InteractiveSettings settings;
+    double photon_ms = 0.0;  // what this frame's photon pass is expected to take
+    if (resident && !photons_rerun) {
+        settings.photons = resident->photons;
+    } else {
+        const double share = photon_ms_ > 0.0
+                                 ? std::clamp(kPhotonBudgetShare * target / photon_ms_, kMinPhotonShare, kMaxPhotonShare)
+                                 : kMaxPhotonShare;
+        const double count = document.photons.count;
+        settings.photons = static_cast<uint32_t>(std::min(count, std::max<double>(kMinPhotons, std::round(count * share))));
+        if (count > 0) photon_ms = photon_ms_ * settings.photons / count;
+    }
+    if (resident && !view_rerun) {
+        settings.width = resident->width;
+        settings.height = resident->height;
+    } else {
+        // The image's time scales with its pixels, i.e. with the square of the scale; what the photons
+        // take of this frame is not the image's to spend.
+        const double image_target = std::max(target - photon_ms, (1.0 - kPhotonBudgetShare) * target);
+        const double scale = image_ms_ > 0.0 ? std::sqrt(image_target / image_ms_) : kFirstScale;
+        settings.width = scaled_side(document.image.width, scale);
+        settings.height = scaled_side(document.image.height, scale);
+    }
+    return settings;
+}
+
+void FrameBudget::observe(const protocol::SceneDocument& document, const InteractiveSettings& used, double photon_ms,
+                          double rest_ms) {
+    if (photon_ms > 0.0 && used.photons > 0 && document.photons.count > 0)
+        photon_ms_ = corrected(photon_ms_, photon_ms, static_cast<double>(used.photons) / document.photons.count);
+    if (rest_ms > 0.0 && used.width > 0 && used.height > 0) {
+        const double pixels = static_cast<double>(used.width) * used.height;
+        image_ms_ = corrected(image_ms_, rest_ms, pixels / (static_cast<double>(document.image.width) * document.image.height));
+    }
+}
+
+}  // namespace refract::scene

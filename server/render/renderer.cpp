@@ -1,0 +1,477 @@
+#include "render/renderer.h"
+
+#include <algorithm>
+#include <limits>
+#include <chrono>
+#include <list>
+#include <map>
+#include <mutex>
+#include <set>
+
+#include "image/png.h"
+#include "mesh/mesh.h"
+#include "render/object_mesh.h"
+#include "render/scene_gpu.h"
+#include "vk/context.h"
+
+namespace refract::scene {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point start) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+// The document an interactive frame renders: the budget's image size and photon count.
+protocol::SceneDocument with_settings(protocol::SceneDocument document, const InteractiveSettings& settings) {
+    document.image.width = settings.width;
+    document.image.height = settings.height;
+    document.photons.count = settings.photons;
+    return document;
+}
+
+// What a frame was rendered with, interactive or still (an interactive frame's document holds its settings).
+InteractiveSettings settings_of(const protocol::SceneDocument& document) {
+    return {document.image.width, document.image.height, document.photons.count};
+}
+
+// The milliseconds of a frame spent in passes whose cost the image size and photon count do not set
+// (a geometry edit while dragging), kept out of the budget's measurements.
+double volume_ms(const FrameResult& frame) {
+    double ms = 0.0;
+    for (const auto& t : frame.timings)
+        if (t.name == "voxelize" || t.name == "index_field" || t.name == "octree") ms += t.gpu_ms;
+    return ms;
+}
+
+// The timings of a frame that ran refinement steps: one entry per pass, summed over the steps.
+void add_timing(std::vector<PassTiming>& timings, const std::string& name, double gpu_ms) {
+    for (auto& t : timings)
+        if (t.name == name) {
+            t.gpu_ms += gpu_ms;
+            return;
+        }
+    timings.push_back({name, gpu_ms, 0.0});
+}
+
+double photon_ms(const FrameResult& frame) {
+    for (const auto& t : frame.timings)
+        if (t.name == "photons") return t.gpu_ms;
+    return 0.0;
+}
+
+// The smallest volume.resolution the protocol accepts: a warm-up volume builds in milliseconds.
+constexpr uint32_t kWarmUpResolution = 32;
+
+// The assets a document names, resolved before anything resident is touched: an unknown name must not be.
+struct ResolvedAssets {
+    std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;  // each object's, by name
+    std::shared_ptr<const IndexGrid> grid;
+    std::shared_ptr<const image::EnvironmentMap> environment;
+};
+
+ResolvedAssets resolve(const protocol::SceneDocument& document, const Assets& assets) {
+    ResolvedAssets resolved;
+    for (const auto& [name, object] : document.objects) {
+        if (object.index_field == protocol::IndexFieldKind::grid) {
+            resolved.grid = assets.grid ? assets.grid(object.grid) : nullptr;
+            if (!resolved.grid) throw RenderError("index field grid '" + object.grid + "' is not loaded");
+            if (!has_cubic_voxels(*resolved.grid)) throw RenderError("index field grid voxels must be cubic (within 1%)");
+            continue;
+        }
+        auto mesh = base_mesh(object, assets.mesh);
+        if (!mesh) throw RenderError("mesh '" + object.mesh + "' of object '" + name + "' is not a built-in or an uploaded mesh");
+        resolved.meshes.emplace(name, std::move(mesh));
+    }
+    if (document.environment.type == protocol::EnvironmentKind::image) {
+        resolved.environment = assets.environment ? assets.environment(document.environment.image) : nullptr;
+        if (!resolved.environment)
+            throw RenderError("environment '" + document.environment.image + "' is not a built-in or an uploaded one");
+    }
+    return resolved;
+}
+
+// The objects in world space, fitted to the lattice (what the voxelize pass reads).
+WorldMeshes worlds_of(const protocol::SceneDocument& document, const ResolvedAssets& resolved) {
+    WorldMeshes worlds;
+    for (const auto& [name, mesh] : resolved.meshes) worlds.emplace(name, world_mesh(document.objects.at(name), *mesh));
+    return worlds;
+}
+
+// Device memory the scene `document` holds once rendered, estimated on the lattice it asks for before
+// anything is allocated (the objects' boxes in it, or the imported grid's own lattice).
+int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes& worlds, const IndexGrid* grid,
+                     const image::EnvironmentMap* environment) {
+    const passes::GridGeometry g = grid ? passes::GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : passes::grid_for(document, worlds);
+    uint64_t object_voxels = 0;
+    std::map<std::string, passes::ObjectBox> boxes;
+    if (grid) object_voxels = g.dims.count();
+    else
+        boxes = object_boxes(g, worlds, document.volume.smoothing);
+    for (const auto& [name, box] : boxes) object_voxels += box.box.dims.count();
+    // An atlas wider than any device allows is refused when the scene is built; here it counts as is.
+    const uint64_t field_voxels =
+        field_atlas_for(g, boxes, grid || document.objects.size() < 2, std::numeric_limits<uint32_t>::max()).dims.count();
+    return estimate_scene_bytes(g, field_voxels, object_voxels, g.coarsened(g.light_factor).count(), document.image.width,
+                                document.image.height) +
+           estimate_environment_bytes(environment);
+}
+
+}  // namespace
+
+RunOptions run_options_for(Quality quality) {
+    RunOptions options;
+    if (quality == Quality::interactive) {
+        options.view_step = 2.0f;
+        options.radiance_factor = 3;
+        options.sampled_deposits = true;
+        options.adaptive_view = true;
+        options.bounce_cap = kInteractiveBounces;
+    }
+    return options;
+}
+
+struct Renderer::Impl {
+    struct Resident {
+        std::unique_ptr<SceneGpu> gpu;
+        protocol::SceneDocument document;  // as last rendered
+        std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;  // each object's, by name
+        std::shared_ptr<const IndexGrid> grid;
+        std::shared_ptr<const image::EnvironmentMap> environment;
+        uint64_t last_used = 0;
+        uint32_t level = 0;  // refinement level of the resident still frame (0: the frame is interactive or partial)
+        FrameBudget budget;  // this scene's dynamic resolution
+    };
+
+    Impl(vk::Context& ctx, RendererOptions opts) : context(ctx), options(opts), kit(ctx) {}
+
+    // The least recently used scene other than `keep` and those whose frame is in progress; end() if none.
+    std::map<std::string, Resident>::iterator least_recent(const std::string& keep) {
+        auto oldest = scenes.end();
+        for (auto it = scenes.begin(); it != scenes.end(); ++it)
+            if (it->first != keep && !rendering.contains(it->first) &&
+                (oldest == scenes.end() || it->second.last_used < oldest->second.last_used))
+                oldest = it;
+        return oldest;
+    }
+
+    void evict_least_recent(const std::string& keep) {
+        while (scenes.size() > std::max<size_t>(options.max_resident_scenes, 1)) {
+            auto oldest = least_recent(keep);
+            if (oldest == scenes.end()) return;
+            scenes.erase(oldest);
+        }
+    }
+
+    vk::Context& context;
+    RendererOptions options;
+    PassKit kit;
+    std::map<std::string, Resident> scenes;
+    std::set<std::string> rendering;  // scenes whose render() is in progress (one, or two nested)
+    uint64_t clock = 0;
+    mutable std::mutex mutex;  // guards `scenes` for the read-only queries from other threads
+};
+
+Renderer::Renderer(vk::Context& context, RendererOptions options)
+    : impl_(std::make_unique<Impl>(context, options)) {}
+
+Renderer::~Renderer() = default;
+
+Refinement refinement_at(uint32_t level) {
+    level = std::clamp(level, 1u, kMaxRefinementLevel);
+    return {std::min(level, kMaxPhotonBatches), level > kMaxPhotonBatches ? level - kMaxPhotonBatches + 1 : 1u};
+}
+
+FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneDocument& requested,
+                             const Assets& assets, const FrameOptions& options) {
+    const auto start = Clock::now();
+    const Quality quality = options.quality;
+    const ResolvedAssets resolved = resolve(requested, assets);
+    const auto& meshes = resolved.meshes;
+    const auto& grid = resolved.grid;
+    const auto& environment = resolved.environment;
+
+    std::unique_lock lock(impl_->mutex);
+    auto it = impl_->scenes.find(scene_id);
+    // A scene prepared ahead (prepare) or whose last step gave way holds some passes built: the rest run.
+    const Impl::Resident* held = it != impl_->scenes.end() && it->second.gpu->built() != 0 ? &it->second : nullptr;
+    auto stale_against = [&](const protocol::SceneDocument& next) {
+        if (!held) return kAllPasses;
+        PassSet stale = passes_invalidated(held->document, next);
+        if (held->meshes != meshes || held->grid != grid) stale |= kAllPasses;
+        // A re-uploaded image lights the scene anew.
+        if (held->environment != environment) stale |= kPhotons | kView | kToneMap;
+        return held->gpu->passes_for(stale);
+    };
+    protocol::SceneDocument document = requested;
+    InteractiveSettings settings;
+    if (quality == Quality::interactive) {
+        // What the edit reruns if the resident frame's settings were kept (a still frame's too: its photon
+        // count keeps its radiance grid) decides which of them may change.
+        const InteractiveSettings resident = held ? settings_of(held->document) : InteractiveSettings{};
+        const PassSet would = held ? stale_against(with_settings(requested, resident)) : kAllPasses;
+        const FrameBudget& budget = it != impl_->scenes.end() ? it->second.budget : FrameBudget{};
+        settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0, held ? &resident : nullptr,
+                                 options.budget_ms);
+        document = with_settings(requested, settings);
+    }
+    PassSet stale = stale_against(document);
+    // Still frames refine in order from level 1 (refinement_at). One continues from the resident still
+    // frame when the edit leaves it valid but for its tone (exposure), that frame's level is not above
+    // its own and, to refine it further, the radiance grid holds that level's batches; else from the
+    // photon batches the grid holds, when it is a still frame's and holds no more than this level's
+    // (their view at pixel centres is the frame of the level with that many); else from new photons.
+    uint32_t level = quality == Quality::still ? std::clamp(options.level, 1u, kMaxRefinementLevel) : 1u;
+    uint32_t resident_level = 0;  // the level whose linear frame (or, with the view stale, photons) is resident
+    if (quality == Quality::still && held) {
+        const uint32_t batches =
+            stale & kPhotons ? 0u : held->gpu->photon_batches(document, run_options_for(Quality::still));
+        // A still that may resume takes the highest level the resident state gives for no more work: its
+        // frame re-toned, else the view over its batches (levels 1..kMaxPhotonBatches hold as many as
+        // their number).
+        const uint32_t retoned =
+            !(stale & ~kToneMap) && batches == refinement_at(held->level).photon_batches ? held->level : 0u;
+        for (const uint32_t resumed : {retoned, batches}) {
+            if (resumed > level && resumed <= std::min(options.resume_up_to, kMaxRefinementLevel)) {
+                level = resumed;
+                break;
+            }
+        }
+        if (!(stale & ~kToneMap) && held->level != 0 && held->level <= level &&
+            (held->level == level || batches == refinement_at(held->level).photon_batches)) {
+            resident_level = held->level;
+        } else if (batches > 0 && batches <= refinement_at(level).photon_batches) {
+            resident_level = batches;
+            stale |= kView | kToneMap;
+        } else {
+            stale |= kPhotons | kView | kToneMap;
+        }
+    }
+    // The objects in world space fit the lattice; needed only when the volume is rebuilt.
+    const bool rebuild = (stale & kVoxelize) != 0;
+    const WorldMeshes worlds = rebuild ? worlds_of(document, resolved) : WorldMeshes{};
+    const int64_t budget = impl_->options.device_memory_budget;
+    // What a resident scene holds (the lattice's own voxels stand for its boxes: an estimate).
+    auto held_by = [](const Impl::Resident& r) {
+        const passes::GridGeometry& held_grid = r.gpu->grid();
+        return r.gpu->built() ? estimate_scene_bytes(held_grid, r.gpu->field_atlas().dims.count(), held_grid.dims.count(),
+                                                     held_grid.coarsened(held_grid.light_factor).count(), r.gpu->width(),
+                                                     r.gpu->height()) +
+                                    estimate_environment_bytes(r.environment.get())
+                              : int64_t{0};
+    };
+    // Checked before anything is built: a new volume, or a new environment map on the old one.
+    const bool new_environment = !held || held->environment != environment;
+    if (budget > 0 && (rebuild || new_environment)) {
+        const int64_t replaced = it != impl_->scenes.end() ? held_by(it->second) : 0;
+        const int64_t need =
+            rebuild ? needed_bytes(document, worlds, grid.get(), environment.get())
+                    : replaced - estimate_environment_bytes(held->environment.get()) + estimate_environment_bytes(environment.get());
+        // This scene's old state is released before the new one is made. Make room by dropping least
+        // recently used scenes (their documents live on in the store).
+        while (impl_->context.allocated_bytes() - replaced + need > budget) {
+            auto oldest = impl_->least_recent(scene_id);
+            if (oldest == impl_->scenes.end()) {
+                if (!impl_->rendering.empty()) throw Deferred();
+                throw RenderError("scene needs about " + std::to_string(need >> 20) +
+                                  " MiB of device memory; the budget is " + std::to_string(budget >> 20) + " MiB");
+            }
+            impl_->scenes.erase(oldest);
+        }
+    }
+    if (it == impl_->scenes.end()) {
+        Impl::Resident resident;
+        resident.gpu = std::make_unique<SceneGpu>(impl_->kit);
+        it = impl_->scenes.emplace(scene_id, std::move(resident)).first;
+    }
+    Impl::Resident& resident = it->second;
+    resident.last_used = ++impl_->clock;
+    // Pinned while its frame is in progress: a frame rendered between its parts must not evict it.
+    impl_->rendering.insert(scene_id);
+    struct Unpin {
+        Impl& impl;
+        const std::string& scene_id;
+        ~Unpin() {
+            std::lock_guard relock(impl.mutex);
+            impl.rendering.erase(scene_id);
+        }
+    } unpin{*impl_, scene_id};
+    lock.unlock();
+    // What the queue does between parts (other scenes' frames) is not this frame's time.
+    double paused_ms = 0.0;
+    std::function<bool()> give_way;
+    if (options.give_way)
+        give_way = [&] {
+            const auto paused = Clock::now();
+            const bool stop = options.give_way();
+            paused_ms += ms_since(paused);
+            return stop;
+        };
+    // An interactive frame whose photons need not run shades from the resident radiance grid, whatever
+    // quality made it: the first frame of a camera drag after a still frame runs no photons. Photons
+    // that run go into the interactive grid.
+    RunOptions frame_options = run_options_for(quality);
+    if (quality == Quality::interactive && !(stale & kPhotons))
+        frame_options = resident.gpu->with_resident_photons(frame_options);
+
+    FrameResult frame;
+    try {
+        uint64_t photon_steps = 0;
+        // The first step runs the stale passes: level 1's, or those of the resident level.
+        const uint32_t first = stale != 0 && resident_level > 0 ? resident_level : resident_level + 1;
+        for (uint32_t step = first; step <= level; ++step) {
+            // Level 1 is the frame itself; each level after it adds one photon batch (rerunning the view
+            // at pixel centres) until the batches are all in, then one jittered eye-ray sample per pixel.
+            RunOptions run_options = frame_options;
+            PassSet passes = stale;
+            if (step > std::max(resident_level, 1u)) {
+                const Refinement now = refinement_at(step), before = refinement_at(step - 1);
+                if (now.photon_batches > before.photon_batches) {
+                    run_options.photon_batch = now.photon_batches - 1;
+                    passes = kPhotons;
+                } else {
+                    run_options.view_sample = now.samples_per_pixel - 1;
+                    passes = kView;
+                }
+            }
+            // Each step runs in parts and gives way between them when the caller says other work waits.
+            run_options.give_way = give_way;
+            RunStats stats;
+            try {
+                stats = resident.gpu->run(passes, document, worlds, grid.get(), run_options, environment.get());
+            } catch (const Superseded&) {
+                // What the GPU holds now: this document, with part of a step the frame does not hold; a step
+                // that gave way before its view leaves the frame of the level before it.
+                resident.document = document;
+                resident.meshes = meshes;
+                resident.grid = grid;
+                resident.environment = environment;
+                resident.level = resident.gpu->built() & kView ? step - 1 : 0;
+                throw;
+            }
+            frame.rerun |= stats.ran;
+            frame.voxelized.insert(frame.voxelized.end(), stats.voxelized.begin(), stats.voxelized.end());
+            for (const auto& [name, ms] : stats.gpu_ms) add_timing(frame.timings, name, ms);
+            frame.photons_traced += stats.photons_entered;
+            photon_steps += stats.photon_steps;
+        }
+        frame.mean_steps_per_photon =
+            frame.photons_traced ? static_cast<double>(photon_steps) / static_cast<double>(frame.photons_traced) : 0.0;
+        frame.level = level;
+        frame.refinement = refinement_at(level);
+        // An interactive frame may be shaded from a still frame's refined grid.
+        frame.refinement.photon_batches = resident.gpu->photon_batches(document, frame_options);
+        frame.photons = uint64_t{frame.refinement.photon_batches} * document.photons.count;
+        const auto encode_start = Clock::now();
+        const auto pixels = resident.gpu->read_ldr();
+        frame.png = image::encode_png(pixels, resident.gpu->width(), resident.gpu->height());
+        frame.timings.push_back({"encode", 0.0, ms_since(encode_start)});
+        frame.width = resident.gpu->width();
+        frame.height = resident.gpu->height();
+    } catch (const Superseded&) {
+        throw;  // the resident state is whole; only the frame was not made
+    } catch (...) {
+        // Partially rebuilt state is not trusted: drop it, the next render rebuilds from the document.
+        {
+            std::lock_guard relock(impl_->mutex);
+            impl_->scenes.erase(scene_id);
+        }
+        // A scene past this device's limits or memory is unrenderable as asked, not a device fault.
+        try {
+            throw;
+        } catch (const vk::LimitError& e) {
+            throw RenderError(std::string("the scene cannot be rendered on this device: ") + e.what());
+        } catch (const vk::Error& e) {
+            if (e.result() != VK_ERROR_OUT_OF_DEVICE_MEMORY) throw;
+            throw RenderError(std::string("the scene does not fit in this device's memory: ") + e.what());
+        }
+    }
+    resident.document = document;
+    resident.meshes = meshes;
+    resident.grid = grid;
+    resident.environment = environment;
+    resident.level = quality == Quality::still ? level : 0;
+    if (quality == Quality::interactive) {
+        const double photons = photon_ms(frame);
+        resident.budget.observe(requested, settings, photons, ms_since(start) - paused_ms - photons - volume_ms(frame));
+    }
+    std::lock_guard relock(impl_->mutex);
+    impl_->evict_least_recent(scene_id);
+    return frame;
+}
+
+void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& assets, Quality quality) {
+    protocol::SceneDocument reduced = document;
+    reduced.image.width = reduced.image.height = FrameBudget::kMinSide;
+    reduced.photons.count = FrameBudget::kMinPhotons;
+    reduced.volume.resolution = kWarmUpResolution;
+    // Not a scene id the store accepts, so no scene's resident state or frame budget is touched.
+    const std::string id = " warm-up";
+    struct Evict {
+        Renderer& renderer;
+        const std::string& id;
+        ~Evict() { renderer.evict(id); }
+    } evict_after{*this, id};
+    FrameOptions options;
+    options.quality = quality;
+    render(id, reduced, assets, options);
+}
+
+bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
+                       const std::function<bool()>& stop) {
+    const ResolvedAssets resolved = resolve(document, assets);
+    const WorldMeshes worlds = worlds_of(document, resolved);
+    std::unique_lock lock(impl_->mutex);
+    if (impl_->scenes.contains(scene_id)) return false;  // rendered already: nothing to prepare
+    // Only into room there is: a scene nobody has asked for yet never evicts one that somebody has.
+    if (impl_->scenes.size() >= std::max<size_t>(impl_->options.max_resident_scenes, 1)) return false;
+    const int64_t budget = impl_->options.device_memory_budget;
+    if (budget > 0 &&
+        impl_->context.allocated_bytes() + needed_bytes(document, worlds, resolved.grid.get(), resolved.environment.get()) > budget)
+        return false;
+    Impl::Resident& resident = impl_->scenes[scene_id];
+    resident.gpu = std::make_unique<SceneGpu>(impl_->kit);
+    resident.last_used = ++impl_->clock;
+    lock.unlock();
+    // The photons of the scene's first interactive frame: their count does not depend on the image size
+    // (the viewer's own), and a budget that has measured nothing chooses it from the document alone.
+    const InteractiveSettings settings = resident.budget.choose(document, true, true, nullptr, kDefaultBudgetMs);
+    const protocol::SceneDocument interactive = with_settings(document, settings);
+    try {
+        // One pass a submission, so that a request waits for one pass at most; render() runs what is left.
+        for (PassSet pass : {kVoxelize, kIndexField, kOctree, kPhotons}) {
+            if (stop()) break;
+            RunOptions run_options = run_options_for(Quality::interactive);
+            run_options.limit = pass;
+            const RunStats stats =
+                resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+            // What these photons cost sizes the first frame that traces photons (a light drag's): a camera
+            // drag's frames shade from the resident grid and measure none.
+            if (pass == kPhotons) resident.budget.observe(document, settings, stats.gpu_ms.front().second, 0.0);
+        }
+    } catch (...) {
+        evict(scene_id);  // partially built state is not trusted
+        throw;
+    }
+    resident.document = interactive;
+    resident.meshes = resolved.meshes;
+    resident.grid = resolved.grid;
+    resident.environment = resolved.environment;
+    resident.level = 0;  // no frame: render() runs the view and tone map (and what the stop left)
+    return true;
+}
+
+void Renderer::evict(const std::string& scene_id) {
+    std::lock_guard lock(impl_->mutex);
+    impl_->scenes.erase(scene_id);
+}
+
+size_t Renderer::resident_scenes() const {
+    std::lock_guard lock(impl_->mutex);
+    return impl_->scenes.size();
+}
+
+int64_t Renderer::device_bytes() const { return impl_->context.allocated_bytes(); }
+
+}  // namespace refract::scene

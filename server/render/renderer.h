@@ -1,0 +1,157 @@
+// The renderer: owns every scene's resident GPU state (index field, octree, radiance grid) and runs the
+// paper's passes on the one Vulkan queue, rerunning only the passes an edit made stale.
+// Thread-compatible: exactly one thread (the daemon's render thread, or the CLI) calls it.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "assets/assets.h"
+#include "assets/render_error.h"
+#include "protocol/scene_document.h"
+#include "render/frame_budget.h"
+#include "render/invalidation.h"
+#include "render/scene_gpu.h"
+
+namespace refract::mesh {
+struct Mesh;
+}
+namespace refract::image {
+struct EnvironmentMap;
+}
+namespace refract::vk {
+class Context;
+}
+
+namespace refract::scene {
+
+enum class Quality { interactive, still };
+
+// Scattering events per photon the photons of interactive frames take at most: each bounce costs about
+// one more free path of steps, and the first few carry most of the glow (README, "Multiple scattering").
+inline constexpr uint32_t kInteractiveBounces = 4;
+
+// How the passes run for a quality: `interactive` takes two-voxel eye-ray steps in fog, a radiance
+// grid of a third of the resolution per axis, sampled photon deposits, adaptive pixels and at most
+// kInteractiveBounces (the image size and photon count are chosen per frame by the scene's FrameBudget,
+// in the renderer). An interactive frame whose edit leaves the photons valid keeps the resident grid
+// instead, a still frame's too (Renderer::render).
+RunOptions run_options_for(Quality quality);
+
+struct PassTiming {
+    std::string name;  // "voxelize", "octree", "photons", "view", "encode"
+    double gpu_ms = 0.0;
+    double host_ms = 0.0;
+};
+
+// Progressive refinement of still frames: level 1 is the document's frame; each level after it adds a
+// batch of the document's photon count with a new seed to the radiance grid's running mean, until
+// kMaxPhotonBatches are in, then an eye-ray sample per pixel at a new sub-pixel offset (anti-aliasing),
+// until kMaxViewSamples. The same scene, seed and level give the same bytes however the level was reached.
+constexpr uint32_t kMaxPhotonBatches = 16;
+constexpr uint32_t kMaxViewSamples = 16;
+constexpr uint32_t kMaxRefinementLevel = kMaxPhotonBatches + kMaxViewSamples - 1;
+
+struct Refinement {
+    uint32_t photon_batches = 1;
+    uint32_t samples_per_pixel = 1;
+};
+// What a refinement level holds (levels past kMaxRefinementLevel hold what it does).
+Refinement refinement_at(uint32_t level);
+
+// How a frame is rendered, beyond its document.
+struct FrameOptions {
+    Quality quality = Quality::still;
+    double budget_ms = kDefaultBudgetMs;  // interactive frames: the frame-time budget (frame_budget.h)
+    uint32_t level = 1;                   // still frames: the refinement level, 1 to kMaxRefinementLevel
+    // When set, each step of a frame (level 1, and each refinement level past it) asks it between the parts
+    // of its photon and view dispatches (RunOptions::give_way), and stops (Superseded) if it says so: the
+    // render queue sets it for every frame (it renders other scenes' frames there, and stops a frame
+    // nobody waits for), and a refinement level gives way to its viewer's next edit, which then waits for
+    // one part (passes::kWorkPart photons or kViewPart pixels), not a whole frame. The step's refinement
+    // state is then dropped, so levels stay the same bytes however reached.
+    std::function<bool()> give_way;
+    // Still frames: when above `level`, the frame may hold any level up to this one, and holds the highest
+    // that the resident state already gives for no more work than `level` (the batches its radiance grid
+    // holds, or the refined frame an exposure edit re-tones). The still after a camera drag then shows
+    // the grid that drag was shaded from instead of rerunning the photons of level 1. 0: exactly `level`.
+    uint32_t resume_up_to = 0;
+};
+
+struct FrameResult {
+    std::vector<uint8_t> png;
+    uint32_t width = 0, height = 0;
+    PassSet rerun = 0;                // passes that ran for this frame
+    std::vector<std::string> voxelized;  // the objects the voxelize pass ran for, by name
+    std::vector<PassTiming> timings;  // one entry per pass that ran, plus "encode"
+    uint64_t photons_traced = 0;  // by the photon runs of this frame
+    double mean_steps_per_photon = 0.0;
+    uint32_t level = 1;           // the refinement level the frame holds (1 for interactive frames)
+    Refinement refinement;        // photon batches and samples per pixel in the frame
+    uint64_t photons = 0;         // photons in the radiance grid the frame was shaded from, all batches
+};
+
+// Raised when a refinement step gave way to waiting work (FrameOptions::give_way): no frame came of it.
+class Superseded : public std::runtime_error {
+public:
+    Superseded() : std::runtime_error("a newer request came first") {}
+};
+
+// Raised for a frame asked for while another scene's frame is in progress (between its parts) when it
+// would fit the memory budget only by evicting that scene: it must wait for that frame to end.
+class Deferred : public std::runtime_error {
+public:
+    Deferred() : std::runtime_error("the frame waits for the frame in progress to end") {}
+};
+
+struct RendererOptions {
+    size_t max_resident_scenes = 8;     // least recently used scene's GPU state is dropped past this
+    int64_t device_memory_budget = 0;  // bytes; 0 = no budget beyond the device's own
+};
+
+class Renderer {
+public:
+    Renderer(vk::Context& context, RendererOptions options = {});
+    ~Renderer();
+    Renderer(const Renderer&) = delete;
+    Renderer& operator=(const Renderer&) = delete;
+
+    // Renders `document` for scene `scene_id`, reusing whatever resident state is still valid for it.
+    // May be called again from `options.give_way` for another scene (the render queue renders other
+    // scenes' frames between the parts of one): a scene whose frame is in progress is never evicted for
+    // it, and a frame that would need that throws Deferred. Time spent in give_way is not the frame's.
+    // Interactive frames choose their image size and photon count to land within `options.budget_ms`
+    // (frame_budget.h), and shade from the resident radiance grid, whatever quality made it, when their
+    // edit leaves its photons valid; still frames render the document as it is, refined to `options.level`.
+    // Throws RenderError for an unrenderable scene (resident state untouched), vk::Error for device faults.
+    FrameResult render(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
+                       const FrameOptions& options = {});
+    // Creates the pipelines that frames of `document` use at `quality`: they are compiled on first use
+    // (LLVM on lavapipe: 0.2-0.3 s for a scene's set), which would otherwise fall on its first frame.
+    // Renders a reduced copy of `document` (the smallest image, volume and photon count) under a scene id
+    // of its own, keeps nothing of it but the pipelines, and rethrows what render() throws.
+    void warm_up(const protocol::SceneDocument& document, const Assets& assets, Quality quality);
+    // Builds the resident volume (voxelize, index field, octree) of `document` as scene `scene_id`, and
+    // the photons of its first interactive frame, before anyone asks for a frame of it (the daemon's
+    // warm-up: those passes are most of a first frame), so that its first interactive frame runs only
+    // the view and tone map. One pass a submission; stops before a pass when `stop` says so (the frame
+    // then runs the rest). Does nothing and returns false when the scene is
+    // resident already or would not fit the resident-scene count or memory budget without evicting
+    // another. Throws what render() throws (RenderError for an unrenderable document, state untouched).
+    bool prepare(const std::string& scene_id, const protocol::SceneDocument& document, const Assets& assets,
+                 const std::function<bool()>& stop);
+    // Drops a scene's GPU state (its document lives elsewhere).
+    void evict(const std::string& scene_id);
+    size_t resident_scenes() const;
+    int64_t device_bytes() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace refract::scene

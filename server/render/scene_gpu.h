@@ -1,0 +1,243 @@
+// One scene's resident GPU state (index field, octree, radiance grid, floor caustic map, frame buffers)
+// and the recording of its stale passes into one submission. The renderer owns one per resident scene;
+// tests and the CLI use it directly to read intermediate volumes back.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mesh/mesh.h"
+#include "image/environment_map.h"
+#include "passes/direct_light.h"
+#include "passes/environment_light.h"
+#include "passes/index_field.h"
+#include "passes/lit_pyramid.h"
+#include "passes/octree.h"
+#include "passes/photon_trace.h"
+#include "passes/radiance_resolve.h"
+#include "passes/tone_map.h"
+#include "passes/transport_params.h"
+#include "passes/view.h"
+#include "passes/voxelize.h"
+#include "protocol/scene_document.h"
+#include "render/field_atlas.h"
+#include "passes/grid_geometry.h"
+#include "render/object_mesh.h"
+#include "render/invalidation.h"
+#include "transport.h"
+
+namespace refract::scene {
+
+struct IndexGrid;
+
+// The compiled pipelines of every pass, created once per Vulkan context.
+struct PassKit {
+    explicit PassKit(vk::Context& context);
+    vk::Context& context;
+    passes::VoxelizePass voxelize;
+    passes::IndexFieldPass index_field;
+    passes::OctreePass octree;
+    passes::DirectLightPass direct_light;
+    passes::PhotonTracePass photon_trace;
+    passes::RadianceResolvePass radiance_resolve;
+    passes::LitPyramidPass lit_pyramid;
+    passes::ViewPass view;
+    passes::ToneMapPass tone_map;
+    vk::UniqueSampler linear_sampler;
+};
+
+// What one run of the stale passes measured.
+struct RunStats {
+    PassSet ran = 0;  // the passes that ran: those asked for, plus what they found stale
+    std::vector<std::pair<std::string, double>> gpu_ms;  // per pass that ran
+    uint64_t photons_entered = 0;
+    uint64_t photon_steps = 0;
+    uint64_t floor_hits = 0;
+    uint64_t direct_overlaps = 0;  // photons the light map sent straight where n varies (transport.h)
+    uint64_t photon_scatterings = 0;  // scattering events of the photons' random walks
+    uint64_t view_steps = 0;  // eye-ray march steps, when the viewing pass ran
+    std::vector<std::string> voxelized;  // the objects the voxelize pass ran for, by name
+    double mean_steps_per_photon() const {
+        return photons_entered ? static_cast<double>(photon_steps) / static_cast<double>(photons_entered) : 0.0;
+    }
+    double mean_bounces_per_photon() const {
+        return photons_entered ? static_cast<double>(photon_scatterings) / static_cast<double>(photons_entered) : 0.0;
+    }
+};
+
+struct RunOptions {
+    bool fixed_step = false;      // photons step one voxel everywhere (reference for the octree's gain)
+    bool record_photon_exits = false;
+    PassSet limit = kAllPasses;   // passes outside this set are not run (the CLI's voxelize and trace)
+    // The voxelize pass keeps each object's resident coverage while its world mesh, box and smoothing
+    // stay; set, it voxelizes every object again (what a benchmark of a whole rebuild measures).
+    bool revoxelize = false;
+    float view_step = 1.0f;       // eye-ray step in scattering media (voxels); interactive frames use 2
+    uint32_t radiance_factor = 1; // scene voxels (passes::GridGeometry::light_factor lattice voxels each) per
+                                  // radiance-grid voxel per axis; interactive: 3
+    bool sampled_deposits = false; // photons deposit once per radiance voxel of path, not exactly per
+                                   // voxel crossed (photon_trace.comp); interactive
+    bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
+    bool direct_light = true;     // unbent light in closed form; false: photons carry all light (tests)
+    uint32_t bounce_cap = protocol::kMaxBounces;  // most of photons.max_bounces a frame takes; interactive: 4
+    // Progressive refinement (still frames): a photon run with photon_batch k > 0 draws new photons and
+    // joins the radiance grid's running mean of k + 1 batches; a view run with view_sample s > 0 traces
+    // a jittered sample into the frame's running mean of s + 1 samples. Runs must come in order.
+    uint32_t photon_batch = 0;
+    uint32_t view_sample = 0;
+    // Set (the render queue sets it for every frame): the photon and view dispatches then run in parts of
+    // about passes::kWorkPart photons or kViewPart pixels, a submission each, and this is asked after
+    // each; when it says to stop, the run stops there (Superseded), and what its photon and view passes hold is
+    // partial: built() leaves out the pass it stopped in and those asked for after it (the renderer
+    // keeps the refinement level before the step only where its view is left whole).
+    std::function<bool()> give_way;
+};
+
+// Device memory a scene holds (bytes), for budgets before allocating: its lattice `grid`, the field's
+// voxels (field_atlas: the lattice's for a scene of one object), objects' boxes of `object_voxels` in
+// all, the radiance grid's voxels and the frame.
+int64_t estimate_scene_bytes(const passes::GridGeometry& grid, uint64_t field_voxels, uint64_t object_voxels,
+                             uint64_t radiance_voxels, uint32_t width, uint32_t height);
+
+// Device memory an image environment's map and its sampling rows take (passes/environment_light.h);
+// `image` nullptr for a uniform environment or the sky (a placeholder of a few texels).
+int64_t estimate_environment_bytes(const image::EnvironmentMap* image);
+
+// Where the field of objects in `boxes` lives: a sparse atlas of their boxes (render/field_atlas.h) no
+// wider than `max_side` where it holds under half the lattice's voxels, else the dense lattice; the
+// lattice always for one object or an imported grid (`dense`). Throws RenderError when the atlas would
+// not fit `max_side`.
+FieldAtlas field_atlas_for(const passes::GridGeometry& lattice, const std::map<std::string, passes::ObjectBox>& boxes, bool dense,
+                           uint32_t max_side);
+
+// The voxels around an object's world bounds its box takes (object_box) for a smoothing of `sigma`
+// voxels: where the B-spline and the lattice Gaussian (passes::VoxelizePass) leave coverage, and one
+// more for the index field's central differences.
+uint32_t object_apron(double sigma);
+
+// The objects' boxes in `lattice`, by name: the whole lattice for the one object of a scene of one.
+std::map<std::string, passes::ObjectBox> object_boxes(const passes::GridGeometry& lattice, const WorldMeshes& worlds, double sigma);
+
+class SceneGpu {
+public:
+    explicit SceneGpu(PassKit& kit);
+
+    // Runs `stale` passes for `document`, with what passes_for() adds to them.
+    // `worlds` holds every object's mesh in world space, read only when the voxelize pass runs: the
+    // lattice is fitted to them (an edit that moves the lattice makes voxelize stale), and the pass
+    // voxelizes only the objects whose world mesh, box or smoothing changed since their coverage was
+    // made (all of them when the lattice moved); imported grids have none. `grid_asset` is the imported
+    // index grid for index_field == grid; `environment` the map an image environment names: a changed
+    // map must come as a new pointer (the resident copy is kept while the pointer and the document's
+    // environment stay). Throws vk::Error on device failures.
+    RunStats run(PassSet stale, const protocol::SceneDocument& document, const WorldMeshes& worlds,
+                 const IndexGrid* grid_asset, const RunOptions& options = {},
+                 const image::EnvironmentMap* environment = nullptr);
+
+    const passes::GridGeometry& grid() const { return grid_; }
+    const FieldAtlas& field_atlas() const { return atlas_; }
+    // The passes whose results are resident and whole.
+    PassSet built() const { return built_; }
+    // The passes a run asked for `stale` runs (before RunOptions::limit, on this grid and radiance grid):
+    // those, what the first of them reads that is not built, every pass after them, and the whole frame
+    // when it is not built.
+    PassSet passes_for(PassSet stale) const;
+    // Whole photon batches (RunOptions::photon_batch) in the resident radiance grid that a run with
+    // `options` over `document` would shade from rather than trace anew: 0 when there are none, or the
+    // grid was made with other photon settings (radiance factor, deposits, bounces, kind of transport).
+    uint32_t photon_batches(const protocol::SceneDocument& document, const RunOptions& options) const;
+    // `options` with the photon settings the resident radiance grid was made with, so that a run that
+    // needs no photons shades from that grid, whatever quality made it.
+    RunOptions with_resident_photons(RunOptions options) const;
+    uint32_t width() const { return width_; }
+    uint32_t height() const { return height_; }
+
+    // Read-backs (each a separate submission): float per voxel / texel, x fastest. The field's (coverage,
+    // objects, index field, levels) are per voxel of the lattice, what the transport's lookups see there
+    // (the medium's outside a field atlas's clusters); the pyramid is the field images' own.
+    std::vector<float> read_coverage() const;
+    std::vector<uint32_t> read_object_numbers() const;  // per voxel: 1 + the number of the object it holds, 0: none
+    std::vector<glm::vec4> read_index_field() const;
+    std::vector<uint32_t> read_levels() const;  // octree leaf level per voxel
+    std::vector<glm::vec2> read_pyramid() const;  // octree (min, max) n per node, levels 1 and up back to back
+    std::vector<glm::vec4> read_radiance() const;  // fluence rate rgb (W/m^2)
+    std::vector<glm::vec4> read_flux() const;      // net flux vector xyz, fluence rate w (channel mean; W/m^2)
+    uint32_t channels() const { return channels_; }  // how the photons last ran carried colour (CHANNELS_*)
+    bool grey() const { return channels_ == CHANNELS_GREY; }  // one fluence for all channels (transport.h)
+    // The lit pyramid, levels one after another (passes::lit_pyramid_offsets): 1 per lit cell above
+    // level 0, and per level-0 block the number of levels unlit there (transport.h).
+    std::vector<uint32_t> read_lit_pyramid() const;
+    // The change of floor irradiance the grid causes (W/m^2, signed), floor_map_side()^2 texels.
+    std::vector<glm::vec4> read_floor_map() const;
+    // Total floor irradiance at the floor map's texel centres, as the viewing pass shades it: the
+    // unobstructed light plus the map's change, clamped at zero.
+    std::vector<glm::vec4> read_floor_irradiance() const;
+    std::vector<glm::vec4> read_hdr() const;
+    std::vector<uint32_t> read_ldr() const;
+    std::vector<shaders::PhotonExit> read_photon_exits() const;
+    // The last run's parameters: the first light's (which the viewing pass reads), and every light's.
+    const shaders::TransportParams& params() const { return light_params_.front(); }
+    const std::vector<shaders::TransportParams>& light_params() const { return light_params_; }
+    uint32_t floor_map_side() const { return floor_texels_; }
+
+private:
+    void allocate_volume(const passes::GridGeometry& grid);
+    void allocate_field(FieldAtlas atlas);
+    // The field images' texels spread over the lattice: `outside` where no cluster holds a voxel.
+    template <typename T>
+    std::vector<T> on_lattice(const std::vector<T>& texels, T outside) const;
+    void allocate_transport(uint32_t photon_exit_count, bool record_exits, uint32_t radiance_factor, uint32_t channels);
+    void allocate_frame(uint32_t width, uint32_t height);
+    bool grid_made_for(const protocol::SceneDocument& document, const RunOptions& options) const;
+    template <typename T>
+    std::vector<T> read_image(const vk::Image3D& image) const;
+    template <typename T>
+    std::vector<T> read_buffer(const vk::Buffer& buffer) const;
+
+    PassKit& kit_;
+    passes::GridGeometry grid_{};
+    PassSet built_ = 0;
+    uint32_t width_ = 0, height_ = 0, floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
+    bool sampled_deposits_ = false;  // how the photons in the radiance grid were deposited (RunOptions)
+    uint32_t bounces_ = 0;           // how often they could scatter (passes::photon_bounces)
+    uint32_t photon_batches_ = 0;    // how many batches its running mean holds (with kPhotons built)
+    uint32_t channels_ = CHANNELS_RGB;
+    float octree_epsilon_ = 0.0f;  // the epsilon of the resident level map
+    std::vector<shaders::TransportParams> light_params_{shaders::TransportParams{}};
+    // Volume (voxelize, index field, octree): each object's coverage over its box, kept while its world
+    // mesh, box and smoothing stay, so that an edit of one object voxelizes that one only.
+    struct ObjectVolume {
+        passes::ObjectBox box;
+        size_t mesh_hash = 0;  // of the world mesh it was voxelized from
+        double smoothing = 0.0;
+        vk::Buffer coverage;
+    };
+    std::map<std::string, ObjectVolume> objects_;
+    // The objects and the medium's index as the index field was last made of them: an edit that moves
+    // some objects of several remakes the field over their boxes only.
+    std::map<std::string, protocol::Object> composed_objects_;
+    double composed_medium_ior_ = 0.0;
+    vk::Buffer grid_values_, pyramid_, levels_, materials_;
+    vk::Image3D index_field_, coverage_image_;  // at atlas_.dims
+    FieldAtlas atlas_;
+    vk::Buffer atlas_map_;  // a sparse atlas's map (transport.h)
+    // Transport (photons, resolve)
+    std::optional<passes::PhotonAccumulators> accum_;
+    std::vector<vk::Buffer> params_buffers_;  // one per entry of light_params_
+    vk::Image3D radiance_, flux_, floor_map_;  // radiance_: per-channel fluence, coloured transport only
+    // The environment (passes/environment_light.h) and what it was made from
+    passes::EnvironmentLight environment_light_;
+    vk::Buffer environment_map_;
+    const image::EnvironmentMap* environment_image_ = nullptr;
+    protocol::Environment environment_document_;
+    bool environment_floor_ = false;
+    // Frame
+    vk::Buffer hdr_, ldr_, refine_;
+    vk::CommandRecorder recorder_;
+    vk::GpuTimer timer_;
+};
+
+}  // namespace refract::scene
