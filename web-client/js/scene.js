@@ -126,13 +126,6 @@ export function replacementPatch(current, target) {
   return Object.keys(out).length ? out : null;
 }
 
-// Every leaf pointer of a patch (arrays count as leaves).
-export function patchPointers(patch, prefix = '') {
-  if (!isObject(patch)) return [prefix];
-  return Object.entries(patch).flatMap(([k, v]) =>
-    patchPointers(v, `${prefix}/${k.replace(/~/g, '~0').replace(/\//g, '~1')}`));
-}
-
 // ---- vectors and orbits --------------------------------------------------------------------------
 
 export const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
@@ -232,6 +225,14 @@ export function framePosition(camera, center, radius, aspect, margin = 1.15) {
   const direction = normalize(sub(camera.position, camera.target));
   const d = direction[0] || direction[1] || direction[2] ? direction : [0, 0, 1];
   return add(center, scale(d, (radius * margin) / Math.sin(narrowest)));
+}
+
+// The document's camera, with stand-ins for what it leaves out.
+export function cameraOf(doc) {
+  const c = doc.camera || {};
+  return {
+    position: c.position || [0, 0.5, 5], target: c.target || [0, -0.35, 0], up: c.up || [0, 1, 0], fov_deg: c.fov_deg || 35,
+  };
 }
 
 // A camera as in the scene document: its unit axes and tan(vertical fov / 2).

@@ -1,0 +1,85 @@
+// What the daemon offers besides the scene: meshes (built in and uploaded, with their bounds), environment
+// images and example scenes; and which example the scene still is.
+
+import { api } from './connection.js';
+import { controls } from './panel.js';
+import * as S from './scene.js';
+import { hooks, panel, view } from './state.js';
+
+export const OBJECT_SIZE = 2;  // metres: the built-in meshes span [-1, 1]; uploads are fitted to this
+// Bounds of the built-in meshes in their own units (server/mesh/mesh.cpp); uploads report theirs.
+const BUILTIN_BOUNDS = {
+  sphere: { min: [-1, -1, -1], max: [1, 1, 1] },
+  cube: { min: [-1, -1, -1], max: [1, 1, 1] },
+  torus: { min: [-1.35, -0.35, -1.35], max: [1.35, 0.35, 1.35] },
+  prism: { min: [-0.866, -0.5, -1], max: [0.866, 1, 1] },
+  bunny: { min: [-0.96883, -1, -0.56078], max: [0.96883, 1, 0.56078] },
+};
+const meshBounds = {};  // uploaded mesh name -> bounds in its own units
+let example = null;     // { name, doc }: the example the scene still is
+
+export function rememberBounds(name, bounds) {
+  meshBounds[name] = bounds;
+}
+
+// Bounds of a mesh reference in its own units, when known.
+function boundsOf(mesh) {
+  if (typeof mesh !== 'string') return null;
+  return mesh.startsWith('upload:') ? meshBounds[mesh.slice(7)] || null : BUILTIN_BOUNDS[mesh] || null;
+}
+
+// Where `object` lies in the world (S.placedBounds); a mesh of unknown bounds is taken for the sphere.
+export function placedObject(object) {
+  return S.placedBounds(boundsOf(object.mesh) || BUILTIN_BOUNDS.sphere, object);
+}
+
+// The edit that picks `mesh`: unless the user keeps its own units, it is fitted to the default object
+// size with its centre where the object's origin is (object.position [0, 0, 0]).
+export function meshPatch(mesh) {
+  const bounds = boundsOf(mesh);
+  if (controls.mesh.keepUnits.checked || !bounds) return { object: { mesh } };
+  const { scale, position } = S.fitObject(bounds, OBJECT_SIZE, panel().object?.rotation_deg);
+  return { object: { mesh, scale, position } };
+}
+
+export async function refreshMeshes() {
+  try {
+    const list = await api('GET', '/api/meshes');
+    const items = Array.isArray(list) ? list : (list?.meshes || []);
+    const names = items.map((m) => (typeof m === 'string' ? m : m?.name)).filter(Boolean).sort();
+    for (const m of items) if (m?.name && m.bounds) meshBounds[m.name] = m.bounds;
+    controls.mesh.setMeshes(names);
+    controls.mesh.update(panel());
+  } catch { /* the built-in meshes still work */ }
+}
+
+export async function refreshEnvironments() {
+  try {
+    const list = await api('GET', '/api/environments');
+    controls.environment.setImages((list?.environments || []).map((e) => e?.name).filter(Boolean));
+    controls.environment.update(view());
+  } catch { /* the sky and a uniform colour still work */ }
+}
+
+export async function refreshExamples() {
+  try {
+    const list = await api('GET', '/api/examples');
+    controls.example.setExamples(Array.isArray(list?.examples) ? list.examples : []);
+    checkExample();
+  } catch { /* an older daemon: no examples */ }
+}
+
+// The example's name stays shown while the scene is that example (the image size aside).
+const withoutImageSize = (doc) => S.applyMergePatch(doc, { image: { width: null, height: null } });
+
+export function checkExample() {
+  if (example && !S.deepEqual(withoutImageSize(view()), example.doc)) example = null;
+  hooks.example = example?.name ?? null;
+  controls.example.showLoaded(hooks.example);
+}
+
+// The scene was just made the example `name`, whose document the daemon answered with.
+export function loadedExample(name, scene) {
+  example = { name, doc: withoutImageSize(scene) };
+  checkExample();
+}

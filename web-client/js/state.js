@@ -1,0 +1,87 @@
+// What the client's modules share: the scene as the daemon has it and as the user sees it, the requests
+// on their way, the frame shown; the URL's parameters, named timers and the test hooks. State that one
+// module alone uses stays in that module.
+
+import * as S from './scene.js';
+
+export const params = new URLSearchParams(location.search);
+
+export const state = {
+  sceneId: null,
+  confirmed: null,        // the scene document as the daemon last told us (plus our accepted patches)
+  confirmedRevision: null,
+  inflight: [],           // requests sent and not yet answered, oldest first: { seq, patch, quality, sentAt, retry }
+  pending: null,          // coalesced merge patch not yet sent
+  pendingQuality: null,   // 'interactive' | 'still' | null: a frame is wanted
+  ws: null,
+  replacing: false,       // the scene is being replaced over HTTP (example, import): hold the WebSocket
+  newScene: false,        // the scene was replaced and its first frame is not drawn yet
+  drawToken: 0,           // frames handed to the viewport to decode, and the newest of them drawn
+  drawnToken: 0,
+  drag: null,
+  frame: null,            // { bitmap, width, height }: the frame shown, kept to redraw on resize
+  lastPng: null,          // the PNG of the frame shown, for "Save PNG"
+  playing: null,          // { seq, name, at, ended, failed }: keyframes playing into this view (at: the last frame's place)
+  selected: { light: null, object: null },  // the light and object the panel edits (null: the first by name)
+};
+
+// Named one-shot timers (debounces); `settled` below waits for all of them.
+const timers = new Map();
+export function later(name, fn, ms) {
+  clearTimeout(timers.get(name));
+  timers.set(name, setTimeout(() => { timers.delete(name); fn(); }, ms));
+}
+
+// The document as the daemon will have it once the requests in flight are applied: what a new patch
+// is pruned against.
+export function sentDocument() {
+  let doc = state.confirmed || {};
+  for (const inf of state.inflight) if (inf.patch) doc = S.applyMergePatch(doc, inf.patch);
+  return doc;
+}
+
+// The document as the user sees it: with the edits not sent yet.
+export function view() {
+  let doc = sentDocument();
+  if (state.pending) doc = S.applyMergePatch(doc, state.pending);
+  return doc;
+}
+
+// The document as the panel shows it: the selected light and object as `light` and `object`.
+export function panel() {
+  return S.panelDocument(view(), state.selected);
+}
+
+// Test and debugging hooks: plain data, read by the end-to-end test via page.evaluate (main.js puts them
+// on window.refract).
+export const hooks = {
+  framesReceived: 0,
+  lastRevision: null,
+  lastSeq: null,
+  lastMeta: null,
+  lastError: null,
+  errors: 0,
+  sceneId: null,
+  connected: false,
+  reconnects: 0,
+  connects: 0,
+  meshUploads: 0,
+  lastUpload: null,
+  device: null,
+  requestsSent: 0,
+  sent: { interactive: 0, still: 0 },  // requests by quality
+  maxInFlight: 0,
+  doc: () => view(),
+  lastQuality: null,
+  example: null,       // name of the example the scene still is
+  lastDraw: null,      // how the last frame was drawn: source and canvas sizes, smoothing
+  lastInteractiveDraw: null,
+  dims: 0,             // times the frame shown was dimmed for a pending one
+  downloads: 0,
+  playedFrames: 0,     // frames of played animations drawn
+  playing: () => state.playing?.name ?? null,
+  busy: () => Boolean(state.inflight.length || state.pendingQuality || state.replacing),
+  // Connected, nothing in flight or queued or about to be, and the last frame is a decoded still.
+  settled: () => hooks.connected && !state.inflight.length && !state.pendingQuality && !state.replacing &&
+    timers.size === 0 && state.drawnToken === state.drawToken && hooks.lastQuality === 'still',
+};

@@ -1,0 +1,113 @@
+// The view: the canvas and the frames drawn on it, scaled to fit with smooth filtering (previews arrive
+// smaller than the image), the light marker over it, and the image size it asks the daemon for.
+
+import { $ } from './dom.js';
+import * as S from './scene.js';
+import { hooks, panel, params, state, view } from './state.js';
+import { noteFrame, showStats, updateProgress } from './status.js';
+
+const MAX_SIDE = Math.max(64, Math.min(768, Number(params.get('maxpx')) || 768));
+const MIN_SIDE = 64;
+const MAX_CANVAS = 2048;  // canvas backing store, per side
+
+export const canvas = $('view');
+const ctx = canvas.getContext('2d', { willReadFrequently: true, alpha: false });
+export const stage = $('stage');
+
+// The canvas backing store follows its CSS size (times devicePixelRatio), whatever size frames come in.
+export function sizeCanvas() {
+  const r = canvas.getBoundingClientRect();
+  const dpr = window.devicePixelRatio || 1;
+  const k = Math.min(dpr, MAX_CANVAS / Math.max(1, r.width, r.height));
+  const w = Math.max(1, Math.round(r.width * k));
+  const h = Math.max(1, Math.round(r.height * k));
+  if (canvas.width === w && canvas.height === h) return false;
+  canvas.width = w;
+  canvas.height = h;
+  return true;
+}
+
+// Draws the frame shown, scaled to fit the canvas (letterboxed) with smooth filtering.
+export function paintFrame() {
+  sizeCanvas();
+  ctx.fillStyle = '#07090d';
+  ctx.fillRect(0, 0, canvas.width, canvas.height);
+  const f = state.frame;
+  if (!f) return;
+  const k = Math.min(canvas.width / f.width, canvas.height / f.height);
+  const w = f.width * k;
+  const h = f.height * k;
+  ctx.imageSmoothingEnabled = true;
+  ctx.imageSmoothingQuality = 'high';
+  ctx.drawImage(f.bitmap, 0, 0, f.bitmap.width, f.bitmap.height, (canvas.width - w) / 2, (canvas.height - h) / 2, w, h);
+  hooks.lastDraw = {
+    frame: [f.width, f.height], bitmap: [f.bitmap.width, f.bitmap.height], canvas: [canvas.width, canvas.height],
+    drawn: [Math.round(w), Math.round(h)], smoothing: ctx.imageSmoothingEnabled ? ctx.imageSmoothingQuality : 'off',
+  };
+}
+
+// Decodes a frame's PNG and shows it, unless a newer frame (a higher `token`) was drawn meanwhile.
+export async function drawFrame(blob, meta, token, quality) {
+  const bitmap = await createImageBitmap(blob.type ? blob : new Blob([blob], { type: 'image/png' }));
+  if (token < state.drawnToken) { bitmap.close(); return; }
+  state.drawnToken = token;
+  if (state.newScene && meta.revision >= state.confirmedRevision) state.newScene = false;
+  state.frame?.bitmap.close();
+  // The header says what this frame is; interactive frames (and, later, frames the daemon scales to
+  // meet its time budget) are smaller than the image the canvas shows.
+  state.frame = { bitmap, width: meta.width || bitmap.width, height: meta.height || bitmap.height };
+  paintFrame();
+  if (quality === 'interactive') hooks.lastInteractiveDraw = hooks.lastDraw;
+  stage.classList.add('has-frame');
+  noteFrame();
+  hooks.framesReceived++;
+  hooks.lastRevision = typeof meta.revision === 'number' ? meta.revision : hooks.lastRevision;
+  hooks.lastSeq = meta.seq ?? null;
+  hooks.lastMeta = meta;
+  hooks.lastQuality = quality;
+  showStats(meta, quality);
+  updateProgress();
+  updateLightMarker();
+}
+
+// Where the image sits inside the canvas element (CSS pixels; letterboxed as paintFrame draws it).
+export function imageRect() {
+  const r = canvas.getBoundingClientRect();
+  const image = view().image || {};
+  const aspect = state.frame ? state.frame.width / state.frame.height : (image.width || 1) / (image.height || 1);
+  let w = r.width;
+  let h = r.height;
+  if (w / h > aspect) w = h * aspect; else h = w / aspect;
+  return { left: (r.width - w) / 2, top: (r.height - h) / 2, width: w, height: h };
+}
+
+export function updateLightMarker() {
+  const marker = $('light-marker');
+  const doc = panel();
+  if (!doc.camera || !doc.light?.position) { marker.hidden = true; return; }
+  const image = doc.image || {};
+  const aspect = (image.width || canvas.width) / (image.height || canvas.height);
+  const p = S.project(S.cameraOf(doc), aspect, doc.light.position);
+  const rect = imageRect();
+  if (!p) { marker.hidden = true; return; }
+  // Off the image: pin the marker to the image border, in the light's direction.
+  const out = Math.max(Math.abs(p.x), Math.abs(p.y));
+  const edge = out > 1;
+  if (edge) { p.x = (p.x / out) * 0.96; p.y = (p.y / out) * 0.96; }
+  marker.classList.toggle('edge', edge);
+  marker.hidden = false;
+  marker.style.left = `${rect.left + ((p.x + 1) / 2) * rect.width}px`;
+  marker.style.top = `${rect.top + ((1 - p.y) / 2) * rect.height}px`;
+}
+
+// The image size the stage asks for: its CSS size × devicePixelRatio, at most MAX_SIDE (?maxpx=) a side.
+export function desiredImageSize() {
+  const rect = stage.getBoundingClientRect();
+  const dpr = window.devicePixelRatio || 1;
+  let w = Math.max(1, rect.width * dpr);
+  let h = Math.max(1, rect.height * dpr);
+  const k = Math.min(1, MAX_SIDE / Math.max(w, h));
+  w = Math.max(MIN_SIDE, Math.round((w * k) / 2) * 2);
+  h = Math.max(MIN_SIDE, Math.round((h * k) / 2) * 2);
+  return { width: w, height: h };
+}
