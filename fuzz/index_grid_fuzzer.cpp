@@ -1,8 +1,8 @@
 // Fuzzes the index grid: the stored file's decoder (scene::decode_grid), and the check an uploaded grid
 // goes through (scene::validate_index_grid). Input starting with the file's magic tag is decoded as a
 // file; any other input is read as an upload, laid out like the file after its tag (nx, ny, nz, the
-// bounds, the values). Invariants: only StoreError is thrown (500 for a broken file, 400 for an invalid
-// grid); a grid that is accepted encodes to exactly the bytes it was decoded from, and decodes back.
+// bounds, the values). Invariants: only StoreError is thrown (broken for a broken file, invalid for an
+// invalid grid); a grid that is accepted encodes to exactly the bytes it was decoded from, and decodes back.
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -40,7 +40,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         try {
             grid = decode_grid(input);
         } catch (const StoreError& e) {
-            REFRACT_FUZZ_CHECK(e.status() == 500 || e.status() == 400);
+            REFRACT_FUZZ_CHECK(e.failure() == StoreFailure::broken || e.failure() == StoreFailure::invalid);
             return 0;
         }
         check_encodes_back(grid, input);
@@ -61,7 +61,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     try {
         validate_index_grid(grid);
     } catch (const StoreError& e) {
-        REFRACT_FUZZ_CHECK(e.status() == 400);
+        REFRACT_FUZZ_CHECK(e.failure() == StoreFailure::invalid);
         return 0;
     }
     const std::vector<char> bytes = encode_grid(grid);

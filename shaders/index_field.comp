@@ -34,7 +34,7 @@ float grid_at(ivec3 v) {
 // border clamped): each axis's central difference, averaged across its two other axes with weights
 // 1 4 1 / 6. A plain central difference errs by h^2/6 times the third derivative along its own axis,
 // which tilts the normal of a shell the lattice does not line up with, and a caustic focused through
-// that shell shows the lattice as rings (README, "Ring moire in caustics"). Averaged this way the error
+// that shell shows the lattice as rings (docs/rendering.md, "Ring moire in caustics"). Averaged this way the error
 // is h^2/6 grad(laplacian n) on every axis, along the normal of a locally spherical shell; the weights
 // stay positive (no ringing in the shell's tails) and a flat interface's integral stays exact.
 vec3 isotropic_gradient(float around[27]) {

@@ -314,7 +314,7 @@ void main() {
             float ds = safe_step(level, ray.p, ray.d, shell_step_for(ray, shell_step));
             // A leaf ends on a plane of the lattice, so the shell steps after it would all start at the
             // same phase of the lattice, and what the steps make of a shell a voxel or two wide depends
-            // on where the lattice cuts it: a caustic gathers that from many photons into rings (README,
+            // on where the lattice cuts it: a caustic gathers that from many photons into rings (docs/rendering.md,
             // "Ring moire in caustics"). The first shell step after a leaf falls short by a random
             // fraction, so each photon crosses the shell at its own phase.
             if (level == 0u && after_leaf) ds *= 1.0 - to_unit(hash(step_seed ^ hash(steps)));

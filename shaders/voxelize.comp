@@ -13,7 +13,7 @@
 // its covered fraction. SPLINE: the quadratic B-spline (three voxels wide, variance 1/4 voxel^2): the
 // surface is filtered before it is sampled, and the spline's spectrum is the box's cubed, so little is
 // left for the lattice to alias into the grid (the box's sidelobes fold back as rings in a sphere's
-// caustic; README, "Ring moire in caustics"). Both kernels
+// caustic; docs/rendering.md, "Ring moire in caustics"). Both kernels
 // sum to 1 over the lattice at any offset, so every axis keeps the volume its rays measure.
 // COMBINE: per voxel, the mean of the reliable axes' values; a mean, not a median, keeps that volume.
 #include "volume_build.h"

@@ -143,8 +143,10 @@ TEST(DaemonAssetsTest, DecodedEnvironmentsStayWithinTheHostMemoryBudget) {
         EXPECT_NE(put->body.find("--max-host-memory"), std::string::npos) << put->body;
     }
     const int64_t after_refused = daemon.rss_bytes();
+    // Nothing decoded: one decode is 384 MiB. What grows is the bodies received (3 MiB each, on the
+    // server's threads, whose allocator arenas keep what they held).
     if (!kSanitized) {
-        EXPECT_LT(after_refused - before, 64 * kMiB);
+        EXPECT_LT(after_refused - before, 128 * kMiB);
     }
 
     // 4096 x 2048 decodes to 96 MiB: all six are stored, at most two stay decoded (192 MiB of the 256).

@@ -216,7 +216,8 @@ TEST(DaemonSceneStore, EditsPersistAndRejectedEditsChangeNothing) {
             store.patch("one", {{"camera", {{"fov_deg", 30.0}}}}, 1);
             FAIL() << "a stale If-Match must be refused";
         } catch (const scene::StoreError& e) {
-            EXPECT_EQ(e.status(), 412);
+            EXPECT_EQ(e.failure(), scene::StoreFailure::stale_revision);
+            EXPECT_EQ(http::http_status(e.failure()), 412);
         }
         EXPECT_THROW(store.create("one", json::object()), scene::StoreError);
         EXPECT_THROW(store.create("Bad Id", json::object()), scene::StoreError);
@@ -280,7 +281,8 @@ TEST(DaemonSceneStore, MeshesAndGridsAreValidatedStoredAndReplaced) {
             store.put_index_grid("g", odd);
             ADD_FAILURE() << "grid bounds " << max[0] << " accepted";
         } catch (const scene::StoreError& e) {
-            EXPECT_EQ(e.status(), 400) << e.what();
+            EXPECT_EQ(e.failure(), scene::StoreFailure::invalid) << e.what();
+            EXPECT_EQ(http::http_status(e.failure()), 400);
         }
     }
     EXPECT_EQ(store.get("g")->revision, 2u);
@@ -320,7 +322,8 @@ TEST(DaemonSceneStore, ASecondStoreOnTheSameDirectoryIsRefused) {
         scene::SceneStore second(dir.path(), {}, {});
         FAIL() << "two stores on one directory would hand out the same revisions";
     } catch (const scene::StoreError& e) {
-        EXPECT_EQ(e.status(), 409);
+        EXPECT_EQ(e.failure(), scene::StoreFailure::in_use);
+        EXPECT_EQ(http::http_status(e.failure()), 409);
         EXPECT_NE(std::string(e.what()).find("pid " + std::to_string(::getpid())), std::string::npos) << e.what();
     }
     first.reset();  // the lock goes with its holder
@@ -363,7 +366,8 @@ TEST(DaemonSceneStore, UnreadableScenesAreQuarantinedReportedAndNeverOverwritten
             store.create(id, json::object());
             FAIL() << id << ": a new scene must not take the place of an unreadable one";
         } catch (const scene::StoreError& e) {
-            EXPECT_EQ(e.status(), 409);
+            EXPECT_EQ(e.failure(), scene::StoreFailure::taken);
+            EXPECT_EQ(http::http_status(e.failure()), 409);
             EXPECT_NE(std::string(e.what()).find("quarantine"), std::string::npos) << e.what();
         }
     }
@@ -373,9 +377,22 @@ TEST(DaemonSceneStore, UnreadableScenesAreQuarantinedReportedAndNeverOverwritten
         store.patch("last", {{"light", {{"intensity", 7.0}}}});
         FAIL() << "an edit past the highest revision must be refused";
     } catch (const scene::StoreError& e) {
-        EXPECT_EQ(e.status(), 409);
+        EXPECT_EQ(e.failure(), scene::StoreFailure::out_of_revisions);
+        EXPECT_EQ(http::http_status(e.failure()), 409);
     }
     EXPECT_EQ(store.get("last")->revision, scene::kMaxRevision);
+}
+
+// The store names what went wrong; http/ alone chooses the status each is answered with.
+TEST(DaemonSceneStore, EachStoreFailureIsAnsweredWithItsStatus) {
+    using Failure = scene::StoreFailure;
+    const std::pair<Failure, int> expected[] = {
+        {Failure::invalid, 400},        {Failure::not_found, 404},      {Failure::taken, 409},
+        {Failure::in_use, 409},         {Failure::out_of_revisions, 409}, {Failure::stale_revision, 412},
+        {Failure::too_large, 413},      {Failure::broken, 500},         {Failure::unavailable, 503},
+    };
+    for (const auto& [failure, status] : expected)
+        EXPECT_EQ(http::http_status(failure), status) << static_cast<int>(failure);
 }
 
 TEST(DaemonSceneStore, QuarantinedScenesStayReportedAcrossRestarts) {
@@ -576,7 +593,11 @@ struct PartedRenderer {
     scene::FrameResult render(const scene::FrameRequest& request) {
         const bool heavy = request.scene_id == "heavy";
         for (uint32_t i = 0; i < (heavy ? parts : 1u); ++i) {
-            if (i > 0 && request.options.give_way && request.options.give_way()) throw scene::Superseded();
+            if (i > 0 && request.options.give_way && request.options.give_way()) {
+                scene::FrameResult stopped;
+                stopped.outcome = scene::FrameResult::Outcome::superseded;
+                return stopped;
+            }
             std::string entry = request.scene_id;  // appended: GCC 12's false -Wrestrict (its bug 105329)
             entry += ':';
             entry += std::to_string(i);

@@ -22,6 +22,7 @@
 #include "gpu_fixture.h"
 #include "image/environment_map.h"
 #include "passes/environment_light.h"
+#include "render/transport_inputs.h"
 
 namespace refract {
 namespace {
@@ -238,19 +239,19 @@ TEST(EnvironmentProtocolTest, ImageEnvironmentsNeedANameAndARotationInRange) {
 TEST(EnvironmentLightTest, AUniformEnvironmentsTablesHoldItsRadianceAndPower) {
     auto doc = protocol::parse_scene({{"environment", {{"type", "uniform"}, {"color", {1, 1, 1}}, {"intensity", 0.5}}},
                                       {"floor", {{"enabled", false}}}});
-    const auto open = passes::make_environment_light(doc, nullptr);
+    const auto open = passes::make_environment_light(scene::environment_source(doc, nullptr));
     EXPECT_NEAR(open.sampled, 4.0 * kPi * 0.5, 1e-9);  // the whole sphere
     EXPECT_NEAR(open.floor_irradiance.g, kPi * 0.5, 1e-5);
     doc.floor.enabled = true;
-    EXPECT_NEAR(passes::make_environment_light(doc, nullptr).sampled, 2.0 * kPi * 0.5, 1e-9);  // the upper half
+    EXPECT_NEAR(passes::make_environment_light(scene::environment_source(doc, nullptr)).sampled, 2.0 * kPi * 0.5, 1e-9);  // the upper half
     doc.environment.lights = false;  // a backdrop only: the map stays, its power goes
-    const auto backdrop = passes::make_environment_light(doc, nullptr);
+    const auto backdrop = passes::make_environment_light(scene::environment_source(doc, nullptr));
     EXPECT_FALSE(backdrop.lights());
     EXPECT_EQ(backdrop.width, 1u);
     EXPECT_EQ(backdrop.floor_irradiance.g, 0.0f);
     doc.environment.lights = true;
     doc.environment.type = protocol::EnvironmentKind::sky;
-    EXPECT_FALSE(passes::make_environment_light(doc, nullptr).lights());
+    EXPECT_FALSE(passes::make_environment_light(scene::environment_source(doc, nullptr)).lights());
 }
 
 // A scene with nothing in it to see but the environment: no fog, an index-matched object without

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gpu_fixture.h"
+#include "render/transport_inputs.h"
 
 namespace refract {
 namespace {
@@ -402,7 +403,7 @@ TEST_F(FresnelTest, AGradedFieldReflectsAtItsOuterBoundaryOnly) {
                   {"object", {{"mesh", "sphere"}, {"scale", 0.8}, {"index_field", "maxwell"}, {"maxwell_n0", 3.0}}},
                   {"volume", bounds({-1, -1, -1}, {1, 1, 1}, 96)}};
     const auto doc = glass_scene(patch);
-    ASSERT_TRUE(passes::fresnel_reflects(doc));
+    ASSERT_TRUE(scene::fresnel_reflects(doc));
     double entered = 0.0;
     const double measured = reflected_share(trace(doc), {0, 0, 1}, &entered);
     const double r = std::pow((kGlass - 1.0) / (kGlass + 1.0), 2.0), expected = 2.0 * r / (1.0 + r);
@@ -415,11 +416,11 @@ TEST_F(FresnelTest, AGradedFieldReflectsAtItsOuterBoundaryOnly) {
     EXPECT_EQ(reflected_share(trace(glass_scene(patch)), {0, 0, 1}), 0.0);
     patch["object"]["fresnel"] = true;
     patch["object"]["maxwell_n0"] = 2.0;  // surface index 1: matched
-    EXPECT_FALSE(passes::fresnel_reflects(glass_scene(patch)));
+    EXPECT_FALSE(scene::fresnel_reflects(glass_scene(patch)));
     patch["object"]["index_field"] = "luneburg";
-    EXPECT_FALSE(passes::fresnel_reflects(glass_scene(patch)));
+    EXPECT_FALSE(scene::fresnel_reflects(glass_scene(patch)));
     patch["medium"] = {{"ior", 1.33}};  // a Luneburg lens in water would cross the midpoint inside
-    EXPECT_FALSE(passes::fresnel_reflects(glass_scene(patch)));
+    EXPECT_FALSE(scene::fresnel_reflects(glass_scene(patch)));
 }
 
 }  // namespace

@@ -1091,7 +1091,7 @@ TEST_F(EnergyTest, FloorUnderSeveralLightsTakesEachLightsIrradiance) {
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(measured[c], expected[c], 1e-4 * expected[c]) << "channel " << c;
 }
 
-// The voxel lattice's imprint on a glass sphere's floor caustic (README, "Ring moire in caustics"). The
+// The voxel lattice's imprint on a glass sphere's floor caustic (docs/rendering.md, "Ring moire in caustics"). The
 // grid moved sideways under a fixed scene by a whole number m of floor-map texels is the same scene
 // sampled on another lattice, and the floor map moves with the grid (it is placed from the grid's
 // corners and their shadows), so texel x + m of the first map and texel x of the moved one see the same
@@ -1111,7 +1111,7 @@ TEST_F(EnergyTest, FloorUnderSeveralLightsTakesEachLightsIrradiance) {
 // At smoothing 1 (a shell a voxel wide on each side): 1.03 (bar 1.05), where central differences and
 // shell steps at the lattice's phase gave 1.12. At the default 0.75 the trilinear fetch between
 // voxel centres still leaves 1.037 over 48 seeds (bar 1.027): an imprint 0.27 of one batch's noise
-// (README, "Ring moire in caustics"); over the first 40 of those seeds 1.027 (bar 1.029), so at 0.75 the
+// (docs/rendering.md, "Ring moire in caustics"); over the first 40 of those seeds 1.027 (bar 1.029), so at 0.75 the
 // imprint sits at the edge of what this test can see. REFRACT_IMPRINT_SMOOTHING sets volume.smoothing,
 // REFRACT_IMPRINT_SEEDS the number of seeds (8).
 TEST_F(EnergyTest, LatticeLeavesNoImprintOnACausticAboveThePhotonNoise) {

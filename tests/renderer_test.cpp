@@ -164,8 +164,8 @@ TEST_F(RendererTest, AnExposureEditOnlyToneMapsTheResidentFrame) {
     // of that frame is still a tone map, and the level after it starts from new photons.
     Renderer interrupted(*context);
     interrupted.render("a", doc, no_assets);
-    EXPECT_THROW(interrupted.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, [] { return true; }}),
-                 Superseded);
+    EXPECT_EQ(interrupted.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, [] { return true; }}).outcome,
+              FrameResult::Outcome::superseded);
     const FrameResult after_giving_way = interrupted.render("a", brighter, no_assets);
     EXPECT_EQ(after_giving_way.rerun, kToneMap);
     EXPECT_EQ(after_giving_way.png, fresh.render("c", brighter, no_assets).png);
@@ -199,7 +199,8 @@ TEST_F(RendererTest, RefinementLevelsAreDeterministicHoweverTheyAreReached) {
     // A level that gives way halfway makes no frame, rebuilds nothing, and leaves no trace in the bytes
     // of the levels after it.
     FrameOptions yielding{Quality::still, kDefaultBudgetMs, 2, [] { return true; }};
-    EXPECT_THROW(direct.render("b", doc, no_assets, yielding), Superseded);
+    EXPECT_EQ(direct.render("b", doc, no_assets, yielding).outcome,
+              FrameResult::Outcome::superseded);
     const FrameResult after = direct.render("b", doc, no_assets, {Quality::still, kDefaultBudgetMs, 3});
     EXPECT_EQ(after.png, frames[2]);
     EXPECT_EQ(after.rerun & kVoxelize, 0u) << pass_names(after.rerun);
@@ -228,8 +229,8 @@ TEST_F(RendererTest, RefinementStepsGiveWayBetweenPartsAndKeepTheirBytes) {
         EXPECT_EQ(in_parts.png, reference.png);
         // Giving way at the first chance: no frame; the level asked for again is the same bytes.
         yielded.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level - 1});
-        EXPECT_THROW(yielded.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level, [] { return true; }}),
-                     Superseded);
+        EXPECT_EQ(yielded.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level, [] { return true; }}).outcome,
+              FrameResult::Outcome::superseded);
         EXPECT_EQ(yielded.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, level}).png, reference.png);
     }
     // The still frame after a drag (level 1, photons into the still grid) gives way too, and leaves no
@@ -237,8 +238,8 @@ TEST_F(RendererTest, RefinementStepsGiveWayBetweenPartsAndKeepTheirBytes) {
     Renderer dragged(*context), fresh(*context);
     const FrameResult still = fresh.render("a", photons, no_assets);
     dragged.render("a", photons, no_assets, {Quality::interactive});
-    EXPECT_THROW(dragged.render("a", photons, no_assets, {Quality::still, kDefaultBudgetMs, 1, [] { return true; }}),
-                 Superseded);
+    EXPECT_EQ(dragged.render("a", photons, no_assets, {Quality::still, kDefaultBudgetMs, 1, [] { return true; }}).outcome,
+              FrameResult::Outcome::superseded);
     EXPECT_EQ(dragged.render("a", photons, no_assets).png, still.png);
 }
 
@@ -309,8 +310,8 @@ TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
     const SceneDocument wide = small({{"image", {{"width", 512}, {"height", passes::kViewPart / 256}}}});
     Renderer in_view(*context);
     in_view.render("a", wide, no_assets, {Quality::still, kDefaultBudgetMs, kMaxPhotonBatches});
-    EXPECT_THROW(in_view.render("a", wide, no_assets, {Quality::still, kDefaultBudgetMs, kMaxPhotonBatches + 1, give_way}),
-                 Superseded);
+    EXPECT_EQ(in_view.render("a", wide, no_assets, {Quality::still, kDefaultBudgetMs, kMaxPhotonBatches + 1, give_way}).outcome,
+              FrameResult::Outcome::superseded);
     const auto wide_camera = protocol::apply_merge_patch(wide, {{"camera", {{"position", {1, 1, 4}}}}});
     const FrameResult over_grid = in_view.render("a", wide_camera, no_assets, {Quality::interactive});
     EXPECT_EQ(pass_names(over_grid.rerun), pass_names(kView | kToneMap));
@@ -336,8 +337,8 @@ TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
         Renderer renderer(*context);
         renderer.render("a", doc, no_assets);
         int asked = 0;
-        EXPECT_THROW(renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, [&] { return ++asked == at; }}),
-                     Superseded);
+        EXPECT_EQ(renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, [&] { return ++asked == at; }}).outcome,
+              FrameResult::Outcome::superseded);
         const FrameResult dragged = renderer.render("a", camera, no_assets, {Quality::interactive});
         EXPECT_EQ(pass_names(dragged.rerun), pass_names(resolved ? kPhotons | kView | kToneMap : kView | kToneMap));
         EXPECT_EQ(dragged.refinement.photon_batches, 1u);
@@ -375,8 +376,8 @@ TEST_F(RendererTest, AFrameStoppedAtAnyPartIsWholeWhenRenderedAgain) {
             SCOPED_TRACE(::testing::Message() << "stopped at chance " << at << " of " << chances);
             Renderer renderer(*context);
             int asked = 0;
-            EXPECT_THROW(renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 1, [&] { return ++asked == at; }}),
-                         Superseded);
+            EXPECT_EQ(renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 1, [&] { return ++asked == at; }}).outcome,
+              FrameResult::Outcome::superseded);
             EXPECT_EQ(renderer.render("a", doc, no_assets).png, whole.png);
         }
     }

@@ -132,7 +132,7 @@ json homogeneous(double extinction, double scattering, const json& phase, uint32
 // repeat. A deliberate change to the frames regenerates the hashes the same way. Since then these changes
 // moved them, none in what sets 0 bounces apart from the walks: the B-spline voxelizer (9a21bed, every
 // scene's index field), eye rays taking faint reflections straight (FRESNEL_EYE_TRACED_SHARE), and the
-// lattice's imprint taken out (README, "Ring moire in caustics": the isotropic gradient, the photons'
+// lattice's imprint taken out (docs/rendering.md, "Ring moire in caustics": the isotropic gradient, the photons'
 // first shell step after a leaf, eye rays crossing unlit fog in whole view steps), each the same with
 // and without walks. The hashes are the frames of this tree.
 uint64_t fnv1a_pfm_order(const std::vector<glm::vec4>& hdr, uint32_t width, uint32_t height) {

@@ -28,6 +28,7 @@
 #include "render/invalidation.h"
 #include "render/renderer.h"
 #include "render/scene_gpu.h"
+#include "render/scene_lattice.h"
 #include "vk/commands.h"
 #include "vk/resources.h"
 
@@ -1134,7 +1135,7 @@ TEST(FieldAtlas, ObjectResolutionDividesTheScenesVoxelByAWholeFactor) {
     auto grid_of = [](const nlohmann::json& objects) {
         const SceneDocument doc = protocol::parse_scene(
             {{"objects", objects}, {"volume", {{"resolution", 64}, {"bounds", {{"min", {-8, -1, -8}}, {"max", {8, 1, 8}}}}}}});
-        return passes::grid_for(doc, scene::world_meshes(doc, nullptr));
+        return scene::grid_for(doc, scene::world_meshes(doc, nullptr));
     };
     const passes::GridGeometry plain = grid_of({{"a", {{"scale", 0.5}}}});
     EXPECT_EQ(plain.light_factor, 1u);

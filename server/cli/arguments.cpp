@@ -152,6 +152,100 @@ Command slices_command(const std::string& name, const std::string& description) 
     return command;
 }
 
+// render's options besides the common ones.
+std::vector<Option> render_options() {
+    return {
+        {"--out", "-o", "FRAME.png", "the frame, 8-bit sRGB; required",
+         [](Arguments& a, const std::string& flag, const std::string& file) {
+             check_output_file(flag, file, ".png");
+             a.out = file;
+         }},
+        {"--hdr", "", "FRAME.pfm", "also the linear frame, 32-bit float RGB",
+         [](Arguments& a, const std::string& flag, const std::string& file) {
+             check_output_file(flag, file, ".pfm");
+             a.hdr = file;
+         }},
+        {"--stats", "", "STATS.json", "also the printed summary, as a file",
+         [](Arguments& a, const std::string& flag, const std::string& file) {
+             check_output_file(flag, file, ".json");
+             a.stats = file;
+         }},
+        {"--quality", "", "still|interactive",
+         "interactive: the passes as refractd runs them during a drag, at the\n"
+         "document's own image size and photon count (default still)",
+         [](Arguments& a, const std::string& flag, const std::string& quality) {
+             if (quality != "still" && quality != "interactive")
+                 throw UsageError(flag + ": '" + quality + "' must be still or interactive");
+             a.interactive = quality == "interactive";
+         }},
+    };
+}
+
+// animate's options besides the common ones.
+std::vector<Option> animate_options() {
+    return {
+        {"--out", "-o", "DIR", "where the frames go (created if missing); required",
+         [](Arguments& a, const std::string& flag, const std::string& dir) {
+             check_output_dir(flag, dir);
+             a.out = dir;
+         }},
+        {"--fps", "", "N", "frames per second of animation time, 1 to 240 (default 24)",
+         [](Arguments& a, const std::string& flag, const std::string& n) {
+             a.fps = parse_whole_number(flag, n, 1, 240);
+         }},
+    };
+}
+
+// bench's options besides the common ones.
+std::vector<Option> bench_options() {
+    return {
+        {"--scene", "", "FILE",
+         "one scene document instead of the suite: its full rebuild, light\n"
+         "and camera edits",
+         [](Arguments& a, const std::string& flag, const std::string& file) {
+             check_input_file(flag + ":", file);
+             a.scene_file = file;
+         }},
+        {"--suite", "", "standard", "the fixed suite of docs/benchmarks.md (the default)",
+         [](Arguments& a, const std::string& flag, const std::string& suite) {
+             if (suite != "standard") throw UsageError(flag + ": '" + suite + "' must be standard");
+             a.suite = suite;
+         }},
+        {"--case", "", "PREFIX", "only the suite's cases whose names start with PREFIX",
+         [](Arguments& a, const std::string&, const std::string& prefix) { a.only = prefix; }},
+        {"--runs", "", "N",
+         "timed runs per case, 1 to 1000 (default 10 on a GPU, 3 on a CPU;\n"
+         "5 with --daemon)",
+         [](Arguments& a, const std::string& flag, const std::string& n) {
+             a.runs = parse_whole_number(flag, n, 1, 1000);
+         }},
+        {"--json", "", "", "the report as JSON instead of a table",
+         [](Arguments& a, const std::string&, const std::string&) { a.json = true; }},
+        {"--daemon", "", "HOST:PORT", "measure the refractd listening there",
+         [](Arguments& a, const std::string& flag, const std::string& address) {
+             const auto colon = address.rfind(':');
+             if (colon == std::string::npos || colon == 0)
+                 throw UsageError(flag + ": '" + address + "' must be HOST:PORT");
+             parse_whole_number(flag + " port", address.substr(colon + 1), 1, 65535);
+             a.daemon = address;
+         }},
+    };
+}
+
+// What bench's options must say together: one scene, the suite (and its cases) and a daemon exclude each
+// other.
+void check_bench_options(const Arguments& a) {
+    const std::pair<bool, const char*> suite_only[] = {{!a.suite.empty(), "--suite"},
+                                                       {!a.only.empty(), "--case"}};
+    for (const auto& [given, flag] : suite_only) {
+        if (given && !a.scene_file.empty())
+            throw UsageError(std::string(flag) + ": not with --scene (one scene has no suite)");
+        if (given && !a.daemon.empty()) throw UsageError(std::string(flag) + ": not with --daemon");
+    }
+    if (!a.scene_file.empty() && !a.daemon.empty()) throw UsageError("--scene: not with --daemon");
+}
+
+// Every command, in the order `refract help` lists them.
 const std::vector<Command>& commands() {
     static const std::vector<Command> table = [] {
         std::vector<Command> t;
@@ -172,54 +266,16 @@ const std::vector<Command>& commands() {
              "SCENE.json -o FRAME.png [--hdr FRAME.pfm] [--stats STATS.json] [--quality still|interactive]",
              "Runs the whole pipeline once and writes the frame; prints a summary (device, size, photons,\n"
              "per-pass GPU milliseconds) as JSON.",
-             true,
-             with_common_options({
-                 {"--out", "-o", "FRAME.png", "the frame, 8-bit sRGB; required",
-                  [](Arguments& a, const std::string& flag, const std::string& file) {
-                      check_output_file(flag, file, ".png");
-                      a.out = file;
-                  }},
-                 {"--hdr", "", "FRAME.pfm", "also the linear frame, 32-bit float RGB",
-                  [](Arguments& a, const std::string& flag, const std::string& file) {
-                      check_output_file(flag, file, ".pfm");
-                      a.hdr = file;
-                  }},
-                 {"--stats", "", "STATS.json", "also the printed summary, as a file",
-                  [](Arguments& a, const std::string& flag, const std::string& file) {
-                      check_output_file(flag, file, ".json");
-                      a.stats = file;
-                  }},
-                 {"--quality", "", "still|interactive",
-                  "interactive: the passes as refractd runs them during a drag, at the\n"
-                  "document's own image size and photon count (default still)",
-                  [](Arguments& a, const std::string& flag, const std::string& quality) {
-                      if (quality != "still" && quality != "interactive")
-                          throw UsageError(flag + ": '" + quality + "' must be still or interactive");
-                      a.interactive = quality == "interactive";
-                  }},
-             }),
+             true, with_common_options(render_options()),
              [](const Arguments& a) { require_out(a, "render", "-o FRAME.png"); }});
         t.push_back(
-            {"animate",
-             "SCENE.json KEYFRAMES.json -o DIR [--fps N]",
+            {"animate", "SCENE.json KEYFRAMES.json -o DIR [--fps N]",
              "Renders SCENE.json animated by KEYFRAMES.json, a list of {\"time\": seconds, \"patch\": merge\n"
              "patch}, as DIR/frame_00000.png onwards: one frame every 1/N s from 0 to the last keyframe,\n"
              "numbers and vectors interpolated between keyframes. Each frame reruns only the passes its\n"
              "change makes stale; prints a summary (frames, passes rerun per frame) as JSON.",
-             true,
-             with_common_options({
-                 {"--out", "-o", "DIR", "where the frames go (created if missing); required",
-                  [](Arguments& a, const std::string& flag, const std::string& dir) {
-                      check_output_dir(flag, dir);
-                      a.out = dir;
-                  }},
-                 {"--fps", "", "N", "frames per second of animation time, 1 to 240 (default 24)",
-                  [](Arguments& a, const std::string& flag, const std::string& n) {
-                      a.fps = parse_whole_number(flag, n, 1, 240);
-                  }},
-             }),
-             [](const Arguments& a) { require_out(a, "animate", "-o DIR"); },
-             "KEYFRAMES.json"});
+             true, with_common_options(animate_options()),
+             [](const Arguments& a) { require_out(a, "animate", "-o DIR"); }, "KEYFRAMES.json"});
         t.push_back(
             {"bench",
              "[--scene FILE | --suite standard] [--case PREFIX] [--runs N] [--json]\n"
@@ -227,51 +283,7 @@ const std::vector<Command>& commands() {
              "Per-pass GPU milliseconds (timestamp queries) for fixed scenes and edits, median and spread\n"
              "of N runs after a warm-up; or, with --daemon, a running refractd end to end: edit + frame\n"
              "round trips against the pass times it reports (service overhead). See docs/benchmarks.md.",
-             false,
-             with_common_options({
-                 {"--scene", "", "FILE",
-                  "one scene document instead of the suite: its full rebuild, light\n"
-                  "and camera edits",
-                  [](Arguments& a, const std::string& flag, const std::string& file) {
-                      check_input_file(flag + ":", file);
-                      a.scene_file = file;
-                  }},
-                 {"--suite", "", "standard", "the fixed suite of docs/benchmarks.md (the default)",
-                  [](Arguments& a, const std::string& flag, const std::string& suite) {
-                      if (suite != "standard") throw UsageError(flag + ": '" + suite + "' must be standard");
-                      a.suite = suite;
-                  }},
-                 {"--case", "", "PREFIX", "only the suite's cases whose names start with PREFIX",
-                  [](Arguments& a, const std::string&, const std::string& prefix) { a.only = prefix; }},
-                 {"--runs", "", "N",
-                  "timed runs per case, 1 to 1000 (default 10 on a GPU, 3 on a CPU;\n"
-                  "5 with --daemon)",
-                  [](Arguments& a, const std::string& flag, const std::string& n) {
-                      a.runs = parse_whole_number(flag, n, 1, 1000);
-                  }},
-                 {"--json", "", "", "the report as JSON instead of a table",
-                  [](Arguments& a, const std::string&, const std::string&) { a.json = true; }},
-                 {"--daemon", "", "HOST:PORT", "measure the refractd listening there",
-                  [](Arguments& a, const std::string& flag, const std::string& address) {
-                      const auto colon = address.rfind(':');
-                      if (colon == std::string::npos || colon == 0)
-                          throw UsageError(flag + ": '" + address + "' must be HOST:PORT");
-                      parse_whole_number(flag + " port", address.substr(colon + 1), 1, 65535);
-                      a.daemon = address;
-                  }},
-             }),
-             [](const Arguments& a) {
-                 const std::pair<bool, const char*> suite_only[] = {{!a.suite.empty(), "--suite"},
-                                                                    {!a.only.empty(), "--case"}};
-                 for (const auto& [given, flag] : suite_only) {
-                     if (given && !a.scene_file.empty())
-                         throw UsageError(std::string(flag) + ": not with --scene (one scene has no suite)");
-                     if (given && !a.daemon.empty())
-                         throw UsageError(std::string(flag) + ": not with --daemon");
-                 }
-                 if (!a.scene_file.empty() && !a.daemon.empty())
-                     throw UsageError("--scene: not with --daemon");
-             }});
+             false, with_common_options(bench_options()), check_bench_options});
         return t;
     }();
     return table;

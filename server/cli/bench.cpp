@@ -1,4 +1,7 @@
 // refract bench: per-pass GPU milliseconds (timestamp queries) for fixed scenes and edit kinds.
+#include <httplib.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -7,12 +10,9 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <thread>
-
-#include <httplib.h>
-#include <nlohmann/json.hpp>
-#include <unistd.h>
 
 #include "cli/commands.h"
 #include "deposit_bench.h"
@@ -24,6 +24,7 @@
 #include "render/object_mesh.h"
 #include "render/renderer.h"
 #include "render/scene_gpu.h"
+#include "render/scene_lattice.h"
 #include "vk/commands.h"
 #include "vk/context.h"
 #include "vk/gpu_timer.h"
@@ -132,7 +133,7 @@ std::vector<BenchCase> standard_suite(bool gpu) {
             scene::kPhotons | scene::kView, "light", scene::Quality::interactive);
     // Several objects: examples/gallery.json (eight objects, three lights), its full build and a move of
     // its bunny by 5 cm, against the move of the bunny alone on a lattice of the same voxel size (its
-    // own box: README, "Several objects").
+    // own box: docs/objects-and-lights.md, "Several objects").
     std::ifstream gallery_file(std::string(REFRACT_SOURCE_DIR) + "/examples/gallery.json");
     if (gallery_file) {
         json gallery = json::parse(gallery_file);
@@ -147,7 +148,7 @@ std::vector<BenchCase> standard_suite(bool gpu) {
         alone["objects"] = {{"bunny", bunny}};
         // The gallery's lattice voxel, which its objects' resolutions set.
         const protocol::SceneDocument parsed = protocol::parse_scene(gallery);
-        const double voxel = passes::grid_for(parsed, scene::world_meshes(parsed, nullptr)).voxel_size;
+        const double voxel = scene::grid_for(parsed, scene::world_meshes(parsed, nullptr)).voxel_size;
         const double half = 0.65;  // around the bunny (scale 0.5) and its move
         json lo = json::array(), hi = json::array();
         for (size_t a = 0; a < 3; ++a) {
@@ -304,23 +305,22 @@ json scaling(const json& cases, bool quiet) {
     return out;
 }
 
-}  // namespace
+using Uploads = std::map<std::string, std::shared_ptr<const mesh::Mesh>>;
 
-int bench_command(const Arguments& args) {
-    if (!args.daemon.empty()) return bench_daemon(args.daemon, args.runs > 0 ? args.runs : 5, args.json);
-    vk::ContextOptions options;
-    options.device_name = args.device;
-    vk::Context context(vk::options_from_environment(options));
-    scene::PassKit kit(context);
-    const bool gpu = !context.is_cpu_device();
-    const int runs = args.runs > 0 ? args.runs : (gpu ? 10 : 3);
-
-    std::map<std::string, std::shared_ptr<const mesh::Mesh>> uploads;
+// The meshes the cases may name as "upload:NAME": those given with --mesh, and examples/meshes/bunny.obj
+// as "bunny" (the suite's bunny case) unless --mesh gave one.
+Uploads bench_uploads(const Arguments& args) {
+    Uploads uploads;
     for (const auto& [name, file] : args.meshes) uploads[name] = std::make_shared<mesh::Mesh>(mesh::load_obj_file(file));
     const std::string bunny = std::string(REFRACT_SOURCE_DIR) + "/examples/meshes/bunny.obj";
     if (!uploads.count("bunny") && std::filesystem::exists(bunny))
         uploads["bunny"] = std::make_shared<mesh::Mesh>(mesh::load_obj_file(bunny));
+    return uploads;
+}
 
+// The cases to measure: the --scene document's full rebuild, light and camera edits, or the standard
+// suite's cases (those starting with --case).
+std::vector<BenchCase> bench_cases(const Arguments& args, bool gpu) {
     std::vector<BenchCase> cases;
     if (!args.scene_file.empty()) {
         std::ifstream in(args.scene_file);
@@ -336,6 +336,159 @@ int bench_command(const Arguments& args) {
     } else {
         throw std::runtime_error("unknown suite '" + args.suite + "' (standard)");
     }
+    return cases;
+}
+
+// Runs the deposit microbenchmark, prints its line (unless `quiet`) and returns its report.
+json report_deposits(vk::Context& context, int runs, bool quiet) {
+    const json deposits = deposit_benchmark(context, runs);
+    if (!quiet) {
+        std::printf(
+            "deposits (2^23 scattered voxel deposits of six sums): packed int64 atomics %.1f ms (%.1f M/s)",
+            deposits["packed_int64"]["median_ms"].get<double>(),
+            deposits["packed_int64"]["deposits_per_s"].get<double>() * 1e-6);
+        if (deposits["float32"].is_object())
+            std::printf(", float atomics %.1f ms (%.1f M/s)\n",
+                        deposits["float32"]["median_ms"].get<double>(),
+                        deposits["float32"]["deposits_per_s"].get<double>() * 1e-6);
+        else
+            std::printf(", float atomics: %s\n", deposits["float32"].get<std::string>().c_str());
+    }
+    return deposits;
+}
+
+// What the timed runs of one case measured, after a warm-up run that built everything once.
+struct CaseRuns {
+    std::map<std::string, std::vector<double>> pass_ms;  // GPU milliseconds of each pass, a sample a run
+    std::vector<double> host_ms, encode_ms;              // each run's wall time, and its PNG encode's
+    scene::RunStats last;                                // the last run's statistics
+    int64_t memory = 0;                                  // device memory the scene holds
+};
+
+// Runs case `c` on `scene_gpu` (new, holding nothing) once to warm up, then `runs` times timed.
+// `memory_before`: the device memory allocated before `scene_gpu` was made (what it adds is the case's).
+CaseRuns run_case(vk::Context& context, int64_t memory_before, scene::SceneGpu& scene_gpu, const BenchCase& c,
+                  const protocol::SceneDocument& document, const scene::WorldMeshes& worlds,
+                  const Uploads& uploads, int runs) {
+    CaseRuns measured;
+    scene::RunOptions run_options = scene::run_options_for(c.quality);
+    // A rebuild voxelizes every object again, though their coverage is resident.
+    run_options.revoxelize = c.move.is_null() && (c.edit & scene::kVoxelize);
+    scene_gpu.run(scene::kAllPasses, document, worlds, nullptr,
+                  run_options);  // warm-up: builds everything once
+    measured.memory = context.allocated_bytes() - memory_before;
+    // A moving case alternates between the document and the moved one.
+    const protocol::SceneDocument moved =
+        c.move.is_null() ? document : protocol::apply_merge_patch(document, c.move);
+    const scene::WorldMeshes moved_worlds = worlds_of(moved, uploads);
+    for (int r = 0; r < runs; ++r) {
+        const bool there = !c.move.is_null() && r % 2 == 0;
+        const protocol::SceneDocument& from = there ? document : moved;
+        const protocol::SceneDocument& to = there ? moved : document;
+        const scene::PassSet passes = c.move.is_null() ? c.edit : scene::passes_invalidated(from, to);
+        const auto start = Clock::now();
+        measured.last = scene_gpu.run(passes, to, there ? moved_worlds : worlds, nullptr, run_options);
+        const auto encode_start = Clock::now();
+        const auto png = image::encode_png(scene_gpu.read_ldr(), scene_gpu.width(), scene_gpu.height());
+        const auto end = Clock::now();
+        for (const auto& [name, ms] : measured.last.gpu_ms) measured.pass_ms[name].push_back(ms);
+        measured.encode_ms.push_back(std::chrono::duration<double, std::milli>(end - encode_start).count());
+        measured.host_ms.push_back(std::chrono::duration<double, std::milli>(end - start).count());
+    }
+    return measured;
+}
+
+// What a dense lattice of the scene's voxel over the same box would hold, field and light alike (the
+// budget's estimate; the measured memory's counterpart for a scene of one object).
+int64_t dense_lattice_bytes(const scene::SceneGpu& scene_gpu, const protocol::SceneDocument& document) {
+    const passes::GridGeometry& lattice = scene_gpu.grid();
+    return scene::estimate_scene_bytes(lattice, lattice.dims.count(), 0, lattice.dims.count(),
+                                       document.image.width, document.image.height);
+}
+
+// The report's entry for one case: its size, each pass's median and spread, and the throughputs.
+json case_entry(const BenchCase& c, const protocol::SceneDocument& document, const scene::SceneGpu& scene_gpu,
+                const CaseRuns& measured) {
+    json entry = {{"case", c.name},
+                  {"edit", c.edit_name},
+                  {"quality", c.quality == scene::Quality::interactive ? "interactive" : "still"},
+                  {"device_memory_mib", static_cast<double>(measured.memory) / (1 << 20)},
+                  {"voxels", scene_gpu.grid().dims.count()},
+                  {"photons", document.photons.count},
+                  {"pixels", uint64_t{document.image.width} * document.image.height},
+                  {"passes", json::object()}};
+    entry["field_atlas"] = {
+        {"clusters", scene_gpu.field_atlas().dense ? 0 : scene_gpu.field_atlas().clusters.size()},
+        {"voxels", scene_gpu.field_atlas().dims.count()}};
+    entry["dense_lattice_mib"] = static_cast<double>(dense_lattice_bytes(scene_gpu, document)) / (1 << 20);
+    double gpu_total = 0.0;
+    for (const auto& [name, samples] : measured.pass_ms) {
+        const Summary s = summarize(samples);
+        entry["passes"][name] = {{"median_ms", s.median}, {"min_ms", s.min}, {"max_ms", s.max}};
+        gpu_total += s.median;
+    }
+    const Summary host = summarize(measured.host_ms), encode = summarize(measured.encode_ms);
+    entry["host_ms"] = {{"median_ms", host.median}, {"min_ms", host.min}, {"max_ms", host.max}};
+    entry["encode_ms"] = encode.median;
+    entry["gpu_total_ms"] = gpu_total;
+    const scene::RunStats& last = measured.last;
+    if (measured.pass_ms.count("photons")) {
+        const double ms = summarize(measured.pass_ms.at("photons")).median;
+        entry["photons_per_s"] = static_cast<double>(last.photons_entered) / (ms * 1e-3);
+        entry["photon_steps_per_s"] = static_cast<double>(last.photon_steps) / (ms * 1e-3);
+        entry["mean_steps_per_photon"] = last.mean_steps_per_photon();
+        entry["mean_bounces_per_photon"] = last.mean_bounces_per_photon();
+    }
+    if (measured.pass_ms.count("view")) {
+        const double ms = summarize(measured.pass_ms.at("view")).median;
+        entry["view_steps_per_s"] = static_cast<double>(last.view_steps) / (ms * 1e-3);
+        entry["ns_per_pixel"] = ms * 1e6 / static_cast<double>(entry["pixels"].get<uint64_t>());
+    }
+    if (measured.pass_ms.count("voxelize"))
+        entry["ns_per_voxel_voxelize"] = summarize(measured.pass_ms.at("voxelize")).median * 1e6 /
+                                         static_cast<double>(scene_gpu.grid().dims.count());
+    return entry;
+}
+
+// The case's line of the table.
+void print_case(const BenchCase& c, const json& entry, const scene::SceneGpu& scene_gpu,
+                const CaseRuns& measured) {
+    std::printf("%-25s %-6s", c.name.c_str(), c.edit_name.c_str());
+    for (const char* pass : {"voxelize", "index_field", "octree", "photons", "view"}) {
+        if (!measured.pass_ms.count(pass)) continue;
+        const Summary s = summarize(measured.pass_ms.at(pass));
+        std::printf(" %s %.1f (%.1f-%.1f)", pass, s.median, s.min, s.max);
+    }
+    std::printf(" | encode %.1f host %.1f ms | %.0f MiB", summarize(measured.encode_ms).median,
+                summarize(measured.host_ms).median, static_cast<double>(measured.memory) / (1 << 20));
+    if (!scene_gpu.field_atlas().dense)
+        std::printf(" (a dense lattice: %.0f MiB; field atlas of %zu clusters, %.2f Mvoxels)",
+                    entry["dense_lattice_mib"].get<double>(), scene_gpu.field_atlas().clusters.size(),
+                    static_cast<double>(scene_gpu.field_atlas().dims.count()) * 1e-6);
+    if (entry.contains("photons_per_s"))
+        std::printf(" | %.2f Mphotons/s %.1f steps/photon %.2f bounces/photon %.1f Msteps/s",
+                    entry["photons_per_s"].get<double>() * 1e-6, entry["mean_steps_per_photon"].get<double>(),
+                    entry["mean_bounces_per_photon"].get<double>(),
+                    entry["photon_steps_per_s"].get<double>() * 1e-6);
+    if (entry.contains("view_steps_per_s"))
+        std::printf(" | view %.1f Msteps/s %.0f ns/pixel", entry["view_steps_per_s"].get<double>() * 1e-6,
+                    entry["ns_per_pixel"].get<double>());
+    std::printf("\n");
+    std::fflush(stdout);
+}
+
+}  // namespace
+
+int bench_command(const Arguments& args) {
+    if (!args.daemon.empty()) return bench_daemon(args.daemon, args.runs > 0 ? args.runs : 5, args.json);
+    vk::ContextOptions options;
+    options.device_name = args.device;
+    vk::Context context(vk::options_from_environment(options));
+    scene::PassKit kit(context);
+    const bool gpu = !context.is_cpu_device();
+    const int runs = args.runs > 0 ? args.runs : (gpu ? 10 : 3);
+    const Uploads uploads = bench_uploads(args);
+    const std::vector<BenchCase> cases = bench_cases(args, gpu);
 
     json report = {{"device", context.info().name}, {"driver", context.info().driver_name + " " + context.info().driver_info},
                    {"cpu_cores", std::thread::hardware_concurrency()}, {"runs", runs}, {"cases", json::array()}};
@@ -343,107 +496,19 @@ int bench_command(const Arguments& args) {
         std::printf("device: %s (%s %s), %u CPU cores, median of %d runs (min-max)\n", context.info().name.c_str(),
                     context.info().driver_name.c_str(), context.info().driver_info.c_str(),
                     std::thread::hardware_concurrency(), runs);
-    if (args.scene_file.empty() && args.only.empty()) {
-        const json deposits = deposit_benchmark(context, runs);
-        report["deposit_microbenchmark"] = deposits;
-        if (!args.json) {
-            std::printf("deposits (2^23 scattered voxel deposits of six sums): packed int64 atomics %.1f ms (%.1f M/s)",
-                        deposits["packed_int64"]["median_ms"].get<double>(),
-                        deposits["packed_int64"]["deposits_per_s"].get<double>() * 1e-6);
-            if (deposits["float32"].is_object())
-                std::printf(", float atomics %.1f ms (%.1f M/s)\n", deposits["float32"]["median_ms"].get<double>(),
-                            deposits["float32"]["deposits_per_s"].get<double>() * 1e-6);
-            else
-                std::printf(", float atomics: %s\n", deposits["float32"].get<std::string>().c_str());
-        }
-    }
+    // The whole suite measures the deposits too; one scene or a few cases of it do not.
+    if (args.scene_file.empty() && args.only.empty())
+        report["deposit_microbenchmark"] = report_deposits(context, runs, args.json);
     for (const auto& c : cases) {
         const auto document = protocol::parse_scene(c.scene);
         const scene::WorldMeshes worlds = worlds_of(document, uploads);
         const int64_t memory_before = context.allocated_bytes();
         scene::SceneGpu scene_gpu(kit);
-        scene::RunOptions run_options = scene::run_options_for(c.quality);
-        // A rebuild voxelizes every object again, though their coverage is resident.
-        run_options.revoxelize = c.move.is_null() && (c.edit & scene::kVoxelize);
-        scene_gpu.run(scene::kAllPasses, document, worlds, nullptr, run_options);  // warm-up: builds everything once
-        const int64_t memory = context.allocated_bytes() - memory_before;
-        std::map<std::string, std::vector<double>> pass_ms;
-        std::vector<double> host_ms, encode_ms;
-        scene::RunStats last;
-        // A moving case alternates between the document and the moved one.
-        const protocol::SceneDocument moved = c.move.is_null() ? document : protocol::apply_merge_patch(document, c.move);
-        const scene::WorldMeshes moved_worlds = worlds_of(moved, uploads);
-        for (int r = 0; r < runs; ++r) {
-            const bool there = !c.move.is_null() && r % 2 == 0;
-            const protocol::SceneDocument& from = there ? document : moved;
-            const protocol::SceneDocument& to = there ? moved : document;
-            const scene::PassSet passes = c.move.is_null() ? c.edit : scene::passes_invalidated(from, to);
-            const auto start = Clock::now();
-            last = scene_gpu.run(passes, to, there ? moved_worlds : worlds, nullptr, run_options);
-            const auto encode_start = Clock::now();
-            const auto png = image::encode_png(scene_gpu.read_ldr(), scene_gpu.width(), scene_gpu.height());
-            const auto end = Clock::now();
-            for (const auto& [name, ms] : last.gpu_ms) pass_ms[name].push_back(ms);
-            encode_ms.push_back(std::chrono::duration<double, std::milli>(end - encode_start).count());
-            host_ms.push_back(std::chrono::duration<double, std::milli>(end - start).count());
-        }
-        json entry = {{"case", c.name}, {"edit", c.edit_name}, {"quality", c.quality == scene::Quality::interactive ? "interactive" : "still"}, {"device_memory_mib", static_cast<double>(memory) / (1 << 20)},
-                      {"voxels", scene_gpu.grid().dims.count()}, {"photons", document.photons.count},
-                      {"pixels", uint64_t{document.image.width} * document.image.height}, {"passes", json::object()}};
-        // What a dense lattice of the same voxel over the same box would hold, field and light alike (the
-        // budget's estimate; the measured memory's counterpart for a scene of one object).
-        const passes::GridGeometry& lattice = scene_gpu.grid();
-        const int64_t dense = scene::estimate_scene_bytes(lattice, lattice.dims.count(), 0, lattice.dims.count(),
-                                                          document.image.width, document.image.height);
-        entry["field_atlas"] = {{"clusters", scene_gpu.field_atlas().dense ? 0 : scene_gpu.field_atlas().clusters.size()},
-                                {"voxels", scene_gpu.field_atlas().dims.count()}};
-        entry["dense_lattice_mib"] = static_cast<double>(dense) / (1 << 20);
-        double gpu_total = 0.0;
-        for (const auto& [name, samples] : pass_ms) {
-            const Summary s = summarize(samples);
-            entry["passes"][name] = {{"median_ms", s.median}, {"min_ms", s.min}, {"max_ms", s.max}};
-            gpu_total += s.median;
-        }
-        const Summary host = summarize(host_ms), encode = summarize(encode_ms);
-        entry["host_ms"] = {{"median_ms", host.median}, {"min_ms", host.min}, {"max_ms", host.max}};
-        entry["encode_ms"] = encode.median;
-        entry["gpu_total_ms"] = gpu_total;
-        if (pass_ms.count("photons")) {
-            const double ms = summarize(pass_ms["photons"]).median;
-            entry["photons_per_s"] = static_cast<double>(last.photons_entered) / (ms * 1e-3);
-            entry["photon_steps_per_s"] = static_cast<double>(last.photon_steps) / (ms * 1e-3);
-            entry["mean_steps_per_photon"] = last.mean_steps_per_photon();
-            entry["mean_bounces_per_photon"] = last.mean_bounces_per_photon();
-        }
-        if (pass_ms.count("view")) {
-            const double ms = summarize(pass_ms["view"]).median;
-            entry["view_steps_per_s"] = static_cast<double>(last.view_steps) / (ms * 1e-3);
-            entry["ns_per_pixel"] = ms * 1e6 / static_cast<double>(entry["pixels"].get<uint64_t>());
-        }
-        if (pass_ms.count("voxelize")) entry["ns_per_voxel_voxelize"] = summarize(pass_ms["voxelize"]).median * 1e6 / static_cast<double>(scene_gpu.grid().dims.count());
+        const CaseRuns measured =
+            run_case(context, memory_before, scene_gpu, c, document, worlds, uploads, runs);
+        const json entry = case_entry(c, document, scene_gpu, measured);
         report["cases"].push_back(entry);
-        if (!args.json) {
-            std::printf("%-25s %-6s", c.name.c_str(), c.edit_name.c_str());
-            for (const char* pass : {"voxelize", "index_field", "octree", "photons", "view"}) {
-                if (!pass_ms.count(pass)) continue;
-                const Summary s = summarize(pass_ms[pass]);
-                std::printf(" %s %.1f (%.1f-%.1f)", pass, s.median, s.min, s.max);
-            }
-            std::printf(" | encode %.1f host %.1f ms | %.0f MiB", encode.median, host.median, static_cast<double>(memory) / (1 << 20));
-            if (!scene_gpu.field_atlas().dense)
-                std::printf(" (a dense lattice: %.0f MiB; field atlas of %zu clusters, %.2f Mvoxels)",
-                            static_cast<double>(dense) / (1 << 20), scene_gpu.field_atlas().clusters.size(),
-                            static_cast<double>(scene_gpu.field_atlas().dims.count()) * 1e-6);
-            if (entry.contains("photons_per_s"))
-                std::printf(" | %.2f Mphotons/s %.1f steps/photon %.2f bounces/photon %.1f Msteps/s",
-                            entry["photons_per_s"].get<double>() * 1e-6, entry["mean_steps_per_photon"].get<double>(),
-                            entry["mean_bounces_per_photon"].get<double>(), entry["photon_steps_per_s"].get<double>() * 1e-6);
-            if (entry.contains("view_steps_per_s"))
-                std::printf(" | view %.1f Msteps/s %.0f ns/pixel", entry["view_steps_per_s"].get<double>() * 1e-6,
-                            entry["ns_per_pixel"].get<double>());
-            std::printf("\n");
-            std::fflush(stdout);
-        }
+        if (!args.json) print_case(c, entry, scene_gpu, measured);
     }
     report["scaling"] = scaling(report["cases"], args.json);
     if (args.json) std::cout << report.dump(2) << "\n";

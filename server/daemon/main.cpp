@@ -7,6 +7,7 @@
 #include <atomic>
 #include <csignal>
 #include <cstdio>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -39,123 +40,192 @@ const nlohmann::json kFirstScene = {
 // How many stored scenes the render thread prepares (pipelines, then volumes) before it takes requests.
 constexpr size_t kWarmUpScenes = 4;
 
-int run(const http::DaemonConfig& config) {
-    // Signals are taken by sigwait below only: block them before any thread starts, so all inherit it.
+// Signals are taken by sigwait (wait_for_stop_signal) only: blocked before any thread starts, so that
+// all inherit the mask. A client gone mid-write is an error code, not a death (SIGPIPE ignored).
+sigset_t block_stop_signals() {
     sigset_t stop_signals;
     sigemptyset(&stop_signals);
     sigaddset(&stop_signals, SIGINT);
     sigaddset(&stop_signals, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
-    std::signal(SIGPIPE, SIG_IGN);  // a client gone mid-write is an error code, not a death
-    // Every connection holds a descriptor: allow as many as the hard limit does (the soft one is often 1024).
+    std::signal(SIGPIPE, SIG_IGN);
+    return stop_signals;
+}
+
+// Every connection holds a descriptor: allow as many as the hard limit does (the soft one is often 1024).
+void raise_open_file_limit() {
     rlimit files{};
     if (getrlimit(RLIMIT_NOFILE, &files) == 0 && files.rlim_cur < files.rlim_max) {
         files.rlim_cur = files.rlim_max;
         setrlimit(RLIMIT_NOFILE, &files);
     }
+}
 
+// The embedded file store in --data-dir, or the shared PostgreSQL store of --store; on a first start
+// (no scene yet), with the scene kFirstScene describes.
+std::unique_ptr<scene::Store> open_store(const http::DaemonConfig& config) {
     protocol::Limits limits{config.max_resolution, config.max_photons, config.max_image};
     mesh::MeshLimits mesh_limits;
     mesh_limits.max_bytes = config.max_body;
-    std::unique_ptr<scene::Store> store_owner;
+    std::unique_ptr<scene::Store> store;
     if (config.store.empty())
-        store_owner = std::make_unique<scene::SceneStore>(config.data_dir, limits, mesh_limits, config.max_host_memory);
+        store =
+            std::make_unique<scene::SceneStore>(config.data_dir, limits, mesh_limits, config.max_host_memory);
     else
-        store_owner = std::make_unique<scene::PgSceneStore>(config.store, limits, mesh_limits, config.max_host_memory);
-    scene::Store& store = *store_owner;
-    if (store.size() == 0) {
+        store =
+            std::make_unique<scene::PgSceneStore>(config.store, limits, mesh_limits, config.max_host_memory);
+    if (store->size() == 0) {
         try {
-            store.create("default", kFirstScene);
+            store->create("default", kFirstScene);
         } catch (const scene::StoreError& e) {
             // Replicas sharing a store start together: one of them creates the scene.
-            if (e.status() != 409) throw;
+            if (e.failure() != scene::StoreFailure::taken) throw;
         }
     }
+    return store;
+}
 
-    // The device: a daemon without one still serves documents, health says why frames cannot render.
-    http::DeviceStatus device;
+// The Vulkan device and the renderer on it, or (all empty but `status.error`) why there is none.
+struct Device {
+    http::DeviceStatus status;
     std::unique_ptr<vk::Context> context;
     std::unique_ptr<scene::Renderer> renderer;
+};
+
+// A daemon without a device still serves documents; health says why frames cannot render.
+Device open_device(const http::DaemonConfig& config) {
+    Device device;
     try {
         vk::ContextOptions options;
         options.device_name = config.device;
-        context = std::make_unique<vk::Context>(vk::options_from_environment(options));
-        const vk::DeviceInfo& info = context->info();
-        device = {info.name,
-                  info.type,
-                  info.driver_name,
-                  info.driver_info,
-                  info.api_version,
-                  {},
-                  context->validation_enabled()};
+        device.context = std::make_unique<vk::Context>(vk::options_from_environment(options));
+        const vk::DeviceInfo& info = device.context->info();
+        device.status = {info.name,
+                         info.type,
+                         info.driver_name,
+                         info.driver_info,
+                         info.api_version,
+                         {},
+                         device.context->validation_enabled()};
         scene::RendererOptions renderer_options;
         renderer_options.max_resident_scenes = config.max_scenes;
         renderer_options.device_memory_budget = static_cast<int64_t>(config.max_device_memory);
-        renderer = std::make_unique<scene::Renderer>(*context, renderer_options);
+        device.renderer = std::make_unique<scene::Renderer>(*device.context, renderer_options);
     } catch (const std::exception& e) {
-        device.error = e.what();
-        renderer.reset();
-        context.reset();
+        device.status.error = e.what();
+        device.renderer.reset();
+        device.context.reset();
         std::fprintf(stderr, "refractd: no usable Vulkan device, frames will fail: %s\n", e.what());
     }
+    return device;
+}
+
+// While the first viewer's page loads, in the order its first frames need them: the pipelines of the
+// stored scenes' interactive frames (a few scenes; they share most pipelines), then the same scenes'
+// volumes (Renderer::prepare: most of a first frame's work; within the memory budget, evicting nothing),
+// then the still frames' pipelines. `default` first: the client opens it when the address names no
+// scene. Each step stops when a request waits, which then renders what is left. A scene that cannot
+// render now says so when asked for a frame.
+void warm_up_stored_scenes(scene::Renderer& renderer, const scene::Store& store, const scene::Assets& assets,
+                           const std::function<bool()>& waiting) {
+    std::vector<scene::SceneSnapshot> scenes = store.list();
+    std::stable_partition(scenes.begin(), scenes.end(),
+                          [](const scene::SceneSnapshot& snapshot) { return snapshot.id == "default"; });
+    scenes.resize(std::min(scenes.size(), kWarmUpScenes));
+    const std::vector<std::function<void(const scene::SceneSnapshot&)>> steps = {
+        [&](const scene::SceneSnapshot& s) {
+            renderer.warm_up(s.document, assets, scene::Quality::interactive);
+        },
+        [&](const scene::SceneSnapshot& s) { renderer.prepare(s.id, s.document, assets, waiting); },
+        [&](const scene::SceneSnapshot& s) { renderer.warm_up(s.document, assets, scene::Quality::still); },
+    };
+    for (const auto& step : steps)
+        for (const auto& snapshot : scenes) {
+            if (waiting()) return;
+            try {
+                step(snapshot);
+            } catch (const scene::RenderError&) {
+            }
+        }
+}
+
+// What the render queue's thread does with the device: render a frame, evict a scene, warm up, and
+// report after each frame (to the service once `service` points at it: the warm-up runs before). Without
+// a renderer, none of it: every frame fails with the device's error.
+struct RenderQueueSetup {
+    scene::RenderFunction render;
+    scene::RenderQueueOptions options;
+};
+
+RenderQueueSetup render_queue_setup(const http::DaemonConfig& config, Device& device,
+                                    const scene::Store& store, const scene::Assets& assets,
+                                    http::Metrics& metrics, std::atomic<http::Service*>& service) {
+    RenderQueueSetup setup;
+    setup.options.max_waiters = config.max_queue;
+    if (!device.renderer) return setup;
+    scene::Renderer& renderer = *device.renderer;
+    vk::Context& context = *device.context;
+    setup.render = [&](const scene::FrameRequest& request) {
+        return renderer.render(request.scene_id, request.document, assets, request.options);
+    };
+    setup.options.evict = [&](const std::string& scene_id) { renderer.evict(scene_id); };
+    setup.options.on_rendered = [&](const scene::FrameRequest&, const scene::FrameResult& frame) {
+        metrics.record_frame(frame);
+    };
+    setup.options.warm_up = [&](const std::function<bool()>& waiting) {
+        warm_up_stored_scenes(renderer, store, assets, waiting);
+    };
+    setup.options.after_frame = [&] {
+        http::Service* published = service.load();
+        if (!published) return;
+        published->scenes_resident.store(renderer.resident_scenes());
+        published->device_bytes.store(context.allocated_bytes());
+        published->validation_errors.store(context.validation_error_count());
+    };
+    return setup;
+}
+
+// The start-up line, and a loud warning when anyone on the network may use the daemon.
+void announce(const http::DaemonConfig& config, const http::DeviceStatus& device, const scene::Store& store) {
+    std::fprintf(stderr, "refractd %s: http://%s:%u  ws://%s:%u  device: %s  data: %s  scenes: %zu\n",
+                 REFRACT_VERSION, config.bind.c_str(), unsigned{config.port}, config.bind.c_str(),
+                 unsigned{config.effective_ws_port()}, device.error.empty() ? device.name.c_str() : "none",
+                 config.store.empty() ? config.data_dir.c_str() : store.location().c_str(), store.size());
+    if (!http::is_loopback(config.bind) && config.token.empty())
+        std::fprintf(
+            stderr,
+            "refractd: WARNING: OPEN TO THE NETWORK: listening on %s with no token (--open): anyone who "
+            "reaches this address can read, edit and delete every scene\n",
+            config.bind.c_str());
+}
+
+void wait_for_stop_signal(const sigset_t& stop_signals) {
+    int signal_number = 0;
+    sigwait(&stop_signals, &signal_number);
+    std::fprintf(stderr, "refractd: %s received, stopping\n", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
+}
+
+int run(const http::DaemonConfig& config) {
+    const sigset_t stop_signals = block_stop_signals();
+    raise_open_file_limit();
+    std::unique_ptr<scene::Store> store_owner = open_store(config);
+    scene::Store& store = *store_owner;
+    Device device = open_device(config);
 
     http::Metrics metrics;
     // Where the render thread publishes gauges, built after the queue: atomic, as its warm-up runs meanwhile.
     std::atomic<http::Service*> service_ptr = nullptr;
     scene::Assets assets = store.assets();
-    scene::RenderFunction render;
-    scene::RenderQueueOptions queue_options;
-    queue_options.max_waiters = config.max_queue;
-    if (renderer) {
-        render = [&](const scene::FrameRequest& request) {
-            return renderer->render(request.scene_id, request.document, assets, request.options);
-        };
-        queue_options.evict = [&](const std::string& scene_id) { renderer->evict(scene_id); };
-        queue_options.on_rendered = [&](const scene::FrameRequest&, const scene::FrameResult& frame) {
-            metrics.record_frame(frame);
-        };
-        // While the first viewer's page loads, in the order its first frames need them: the pipelines
-        // of the stored scenes' interactive frames (a few scenes; they share most pipelines), then the
-        // same scenes' volumes (Renderer::prepare: most of a first frame's work; within the memory
-        // budget, evicting nothing), then the still frames' pipelines. `default` first: the client
-        // opens it when the address names no scene. Each step stops when a request waits, which then
-        // renders what is left. A scene that cannot render now says so when asked for a frame.
-        queue_options.warm_up = [&](const std::function<bool()>& waiting) {
-            std::vector<scene::SceneSnapshot> scenes = store.list();
-            std::stable_partition(scenes.begin(), scenes.end(),
-                                  [](const scene::SceneSnapshot& snapshot) { return snapshot.id == "default"; });
-            scenes.resize(std::min(scenes.size(), kWarmUpScenes));
-            const std::vector<std::function<void(const scene::SceneSnapshot&)>> steps = {
-                [&](const scene::SceneSnapshot& s) { renderer->warm_up(s.document, assets, scene::Quality::interactive); },
-                [&](const scene::SceneSnapshot& s) { renderer->prepare(s.id, s.document, assets, waiting); },
-                [&](const scene::SceneSnapshot& s) { renderer->warm_up(s.document, assets, scene::Quality::still); },
-            };
-            for (const auto& step : steps)
-                for (const auto& snapshot : scenes) {
-                    if (waiting()) return;
-                    try {
-                        step(snapshot);
-                    } catch (const scene::RenderError&) {
-                    }
-                }
-        };
-        queue_options.after_frame = [&] {
-            http::Service* published = service_ptr.load();
-            if (!published) return;
-            published->scenes_resident.store(renderer->resident_scenes());
-            published->device_bytes.store(context->allocated_bytes());
-            published->validation_errors.store(context->validation_error_count());
-        };
-    }
-    scene::RenderQueue queue(render, queue_options, device.error);
-    http::Service service(config, store, queue, metrics, device);
+    RenderQueueSetup setup = render_queue_setup(config, device, store, assets, metrics, service_ptr);
+    scene::RenderQueue queue(setup.render, setup.options, device.status.error);
+    http::Service service(config, store, queue, metrics, device.status);
     service_ptr = &service;
     // On every way out, the render thread stops before the service it publishes to is gone.
     struct StopQueue {
         scene::RenderQueue& queue;
         ~StopQueue() { queue.stop(); }
     } stop_queue{queue};
-    if (context) service.device_bytes.store(context->allocated_bytes());
+    if (device.context) service.device_bytes.store(device.context->allocated_bytes());
 
     // Another replica's deletions and mesh and environment uploads reach this daemon's render queue as its own do (the
     // routes tell the queue of those made here; telling it twice costs nothing).
@@ -172,20 +242,8 @@ int run(const http::DaemonConfig& config) {
     api.bind();
     ws.start();
     std::thread http_thread([&] { api.serve(); });
-    std::fprintf(stderr, "refractd %s: http://%s:%u  ws://%s:%u  device: %s  data: %s  scenes: %zu\n",
-                 REFRACT_VERSION, config.bind.c_str(), unsigned{config.port}, config.bind.c_str(),
-                 unsigned{config.effective_ws_port()}, device.error.empty() ? device.name.c_str() : "none",
-                 config.store.empty() ? config.data_dir.c_str() : store.location().c_str(), store.size());
-
-    if (!http::is_loopback(config.bind) && config.token.empty())
-        std::fprintf(stderr,
-                     "refractd: WARNING: OPEN TO THE NETWORK: listening on %s with no token (--open): anyone who "
-                     "reaches this address can read, edit and delete every scene\n",
-                     config.bind.c_str());
-
-    int signal_number = 0;
-    sigwait(&stop_signals, &signal_number);
-    std::fprintf(stderr, "refractd: %s received, stopping\n", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
+    announce(config, device.status, store);
+    wait_for_stop_signal(stop_signals);
 
     // The render thread first: the frame it is on stops at its next part (acknowledged edits are durable
     // already), and every waiter is answered "shutting down", so that no HTTP worker waits on a frame.
@@ -195,8 +253,8 @@ int run(const http::DaemonConfig& config) {
     ws.stop();
     api.stop();
     http_thread.join();
-    renderer.reset();
-    context.reset();
+    device.renderer.reset();
+    device.context.reset();
     std::fprintf(stderr, "refractd: stopped\n");
     return 0;
 }

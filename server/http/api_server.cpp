@@ -35,6 +35,11 @@ void send_validation_error(Response& res, const protocol::ValidationError& e) {
     send_json(res, 422, {{"error", e.what()}, {"pointer", e.pointer()}, {"rule", e.rule()}});
 }
 
+// The store's refusal or failure, with the status http_status() gives its reason.
+void send_store_error(Response& res, const scene::StoreError& e) {
+    send_error(res, http_status(e.failure()), e.what());
+}
+
 // The media type of a Content-Type header, lower-cased, without parameters.
 std::string media_type(const Request& req) {
     std::string type = req.get_header_value("Content-Type");
@@ -138,6 +143,85 @@ struct ApiServer::Impl {
 
     bool authorize(const Request& req, Response& res) { return authorized(service, req, res); }
 
+    // ---------------------------------------------------------------------------------------------------
+    // The routes, in the order they are matched: the first whose method and pattern fit answers, so the
+    // catch-alls come last.
+
+    using Answer = void (Impl::*)(const Request&, Response&);
+
+    void route(const char* method, const std::string& pattern, Handler handler) {
+        // A store that cannot answer (a shared database gone away: 503) fails the request with its reason
+        // wherever in a route it is asked.
+        server.route(method, pattern, [handler = std::move(handler)](const Request& req, Response& res) {
+            try {
+                handler(req, res);
+            } catch (const scene::StoreError& e) {
+                send_store_error(res, e);
+            }
+        });
+    }
+
+    // A route anyone may use.
+    void route(const char* method, const std::string& pattern, Answer answer) {
+        route(method, pattern,
+              [this, answer](const Request& req, Response& res) { (this->*answer)(req, res); });
+    }
+
+    // A route for clients with the token (when one is configured); any other gets 401 and nothing else.
+    void route_authorized(const char* method, const std::string& pattern, Answer answer) {
+        route(method, pattern, [this, answer](const Request& req, Response& res) {
+            if (authorize(req, res)) (this->*answer)(req, res);
+        });
+    }
+
+    void routes() {
+        // The daemon itself: health for anyone, metrics with the token.
+        route("GET", "/api/health", &Impl::get_health);
+        route_authorized("GET", "/metrics", &Impl::get_metrics);
+        // Scenes: their documents, and edits to them.
+        route_authorized("GET", "/api/scenes", &Impl::list_scenes);
+        route_authorized("POST", "/api/scenes", &Impl::create_scene);
+        route_authorized("GET", R"(/api/scenes/([^/]+))", &Impl::get_scene);
+        route_authorized("PATCH", R"(/api/scenes/([^/]+))", &Impl::patch_scene);
+        route_authorized("DELETE", R"(/api/scenes/([^/]+))", &Impl::delete_scene);
+        // Frames: of the scene as it is, or after an edit sent with the request.
+        route_authorized("GET", R"(/api/scenes/([^/]+)/frame\.png)", &Impl::get_frame);
+        route_authorized("POST", R"(/api/scenes/([^/]+)/frame\.png)", &Impl::edit_and_get_frame);
+        // Uploads: a scene's imported index grid, meshes, environment maps.
+        route_authorized("PUT", R"(/api/scenes/([^/]+)/index-field)", &Impl::put_index_field);
+        route_authorized("DELETE", R"(/api/scenes/([^/]+)/index-field)", &Impl::delete_index_field);
+        route_authorized("GET", "/api/meshes", &Impl::list_meshes);
+        route_authorized("PUT", R"(/api/meshes/([^/]+))", &Impl::put_mesh);
+        route_authorized("DELETE", R"(/api/meshes/([^/]+))", &Impl::delete_mesh);
+        route_authorized("GET", "/api/environments", &Impl::list_environments);
+        route_authorized("PUT", R"(/api/environments/([^/]+))", &Impl::put_environment);
+        route_authorized("DELETE", R"(/api/environments/([^/]+))", &Impl::delete_environment);
+        // Example scenes (logic in http/examples.cpp).
+        route_authorized("GET", "/api/examples", &Impl::list_examples);
+        route_authorized("GET", R"(/api/examples/([^/]+))", &Impl::get_example);
+        // Whether an endpoint exists is told only to a client that may use it.
+        route_authorized("*", R"(/api/.*)", &Impl::unknown_endpoint);
+        route("GET", R"(/.*)", &Impl::serve_static);
+    }
+
+    // ---------------------------------------------------------------------------------------------------
+    // The daemon itself
+
+    void get_health(const Request& req, Response& res) {
+        json health = service.health();
+        // Behind a proxy (which adds X-Forwarded-For, as deploy/haproxy does) the WebSocket port is
+        // not reachable: upgrades go through the proxy's one port, which the HTTP port also serves.
+        if (req.has_header("X-Forwarded-For")) health["ws_on_http_port"] = true;
+        send_json(res, 200, health);
+    }
+
+    void get_metrics(const Request&, Response& res) {
+        res.set_content(service.metrics().prometheus_text(service.gauges()), "text/plain; version=0.0.4");
+    }
+
+    // ---------------------------------------------------------------------------------------------------
+    // Scenes
+
     // Parses a JSON body; false (and 400 sent) when it is not JSON. JSON has no NaN: such a body is
     // malformed.
     static bool parse_json(const std::string& body, Response& res, json& out) {
@@ -179,9 +263,97 @@ struct ApiServer::Impl {
         } catch (const protocol::ValidationError& e) {
             send_validation_error(res, e);
         } catch (const scene::StoreError& e) {
-            send_error(res, e.status(), e.what());
+            send_store_error(res, e);
         }
         return std::nullopt;
+    }
+
+    void list_scenes(const Request&, Response& res) {
+        json list = json::array();
+        for (const auto& scene : service.store().list())
+            list.push_back({{"id", scene.id}, {"revision", scene.revision}});
+        send_json(res, 200, {{"scenes", list}});
+    }
+
+    void create_scene(const Request& req, Response& res) {
+        const std::string& body = req.body;
+        if (!body.empty() && !is_json_type(media_type(req))) {
+            send_error(res, 415, "a scene document needs Content-Type: application/json");
+            return;
+        }
+        json document = json::object();
+        if (!body.empty() && !parse_json(body, res, document)) return;
+        try {
+            scene::SceneSnapshot created = service.store().create(req.get_param_value("id"), document);
+            res.set_header("Location", "/api/scenes/" + created.id);
+            res.set_header("ETag", etag(created.revision));
+            send_json(res, 201, scene_json(created));
+        } catch (const protocol::ValidationError& e) {
+            send_validation_error(res, e);
+        } catch (const scene::StoreError& e) {
+            send_store_error(res, e);
+        }
+    }
+
+    void get_scene(const Request& req, Response& res) {
+        auto snapshot = find_scene(req.matches[1], res);
+        if (!snapshot) return;
+        res.set_header("ETag", etag(snapshot->revision));
+        send_json(res, 200, scene_json(*snapshot));
+    }
+
+    void patch_scene(const Request& req, Response& res) {
+        std::string id = req.matches[1];
+        if (!find_scene(id, res)) return;
+        auto result = edit(req, res, id, req.body);
+        if (!result) return;
+        json invalidated = pass_list(
+            result->changed ? scene::passes_invalidated(result->before, result->after.document) : 0);
+        json answer = scene_json(result->after);
+        answer["invalidated"] = invalidated;
+        res.set_header("ETag", etag(result->after.revision));
+        send_json(res, 200, answer);
+    }
+
+    void delete_scene(const Request& req, Response& res) {
+        std::string id = req.matches[1];
+        try {
+            if (!scene::valid_scene_id(id) || !service.store().remove(id)) {
+                send_error(res, 404, "scene '" + id + "' does not exist");
+                return;
+            }
+        } catch (const scene::StoreError& e) {
+            send_store_error(res, e);
+            return;
+        }
+        service.queue().forget_scene(id);
+        res.status = 204;
+    }
+
+    // ---------------------------------------------------------------------------------------------------
+    // Frames
+
+    void get_frame(const Request& req, Response& res) {
+        auto snapshot = find_scene(req.matches[1], res);
+        if (!snapshot) return;
+        auto options = frame_options(req, res);
+        if (!options) return;
+        answer_frame(req, res, *snapshot, *options);
+    }
+
+    // A body is an edit, applied before the frame renders; without one this is get_frame.
+    void edit_and_get_frame(const Request& req, Response& res) {
+        std::string id = req.matches[1];
+        auto snapshot = find_scene(id, res);
+        if (!snapshot) return;
+        auto options = frame_options(req, res);  // before the edit: a bad query changes nothing
+        if (!options) return;
+        if (!req.body.empty()) {
+            auto result = edit(req, res, id, req.body);
+            if (!result) return;
+            snapshot = result->after;
+        }
+        answer_frame(req, res, *snapshot, *options, !req.body.empty());
     }
 
     struct FrameQuery {
@@ -286,18 +458,6 @@ struct ApiServer::Impl {
         res.set_content(reinterpret_cast<const char*>(frame.png.data()), frame.png.size(), "image/png");
     }
 
-    void route(const char* method, const std::string& pattern, Handler handler) {
-        // A store that cannot answer (a shared database gone away: 503) fails the request with its reason
-        // wherever in a route it is asked.
-        server.route(method, pattern, [handler = std::move(handler)](const Request& req, Response& res) {
-            try {
-                handler(req, res);
-            } catch (const scene::StoreError& e) {
-                send_error(res, e.status(), e.what());
-            }
-        });
-    }
-
     // 202: the edit is committed (its revision and ETag say which) but no frame comes with it; the client
     // fetches the frame later rather than repeating the edit.
     static void answer_edit_without_frame(Response& res, const scene::SceneSnapshot& snapshot,
@@ -307,232 +467,13 @@ struct ApiServer::Impl {
         send_json(res, 202, answer);
     }
 
-    void routes() {
-        route("GET", "/api/health", [this](const Request& req, Response& res) {
-            json health = service.health();
-            // Behind a proxy (which adds X-Forwarded-For, as deploy/haproxy does) the WebSocket port is
-            // not reachable: upgrades go through the proxy's one port, which the HTTP port also serves.
-            if (req.has_header("X-Forwarded-For")) health["ws_on_http_port"] = true;
-            send_json(res, 200, health);
-        });
+    // ---------------------------------------------------------------------------------------------------
+    // Uploads: a scene's imported index grid, meshes, environment maps
 
-        route("GET", "/metrics", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            res.set_content(service.metrics().prometheus_text(service.gauges()), "text/plain; version=0.0.4");
-        });
-
-        route("GET", "/api/scenes", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            json list = json::array();
-            for (const auto& scene : service.store().list())
-                list.push_back({{"id", scene.id}, {"revision", scene.revision}});
-            send_json(res, 200, {{"scenes", list}});
-        });
-
-        route("POST", "/api/scenes", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            const std::string& body = req.body;
-            if (!body.empty() && !is_json_type(media_type(req))) {
-                send_error(res, 415, "a scene document needs Content-Type: application/json");
-                return;
-            }
-            json document = json::object();
-            if (!body.empty() && !parse_json(body, res, document)) return;
-            try {
-                scene::SceneSnapshot created = service.store().create(req.get_param_value("id"), document);
-                res.set_header("Location", "/api/scenes/" + created.id);
-                res.set_header("ETag", etag(created.revision));
-                send_json(res, 201, scene_json(created));
-            } catch (const protocol::ValidationError& e) {
-                send_validation_error(res, e);
-            } catch (const scene::StoreError& e) {
-                send_error(res, e.status(), e.what());
-            }
-        });
-
-        route("GET", R"(/api/scenes/([^/]+))", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            auto snapshot = find_scene(req.matches[1], res);
-            if (!snapshot) return;
-            res.set_header("ETag", etag(snapshot->revision));
-            send_json(res, 200, scene_json(*snapshot));
-        });
-
-        route("PATCH", R"(/api/scenes/([^/]+))", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            std::string id = req.matches[1];
-            if (!find_scene(id, res)) return;
-            auto result = edit(req, res, id, req.body);
-            if (!result) return;
-            json invalidated = pass_list(
-                result->changed ? scene::passes_invalidated(result->before, result->after.document) : 0);
-            json answer = scene_json(result->after);
-            answer["invalidated"] = invalidated;
-            res.set_header("ETag", etag(result->after.revision));
-            send_json(res, 200, answer);
-        });
-
-        route("DELETE", R"(/api/scenes/([^/]+))", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            std::string id = req.matches[1];
-            try {
-                if (!scene::valid_scene_id(id) || !service.store().remove(id)) {
-                    send_error(res, 404, "scene '" + id + "' does not exist");
-                    return;
-                }
-            } catch (const scene::StoreError& e) {
-                send_error(res, e.status(), e.what());
-                return;
-            }
-            service.queue().forget_scene(id);
-            res.status = 204;
-        });
-
-        route("GET", R"(/api/scenes/([^/]+)/frame\.png)", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            auto snapshot = find_scene(req.matches[1], res);
-            if (!snapshot) return;
-            auto options = frame_options(req, res);
-            if (!options) return;
-            answer_frame(req, res, *snapshot, *options);
-        });
-
-        route("POST", R"(/api/scenes/([^/]+)/frame\.png)", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            std::string id = req.matches[1];
-            auto snapshot = find_scene(id, res);
-            if (!snapshot) return;
-            auto options = frame_options(req, res);  // before the edit: a bad query changes nothing
-            if (!options) return;
-            if (!req.body.empty()) {
-                auto result = edit(req, res, id, req.body);
-                if (!result) return;
-                snapshot = result->after;
-            }
-            answer_frame(req, res, *snapshot, *options, !req.body.empty());
-        });
-
-        route("PUT", R"(/api/scenes/([^/]+)/index-field)", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            put_index_field(req, res, req.matches[1], req.body);
-        });
-
-        route("DELETE", R"(/api/scenes/([^/]+)/index-field)", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            const std::string id = req.matches[1];
-            remove_asset(res, [&] { return service.store().remove_index_grid(id); },
-                         "scene '" + id + "' has no imported index grid");
-        });
-
-        route("GET", "/api/meshes", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            json list = json::array();
-            for (const auto& entry : service.store().list_meshes()) {
-                json item = scene::to_json(entry.report);
-                item["name"] = entry.name;
-                item["reference"] = "upload:" + entry.name;
-                list.push_back(item);
-            }
-            send_json(res, 200, {{"meshes", list}});
-        });
-
-        route("PUT", R"(/api/meshes/([^/]+))", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            std::string name = req.matches[1];
-            try {
-                scene::MeshEntry entry = service.store().put_mesh(name, req.body);
-                service.queue().forget_cached_frames();
-                json answer = scene::to_json(entry.report);
-                answer["name"] = entry.name;
-                answer["reference"] = "upload:" + entry.name;
-                send_json(res, 201, answer);
-            } catch (const mesh::MeshError& e) {
-                send_error(res, 400, std::string("unusable OBJ: ") + e.what());
-            } catch (const scene::StoreError& e) {
-                send_error(res, e.status(), e.what());
-            }
-        });
-
-        route("DELETE", R"(/api/meshes/([^/]+))", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            const std::string name = req.matches[1];
-            remove_asset(res, [&] { return service.store().remove_mesh(name); }, "no uploaded mesh named '" + name + "'");
-        });
-
-        route("GET", "/api/environments", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            json list = json::array();
-            for (const auto& entry : service.store().list_environments())
-                list.push_back({{"name", entry.name}, {"width", entry.width}, {"height", entry.height},
-                                {"built_in", entry.built_in}});
-            send_json(res, 200, {{"environments", list}});
-        });
-
-        route("PUT", R"(/api/environments/([^/]+))", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            std::string name = req.matches[1];
-            try {
-                scene::EnvironmentEntry entry = service.store().put_environment(name, req.body);
-                service.queue().forget_cached_frames();
-                send_json(res, 201, {{"name", entry.name}, {"width", entry.width}, {"height", entry.height},
-                                     {"built_in", false}});
-            } catch (const image::EnvironmentError& e) {
-                send_error(res, 400, std::string("unusable environment: ") + e.what());
-            } catch (const scene::StoreError& e) {
-                send_error(res, e.status(), e.what());
-            }
-        });
-
-        route("DELETE", R"(/api/environments/([^/]+))", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            const std::string name = req.matches[1];
-            if (image::built_in_environment(name)) {
-                res.set_header("Allow", "GET");
-                send_error(res, 405, "\"" + name + "\" is a built-in environment; it cannot be deleted");
-                return;
-            }
-            remove_asset(res, [&] { return service.store().remove_environment(name); },
-                         "no uploaded environment named '" + name + "'");
-        });
-
-        // Example scenes (logic in http/examples.cpp).
-        route("GET", "/api/examples", [this](const Request& req, Response& res) {
-            if (authorize(req, res)) send_json(res, 200, examples_index(config().examples_dir));
-        });
-        route("GET", R"(/api/examples/([^/]+))", [this](const Request& req, Response& res) {
-            if (!authorize(req, res)) return;
-            ExampleFile example = read_example(config().examples_dir, req.matches[1]);
-            if (example.status == 200) send_json(res, 200, example.document);
-            else send_error(res, example.status, example.error);
-        });
-
-        // Whether an endpoint exists is told only to a client that may use it.
-        route("*", R"(/api/.*)", [this](const Request& req, Response& res) {
-            if (authorize(req, res)) send_error(res, 404, "no such endpoint: " + req.path);
-        });
-
-        route("GET", R"(/.*)", [this](const Request& req, Response& res) { serve_static(req, res); });
-    }
-
-    // Answers a DELETE of an asset: 204 when `remove` deleted it, 404 with `unknown` when there was none,
-    // 409 with the ids of the scenes that still use it.
-    template <typename Remove>
-    void remove_asset(Response& res, Remove remove, const std::string& unknown) {
-        try {
-            if (!remove()) {
-                send_error(res, 404, unknown);
-                return;
-            }
-        } catch (const scene::AssetInUse& e) {
-            send_json(res, 409, {{"error", e.what()}, {"scenes", e.scenes()}});
-            return;
-        }
-        // Frames rendered with it answer no more, as after an upload (none should use it: nothing names it).
-        service.queue().forget_cached_frames();
-        res.status = 204;
-    }
-
-    void put_index_field(const Request& req, Response& res, const std::string& id, const std::string& body) {
+    // The grid's sides and bounds in the query, its values (little-endian float32, x fastest) the body.
+    void put_index_field(const Request& req, Response& res) {
+        const std::string id = req.matches[1];
+        const std::string& body = req.body;
         if (!find_scene(id, res)) return;
         bool bad = false;
         scene::IndexGrid grid;
@@ -576,10 +517,126 @@ struct ApiServer::Impl {
             res.set_header("ETag", etag(result.after.revision));
             send_json(res, 200, answer);
         } catch (const scene::StoreError& e) {
-            send_error(res, e.status(), e.what());
+            send_store_error(res, e);
         } catch (const protocol::ValidationError& e) {
             send_validation_error(res, e);
         }
+    }
+
+    void delete_index_field(const Request& req, Response& res) {
+        const std::string id = req.matches[1];
+        remove_asset(
+            res, [&] { return service.store().remove_index_grid(id); },
+            "scene '" + id + "' has no imported index grid");
+    }
+
+    void list_meshes(const Request&, Response& res) {
+        json list = json::array();
+        for (const auto& entry : service.store().list_meshes()) {
+            json item = scene::to_json(entry.report);
+            item["name"] = entry.name;
+            item["reference"] = "upload:" + entry.name;
+            list.push_back(item);
+        }
+        send_json(res, 200, {{"meshes", list}});
+    }
+
+    void put_mesh(const Request& req, Response& res) {
+        std::string name = req.matches[1];
+        try {
+            scene::MeshEntry entry = service.store().put_mesh(name, req.body);
+            service.queue().forget_cached_frames();
+            json answer = scene::to_json(entry.report);
+            answer["name"] = entry.name;
+            answer["reference"] = "upload:" + entry.name;
+            send_json(res, 201, answer);
+        } catch (const mesh::MeshError& e) {
+            send_error(res, 400, std::string("unusable OBJ: ") + e.what());
+        } catch (const scene::StoreError& e) {
+            send_store_error(res, e);
+        }
+    }
+
+    void delete_mesh(const Request& req, Response& res) {
+        const std::string name = req.matches[1];
+        remove_asset(
+            res, [&] { return service.store().remove_mesh(name); }, "no uploaded mesh named '" + name + "'");
+    }
+
+    void list_environments(const Request&, Response& res) {
+        json list = json::array();
+        for (const auto& entry : service.store().list_environments())
+            list.push_back({{"name", entry.name},
+                            {"width", entry.width},
+                            {"height", entry.height},
+                            {"built_in", entry.built_in}});
+        send_json(res, 200, {{"environments", list}});
+    }
+
+    void put_environment(const Request& req, Response& res) {
+        std::string name = req.matches[1];
+        try {
+            scene::EnvironmentEntry entry = service.store().put_environment(name, req.body);
+            service.queue().forget_cached_frames();
+            send_json(res, 201,
+                      {{"name", entry.name},
+                       {"width", entry.width},
+                       {"height", entry.height},
+                       {"built_in", false}});
+        } catch (const image::EnvironmentError& e) {
+            send_error(res, 400, std::string("unusable environment: ") + e.what());
+        } catch (const scene::StoreError& e) {
+            send_store_error(res, e);
+        }
+    }
+
+    void delete_environment(const Request& req, Response& res) {
+        const std::string name = req.matches[1];
+        if (image::built_in_environment(name)) {
+            res.set_header("Allow", "GET");
+            send_error(res, 405, "\"" + name + "\" is a built-in environment; it cannot be deleted");
+            return;
+        }
+        remove_asset(
+            res, [&] { return service.store().remove_environment(name); },
+            "no uploaded environment named '" + name + "'");
+    }
+
+    // Answers a DELETE of an asset: 204 when `remove` deleted it, 404 with `unknown` when there was none,
+    // 409 with the ids of the scenes that still use it.
+    template <typename Remove>
+    void remove_asset(Response& res, Remove remove, const std::string& unknown) {
+        try {
+            if (!remove()) {
+                send_error(res, 404, unknown);
+                return;
+            }
+        } catch (const scene::AssetInUse& e) {
+            send_json(res, http_status(e.failure()), {{"error", e.what()}, {"scenes", e.scenes()}});
+            return;
+        }
+        // Frames rendered with it answer no more, as after an upload (none should use it: nothing names it).
+        service.queue().forget_cached_frames();
+        res.status = 204;
+    }
+
+    // ---------------------------------------------------------------------------------------------------
+    // Examples, and what no other route answers
+
+    void list_examples(const Request&, Response& res) {
+        send_json(res, 200, examples_index(config().examples_dir));
+    }
+
+    void get_example(const Request& req, Response& res) {
+        ExampleFile example = read_example(config().examples_dir, req.matches[1]);
+        if (example.status == 200)
+            send_json(res, 200, example.document);
+        else
+            send_error(res, example.status, example.error);
+    }
+
+    void unknown_endpoint(const Request& req, Response& res) {
+        send_error(res, 404, "no such endpoint: " + req.path);
     }
 
     void serve_static(const Request& req, Response& res) {

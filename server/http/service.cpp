@@ -107,6 +107,31 @@ nlohmann::json Service::health() const {
     return health;
 }
 
+int http_status(scene::StoreFailure failure) {
+    using Failure = scene::StoreFailure;
+    switch (failure) {
+        case Failure::invalid:
+            return 400;
+        case Failure::not_found:
+            return 404;
+        // The request collides with the store's state, which the client can change (pick another id,
+        // delete the scenes that name the asset) or cannot (revisions used up): 409 either way.
+        case Failure::taken:
+        case Failure::in_use:
+        case Failure::out_of_revisions:
+            return 409;
+        case Failure::stale_revision:
+            return 412;  // the If-Match precondition failed
+        case Failure::too_large:
+            return 413;
+        case Failure::broken:
+            return 500;
+        case Failure::unavailable:
+            return 503;
+    }
+    return 500;  // not reached: every failure is named above (-Wswitch says when one is added)
+}
+
 nlohmann::json parse_json_document(const std::string& text) {
     constexpr int kMaxDepth = 16;
     using Event = nlohmann::json::parse_event_t;

@@ -62,6 +62,13 @@ private:
     std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
 };
 
+// The HTTP status that answers a store's failure: the one place where the store's reasons become
+// statuses (404 not found, 409 for a conflict with what is stored, 412 for a stale If-Match, 503 when
+// retrying may help, ...). The API's routes answer every StoreError with it and the error's message;
+// the WebSocket endpoint refuses an upgrade whose scene it cannot look up with 503 whatever the failure,
+// and tells an open session only the message.
+int http_status(scene::StoreFailure failure);
+
 // Parses a request's JSON, refusing nesting deeper than any scene document needs (a deep body would
 // otherwise cost stack in every recursive consumer). Throws nlohmann::json::exception or
 // std::invalid_argument.

@@ -314,8 +314,21 @@ std::vector<Blob> bunny_blobs() {
     return blobs;
 }
 
-Mesh polygonize_blobs(const std::vector<Blob>& blobs, double cell) {
-    // Grid covering every blob's support (2x radii) plus one cell, so the border is outside.
+// The blobs' summed field, sampled at the nodes of a grid that covers every blob's support (2x radii)
+// plus one cell, so that the grid's border lies outside the surface.
+struct SampledField {
+    glm::dvec3 lo{0.0};
+    double cell = 0.0;
+    std::array<size_t, 3> n{};  // nodes per axis
+    std::vector<double> values;
+
+    size_t node_id(size_t x, size_t y, size_t z) const { return (z * n[1] + y) * n[0] + x; }
+    glm::dvec3 node_pos(size_t x, size_t y, size_t z) const {
+        return lo + cell * glm::dvec3(static_cast<double>(x), static_cast<double>(y), static_cast<double>(z));
+    }
+};
+
+SampledField sample_blobs(const std::vector<Blob>& blobs, double cell) {
     glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
     for (const Blob& b : blobs) {
         const double r = 2.0 * std::max({b.radii.x, b.radii.y, b.radii.z});
@@ -323,121 +336,170 @@ Mesh polygonize_blobs(const std::vector<Blob>& blobs, double cell) {
         hi = glm::max(hi, b.center + glm::dvec3(r));
     }
     lo -= glm::dvec3(cell);
-    std::array<size_t, 3> n{};  // nodes per axis
+    SampledField field;
+    field.lo = lo;
+    field.cell = cell;
     for (int a = 0; a < 3; ++a) {
-        n[static_cast<size_t>(a)] = static_cast<size_t>(std::ceil((hi[a] + cell - lo[a]) / cell)) + 1;
+        field.n[static_cast<size_t>(a)] = static_cast<size_t>(std::ceil((hi[a] + cell - lo[a]) / cell)) + 1;
     }
-    const auto node_id = [&](size_t x, size_t y, size_t z) { return (z * n[1] + y) * n[0] + x; };
-    const auto node_pos = [&](size_t x, size_t y, size_t z) {
-        return lo + cell * glm::dvec3(static_cast<double>(x), static_cast<double>(y), static_cast<double>(z));
-    };
-
-    std::vector<double> field(n[0] * n[1] * n[2]);
+    const std::array<size_t, 3>& n = field.n;
+    field.values.resize(n[0] * n[1] * n[2]);
     for (size_t z = 0; z < n[2]; ++z) {
         for (size_t y = 0; y < n[1]; ++y) {
             for (size_t x = 0; x < n[0]; ++x) {
-                const glm::dvec3 p = node_pos(x, y, z);
+                const glm::dvec3 p = field.node_pos(x, y, z);
                 double f = 0.0;
                 for (const Blob& b : blobs) f += blob_field(b, p);
-                field[node_id(x, y, z)] = f;
+                field.values[field.node_id(x, y, z)] = f;
             }
         }
     }
+    return field;
+}
 
-    Mesh mesh;
-    std::unordered_map<uint64_t, uint32_t> edge_vertex;
-    const auto vertex_on_edge = [&](size_t a, glm::dvec3 pa, size_t b, glm::dvec3 pb) -> uint32_t {
+// Corner c of a cube: bit 0 = +x, bit 1 = +y, bit 2 = +z.
+glm::ivec3 corner_offset(int c) {
+    return glm::ivec3(c & 1, (c >> 1) & 1, (c >> 2) & 1);
+}
+
+// The step from corner `from` to corner `to`.
+glm::ivec3 corner_step(int to, int from) {
+    return corner_offset(to) - corner_offset(from);
+}
+
+int det(glm::ivec3 a, glm::ivec3 b, glm::ivec3 c) {
+    return a.x * (b.y * c.z - b.z * c.y) - a.y * (b.x * c.z - b.z * c.x) + a.z * (b.x * c.y - b.y * c.x);
+}
+
+// Marching tetrahedra over a sampled field. Each cube the surface crosses splits into six tetrahedra,
+// and each tetrahedron the surface crosses adds a triangle or a quad. The vertex on a grid edge is made
+// once and shared by every face that crosses that edge, so the surface comes out closed.
+class TetrahedraPolygonizer {
+public:
+    explicit TetrahedraPolygonizer(const SampledField& field) : field_(field) {}
+
+    Mesh polygonize() {
+        const std::array<size_t, 3>& n = field_.n;
+        for (size_t z = 0; z + 1 < n[2]; ++z) {
+            for (size_t y = 0; y + 1 < n[1]; ++y) {
+                for (size_t x = 0; x + 1 < n[0]; ++x) polygonize_cube(x, y, z);
+            }
+        }
+        return std::move(mesh_);
+    }
+
+private:
+    // A cube's corners, by number (corner_offset): their nodes and positions.
+    struct Cube {
+        std::array<size_t, 8> id{};
+        std::array<glm::dvec3, 8> pos{};
+    };
+
+    bool inside(size_t node) const { return field_.values[node] > kIso; }
+
+    void polygonize_cube(size_t x, size_t y, size_t z) {
+        Cube cube;
+        bool any_in = false, any_out = false;
+        for (int c = 0; c < 8; ++c) {
+            const glm::ivec3 o = corner_offset(c);
+            const size_t cx = x + static_cast<size_t>(o.x), cy = y + static_cast<size_t>(o.y),
+                         cz = z + static_cast<size_t>(o.z);
+            cube.id[static_cast<size_t>(c)] = field_.node_id(cx, cy, cz);
+            cube.pos[static_cast<size_t>(c)] = field_.node_pos(cx, cy, cz);
+            (inside(cube.id[static_cast<size_t>(c)]) ? any_in : any_out) = true;
+        }
+        if (!any_in || !any_out) return;
+        // The Kuhn split: six tetrahedra around the main diagonal 0-7, one for each order of the axes.
+        constexpr std::array<std::array<int, 3>, 6> kAxisOrders{
+            {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}}};
+        for (const auto& order : kAxisOrders) {
+            const int v1 = 1 << order[0], v2 = v1 | (1 << order[1]);
+            polygonize_tetrahedron(cube, {0, v1, v2, 7});
+        }
+    }
+
+    void polygonize_tetrahedron(const Cube& cube, const std::array<int, 4>& tet) {
+        std::array<int, 4> in{}, out{};
+        int n_in = 0, n_out = 0;
+        for (const int c : tet) {
+            if (inside(cube.id[static_cast<size_t>(c)])) {
+                in[static_cast<size_t>(n_in++)] = c;
+            } else {
+                out[static_cast<size_t>(n_out++)] = c;
+            }
+        }
+        if (n_in == 0 || n_out == 0) return;
+        if (n_in == 1) {
+            add_lone_corner(cube, in[0], {out[0], out[1], out[2]}, true);
+        } else if (n_in == 3) {
+            add_lone_corner(cube, out[0], {in[0], in[1], in[2]}, false);
+        } else {
+            add_quad(cube, in[0], in[1], out[0], out[1]);
+        }
+    }
+
+    // One corner alone on its side (inside when `lone_inside`): a triangle across its three edges. The
+    // sign of the corner tetrahedron's determinant fixes the winding, whatever the crossing points.
+    void add_lone_corner(const Cube& cube, int lone, const std::array<int, 3>& others, bool lone_inside) {
+        glm::uvec3 tri(edge_vertex(cube, lone, others[0]), edge_vertex(cube, lone, others[1]),
+                       edge_vertex(cube, lone, others[2]));
+        const int d =
+            det(corner_step(others[0], lone), corner_step(others[1], lone), corner_step(others[2], lone));
+        const bool outward = lone_inside ? d > 0 : d < 0;
+        if (!outward) std::swap(tri.y, tri.z);
+        mesh_.triangles.push_back(tri);
+    }
+
+    // Two corners on each side: the quad a-b-c-d around edges (i0,o0) (i0,o1) (i1,o1) (i1,o0), as two
+    // triangles split along its shorter diagonal.
+    void add_quad(const Cube& cube, int i0, int i1, int o0, int o1) {
+        std::array<uint32_t, 4> q{edge_vertex(cube, i0, o0), edge_vertex(cube, i0, o1),
+                                  edge_vertex(cube, i1, o1), edge_vertex(cube, i1, o0)};
+        if (det(corner_step(o0, i0), corner_step(o1, i0), corner_step(i1, i0)) < 0) std::swap(q[1], q[3]);
+        const auto p = [&](size_t k) { return to_d(mesh_.positions[q[k]]); };
+        const double ac = glm::dot(p(2) - p(0), p(2) - p(0));
+        const double bd = glm::dot(p(3) - p(1), p(3) - p(1));
+        if (ac <= bd) {
+            mesh_.triangles.emplace_back(q[0], q[1], q[2]);
+            mesh_.triangles.emplace_back(q[0], q[2], q[3]);
+        } else {
+            mesh_.triangles.emplace_back(q[0], q[1], q[3]);
+            mesh_.triangles.emplace_back(q[1], q[2], q[3]);
+        }
+    }
+
+    // The vertex where the surface crosses the edge between corners `a` and `b` of `cube`.
+    uint32_t edge_vertex(const Cube& cube, int a, int b) {
+        return vertex_on_edge(cube.id[static_cast<size_t>(a)], cube.pos[static_cast<size_t>(a)],
+                              cube.id[static_cast<size_t>(b)], cube.pos[static_cast<size_t>(b)]);
+    }
+
+    // The vertex on the grid edge between nodes `a` and `b`, made by the first face that crosses it.
+    uint32_t vertex_on_edge(size_t a, glm::dvec3 pa, size_t b, glm::dvec3 pb) {
         if (a > b) {
             std::swap(a, b);
             std::swap(pa, pb);
         }
         const uint64_t key = (static_cast<uint64_t>(a) << 32) | static_cast<uint64_t>(b);
-        const auto found = edge_vertex.find(key);
-        if (found != edge_vertex.end()) return found->second;
-        const double fa = field[a], fb = field[b];
+        const auto found = edge_vertices_.find(key);
+        if (found != edge_vertices_.end()) return found->second;
+        const double fa = field_.values[a], fb = field_.values[b];
         // Clamped away from the nodes so no two vertices can meet when rounded to 5 decimals.
         const double t = std::clamp((kIso - fa) / (fb - fa), 0.02, 0.98);
-        const uint32_t index = to_index(mesh.positions.size());
-        mesh.positions.push_back(glm::vec3(pa + t * (pb - pa)));
-        edge_vertex.emplace(key, index);
+        const uint32_t index = to_index(mesh_.positions.size());
+        mesh_.positions.push_back(glm::vec3(pa + t * (pb - pa)));
+        edge_vertices_.emplace(key, index);
         return index;
-    };
-
-    // Corner c of a cube: bit 0 = +x, bit 1 = +y, bit 2 = +z.
-    const auto corner_offset = [](int c) { return glm::ivec3(c & 1, (c >> 1) & 1, (c >> 2) & 1); };
-    const auto det = [](glm::ivec3 a, glm::ivec3 b, glm::ivec3 c) {
-        return a.x * (b.y * c.z - b.z * c.y) - a.y * (b.x * c.z - b.z * c.x) + a.z * (b.x * c.y - b.y * c.x);
-    };
-    constexpr std::array<std::array<int, 3>, 6> kAxisOrders{
-        {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}}};
-
-    for (size_t z = 0; z + 1 < n[2]; ++z) {
-        for (size_t y = 0; y + 1 < n[1]; ++y) {
-            for (size_t x = 0; x + 1 < n[0]; ++x) {
-                std::array<size_t, 8> id{};
-                std::array<glm::dvec3, 8> pos{};
-                bool any_in = false, any_out = false;
-                for (int c = 0; c < 8; ++c) {
-                    const glm::ivec3 o = corner_offset(c);
-                    const size_t cx = x + static_cast<size_t>(o.x), cy = y + static_cast<size_t>(o.y),
-                                 cz = z + static_cast<size_t>(o.z);
-                    id[static_cast<size_t>(c)] = node_id(cx, cy, cz);
-                    pos[static_cast<size_t>(c)] = node_pos(cx, cy, cz);
-                    (field[id[static_cast<size_t>(c)]] > kIso ? any_in : any_out) = true;
-                }
-                if (!any_in || !any_out) continue;
-
-                for (const auto& order : kAxisOrders) {
-                    const int v1 = 1 << order[0], v2 = v1 | (1 << order[1]);
-                    const std::array<int, 4> tet{0, v1, v2, 7};
-                    std::array<int, 4> in{}, out{};
-                    int n_in = 0, n_out = 0;
-                    for (const int c : tet) {
-                        if (field[id[static_cast<size_t>(c)]] > kIso) {
-                            in[static_cast<size_t>(n_in++)] = c;
-                        } else {
-                            out[static_cast<size_t>(n_out++)] = c;
-                        }
-                    }
-                    if (n_in == 0 || n_out == 0) continue;
-                    const auto ev = [&](int a, int b) {
-                        return vertex_on_edge(id[static_cast<size_t>(a)], pos[static_cast<size_t>(a)],
-                                              id[static_cast<size_t>(b)], pos[static_cast<size_t>(b)]);
-                    };
-                    const auto off = [&](int a, int from) { return corner_offset(a) - corner_offset(from); };
-                    if (n_in == 1 || n_in == 3) {
-                        // One corner alone on its side: a triangle across its three edges. The sign of the
-                        // corner tetrahedron's determinant fixes the winding, whatever the crossing points.
-                        const int lone = n_in == 1 ? in[0] : out[0];
-                        const std::array<int, 3> others = n_in == 1
-                                                              ? std::array<int, 3>{out[0], out[1], out[2]}
-                                                              : std::array<int, 3>{in[0], in[1], in[2]};
-                        glm::uvec3 tri(ev(lone, others[0]), ev(lone, others[1]), ev(lone, others[2]));
-                        const int d = det(off(others[0], lone), off(others[1], lone), off(others[2], lone));
-                        const bool outward = n_in == 1 ? d > 0 : d < 0;
-                        if (!outward) std::swap(tri.y, tri.z);
-                        mesh.triangles.push_back(tri);
-                    } else {
-                        // Two and two: the quad a-b-c-d around edges (i0,o0) (i0,o1) (i1,o1) (i1,o0).
-                        const int i0 = in[0], i1 = in[1], o0 = out[0], o1 = out[1];
-                        std::array<uint32_t, 4> q{ev(i0, o0), ev(i0, o1), ev(i1, o1), ev(i1, o0)};
-                        if (det(off(o0, i0), off(o1, i0), off(i1, i0)) < 0) std::swap(q[1], q[3]);
-                        const auto p = [&](size_t k) { return to_d(mesh.positions[q[k]]); };
-                        const double ac = glm::dot(p(2) - p(0), p(2) - p(0));
-                        const double bd = glm::dot(p(3) - p(1), p(3) - p(1));
-                        if (ac <= bd) {
-                            mesh.triangles.emplace_back(q[0], q[1], q[2]);
-                            mesh.triangles.emplace_back(q[0], q[2], q[3]);
-                        } else {
-                            mesh.triangles.emplace_back(q[0], q[1], q[3]);
-                            mesh.triangles.emplace_back(q[1], q[2], q[3]);
-                        }
-                    }
-                }
-            }
-        }
     }
-    return mesh;
+
+    const SampledField& field_;
+    Mesh mesh_;
+    std::unordered_map<uint64_t, uint32_t> edge_vertices_;  // by (lower node, higher node)
+};
+
+Mesh polygonize_blobs(const std::vector<Blob>& blobs, double cell) {
+    const SampledField field = sample_blobs(blobs, cell);
+    return TetrahedraPolygonizer(field).polygonize();
 }
 
 }  // namespace

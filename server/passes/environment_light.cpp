@@ -7,39 +7,29 @@
 
 namespace refract::passes {
 
-bool environment_lights(const protocol::SceneDocument& document) {
-    const auto& environment = document.environment;
-    if (environment.type == protocol::EnvironmentKind::sky || !environment.lights || environment.intensity <= 0.0)
-        return false;
-    if (environment.type == protocol::EnvironmentKind::uniform)
-        return std::max({environment.color[0], environment.color[1], environment.color[2]}) > 0.0;
-    return true;
-}
-
-EnvironmentLight make_environment_light(const protocol::SceneDocument& document, const image::EnvironmentMap* image) {
+EnvironmentLight make_environment_light(const EnvironmentSource& source) {
     EnvironmentLight light;
-    const auto& environment = document.environment;
-    if (environment.type == protocol::EnvironmentKind::sky) {
+    if (source.kind == EnvironmentSource::Kind::sky) {
         light.texels.assign(2, glm::vec4(0.0f));
         return light;
     }
     std::vector<float> rgb;
-    if (environment.type == protocol::EnvironmentKind::uniform) {
+    if (source.kind == EnvironmentSource::Kind::uniform) {
         light.width = 1;
         light.height = 2;
         for (int row = 0; row < 2; ++row)
-            for (double c : environment.color) rgb.push_back(static_cast<float>(c));
+            for (int c = 0; c < 3; ++c) rgb.push_back(static_cast<float>(source.color[c]));
     } else {
-        if (image == nullptr || image->width == 0)
-            throw std::invalid_argument("environment image '" + environment.image + "' was not given");
-        light.width = image->width;
-        light.height = image->height;
-        rgb = image->rgb;
+        if (source.image == nullptr || source.image->width == 0)
+            throw std::invalid_argument("environment image '" + source.name + "' was not given");
+        light.width = source.image->width;
+        light.height = source.image->height;
+        rgb = source.image->rgb;
     }
     const uint32_t width = light.width, height = light.height;
-    const double intensity = environment.intensity;
+    const double intensity = source.intensity;
     const double pi = std::numbers::pi, column_angle = 2.0 * pi / width;
-    const bool floor_hides_below = document.floor.enabled;
+    const bool floor_hides_below = source.floor_hides_below;
     light.texels.resize(size_t{width} * height + height);
     std::vector<double> row_sums(height, 0.0);
     glm::dvec3 irradiance(0.0);
@@ -77,7 +67,7 @@ EnvironmentLight make_environment_light(const protocol::SceneDocument& document,
             light.sampled > 0.0 ? static_cast<float>(cumulative / light.sampled) : 1.0f;
     }
     light.floor_irradiance = glm::vec3(irradiance);
-    if (!environment_lights(document)) {  // a backdrop only: the map without its power
+    if (!source.lights) {  // a backdrop only: the map without its power
         light.sampled = 0.0;
         light.floor_irradiance = glm::vec3(0.0f);
     }

@@ -5,10 +5,10 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "image/environment_map.h"
-#include "protocol/scene_document.h"
 #include "transport.h"
 
 namespace refract::passes {
@@ -28,14 +28,20 @@ struct EnvironmentLight {
     bool lights() const { return sampled > 0.0; }
 };
 
-// Whether the document's environment lights the scene: uniform or image with some radiance and `lights`
-// on (the built-in sky is a backdrop only).
-bool environment_lights(const protocol::SceneDocument& document);
+// What an environment is made of: the render side fills it from the scene document.
+struct EnvironmentSource {
+    enum class Kind { sky, uniform, image } kind = Kind::sky;
+    glm::dvec3 color{0.0};                          // a uniform environment's radiance
+    const image::EnvironmentMap* image = nullptr;   // an image environment's map
+    std::string name;                               // the image's, for messages
+    double intensity = 1.0;
+    bool lights = false;              // it lights the scene; else it is a backdrop only, without its power
+    bool floor_hides_below = false;   // the floor is on: photons come only from above the horizon, as the
+                                      // floor, an infinite plane, hides the rest from everything above it
+    bool operator==(const EnvironmentSource&) const = default;
+};
 
-// The environment of `document`; `image` is the map an image environment names (ignored otherwise). An
-// environment that does not light the scene keeps its map (the backdrop) without its power.
-// With the floor on, photons come only from above the horizon: the floor, an infinite plane, hides the
-// rest from everything above it.
-EnvironmentLight make_environment_light(const protocol::SceneDocument& document, const image::EnvironmentMap* image);
+// The environment made of `source`.
+EnvironmentLight make_environment_light(const EnvironmentSource& source);
 
 }  // namespace refract::passes

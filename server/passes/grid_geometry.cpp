@@ -22,57 +22,6 @@ GridGeometry fit_grid(glm::vec3 lo, glm::vec3 hi, uint32_t resolution) {
     return grid;
 }
 
-namespace {
-// The scene's own grid, at volume.resolution over its box.
-GridGeometry scene_grid(const protocol::SceneDocument& document, const std::map<std::string, mesh::Mesh>& worlds) {
-    const auto& volume = document.volume;
-    if (volume.bounds) {
-        const auto& b = *volume.bounds;
-        return fit_grid(glm::vec3(b.min[0], b.min[1], b.min[2]), glm::vec3(b.max[0], b.max[1], b.max[2]),
-                        volume.resolution);
-    }
-    glm::vec3 lo(1e30f), hi(-1e30f);
-    for (const auto& [name, world] : worlds)
-        for (const auto& p : world.positions) {
-            lo = glm::min(lo, p);
-            hi = glm::max(hi, p);
-        }
-    const float margin = static_cast<float>(volume.margin);
-    return fit_grid(lo - margin, hi + margin, volume.resolution);
-}
-
-// The longest side of the box around `world` in the object's own frame (its mesh's bounds at its scale).
-double own_extent(const protocol::Object& object, const mesh::Mesh& world) {
-    const glm::dmat3 back = glm::transpose(
-        mesh::rotation(glm::vec3(object.rotation_deg[0], object.rotation_deg[1], object.rotation_deg[2])));
-    const glm::dvec3 position(object.position[0], object.position[1], object.position[2]);
-    glm::dvec3 lo(1e300), hi(-1e300);
-    for (const auto& p : world.positions) {
-        const glm::dvec3 own = back * (glm::dvec3(p) - position);
-        lo = glm::min(lo, own);
-        hi = glm::max(hi, own);
-    }
-    const glm::dvec3 extent = hi - lo;
-    return std::max({extent.x, extent.y, extent.z});
-}
-}  // namespace
-
-GridGeometry grid_for(const protocol::SceneDocument& document, const std::map<std::string, mesh::Mesh>& worlds) {
-    GridGeometry grid = scene_grid(document, worlds);
-    uint32_t factor = 1;
-    for (const auto& [name, object] : document.objects) {
-        const auto world = worlds.find(name);
-        if (object.resolution == 0 || world == worlds.end() || world->second.positions.empty()) continue;
-        const double wanted = own_extent(object, world->second) / object.resolution;  // the object's voxel
-        const double ratio = std::ceil(double{grid.voxel_size} / wanted - 1e-6);
-        factor = std::max(factor, static_cast<uint32_t>(std::clamp(ratio, 1.0, double{kMaxLightFactor})));
-    }
-    grid.voxel_size /= static_cast<float>(factor);
-    grid.dims = {grid.dims.x * factor, grid.dims.y * factor, grid.dims.z * factor};
-    grid.light_factor = factor;
-    return grid;
-}
-
 ObjectBox object_box(const GridGeometry& lattice, const mesh::Mesh& world, uint32_t apron) {
     glm::vec3 lo(1e30f), hi(-1e30f);
     for (const auto& p : world.positions) {

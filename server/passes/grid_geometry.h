@@ -1,12 +1,8 @@
 // Where the voxel grid sits in the world: cubic voxels, `resolution` of them along the longest axis.
 #pragma once
 
-#include <map>
-#include <string>
-
 #include <glm/glm.hpp>
 
-#include "protocol/scene_document.h"
 #include "vk/resources.h"
 
 namespace refract::mesh {
@@ -40,13 +36,6 @@ GridGeometry fit_grid(glm::vec3 lo, glm::vec3 hi, uint32_t resolution);
 
 // Most lattice voxels per scene voxel an object's resolution can ask for, along each axis.
 inline constexpr uint32_t kMaxLightFactor = 8;
-
-// The scene's lattice: volume.bounds when given, else the box around every object's world bounds
-// (`worlds`, procedural lenses' spheres of radius scale around position) grown by volume.margin, at
-// volume.resolution along its longest side; that voxel divided by the smallest whole factor (at most
-// kMaxLightFactor) that gives every object with a resolution of its own at least that many voxels
-// along the longest side of its own bounds.
-GridGeometry grid_for(const protocol::SceneDocument& document, const std::map<std::string, mesh::Mesh>& worlds);
 
 // An object's own box in the scene's lattice: the lattice's voxels from `offset` on that hold its world
 // bounds grown by `apron` voxels (where its smoothed coverage can reach), clipped to the lattice;

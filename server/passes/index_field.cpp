@@ -43,31 +43,19 @@ uint64_t largest_part(std::span<const FieldBlock> blocks, VoxelRange region) {
     return most;
 }
 
-VoxelRange IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol::Medium& medium,
+VoxelRange IndexFieldPass::record(vk::CommandRecorder& recorder, const FieldShape& medium,
                                   const passes::GridGeometry& lattice, std::span<const ObjectField> objects,
                                   std::span<const FieldBlock> blocks, VoxelRange region, const vk::Buffer* zeros,
                                   const vk::Buffer& grid_values, const vk::Image3D& index_field,
                                   const vk::Image3D& coverage_image) const {
-    using protocol::IndexFieldKind;
-    const float n_medium = static_cast<float>(medium.ior);
+    const float n_medium = medium.n;
     // One dispatch: `object` over the part of `box` (its coverage's extent, at `offset` in the lattice)
     // inside `within`, written `shift` voxels from its place in the lattice; `number` 0 writes, else
     // joins (IndexFieldPush::offset).
-    auto dispatch = [&](const protocol::Object& object, const passes::GridGeometry& box, glm::uvec3 offset,
+    auto dispatch = [&](const FieldShape& shape, const passes::GridGeometry& box, glm::uvec3 offset,
                         const vk::Buffer& coverage, uint32_t number, VoxelRange within, glm::ivec3 shift) {
         const VoxelRange part = part_of_box(offset, box.dims, within);
         if (part.empty()) return;
-        uint32_t kind = INDEX_KIND_UNIFORM;
-        float n_object = static_cast<float>(object.ior);
-        switch (object.index_field) {
-            case IndexFieldKind::uniform: kind = INDEX_KIND_UNIFORM; break;
-            case IndexFieldKind::luneburg: kind = INDEX_KIND_LUNEBURG; break;
-            case IndexFieldKind::maxwell:
-                kind = INDEX_KIND_MAXWELL;
-                n_object = static_cast<float>(object.maxwell_n0);
-                break;
-            case IndexFieldKind::grid: kind = INDEX_KIND_GRID; break;
-        }
         const glm::uvec3 extent = part.end - part.first;
         IndexFieldPush push{};
         push.dims = glm::uvec4(box.dims.x, box.dims.y, box.dims.z, 0);
@@ -75,11 +63,10 @@ VoxelRange IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol:
         push.offset = glm::uvec4(glm::uvec3(glm::ivec3(offset) + shift), number);
         push.first = glm::uvec4(part.first - offset, 0u);
         push.extent = glm::uvec4(extent, 0u);
-        push.sphere = glm::vec4(static_cast<float>(object.position[0]), static_cast<float>(object.position[1]),
-                                static_cast<float>(object.position[2]), static_cast<float>(object.scale));
+        push.sphere = shape.sphere;
         push.n_medium = n_medium;
-        push.n_object = n_object;
-        pipelines_[kind].dispatch(recorder.get(),
+        push.n_object = shape.n;
+        pipelines_[shape.kind].dispatch(recorder.get(),
                                   {vk::Binding::storage_buffer(INDEX_BINDING_COVERAGE, coverage),
                                    vk::Binding::storage_buffer(INDEX_BINDING_GRID, grid_values),
                                    vk::Binding::storage_image(INDEX_BINDING_INDEX_FIELD, index_field),
@@ -89,13 +76,11 @@ VoxelRange IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol:
     };
     if (objects.size() == 1 && objects.front().number == 0) {
         const ObjectField& only = objects.front();
-        dispatch(only.object, only.box, only.offset, only.coverage, 0u, region, glm::ivec3(0));
+        dispatch(only.shape, only.box, only.offset, only.coverage, 0u, region, glm::ivec3(0));
         return region;
     }
     // Block by block, the part of the region there to the medium (a uniform object of the medium's
     // index and no coverage, numbered none), then the objects over it.
-    protocol::Object medium_object;
-    medium_object.ior = medium.ior;
     VoxelRange written;
     for (const FieldBlock& block : blocks) {
         const VoxelRange part = part_in(block, region);
@@ -104,13 +89,13 @@ VoxelRange IndexFieldPass::record(vk::CommandRecorder& recorder, const protocol:
         const glm::uvec3 size = part.end - part.first;
         const passes::GridGeometry part_box{lattice.origin + lattice.voxel_size * glm::vec3(part.first),
                                            lattice.voxel_size, {size.x, size.y, size.z}};
-        if (zeros) dispatch(medium_object, part_box, part.first, *zeros, 0u, part, shift);
+        if (zeros) dispatch(medium, part_box, part.first, *zeros, 0u, part, shift);
         bool first = !zeros;
         for (const ObjectField& object : objects) {
             if (part_of_box(object.offset, object.box.dims, part).empty()) continue;
             if (!first) recorder.compute_barrier();  // each object's voxels join what those before it left
             first = false;
-            dispatch(object.object, object.box, object.offset, object.coverage, object.number, part, shift);
+            dispatch(object.shape, object.box, object.offset, object.coverage, object.number, part, shift);
         }
         const VoxelRange stored{glm::uvec3(glm::ivec3(part.first) + shift), glm::uvec3(glm::ivec3(part.end) + shift)};
         written = written.empty() ? stored : VoxelRange{glm::min(written.first, stored.first), glm::max(written.end, stored.end)};

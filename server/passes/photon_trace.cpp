@@ -99,7 +99,7 @@ void clear_for_next_light(vk::CommandRecorder& recorder, const PhotonAccumulator
     recorder.transfer_to_compute_barrier();
 }
 
-void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
+bool PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
                              const PhotonAccumulators& accum, uint32_t photon_count, bool sampled_deposits,
                              bool random_walks, const BetweenParts& between) const {
     const TransportPipeline& walks = sampled_deposits ? sampled_walks_ : exact_walks_;
@@ -111,10 +111,11 @@ void PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInput
     // Photons take their indices from a queue in order, so parts of the dispatch trace consecutive ranges.
     const uint32_t part = between ? kWorkPart : photon_count;
     for (uint32_t first = 0; first < photon_count; first += part) {
-        if (first > 0) between();
+        if (first > 0 && between()) return false;
         const auto groups = vk::linear_groups(std::min(part, photon_count - first), TRANSPORT_GROUP_SIZE);
         pipeline.dispatch(recorder.get(), transport_bindings(in, own), nullptr, 0, groups.x, groups.y);
     }
+    return true;
 }
 
 }  // namespace refract::passes

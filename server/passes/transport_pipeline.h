@@ -25,8 +25,9 @@ constexpr uint32_t kWorkPart = 32768;
 // frame is 4 submissions, not 8 (each costs a wait for the device).
 constexpr uint32_t kViewPart = 2 * kWorkPart;
 // Runs between two parts of a split dispatch; it may submit the command buffer and begin another (the
-// pass records the next part into recorder.get()), or throw to abandon the rest. Empty: no parts.
-using BetweenParts = std::function<void()>;
+// pass records the next part into recorder.get()). True: the run stops there, and the pass records
+// nothing more. Empty: no parts.
+using BetweenParts = std::function<bool()>;
 
 struct TransportVariant {
     uint32_t channels = CHANNELS_RGB;  // how the colour channels travel (TRANSPORT_CONSTANT_CHANNELS)

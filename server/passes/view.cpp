@@ -25,7 +25,7 @@ constexpr auto kLayout = transport_layout(kOwnLayout);
 ViewPass::ViewPass(vk::Context& context)
     : context_(context), pipeline_(context, view_spv, kLayout, sizeof(shaders::ViewPush), "view"), refine_(context) {}
 
-void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, const vk::Image3D& radiance,
+bool ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, const vk::Image3D& radiance,
                       const vk::Image3D& flux, const vk::Image3D& floor_map, const ViewOutputs& out,
                       uint32_t width, uint32_t height, bool adaptive, const BetweenParts& between) const {
     // Only the view's counters restart (steps and its two pixel queues, adjacent): the photon pass's
@@ -57,11 +57,11 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
         const uint32_t columns = vk::group_count(width, VIEW_GROUP_SIZE), rows = vk::group_count(height, VIEW_GROUP_SIZE);
         const uint32_t part = between ? std::max(1u, kViewPart / (columns * VIEW_GROUP_SIZE * VIEW_GROUP_SIZE)) : rows;
         for (uint32_t first = 0; first < rows; first += part) {
-            if (first > 0) between();
+            if (first > 0 && between()) return false;
             view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_ALL}, columns,
                           std::min(part, rows - first));
         }
-        return;
+        return true;
     }
     view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_COARSE},
                   vk::group_count((width + 1) / 2, VIEW_GROUP_SIZE), vk::group_count((height + 1) / 2, VIEW_GROUP_SIZE));
@@ -71,6 +71,7 @@ void ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
     const shaders::ViewPush listed{VIEW_PIXELS_LISTED};
     view.dispatch_indirect(recorder.get(), bindings, &listed, sizeof(listed), out.refine,
                            offsetof(shaders::WorkListHeader, groups_x));
+    return true;
 }
 
 }  // namespace refract::passes

@@ -70,6 +70,31 @@ float VoxelizePass::lattice_sigma(float sigma) {
     return static_cast<float>(0.5 * (lo + hi));
 }
 
+void VoxelizePass::record_lattice_smoothing(vk::CommandRecorder& recorder, const std::array<uint32_t, 3>& dims,
+                                            float rest, const vk::Buffer& scratch, const vk::Buffer& coverage) {
+    const VkCommandBuffer cmd = recorder.get();
+    const uint64_t voxels = uint64_t{dims[0]} * dims[1] * dims[2];
+    // x: scratch -> coverage, y: coverage -> scratch, z: scratch -> coverage.
+    const vk::Buffer* source = &scratch;
+    const vk::Buffer* target = &coverage;
+    const int radius = std::min(static_cast<int>(std::ceil(3.0f * rest)), SMOOTH_MAX_RADIUS);
+    const vk::ComputePipeline& pipeline = smooth(radius);
+    SmoothPush push{};
+    for (int o = 0; o <= radius; ++o) push.weights[o] = std::exp(-0.5f * static_cast<float>(o * o) / (rest * rest));
+    for (uint32_t axis = 0; axis < 3; ++axis) {
+        push.dims = glm::uvec4(dims[0], dims[1], dims[2], axis);
+        // One invocation per SMOOTH_RUN voxels along the axis (smooth.comp).
+        const auto run_groups = vk::linear_groups(
+            voxels / dims[axis] * vk::group_count(dims[axis], SMOOTH_RUN), VOLUME_GROUP_SIZE);
+        pipeline.dispatch(cmd,
+                          {vk::Binding::storage_buffer(SMOOTH_BINDING_SOURCE, *source),
+                           vk::Binding::storage_buffer(SMOOTH_BINDING_TARGET, *target)},
+                          push, run_groups.x, run_groups.y);
+        recorder.compute_barrier();
+        std::swap(source, target);
+    }
+}
+
 VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::Mesh& mesh_world,
                                      const passes::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
                                      const vk::Buffer& coverage) {
@@ -184,27 +209,7 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
     VoxelizePush combine{glm::uvec4(dims[0], dims[1], dims[2], 0), 0, kTileSize, 1, 0};
     voxelize_[VOXELIZE_MODE_COMBINE].dispatch(cmd, std::span<const vk::Binding>(bindings(0)), combine, voxel_groups.x, voxel_groups.y);
     recorder.compute_barrier();
-    if (smoothing) {
-        // x: scratch -> coverage, y: coverage -> scratch, z: scratch -> coverage.
-        const vk::Buffer* source = &scratch;
-        const vk::Buffer* target = &coverage;
-        const int radius = std::min(static_cast<int>(std::ceil(3.0f * rest)), SMOOTH_MAX_RADIUS);
-        const vk::ComputePipeline& pipeline = smooth(radius);
-        SmoothPush push{};
-        for (int o = 0; o <= radius; ++o) push.weights[o] = std::exp(-0.5f * static_cast<float>(o * o) / (rest * rest));
-        for (uint32_t axis = 0; axis < 3; ++axis) {
-            push.dims = glm::uvec4(dims[0], dims[1], dims[2], axis);
-            // One invocation per SMOOTH_RUN voxels along the axis (smooth.comp).
-            const auto run_groups = vk::linear_groups(
-                grid.dims.count() / dims[axis] * vk::group_count(dims[axis], SMOOTH_RUN), VOLUME_GROUP_SIZE);
-            pipeline.dispatch(cmd,
-                              {vk::Binding::storage_buffer(SMOOTH_BINDING_SOURCE, *source),
-                               vk::Binding::storage_buffer(SMOOTH_BINDING_TARGET, *target)},
-                              push, run_groups.x, run_groups.y);
-            recorder.compute_barrier();
-            std::swap(source, target);
-        }
-    }
+    if (smoothing) record_lattice_smoothing(recorder, dims, rest, scratch, coverage);
     return uploads;
 }
 

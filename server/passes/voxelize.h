@@ -59,6 +59,9 @@ private:
     // The smoothing pipeline for `radius` taps each side (SMOOTH_CONSTANT_RADIUS), compiled on first use:
     // a scene keeps its sigma, and compiling all SMOOTH_MAX_RADIUS of them would slow every start.
     const vk::ComputePipeline& smooth(int radius);
+    // The lattice Gaussian of width `rest` voxels, axis by axis: scratch -> coverage -> scratch -> coverage.
+    void record_lattice_smoothing(vk::CommandRecorder& recorder, const std::array<uint32_t, 3>& dims, float rest,
+                                  const vk::Buffer& scratch, const vk::Buffer& coverage);
 
     vk::Context& context_;
     ModePipelines voxelize_;  // by VOXELIZE_MODE_*

@@ -21,6 +21,47 @@ struct Occupancy {
     std::vector<uint8_t> taken;
     bool at(glm::uvec3 c) const { return taken[(size_t{c.z} * dims.y + c.y) * dims.x + c.x] != 0; }
 };
+
+// The map: where each cluster's cells lie in the atlas, then for each empty cell the largest aligned cube of
+// cells around it that no cluster meets, from an occupancy pyramid (level j: cubes of 2^j cells).
+void fill_map(FieldAtlas& atlas, const std::vector<Box>& joined, glm::uvec3 cells, uint32_t max_level) {
+    std::vector<Occupancy> pyramid{{cells, std::vector<uint8_t>(size_t{cells.x} * cells.y * cells.z, 0)}};
+    atlas.map.assign(pyramid[0].taken.size(), 0u);
+    auto index = [](glm::uvec3 d, glm::uvec3 c) { return (size_t{c.z} * d.y + c.y) * d.x + c.x; };
+    for (size_t k = 0; k < joined.size(); ++k) {
+        const glm::uvec3 end = glm::min(joined[k].second, cells);
+        const glm::uvec3 atlas_first = atlas.clusters[k].atlas_first / FIELD_CELL;
+        for (uint32_t z = joined[k].first.z; z < end.z; ++z)
+            for (uint32_t y = joined[k].first.y; y < end.y; ++y)
+                for (uint32_t x = joined[k].first.x; x < end.x; ++x) {
+                    const glm::uvec3 a = glm::uvec3(x, y, z) - joined[k].first + atlas_first;
+                    pyramid[0].taken[index(cells, {x, y, z})] = 1;
+                    atlas.map[index(cells, {x, y, z})] = a.x | (a.y << FIELD_AXIS_BITS) | (a.z << (2 * FIELD_AXIS_BITS));
+                }
+    }
+    const uint32_t top = max_level > FIELD_CELL_LEVEL ? max_level - FIELD_CELL_LEVEL : 0;
+    for (uint32_t j = 1; j <= top; ++j) {
+        const Occupancy& below = pyramid.back();
+        Occupancy level{(below.dims + 1u) / 2u, {}};
+        level.taken.assign(size_t{level.dims.x} * level.dims.y * level.dims.z, 0);
+        for (uint32_t z = 0; z < below.dims.z; ++z)
+            for (uint32_t y = 0; y < below.dims.y; ++y)
+                for (uint32_t x = 0; x < below.dims.x; ++x)
+                    if (below.at({x, y, z})) level.taken[index(level.dims, glm::uvec3(x, y, z) / 2u)] = 1;
+        pyramid.push_back(std::move(level));
+    }
+    const uint32_t lowest = std::min(max_level, FIELD_CELL_LEVEL);
+    for (uint32_t z = 0; z < cells.z; ++z)
+        for (uint32_t y = 0; y < cells.y; ++y)
+            for (uint32_t x = 0; x < cells.x; ++x) {
+                const glm::uvec3 c(x, y, z);
+                if (pyramid[0].at(c)) continue;
+                uint32_t j = 0;
+                while (j < top && !pyramid[j + 1].at(c >> (j + 1))) ++j;
+                atlas.map[index(cells, c)] = FIELD_EMPTY + (j == 0 ? lowest : FIELD_CELL_LEVEL + j);
+            }
+}
+
 }  // namespace
 
 std::optional<glm::uvec3> FieldAtlas::atlas_voxel(glm::uvec3 v) const {
@@ -133,43 +174,7 @@ FieldAtlas sparse_field_atlas(const passes::GridGeometry& lattice, std::span<con
     for (size_t i = 0; i < joined.size(); ++i) atlas.clusters[i].atlas_first = best.at[i];
     atlas.dims = {std::max(used.x, 1u), std::max(used.y, 1u), std::max(used.z, 1u)};
 
-    // The map: where each cluster's cells lie in the atlas, then for each empty cell the largest aligned cube of cells around it
-    // that no cluster meets, from an occupancy pyramid (level j: cubes of 2^j cells).
-    std::vector<Occupancy> pyramid{{cells, std::vector<uint8_t>(size_t{cells.x} * cells.y * cells.z, 0)}};
-    atlas.map.assign(pyramid[0].taken.size(), 0u);
-    auto index = [](glm::uvec3 d, glm::uvec3 c) { return (size_t{c.z} * d.y + c.y) * d.x + c.x; };
-    for (size_t k = 0; k < joined.size(); ++k) {
-        const glm::uvec3 end = glm::min(joined[k].second, cells);
-        const glm::uvec3 atlas_first = atlas.clusters[k].atlas_first / FIELD_CELL;
-        for (uint32_t z = joined[k].first.z; z < end.z; ++z)
-            for (uint32_t y = joined[k].first.y; y < end.y; ++y)
-                for (uint32_t x = joined[k].first.x; x < end.x; ++x) {
-                    const glm::uvec3 a = glm::uvec3(x, y, z) - joined[k].first + atlas_first;
-                    pyramid[0].taken[index(cells, {x, y, z})] = 1;
-                    atlas.map[index(cells, {x, y, z})] = a.x | (a.y << FIELD_AXIS_BITS) | (a.z << (2 * FIELD_AXIS_BITS));
-                }
-    }
-    const uint32_t top = max_level > FIELD_CELL_LEVEL ? max_level - FIELD_CELL_LEVEL : 0;
-    for (uint32_t j = 1; j <= top; ++j) {
-        const Occupancy& below = pyramid.back();
-        Occupancy level{(below.dims + 1u) / 2u, {}};
-        level.taken.assign(size_t{level.dims.x} * level.dims.y * level.dims.z, 0);
-        for (uint32_t z = 0; z < below.dims.z; ++z)
-            for (uint32_t y = 0; y < below.dims.y; ++y)
-                for (uint32_t x = 0; x < below.dims.x; ++x)
-                    if (below.at({x, y, z})) level.taken[index(level.dims, glm::uvec3(x, y, z) / 2u)] = 1;
-        pyramid.push_back(std::move(level));
-    }
-    const uint32_t lowest = std::min(max_level, FIELD_CELL_LEVEL);
-    for (uint32_t z = 0; z < cells.z; ++z)
-        for (uint32_t y = 0; y < cells.y; ++y)
-            for (uint32_t x = 0; x < cells.x; ++x) {
-                const glm::uvec3 c(x, y, z);
-                if (pyramid[0].at(c)) continue;
-                uint32_t j = 0;
-                while (j < top && !pyramid[j + 1].at(c >> (j + 1))) ++j;
-                atlas.map[index(cells, c)] = FIELD_EMPTY + (j == 0 ? lowest : FIELD_CELL_LEVEL + j);
-            }
+    fill_map(atlas, joined, cells, max_level);
     return atlas;
 }
 

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "passes/transport_params.h"
+#include "render/transport_inputs.h"
 
 namespace refract::scene {
 
@@ -56,7 +56,7 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     // and whether they deposit at all (only where something scatters).
     if (!(before.lights == after.lights) || !(before.photons == after.photons) || materials ||
         before.medium.extinction != after.medium.extinction || before.floor.enabled != after.floor.enabled ||
-        before.floor.height != after.floor.height || passes::any_scattering(before) != passes::any_scattering(after))
+        before.floor.height != after.floor.height || scene::any_scattering(before) != scene::any_scattering(after))
         stale |= kPhotons | kView | kToneMap;
     // Photons that scatter (random walks) see scattering and phase functions too.
     const bool walks = before.photons.max_bounces > 0 || after.photons.max_bounces > 0;
@@ -65,7 +65,7 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     // An environment that lights the scene (before or after the edit) sends photons: any change of it
     // reruns them.
     if (!(before.environment == after.environment) &&
-        (passes::environment_lights(before) || passes::environment_lights(after)))
+        (scene::environment_lights(before) || scene::environment_lights(after)))
         stale |= kPhotons | kView | kToneMap;
     // Only the viewing pass reads scattering, phase functions, the floor's look, an environment that lights
     // nothing (only rays that leave the scene see the sky), the camera and the image size.

@@ -311,6 +311,20 @@ std::optional<bool> RenderQueue::render_next(std::unique_lock<std::mutex>& lock,
     return render_one(*frame, depth);
 }
 
+void RenderQueue::defer(std::list<InFlight>::iterator in_flight, std::function<bool()> requested) {
+    // It needs what the frame it interrupted holds: it waits, first in line, for that frame's end.
+    std::lock_guard lock(mutex_);
+    FrameRequest& request = in_flight->pending.request;
+    auto [it, inserted] = pending_.try_emplace(in_flight->key);
+    if (inserted) {
+        request.options.give_way = std::move(requested);
+        it->second.request = std::move(request);
+        order_.push_front(in_flight->key);
+    }
+    for (Waiter& waiter : in_flight->pending.waiters) it->second.waiters.push_back(std::move(waiter));
+    in_flight_.erase(in_flight);
+}
+
 bool RenderQueue::render_one(std::list<InFlight>::iterator in_flight, size_t depth) {
     FrameRequest& request = in_flight->pending.request;
     // The asker's own reason to give way (a refinement step's), asked after the queue's.
@@ -321,24 +335,18 @@ bool RenderQueue::render_one(std::list<InFlight>::iterator in_flight, size_t dep
     outcome.revision = request.revision;
     try {
         auto frame = std::make_shared<FrameResult>(render_(request));
-        frames_rendered_.fetch_add(1);
-        if (options_.on_rendered) options_.on_rendered(request, *frame);
-        outcome.frame = std::move(frame);
-    } catch (const Superseded& e) {
-        outcome.status = FrameOutcome::Status::superseded;
-        outcome.error = e.what();
-    } catch (const Deferred&) {
-        // It needs what the frame it interrupted holds: it waits, first in line, for that frame's end.
-        std::lock_guard lock(mutex_);
-        auto [it, inserted] = pending_.try_emplace(in_flight->key);
-        if (inserted) {
-            request.options.give_way = requested;
-            it->second.request = std::move(request);
-            order_.push_front(in_flight->key);
+        if (frame->outcome == FrameResult::Outcome::deferred) {
+            defer(in_flight, requested);
+            return false;
         }
-        for (Waiter& waiter : in_flight->pending.waiters) it->second.waiters.push_back(std::move(waiter));
-        in_flight_.erase(in_flight);
-        return false;
+        if (frame->outcome == FrameResult::Outcome::superseded) {
+            outcome.status = FrameOutcome::Status::superseded;
+            outcome.error = "a newer request came first";
+        } else {
+            frames_rendered_.fetch_add(1);
+            if (options_.on_rendered) options_.on_rendered(request, *frame);
+            outcome.frame = std::move(frame);
+        }
     } catch (const RenderError& e) {
         outcome.status = FrameOutcome::Status::unrenderable;
         outcome.error = e.what();

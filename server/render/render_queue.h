@@ -158,14 +158,16 @@ private:
     // none. Under mutex_; `dropped` collects the callbacks to answer `abandoned` once it is released.
     std::optional<InFlight> take_next(const std::vector<std::string>& busy, std::vector<FrameCallback>& dropped);
     // Renders what `in_flight` asks and answers its waiters; `depth` 0 for a frame taken by the loop, 1
-    // for one rendered between the parts of another. False when the frame was Deferred: it is queued
+    // for one rendered between the parts of another. False when the frame was deferred: it is queued
     // again, first, and the frame it interrupted goes on.
     bool render_one(std::list<InFlight>::iterator in_flight, size_t depth);
+    // Queues a deferred frame again, first, with its asker's own reason to give way (`requested`).
+    void defer(std::list<InFlight>::iterator in_flight, std::function<bool()> requested);
     // Takes the next frame (take_next, passing over `busy` scenes) and renders it at `depth`. `lock` holds
     // mutex_ on entry and not on return. nullopt when there was none; else what render_one returned.
     std::optional<bool> render_next(std::unique_lock<std::mutex>& lock, const std::vector<std::string>& busy,
                                     size_t depth);
-    // Asked between two parts of the frame at `depth`: whether it stops there (Superseded). Renders the
+    // Asked between two parts of the frame at `depth`: whether it stops there (superseded). Renders the
     // other scenes' waiting frames first when `depth` is 0.
     bool between_parts(size_t depth, const std::function<bool()>& requested);
     // Takes the waiters that withdrew out of every request (under mutex_), and the requests left without

@@ -12,6 +12,7 @@
 #include "mesh/mesh.h"
 #include "render/object_mesh.h"
 #include "render/scene_gpu.h"
+#include "render/scene_lattice.h"
 #include "vk/context.h"
 
 namespace refract::scene {
@@ -103,7 +104,7 @@ WorldMeshes worlds_of(const protocol::SceneDocument& document, const ResolvedAss
 // anything is allocated (the objects' boxes in it, or the imported grid's own lattice).
 int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes& worlds, const IndexGrid* grid,
                      const image::EnvironmentMap* environment) {
-    const passes::GridGeometry g = grid ? passes::GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : passes::grid_for(document, worlds);
+    const passes::GridGeometry g = grid ? passes::GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : scene::grid_for(document, worlds);
     uint64_t object_voxels = 0;
     std::map<std::string, passes::ObjectBox> boxes;
     if (grid) object_voxels = g.dims.count();
@@ -116,6 +117,68 @@ int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes&
     return estimate_scene_bytes(g, field_voxels, object_voxels, g.coarsened(g.light_factor).count(), document.image.width,
                                 document.image.height) +
            estimate_environment_bytes(environment);
+}
+
+// A scene's resident GPU state and what it was built from.
+struct ResidentScene {
+    std::unique_ptr<SceneGpu> gpu;
+    protocol::SceneDocument document;  // as last rendered
+    std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;  // each object's, by name
+    std::shared_ptr<const IndexGrid> grid;
+    std::shared_ptr<const image::EnvironmentMap> environment;
+    uint64_t last_used = 0;
+    uint32_t level = 0;  // refinement level of the resident still frame (0: the frame is interactive or partial)
+    FrameBudget budget;  // this scene's dynamic resolution
+};
+
+// What a frame is to be, decided from the request and the resident scene before anything is built.
+struct FramePlan {
+    protocol::SceneDocument document;  // as rendered: an interactive frame's holds its budget's settings
+    InteractiveSettings settings;      // interactive frames
+    PassSet stale = kAllPasses;
+    uint32_t level = 1;           // the refinement level the frame holds
+    uint32_t resident_level = 0;  // the level whose linear frame (or, with the view stale, photons) is resident
+};
+
+// The passes `next` reruns over what `held` holds (everything when nothing is held).
+PassSet stale_against(const ResidentScene* held, const protocol::SceneDocument& next, const ResolvedAssets& resolved) {
+    if (!held) return kAllPasses;
+    PassSet stale = passes_invalidated(held->document, next);
+    if (held->meshes != resolved.meshes || held->grid != resolved.grid) stale |= kAllPasses;
+    // A re-uploaded image lights the scene anew.
+    if (held->environment != resolved.environment) stale |= kPhotons | kView | kToneMap;
+    return held->gpu->passes_for(stale);
+}
+
+// Still frames refine in order from level 1 (refinement_at). One continues from the resident still
+// frame when the edit leaves it valid but for its tone (exposure), that frame's level is not above its
+// own and, to refine it further, the radiance grid holds that level's batches; else from the photon
+// batches the grid holds, when it is a still frame's and holds no more than this level's (their view at
+// pixel centres is the frame of the level with that many); else from new photons.
+void plan_still_levels(FramePlan& plan, const ResidentScene& held, const FrameOptions& options) {
+    PassSet& stale = plan.stale;
+    const uint32_t batches =
+        stale & kPhotons ? 0u : held.gpu->photon_batches(plan.document, run_options_for(Quality::still));
+    // A still that may resume takes the highest level the resident state gives for no more work: its
+    // frame re-toned, else the view over its batches (levels 1..kMaxPhotonBatches hold as many as their
+    // number).
+    const uint32_t retoned =
+        !(stale & ~kToneMap) && batches == refinement_at(held.level).photon_batches ? held.level : 0u;
+    for (const uint32_t resumed : {retoned, batches}) {
+        if (resumed > plan.level && resumed <= std::min(options.resume_up_to, kMaxRefinementLevel)) {
+            plan.level = resumed;
+            break;
+        }
+    }
+    if (!(stale & ~kToneMap) && held.level != 0 && held.level <= plan.level &&
+        (held.level == plan.level || batches == refinement_at(held.level).photon_batches)) {
+        plan.resident_level = held.level;
+    } else if (batches > 0 && batches <= refinement_at(plan.level).photon_batches) {
+        plan.resident_level = batches;
+        stale |= kView | kToneMap;
+    } else {
+        stale |= kPhotons | kView | kToneMap;
+    }
 }
 
 }  // namespace
@@ -132,22 +195,12 @@ RunOptions run_options_for(Quality quality) {
     return options;
 }
 
-struct Renderer::Impl {
-    struct Resident {
-        std::unique_ptr<SceneGpu> gpu;
-        protocol::SceneDocument document;  // as last rendered
-        std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;  // each object's, by name
-        std::shared_ptr<const IndexGrid> grid;
-        std::shared_ptr<const image::EnvironmentMap> environment;
-        uint64_t last_used = 0;
-        uint32_t level = 0;  // refinement level of the resident still frame (0: the frame is interactive or partial)
-        FrameBudget budget;  // this scene's dynamic resolution
-    };
 
+struct Renderer::Impl {
     Impl(vk::Context& ctx, RendererOptions opts) : context(ctx), options(opts), kit(ctx) {}
 
     // The least recently used scene other than `keep` and those whose frame is in progress; end() if none.
-    std::map<std::string, Resident>::iterator least_recent(const std::string& keep) {
+    std::map<std::string, ResidentScene>::iterator least_recent(const std::string& keep) {
         auto oldest = scenes.end();
         for (auto it = scenes.begin(); it != scenes.end(); ++it)
             if (it->first != keep && !rendering.contains(it->first) &&
@@ -164,10 +217,31 @@ struct Renderer::Impl {
         }
     }
 
+    // What a frame of `requested` is to be over what `held` holds.
+    FramePlan plan(const ResidentScene* held, const FrameBudget& budget, const protocol::SceneDocument& requested,
+                   const ResolvedAssets& resolved, const FrameOptions& asked);
+    // Drops least recently used scenes until the frame fits the device memory budget. False when it fits
+    // only by evicting a scene whose frame is in progress (the frame must wait); RenderError when never.
+    bool make_room(const std::string& scene_id, const ResidentScene* held, const FramePlan& plan,
+                   const WorldMeshes& worlds, const ResolvedAssets& resolved);
+    // Runs the frame's steps (level 1, then each refinement level). False when one gave way.
+    bool run_steps(ResidentScene& resident, const FramePlan& plan, const WorldMeshes& worlds,
+                   const ResolvedAssets& resolved, const RunOptions& frame_options,
+                   const std::function<bool()>& give_way, FrameResult& frame);
+    // The frame's levels and its PNG.
+    void finish_frame(ResidentScene& resident, const FramePlan& plan, const RunOptions& frame_options,
+                      FrameResult& frame);
+    // Records what the resident state was built from.
+    void keep(ResidentScene& resident, const protocol::SceneDocument& document, const ResolvedAssets& resolved,
+              uint32_t level);
+    // Called in a catch block: drops the scene and rethrows what failed, as a RenderError where the scene is
+    // past this device's limits or memory.
+    [[noreturn]] void drop_after_failure(const std::string& scene_id);
+
     vk::Context& context;
     RendererOptions options;
     PassKit kit;
-    std::map<std::string, Resident> scenes;
+    std::map<std::string, ResidentScene> scenes;
     std::set<std::string> rendering;  // scenes whose render() is in progress (one, or two nested)
     uint64_t clock = 0;
     mutable std::mutex mutex;  // guards `scenes` for the read-only queries from other threads
@@ -183,77 +257,36 @@ Refinement refinement_at(uint32_t level) {
     return {std::min(level, kMaxPhotonBatches), level > kMaxPhotonBatches ? level - kMaxPhotonBatches + 1 : 1u};
 }
 
-FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneDocument& requested,
-                             const Assets& assets, const FrameOptions& options) {
-    const auto start = Clock::now();
-    const Quality quality = options.quality;
-    const ResolvedAssets resolved = resolve(requested, assets);
-    const auto& meshes = resolved.meshes;
-    const auto& grid = resolved.grid;
-    const auto& environment = resolved.environment;
-
-    std::unique_lock lock(impl_->mutex);
-    auto it = impl_->scenes.find(scene_id);
-    // A scene prepared ahead (prepare) or whose last step gave way holds some passes built: the rest run.
-    const Impl::Resident* held = it != impl_->scenes.end() && it->second.gpu->built() != 0 ? &it->second : nullptr;
-    auto stale_against = [&](const protocol::SceneDocument& next) {
-        if (!held) return kAllPasses;
-        PassSet stale = passes_invalidated(held->document, next);
-        if (held->meshes != meshes || held->grid != grid) stale |= kAllPasses;
-        // A re-uploaded image lights the scene anew.
-        if (held->environment != environment) stale |= kPhotons | kView | kToneMap;
-        return held->gpu->passes_for(stale);
-    };
-    protocol::SceneDocument document = requested;
-    InteractiveSettings settings;
-    if (quality == Quality::interactive) {
+FramePlan Renderer::Impl::plan(const ResidentScene* held, const FrameBudget& budget, const protocol::SceneDocument& requested,
+                               const ResolvedAssets& resolved, const FrameOptions& asked) {
+    FramePlan plan;
+    plan.document = requested;
+    if (asked.quality == Quality::interactive) {
         // What the edit reruns if the resident frame's settings were kept (a still frame's too: its photon
         // count keeps its radiance grid) decides which of them may change.
         const InteractiveSettings resident = held ? settings_of(held->document) : InteractiveSettings{};
-        const PassSet would = held ? stale_against(with_settings(requested, resident)) : kAllPasses;
-        const FrameBudget& budget = it != impl_->scenes.end() ? it->second.budget : FrameBudget{};
-        settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0, held ? &resident : nullptr,
-                                 options.budget_ms);
-        document = with_settings(requested, settings);
+        const PassSet would = held ? stale_against(held, with_settings(requested, resident), resolved) : kAllPasses;
+        plan.settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0,
+                                      held ? &resident : nullptr, asked.budget_ms);
+        plan.document = with_settings(requested, plan.settings);
     }
-    PassSet stale = stale_against(document);
-    // Still frames refine in order from level 1 (refinement_at). One continues from the resident still
-    // frame when the edit leaves it valid but for its tone (exposure), that frame's level is not above
-    // its own and, to refine it further, the radiance grid holds that level's batches; else from the
-    // photon batches the grid holds, when it is a still frame's and holds no more than this level's
-    // (their view at pixel centres is the frame of the level with that many); else from new photons.
-    uint32_t level = quality == Quality::still ? std::clamp(options.level, 1u, kMaxRefinementLevel) : 1u;
-    uint32_t resident_level = 0;  // the level whose linear frame (or, with the view stale, photons) is resident
-    if (quality == Quality::still && held) {
-        const uint32_t batches =
-            stale & kPhotons ? 0u : held->gpu->photon_batches(document, run_options_for(Quality::still));
-        // A still that may resume takes the highest level the resident state gives for no more work: its
-        // frame re-toned, else the view over its batches (levels 1..kMaxPhotonBatches hold as many as
-        // their number).
-        const uint32_t retoned =
-            !(stale & ~kToneMap) && batches == refinement_at(held->level).photon_batches ? held->level : 0u;
-        for (const uint32_t resumed : {retoned, batches}) {
-            if (resumed > level && resumed <= std::min(options.resume_up_to, kMaxRefinementLevel)) {
-                level = resumed;
-                break;
-            }
-        }
-        if (!(stale & ~kToneMap) && held->level != 0 && held->level <= level &&
-            (held->level == level || batches == refinement_at(held->level).photon_batches)) {
-            resident_level = held->level;
-        } else if (batches > 0 && batches <= refinement_at(level).photon_batches) {
-            resident_level = batches;
-            stale |= kView | kToneMap;
-        } else {
-            stale |= kPhotons | kView | kToneMap;
-        }
+    plan.stale = stale_against(held, plan.document, resolved);
+    if (asked.quality == Quality::still) {
+        plan.level = std::clamp(asked.level, 1u, kMaxRefinementLevel);
+        if (held) plan_still_levels(plan, *held, asked);
     }
-    // The objects in world space fit the lattice; needed only when the volume is rebuilt.
-    const bool rebuild = (stale & kVoxelize) != 0;
-    const WorldMeshes worlds = rebuild ? worlds_of(document, resolved) : WorldMeshes{};
-    const int64_t budget = impl_->options.device_memory_budget;
+    return plan;
+}
+
+bool Renderer::Impl::make_room(const std::string& scene_id, const ResidentScene* held, const FramePlan& plan,
+                               const WorldMeshes& worlds, const ResolvedAssets& resolved) {
+    const int64_t budget = options.device_memory_budget;
+    // Checked before anything is built: a new volume, or a new environment map on the old one.
+    const bool rebuild = (plan.stale & kVoxelize) != 0;
+    const bool new_environment = !held || held->environment != resolved.environment;
+    if (budget <= 0 || !(rebuild || new_environment)) return true;
     // What a resident scene holds (the lattice's own voxels stand for its boxes: an estimate).
-    auto held_by = [](const Impl::Resident& r) {
+    auto held_by = [](const ResidentScene& r) {
         const passes::GridGeometry& held_grid = r.gpu->grid();
         return r.gpu->built() ? estimate_scene_bytes(held_grid, r.gpu->field_atlas().dims.count(), held_grid.dims.count(),
                                                      held_grid.coarsened(held_grid.light_factor).count(), r.gpu->width(),
@@ -261,31 +294,102 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
                                     estimate_environment_bytes(r.environment.get())
                               : int64_t{0};
     };
-    // Checked before anything is built: a new volume, or a new environment map on the old one.
-    const bool new_environment = !held || held->environment != environment;
-    if (budget > 0 && (rebuild || new_environment)) {
-        const int64_t replaced = it != impl_->scenes.end() ? held_by(it->second) : 0;
-        const int64_t need =
-            rebuild ? needed_bytes(document, worlds, grid.get(), environment.get())
-                    : replaced - estimate_environment_bytes(held->environment.get()) + estimate_environment_bytes(environment.get());
-        // This scene's old state is released before the new one is made. Make room by dropping least
-        // recently used scenes (their documents live on in the store).
-        while (impl_->context.allocated_bytes() - replaced + need > budget) {
-            auto oldest = impl_->least_recent(scene_id);
-            if (oldest == impl_->scenes.end()) {
-                if (!impl_->rendering.empty()) throw Deferred();
-                throw RenderError("scene needs about " + std::to_string(need >> 20) +
-                                  " MiB of device memory; the budget is " + std::to_string(budget >> 20) + " MiB");
-            }
-            impl_->scenes.erase(oldest);
+    auto it = scenes.find(scene_id);
+    const int64_t replaced = it != scenes.end() ? held_by(it->second) : 0;
+    const int64_t need = rebuild ? needed_bytes(plan.document, worlds, resolved.grid.get(), resolved.environment.get())
+                                 : replaced - estimate_environment_bytes(held->environment.get()) +
+                                       estimate_environment_bytes(resolved.environment.get());
+    // This scene's old state is released before the new one is made. Make room by dropping least
+    // recently used scenes (their documents live on in the store).
+    while (context.allocated_bytes() - replaced + need > budget) {
+        auto oldest = least_recent(scene_id);
+        if (oldest == scenes.end()) {
+            if (!rendering.empty()) return false;
+            throw RenderError("scene needs about " + std::to_string(need >> 20) + " MiB of device memory; the budget is " +
+                              std::to_string(budget >> 20) + " MiB");
         }
+        scenes.erase(oldest);
     }
+    return true;
+}
+
+bool Renderer::Impl::run_steps(ResidentScene& resident, const FramePlan& plan, const WorldMeshes& worlds,
+                               const ResolvedAssets& resolved, const RunOptions& frame_options,
+                               const std::function<bool()>& give_way, FrameResult& frame) {
+    uint64_t photon_steps = 0;
+    // The first step runs the stale passes: level 1's, or those of the resident level.
+    const uint32_t first = plan.stale != 0 && plan.resident_level > 0 ? plan.resident_level : plan.resident_level + 1;
+    for (uint32_t step = first; step <= plan.level; ++step) {
+        // Level 1 is the frame itself; each level after it adds one photon batch (rerunning the view at
+        // pixel centres) until the batches are all in, then one jittered eye-ray sample per pixel.
+        RunOptions run_options = frame_options;
+        PassSet passes = plan.stale;
+        if (step > std::max(plan.resident_level, 1u)) {
+            const Refinement now = refinement_at(step), before = refinement_at(step - 1);
+            if (now.photon_batches > before.photon_batches) {
+                run_options.photon_batch = now.photon_batches - 1;
+                passes = kPhotons;
+            } else {
+                run_options.view_sample = now.samples_per_pixel - 1;
+                passes = kView;
+            }
+        }
+        // Each step runs in parts and gives way between them when the caller says other work waits.
+        run_options.give_way = give_way;
+        const RunStats stats =
+            resident.gpu->run(passes, plan.document, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+        if (stats.gave_way) {
+            // What the GPU holds now: this document, with part of a step the frame does not hold; a step
+            // that gave way before its view leaves the frame of the level before it.
+            keep(resident, plan.document, resolved, resident.gpu->built() & kView ? step - 1 : 0);
+            return false;
+        }
+        frame.rerun |= stats.ran;
+        frame.voxelized.insert(frame.voxelized.end(), stats.voxelized.begin(), stats.voxelized.end());
+        for (const auto& [name, ms] : stats.gpu_ms) add_timing(frame.timings, name, ms);
+        frame.photons_traced += stats.photons_entered;
+        photon_steps += stats.photon_steps;
+    }
+    frame.mean_steps_per_photon =
+        frame.photons_traced ? static_cast<double>(photon_steps) / static_cast<double>(frame.photons_traced) : 0.0;
+    return true;
+}
+
+void Renderer::Impl::keep(ResidentScene& resident, const protocol::SceneDocument& document, const ResolvedAssets& resolved,
+                          uint32_t level) {
+    resident.document = document;
+    resident.meshes = resolved.meshes;
+    resident.grid = resolved.grid;
+    resident.environment = resolved.environment;
+    resident.level = level;
+}
+
+FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneDocument& requested,
+                             const Assets& assets, const FrameOptions& options) {
+    const auto start = Clock::now();
+    const Quality quality = options.quality;
+    const ResolvedAssets resolved = resolve(requested, assets);
+
+    std::unique_lock lock(impl_->mutex);
+    auto it = impl_->scenes.find(scene_id);
+    // A scene prepared ahead (prepare) or whose last step gave way holds some passes built: the rest run.
+    const ResidentScene* held = it != impl_->scenes.end() && it->second.gpu->built() != 0 ? &it->second : nullptr;
+    const FramePlan plan =
+        impl_->plan(held, it != impl_->scenes.end() ? it->second.budget : FrameBudget{}, requested, resolved, options);
+    // The objects in world space fit the lattice; needed only when the volume is rebuilt.
+    const WorldMeshes worlds = plan.stale & kVoxelize ? worlds_of(plan.document, resolved) : WorldMeshes{};
+    FrameResult frame;
+    if (!impl_->make_room(scene_id, held, plan, worlds, resolved)) {
+        frame.outcome = FrameResult::Outcome::deferred;
+        return frame;
+    }
+    it = impl_->scenes.find(scene_id);
     if (it == impl_->scenes.end()) {
-        Impl::Resident resident;
+        ResidentScene resident;
         resident.gpu = std::make_unique<SceneGpu>(impl_->kit);
         it = impl_->scenes.emplace(scene_id, std::move(resident)).first;
     }
-    Impl::Resident& resident = it->second;
+    ResidentScene& resident = it->second;
     resident.last_used = ++impl_->clock;
     // Pinned while its frame is in progress: a frame rendered between its parts must not evict it.
     impl_->rendering.insert(scene_id);
@@ -312,93 +416,57 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     // quality made it: the first frame of a camera drag after a still frame runs no photons. Photons
     // that run go into the interactive grid.
     RunOptions frame_options = run_options_for(quality);
-    if (quality == Quality::interactive && !(stale & kPhotons))
+    if (quality == Quality::interactive && !(plan.stale & kPhotons))
         frame_options = resident.gpu->with_resident_photons(frame_options);
-
-    FrameResult frame;
     try {
-        uint64_t photon_steps = 0;
-        // The first step runs the stale passes: level 1's, or those of the resident level.
-        const uint32_t first = stale != 0 && resident_level > 0 ? resident_level : resident_level + 1;
-        for (uint32_t step = first; step <= level; ++step) {
-            // Level 1 is the frame itself; each level after it adds one photon batch (rerunning the view
-            // at pixel centres) until the batches are all in, then one jittered eye-ray sample per pixel.
-            RunOptions run_options = frame_options;
-            PassSet passes = stale;
-            if (step > std::max(resident_level, 1u)) {
-                const Refinement now = refinement_at(step), before = refinement_at(step - 1);
-                if (now.photon_batches > before.photon_batches) {
-                    run_options.photon_batch = now.photon_batches - 1;
-                    passes = kPhotons;
-                } else {
-                    run_options.view_sample = now.samples_per_pixel - 1;
-                    passes = kView;
-                }
-            }
-            // Each step runs in parts and gives way between them when the caller says other work waits.
-            run_options.give_way = give_way;
-            RunStats stats;
-            try {
-                stats = resident.gpu->run(passes, document, worlds, grid.get(), run_options, environment.get());
-            } catch (const Superseded&) {
-                // What the GPU holds now: this document, with part of a step the frame does not hold; a step
-                // that gave way before its view leaves the frame of the level before it.
-                resident.document = document;
-                resident.meshes = meshes;
-                resident.grid = grid;
-                resident.environment = environment;
-                resident.level = resident.gpu->built() & kView ? step - 1 : 0;
-                throw;
-            }
-            frame.rerun |= stats.ran;
-            frame.voxelized.insert(frame.voxelized.end(), stats.voxelized.begin(), stats.voxelized.end());
-            for (const auto& [name, ms] : stats.gpu_ms) add_timing(frame.timings, name, ms);
-            frame.photons_traced += stats.photons_entered;
-            photon_steps += stats.photon_steps;
+        if (!impl_->run_steps(resident, plan, worlds, resolved, frame_options, give_way, frame)) {
+            frame.outcome = FrameResult::Outcome::superseded;  // the resident state is whole; only the frame was not made
+            return frame;
         }
-        frame.mean_steps_per_photon =
-            frame.photons_traced ? static_cast<double>(photon_steps) / static_cast<double>(frame.photons_traced) : 0.0;
-        frame.level = level;
-        frame.refinement = refinement_at(level);
-        // An interactive frame may be shaded from a still frame's refined grid.
-        frame.refinement.photon_batches = resident.gpu->photon_batches(document, frame_options);
-        frame.photons = uint64_t{frame.refinement.photon_batches} * document.photons.count;
-        const auto encode_start = Clock::now();
-        const auto pixels = resident.gpu->read_ldr();
-        frame.png = image::encode_png(pixels, resident.gpu->width(), resident.gpu->height());
-        frame.timings.push_back({"encode", 0.0, ms_since(encode_start)});
-        frame.width = resident.gpu->width();
-        frame.height = resident.gpu->height();
-    } catch (const Superseded&) {
-        throw;  // the resident state is whole; only the frame was not made
+        impl_->finish_frame(resident, plan, frame_options, frame);
     } catch (...) {
-        // Partially rebuilt state is not trusted: drop it, the next render rebuilds from the document.
-        {
-            std::lock_guard relock(impl_->mutex);
-            impl_->scenes.erase(scene_id);
-        }
-        // A scene past this device's limits or memory is unrenderable as asked, not a device fault.
-        try {
-            throw;
-        } catch (const vk::LimitError& e) {
-            throw RenderError(std::string("the scene cannot be rendered on this device: ") + e.what());
-        } catch (const vk::Error& e) {
-            if (e.result() != VK_ERROR_OUT_OF_DEVICE_MEMORY) throw;
-            throw RenderError(std::string("the scene does not fit in this device's memory: ") + e.what());
-        }
+        impl_->drop_after_failure(scene_id);
     }
-    resident.document = document;
-    resident.meshes = meshes;
-    resident.grid = grid;
-    resident.environment = environment;
-    resident.level = quality == Quality::still ? level : 0;
+    impl_->keep(resident, plan.document, resolved, quality == Quality::still ? plan.level : 0);
     if (quality == Quality::interactive) {
         const double photons = photon_ms(frame);
-        resident.budget.observe(requested, settings, photons, ms_since(start) - paused_ms - photons - volume_ms(frame));
+        resident.budget.observe(requested, plan.settings, photons, ms_since(start) - paused_ms - photons - volume_ms(frame));
     }
     std::lock_guard relock(impl_->mutex);
     impl_->evict_least_recent(scene_id);
     return frame;
+}
+
+void Renderer::Impl::finish_frame(ResidentScene& resident, const FramePlan& plan, const RunOptions& frame_options,
+                                  FrameResult& frame) {
+    frame.level = plan.level;
+    frame.refinement = refinement_at(plan.level);
+    // An interactive frame may be shaded from a still frame's refined grid.
+    frame.refinement.photon_batches = resident.gpu->photon_batches(plan.document, frame_options);
+    frame.photons = uint64_t{frame.refinement.photon_batches} * plan.document.photons.count;
+    const auto encode_start = Clock::now();
+    const auto pixels = resident.gpu->read_ldr();
+    frame.png = image::encode_png(pixels, resident.gpu->width(), resident.gpu->height());
+    frame.timings.push_back({"encode", 0.0, ms_since(encode_start)});
+    frame.width = resident.gpu->width();
+    frame.height = resident.gpu->height();
+}
+
+void Renderer::Impl::drop_after_failure(const std::string& scene_id) {
+    // Partially rebuilt state is not trusted: drop it, the next render rebuilds from the document.
+    {
+        std::lock_guard relock(mutex);
+        scenes.erase(scene_id);
+    }
+    // A scene past this device's limits or memory is unrenderable as asked, not a device fault.
+    try {
+        throw;
+    } catch (const vk::LimitError& e) {
+        throw RenderError(std::string("the scene cannot be rendered on this device: ") + e.what());
+    } catch (const vk::Error& e) {
+        if (e.result() != VK_ERROR_OUT_OF_DEVICE_MEMORY) throw;
+        throw RenderError(std::string("the scene does not fit in this device's memory: ") + e.what());
+    }
 }
 
 void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& assets, Quality quality) {
@@ -430,7 +498,7 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
     if (budget > 0 &&
         impl_->context.allocated_bytes() + needed_bytes(document, worlds, resolved.grid.get(), resolved.environment.get()) > budget)
         return false;
-    Impl::Resident& resident = impl_->scenes[scene_id];
+    ResidentScene& resident = impl_->scenes[scene_id];
     resident.gpu = std::make_unique<SceneGpu>(impl_->kit);
     resident.last_used = ++impl_->clock;
     lock.unlock();

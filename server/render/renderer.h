@@ -32,7 +32,7 @@ namespace refract::scene {
 enum class Quality { interactive, still };
 
 // Scattering events per photon the photons of interactive frames take at most: each bounce costs about
-// one more free path of steps, and the first few carry most of the glow (README, "Multiple scattering").
+// one more free path of steps, and the first few carry most of the glow (docs/multiple-scattering.md).
 inline constexpr uint32_t kInteractiveBounces = 4;
 
 // How the passes run for a quality: `interactive` takes two-voxel eye-ray steps in fog, a radiance
@@ -69,7 +69,7 @@ struct FrameOptions {
     double budget_ms = kDefaultBudgetMs;  // interactive frames: the frame-time budget (frame_budget.h)
     uint32_t level = 1;                   // still frames: the refinement level, 1 to kMaxRefinementLevel
     // When set, each step of a frame (level 1, and each refinement level past it) asks it between the parts
-    // of its photon and view dispatches (RunOptions::give_way), and stops (Superseded) if it says so: the
+    // of its photon and view dispatches (RunOptions::give_way), and stops (Outcome::superseded) if it says so: the
     // render queue sets it for every frame (it renders other scenes' frames there, and stops a frame
     // nobody waits for), and a refinement level gives way to its viewer's next edit, which then waits for
     // one part (passes::kWorkPart photons or kViewPart pixels), not a whole frame. The step's refinement
@@ -83,6 +83,12 @@ struct FrameOptions {
 };
 
 struct FrameResult {
+    // Ordinary ends besides a frame, which a caller that lets frames give way must expect:
+    // superseded: the frame gave way to waiting work (FrameOptions::give_way) and none came of it;
+    // deferred: asked for between the parts of another scene's frame, it would fit the memory budget
+    // only by evicting that scene, so it waits for that frame to end.
+    enum class Outcome { made, superseded, deferred };
+    Outcome outcome = Outcome::made;
     std::vector<uint8_t> png;
     uint32_t width = 0, height = 0;
     PassSet rerun = 0;                // passes that ran for this frame
@@ -93,19 +99,6 @@ struct FrameResult {
     uint32_t level = 1;           // the refinement level the frame holds (1 for interactive frames)
     Refinement refinement;        // photon batches and samples per pixel in the frame
     uint64_t photons = 0;         // photons in the radiance grid the frame was shaded from, all batches
-};
-
-// Raised when a refinement step gave way to waiting work (FrameOptions::give_way): no frame came of it.
-class Superseded : public std::runtime_error {
-public:
-    Superseded() : std::runtime_error("a newer request came first") {}
-};
-
-// Raised for a frame asked for while another scene's frame is in progress (between its parts) when it
-// would fit the memory budget only by evicting that scene: it must wait for that frame to end.
-class Deferred : public std::runtime_error {
-public:
-    Deferred() : std::runtime_error("the frame waits for the frame in progress to end") {}
 };
 
 struct RendererOptions {
@@ -123,7 +116,7 @@ public:
     // Renders `document` for scene `scene_id`, reusing whatever resident state is still valid for it.
     // May be called again from `options.give_way` for another scene (the render queue renders other
     // scenes' frames between the parts of one): a scene whose frame is in progress is never evicted for
-    // it, and a frame that would need that throws Deferred. Time spent in give_way is not the frame's.
+    // it, and a frame that would need that comes back deferred. Time spent in give_way is not the frame's.
     // Interactive frames choose their image size and photon count to land within `options.budget_ms`
     // (frame_budget.h), and shade from the resident radiance grid, whatever quality made it, when their
     // edit leaves its photons valid; still frames render the document as it is, refined to `options.level`.

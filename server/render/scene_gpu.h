@@ -9,45 +9,22 @@
 #include <string>
 #include <vector>
 
-#include "mesh/mesh.h"
+#include "assets/index_grid.h"
 #include "image/environment_map.h"
-#include "passes/direct_light.h"
-#include "passes/environment_light.h"
-#include "passes/index_field.h"
-#include "passes/lit_pyramid.h"
-#include "passes/octree.h"
-#include "passes/photon_trace.h"
-#include "passes/radiance_resolve.h"
-#include "passes/tone_map.h"
-#include "passes/transport_params.h"
-#include "passes/view.h"
-#include "passes/voxelize.h"
+#include "mesh/mesh.h"
+#include "passes/grid_geometry.h"
 #include "protocol/scene_document.h"
 #include "render/field_atlas.h"
-#include "passes/grid_geometry.h"
-#include "render/object_mesh.h"
+#include "render/frame_inputs.h"
 #include "render/invalidation.h"
+#include "render/object_mesh.h"
+#include "render/pass_kit.h"
+#include "render/transport_stage.h"
+#include "render/view_stage.h"
+#include "render/volume_stage.h"
 #include "transport.h"
 
 namespace refract::scene {
-
-struct IndexGrid;
-
-// The compiled pipelines of every pass, created once per Vulkan context.
-struct PassKit {
-    explicit PassKit(vk::Context& context);
-    vk::Context& context;
-    passes::VoxelizePass voxelize;
-    passes::IndexFieldPass index_field;
-    passes::OctreePass octree;
-    passes::DirectLightPass direct_light;
-    passes::PhotonTracePass photon_trace;
-    passes::RadianceResolvePass radiance_resolve;
-    passes::LitPyramidPass lit_pyramid;
-    passes::ViewPass view;
-    passes::ToneMapPass tone_map;
-    vk::UniqueSampler linear_sampler;
-};
 
 // What one run of the stale passes measured.
 struct RunStats {
@@ -60,6 +37,7 @@ struct RunStats {
     uint64_t photon_scatterings = 0;  // scattering events of the photons' random walks
     uint64_t view_steps = 0;  // eye-ray march steps, when the viewing pass ran
     std::vector<std::string> voxelized;  // the objects the voxelize pass ran for, by name
+    bool gave_way = false;  // the run stopped at a part (RunOptions::give_way): no frame came of it
     double mean_steps_per_photon() const {
         return photons_entered ? static_cast<double>(photon_steps) / static_cast<double>(photons_entered) : 0.0;
     }
@@ -90,7 +68,7 @@ struct RunOptions {
     uint32_t view_sample = 0;
     // Set (the render queue sets it for every frame): the photon and view dispatches then run in parts of
     // about passes::kWorkPart photons or kViewPart pixels, a submission each, and this is asked after
-    // each; when it says to stop, the run stops there (Superseded), and what its photon and view passes hold is
+    // each; when it says to stop, the run stops there (RunStats::gave_way), and what its photon and view passes hold is
     // partial: built() leaves out the pass it stopped in and those asked for after it (the renderer
     // keeps the refinement level before the step only where its view is left whole).
     std::function<bool()> give_way;
@@ -106,21 +84,6 @@ int64_t estimate_scene_bytes(const passes::GridGeometry& grid, uint64_t field_vo
 // `image` nullptr for a uniform environment or the sky (a placeholder of a few texels).
 int64_t estimate_environment_bytes(const image::EnvironmentMap* image);
 
-// Where the field of objects in `boxes` lives: a sparse atlas of their boxes (render/field_atlas.h) no
-// wider than `max_side` where it holds under half the lattice's voxels, else the dense lattice; the
-// lattice always for one object or an imported grid (`dense`). Throws RenderError when the atlas would
-// not fit `max_side`.
-FieldAtlas field_atlas_for(const passes::GridGeometry& lattice, const std::map<std::string, passes::ObjectBox>& boxes, bool dense,
-                           uint32_t max_side);
-
-// The voxels around an object's world bounds its box takes (object_box) for a smoothing of `sigma`
-// voxels: where the B-spline and the lattice Gaussian (passes::VoxelizePass) leave coverage, and one
-// more for the index field's central differences.
-uint32_t object_apron(double sigma);
-
-// The objects' boxes in `lattice`, by name: the whole lattice for the one object of a scene of one.
-std::map<std::string, passes::ObjectBox> object_boxes(const passes::GridGeometry& lattice, const WorldMeshes& worlds, double sigma);
-
 class SceneGpu {
 public:
     explicit SceneGpu(PassKit& kit);
@@ -132,13 +95,15 @@ public:
     // made (all of them when the lattice moved); imported grids have none. `grid_asset` is the imported
     // index grid for index_field == grid; `environment` the map an image environment names: a changed
     // map must come as a new pointer (the resident copy is kept while the pointer and the document's
-    // environment stay). Throws vk::Error on device failures.
+    // environment stay). The document is turned into each stage's inputs (FrameInputs) at the top; the
+    // stages record into one recording, in parts when the run may give way. Throws vk::Error on device
+    // failures.
     RunStats run(PassSet stale, const protocol::SceneDocument& document, const WorldMeshes& worlds,
                  const IndexGrid* grid_asset, const RunOptions& options = {},
                  const image::EnvironmentMap* environment = nullptr);
 
     const passes::GridGeometry& grid() const { return grid_; }
-    const FieldAtlas& field_atlas() const { return atlas_; }
+    const FieldAtlas& field_atlas() const { return volume_.atlas(); }
     // The passes whose results are resident and whole.
     PassSet built() const { return built_; }
     // The passes a run asked for `stale` runs (before RunOptions::limit, on this grid and radiance grid):
@@ -151,91 +116,56 @@ public:
     uint32_t photon_batches(const protocol::SceneDocument& document, const RunOptions& options) const;
     // `options` with the photon settings the resident radiance grid was made with, so that a run that
     // needs no photons shades from that grid, whatever quality made it.
-    RunOptions with_resident_photons(RunOptions options) const;
-    uint32_t width() const { return width_; }
-    uint32_t height() const { return height_; }
+    RunOptions with_resident_photons(RunOptions options) const { return transport_.with_resident_photons(options); }
+    uint32_t width() const { return view_.width(); }
+    uint32_t height() const { return view_.height(); }
 
     // Read-backs (each a separate submission): float per voxel / texel, x fastest. The field's (coverage,
     // objects, index field, levels) are per voxel of the lattice, what the transport's lookups see there
     // (the medium's outside a field atlas's clusters); the pyramid is the field images' own.
-    std::vector<float> read_coverage() const;
-    std::vector<uint32_t> read_object_numbers() const;  // per voxel: 1 + the number of the object it holds, 0: none
-    std::vector<glm::vec4> read_index_field() const;
-    std::vector<uint32_t> read_levels() const;  // octree leaf level per voxel
-    std::vector<glm::vec2> read_pyramid() const;  // octree (min, max) n per node, levels 1 and up back to back
-    std::vector<glm::vec4> read_radiance() const;  // fluence rate rgb (W/m^2)
-    std::vector<glm::vec4> read_flux() const;      // net flux vector xyz, fluence rate w (channel mean; W/m^2)
-    uint32_t channels() const { return channels_; }  // how the photons last ran carried colour (CHANNELS_*)
-    bool grey() const { return channels_ == CHANNELS_GREY; }  // one fluence for all channels (transport.h)
+    std::vector<float> read_coverage() const { return volume_.read_coverage(); }
+    // Per voxel: 1 + the number of the object it holds, 0: none.
+    std::vector<uint32_t> read_object_numbers() const { return volume_.read_object_numbers(); }
+    std::vector<glm::vec4> read_index_field() const { return volume_.read_index_field(); }
+    std::vector<uint32_t> read_levels() const { return volume_.read_levels(); }  // octree leaf level per voxel
+    // Octree (min, max) n per node, levels 1 and up back to back.
+    std::vector<glm::vec2> read_pyramid() const { return volume_.read_pyramid(); }
+    std::vector<glm::vec4> read_radiance() const { return transport_.read_radiance(); }  // fluence rate rgb (W/m^2)
+    // Net flux vector xyz, fluence rate w (channel mean; W/m^2).
+    std::vector<glm::vec4> read_flux() const { return transport_.read_flux(); }
+    uint32_t channels() const { return transport_.channels(); }  // how the photons last ran carried colour (CHANNELS_*)
+    bool grey() const { return transport_.grey(); }  // one fluence for all channels (transport.h)
     // The lit pyramid, levels one after another (passes::lit_pyramid_offsets): 1 per lit cell above
     // level 0, and per level-0 block the number of levels unlit there (transport.h).
-    std::vector<uint32_t> read_lit_pyramid() const;
+    std::vector<uint32_t> read_lit_pyramid() const { return transport_.read_lit_pyramid(); }
     // The change of floor irradiance the grid causes (W/m^2, signed), floor_map_side()^2 texels.
-    std::vector<glm::vec4> read_floor_map() const;
+    std::vector<glm::vec4> read_floor_map() const { return transport_.read_floor_map(); }
     // Total floor irradiance at the floor map's texel centres, as the viewing pass shades it: the
     // unobstructed light plus the map's change, clamped at zero.
-    std::vector<glm::vec4> read_floor_irradiance() const;
-    std::vector<glm::vec4> read_hdr() const;
-    std::vector<uint32_t> read_ldr() const;
-    std::vector<shaders::PhotonExit> read_photon_exits() const;
+    std::vector<glm::vec4> read_floor_irradiance() const { return transport_.read_floor_irradiance(); }
+    std::vector<glm::vec4> read_hdr() const { return view_.read_hdr(); }
+    std::vector<uint32_t> read_ldr() const { return view_.read_ldr(); }
+    std::vector<shaders::PhotonExit> read_photon_exits() const { return transport_.read_photon_exits(); }
     // The last run's parameters: the first light's (which the viewing pass reads), and every light's.
-    const shaders::TransportParams& params() const { return light_params_.front(); }
-    const std::vector<shaders::TransportParams>& light_params() const { return light_params_; }
-    uint32_t floor_map_side() const { return floor_texels_; }
+    const shaders::TransportParams& params() const { return transport_.light_params().front(); }
+    const std::vector<shaders::TransportParams>& light_params() const { return transport_.light_params(); }
+    uint32_t floor_map_side() const { return transport_.floor_map_side(); }
 
 private:
-    void allocate_volume(const passes::GridGeometry& grid);
-    void allocate_field(FieldAtlas atlas);
-    // The field images' texels spread over the lattice: `outside` where no cluster holds a voxel.
-    template <typename T>
-    std::vector<T> on_lattice(const std::vector<T>& texels, T outside) const;
-    void allocate_transport(uint32_t photon_exit_count, bool record_exits, uint32_t radiance_factor, uint32_t channels);
-    void allocate_frame(uint32_t width, uint32_t height);
-    bool grid_made_for(const protocol::SceneDocument& document, const RunOptions& options) const;
-    template <typename T>
-    std::vector<T> read_image(const vk::Image3D& image) const;
-    template <typename T>
-    std::vector<T> read_buffer(const vk::Buffer& buffer) const;
+    // The lattice the run builds on: the resident one, unless the volume is rebuilt (then fitted to the
+    // document's objects, or the imported grid's).
+    passes::GridGeometry lattice_for(PassSet stale, const protocol::SceneDocument& document, const WorldMeshes& worlds,
+                                     const FrameInputs::Volume& volume, const IndexGrid* grid_asset) const;
+    // What the run holds when it stopped in `pass`: the passes before it built, it and those asked for
+    // after it not (`keep_mean`: a photon pass stopped before touching the running mean keeps it).
+    void gave_way(Pass pass, PassSet stale, PassSet asked, bool keep_mean);
 
     PassKit& kit_;
     passes::GridGeometry grid_{};
     PassSet built_ = 0;
-    uint32_t width_ = 0, height_ = 0, floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
-    bool sampled_deposits_ = false;  // how the photons in the radiance grid were deposited (RunOptions)
-    uint32_t bounces_ = 0;           // how often they could scatter (passes::photon_bounces)
-    uint32_t photon_batches_ = 0;    // how many batches its running mean holds (with kPhotons built)
-    uint32_t channels_ = CHANNELS_RGB;
-    float octree_epsilon_ = 0.0f;  // the epsilon of the resident level map
-    std::vector<shaders::TransportParams> light_params_{shaders::TransportParams{}};
-    // Volume (voxelize, index field, octree): each object's coverage over its box, kept while its world
-    // mesh, box and smoothing stay, so that an edit of one object voxelizes that one only.
-    struct ObjectVolume {
-        passes::ObjectBox box;
-        size_t mesh_hash = 0;  // of the world mesh it was voxelized from
-        double smoothing = 0.0;
-        vk::Buffer coverage;
-    };
-    std::map<std::string, ObjectVolume> objects_;
-    // The objects and the medium's index as the index field was last made of them: an edit that moves
-    // some objects of several remakes the field over their boxes only.
-    std::map<std::string, protocol::Object> composed_objects_;
-    double composed_medium_ior_ = 0.0;
-    vk::Buffer grid_values_, pyramid_, levels_, materials_;
-    vk::Image3D index_field_, coverage_image_;  // at atlas_.dims
-    FieldAtlas atlas_;
-    vk::Buffer atlas_map_;  // a sparse atlas's map (transport.h)
-    // Transport (photons, resolve)
-    std::optional<passes::PhotonAccumulators> accum_;
-    std::vector<vk::Buffer> params_buffers_;  // one per entry of light_params_
-    vk::Image3D radiance_, flux_, floor_map_;  // radiance_: per-channel fluence, coloured transport only
-    // The environment (passes/environment_light.h) and what it was made from
-    passes::EnvironmentLight environment_light_;
-    vk::Buffer environment_map_;
-    const image::EnvironmentMap* environment_image_ = nullptr;
-    protocol::Environment environment_document_;
-    bool environment_floor_ = false;
-    // Frame
-    vk::Buffer hdr_, ldr_, refine_;
+    VolumeStage volume_;
+    TransportStage transport_;
+    ViewStage view_;
     vk::CommandRecorder recorder_;
     vk::GpuTimer timer_;
 };

@@ -19,8 +19,10 @@ uint64_t AssetCache::held_bytes() const {
 
 void AssetCache::check_fits(const std::string& what, uint64_t bytes) const {
     if (bytes <= budget_) return;
-    throw StoreError(413, what + " takes " + mebibytes(bytes) + " decoded, more than the daemon's whole budget for "
-                              "decoded assets (--max-host-memory " + mebibytes(budget_) + ")");
+    throw StoreError(StoreFailure::too_large, what + " takes " + mebibytes(bytes) +
+                                                  " decoded, more than the daemon's whole budget for "
+                                                  "decoded assets (--max-host-memory " +
+                                                  mebibytes(budget_) + ")");
 }
 
 std::shared_ptr<const void> AssetCache::find_erased(AssetKind kind, const std::string& name, uint64_t version) {

@@ -23,7 +23,8 @@ public:
     // Bytes held now by the cache itself (not counting dropped assets someone still holds).
     uint64_t held_bytes() const;
 
-    // Throws StoreError(413) when an asset of `bytes` could never be held: the whole budget is smaller.
+    // Throws StoreError(too_large) when an asset of `bytes` could never be held: the whole budget is
+    // smaller.
     void check_fits(const std::string& what, uint64_t bytes) const;
 
     // The asset decoded from `version` of (kind, name), or nullptr. One that was dropped but is still held

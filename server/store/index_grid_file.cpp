@@ -35,7 +35,7 @@ IndexGrid decode_grid(const std::string& bytes) {
     IndexGrid grid;
     size_t header = sizeof(kGridMagic) + 3 * sizeof(uint32_t) + 6 * sizeof(double);
     if (bytes.size() < header || std::memcmp(bytes.data(), kGridMagic, sizeof(kGridMagic)) != 0)
-        throw StoreError(500, "stored index grid is corrupt");
+        throw StoreError(StoreFailure::broken, "stored index grid is corrupt");
     const char* in = bytes.data() + sizeof(kGridMagic);
     auto get = [&in](void* data, size_t size) {
         if (size == 0) return;  // a grid side of 0 (refused below): data is null
@@ -52,11 +52,12 @@ IndexGrid decode_grid(const std::string& bytes) {
     const size_t values = (bytes.size() - header) / sizeof(float);
     size_t count = 1;
     for (const uint32_t side : {grid.nx, grid.ny, grid.nz}) {
-        if (side != 0 && count > values / side) throw StoreError(500, "stored index grid is truncated");
+        if (side != 0 && count > values / side)
+            throw StoreError(StoreFailure::broken, "stored index grid is truncated");
         count *= side;
     }
     if (bytes.size() != header + count * sizeof(float))
-        throw StoreError(500, "stored index grid is truncated");
+        throw StoreError(StoreFailure::broken, "stored index grid is truncated");
     grid.n.resize(count);
     get(grid.n.data(), count * sizeof(float));
     validate_index_grid(grid);

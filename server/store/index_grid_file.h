@@ -12,7 +12,7 @@ namespace refract::scene {
 // The file's bytes for a grid that passed validate_index_grid().
 std::vector<char> encode_grid(const IndexGrid& grid);
 
-// Reads a grid file back. Throws StoreError(500) when the bytes are not a whole grid file, and what
+// Reads a grid file back. Throws StoreError(broken) when the bytes are not a whole grid file, and what
 // validate_index_grid() throws when the grid they hold is not valid.
 IndexGrid decode_grid(const std::string& bytes);
 

@@ -33,7 +33,8 @@ uint64_t Result::number(int row, int column) const {
     uint64_t number = 0;
     auto [rest, error] = std::from_chars(value.data(), value.data() + value.size(), number);
     if (error != std::errc() || rest != value.data() + value.size())
-        throw StoreError(500, "the database returned '" + value + "' where a number was expected");
+        throw StoreError(StoreFailure::broken,
+                         "the database returned '" + value + "' where a number was expected");
     return number;
 }
 
@@ -52,10 +53,11 @@ Connection::Connection(const std::string& url) : conn_(nullptr, PQfinish) {
     const char* keywords[] = {"connect_timeout", "application_name", "dbname", nullptr};
     const char* values[] = {"5", "refractd", url.c_str(), nullptr};
     conn_.reset(PQconnectdbParams(keywords, values, 1));
-    if (!conn_) throw StoreError(503, "cannot connect to PostgreSQL: out of memory");
+    if (!conn_) throw StoreError(StoreFailure::unavailable, "cannot connect to PostgreSQL: out of memory");
     if (PQstatus(conn_.get()) != CONNECTION_OK)
-        throw StoreError(503, "scene store unavailable: cannot connect to PostgreSQL (" + describe() +
-                                  "): " + trimmed(PQerrorMessage(conn_.get())));
+        throw StoreError(StoreFailure::unavailable,
+                         "scene store unavailable: cannot connect to PostgreSQL (" + describe() +
+                             "): " + trimmed(PQerrorMessage(conn_.get())));
     backend_start_ = exec("SELECT backend_start::text FROM pg_stat_activity WHERE pid = pg_backend_pid()", {},
                           "identifying the connection's server process")
                          .text(0, 0);
@@ -110,16 +112,17 @@ Result Connection::checked(Result result, const std::string& doing) const {
     ExecStatusType status = PQresultStatus(result.raw());
     if (status == PGRES_COMMAND_OK || status == PGRES_TUPLES_OK) return result;
     if (PQstatus(conn_.get()) != CONNECTION_OK)
-        throw StoreError(503, "scene store unavailable while " + doing + ": the connection to PostgreSQL (" +
-                                  describe() + ") was lost: " + trimmed(PQerrorMessage(conn_.get())));
+        throw StoreError(StoreFailure::unavailable,
+                         "scene store unavailable while " + doing + ": the connection to PostgreSQL (" +
+                             describe() + ") was lost: " + trimmed(PQerrorMessage(conn_.get())));
     const char* state = PQresultErrorField(result.raw(), PG_DIAG_SQLSTATE);
     std::string why = trimmed(PQresultErrorMessage(result.raw()));
-    if (state && kUniqueViolation == state) throw StoreError(409, doing + ": " + why);
+    if (state && kUniqueViolation == state) throw StoreError(StoreFailure::taken, doing + ": " + why);
     for (std::string_view unavailable : kUnavailableClasses)
         if (state && std::string_view(state).substr(0, 2) == unavailable)
-            throw StoreError(503, "scene store unavailable while " + doing + ": PostgreSQL (" + describe() +
-                                      "): " + why);
-    throw StoreError(500, "PostgreSQL refused " + doing + ": " + why);
+            throw StoreError(StoreFailure::unavailable, "scene store unavailable while " + doing +
+                                                            ": PostgreSQL (" + describe() + "): " + why);
+    throw StoreError(StoreFailure::broken, "PostgreSQL refused " + doing + ": " + why);
 }
 
 Pool::Pool(std::string url, size_t max_size) : url_(std::move(url)), max_size_(max_size) {}
@@ -143,8 +146,8 @@ Pool::Lease::~Lease() {
 Pool::Lease Pool::acquire() {
     std::unique_lock lock(mutex_);
     if (!returned_.wait_for(lock, std::chrono::seconds(10), [&] { return !idle_.empty() || open_ < max_size_; }))
-        throw StoreError(503, "scene store busy: all " + std::to_string(max_size_) +
-                                  " PostgreSQL connections in use for 10 s");
+        throw StoreError(StoreFailure::unavailable, "scene store busy: all " + std::to_string(max_size_) +
+                                                        " PostgreSQL connections in use for 10 s");
     while (!idle_.empty()) {
         std::unique_ptr<Connection> connection = std::move(idle_.back());
         idle_.pop_back();

@@ -1,6 +1,6 @@
 // libpq, owned: one connection (RAII), the results it returns, and a bounded pool of connections that
 // the shared scene store's request threads borrow. Every failure becomes a StoreError carrying what was
-// being done and libpq's reason: 503 when the database cannot be reached, 500 otherwise.
+// being done and libpq's reason: unavailable when the database cannot be reached, broken otherwise.
 #pragma once
 
 #include <libpq-fe.h>
@@ -45,14 +45,15 @@ private:
 class Connection {
 public:
     // Connects to `url` (a libpq connection string or postgresql:// URI) within a few seconds; throws
-    // StoreError(503) naming the server and libpq's reason.
+    // StoreError(unavailable) naming the server and libpq's reason.
     explicit Connection(const std::string& url);
     Connection(const Connection&) = delete;
     Connection& operator=(const Connection&) = delete;
 
     // Runs one statement. `binary_results`: bytea columns come back raw (Result::bytes). `doing` says
-    // what the statement was for, in the error. Throws StoreError: 503 when the connection is lost
-    // (the statement's outcome is then unknown), 409 for a unique violation, 500 for anything else.
+    // what the statement was for, in the error. Throws StoreError: unavailable when the connection is
+    // lost (the statement's outcome is then unknown), taken for a unique violation, broken for anything
+    // else.
     Result exec(std::string_view sql, const std::vector<Param>& params, const std::string& doing,
                 bool binary_results = false);
     // A statement without parameters (BEGIN, COMMIT).
@@ -103,7 +104,7 @@ public:
     };
 
     // An idle connection that is still open, or a new one; waits while `max_size` are borrowed
-    // (StoreError(503) after 10 s).
+    // (StoreError(unavailable) after 10 s).
     Lease acquire();
     const std::string& url() const { return url_; }
 

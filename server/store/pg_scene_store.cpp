@@ -94,7 +94,8 @@ SceneSnapshot PgSceneStore::snapshot(const std::string& id, uint64_t revision, c
 }
 
 SceneSnapshot PgSceneStore::create(const std::string& id, const nlohmann::json& document) {
-    if (!id.empty() && !valid_scene_id(id)) throw StoreError(400, "scene id must match [a-z0-9-]{1,32}");
+    if (!id.empty() && !valid_scene_id(id))
+        throw StoreError(StoreFailure::invalid, "scene id must match [a-z0-9-]{1,32}");
     protocol::SceneDocument parsed = protocol::parse_scene(document, limits_);
     std::string text = dump(parsed);
     pg::Pool::Lease connection = pool_.acquire();
@@ -105,7 +106,7 @@ SceneSnapshot PgSceneStore::create(const std::string& id, const nlohmann::json& 
             "INSERT INTO scenes (id, revision, document) VALUES ($1, 1, $2::jsonb) ON CONFLICT (id) DO NOTHING",
             {{chosen}, {text}}, "creating scene '" + chosen + "'");
         if (inserted.affected() == 1) return {chosen, 1, parsed};
-        if (!id.empty()) throw StoreError(409, "scene '" + id + "' already exists");
+        if (!id.empty()) throw StoreError(StoreFailure::taken, "scene '" + id + "' already exists");
     }
 }
 
@@ -149,11 +150,14 @@ EditResult PgSceneStore::patch(const std::string& id, const nlohmann::json& merg
         {
             pg::Result row = connection->exec("SELECT revision, document::text FROM scenes WHERE id = $1", {{id}},
                                               "reading scene '" + id + "'");
-            if (row.rows() == 0) throw StoreError(404, "scene '" + id + "' does not exist");
+            if (row.rows() == 0)
+                throw StoreError(StoreFailure::not_found, "scene '" + id + "' does not exist");
             current = snapshot(id, row.number(0, 0), row.text(0, 1));
         }
         if (if_match && *if_match != current->revision)
-            throw StoreError(412, "scene is at revision " + text_of(current->revision) + ", not " + text_of(*if_match));
+            throw StoreError(
+                StoreFailure::stale_revision,
+                "scene is at revision " + text_of(current->revision) + ", not " + text_of(*if_match));
         EditResult result;
         result.before = current->document;
         result.after = *current;
@@ -176,25 +180,29 @@ EditResult PgSceneStore::patch(const std::string& id, const nlohmann::json& merg
                                   "committing revision " + text_of(result.after.revision) + " of scene '" + id + "'")
                            .affected();
         } catch (const StoreError& e) {
-            if (e.status() != 503) throw;
+            if (e.failure() != StoreFailure::unavailable) throw;
             // The answer was lost, not necessarily the edit: acknowledge it if it committed, and say
             // which it was when it did not.
             switch (outcome_of_lost_update(*connection, result.after)) {
                 case LostUpdate::committed:
                     return result;
                 case LostUpdate::not_applied:
-                    throw StoreError(503, std::string(e.what()) + "; the edit was not applied");
+                    throw StoreError(StoreFailure::unavailable,
+                                     std::string(e.what()) + "; the edit was not applied");
                 case LostUpdate::unknown:
-                    throw StoreError(503, std::string(e.what()) +
-                                              "; whether the edit was applied is unknown until the database "
-                                              "answers again: GET the scene to see its revision");
+                    throw StoreError(StoreFailure::unavailable,
+                                     std::string(e.what()) +
+                                         "; whether the edit was applied is unknown until the database "
+                                         "answers again: GET the scene to see its revision");
             }
         }
         if (affected == 1) return result;  // the trigger's NOTIFY tells every replica's viewers
         if (if_match)
-            throw StoreError(412, "scene moved past revision " + text_of(*if_match) + " while this edit was applied");
+            throw StoreError(StoreFailure::stale_revision, "scene moved past revision " + text_of(*if_match) +
+                                                               " while this edit was applied");
     }
-    throw StoreError(503, "scene '" + id + "' is edited too fast to apply this edit; try again");
+    throw StoreError(StoreFailure::unavailable,
+                     "scene '" + id + "' is edited too fast to apply this edit; try again");
 }
 
 PgSceneStore::LostUpdate PgSceneStore::outcome_of_lost_update(const pg::Connection& lost,
@@ -226,7 +234,8 @@ PgSceneStore::LostUpdate PgSceneStore::outcome_of_lost_update(const pg::Connecti
 }
 
 MeshEntry PgSceneStore::put_mesh(const std::string& name, const std::string& obj_text) {
-    if (!valid_mesh_name(name)) throw StoreError(400, "mesh name must match [A-Za-z0-9_.-]{1,64}");
+    if (!valid_mesh_name(name))
+        throw StoreError(StoreFailure::invalid, "mesh name must match [A-Za-z0-9_.-]{1,64}");
     auto parsed = std::make_shared<const mesh::Mesh>(mesh::parse_obj(obj_text, mesh_limits_));
     const uint64_t size = host_bytes(*parsed);
     cache_.check_fits("mesh '" + name + "'", size);
@@ -312,8 +321,10 @@ bool PgSceneStore::remove_mesh(const std::string& name_or_reference) {
 }
 
 EnvironmentEntry PgSceneStore::put_environment(const std::string& name, const std::string& bytes) {
-    if (!valid_mesh_name(name)) throw StoreError(400, "environment name must match [A-Za-z0-9_.-]{1,64}");
-    if (image::built_in_environment(name)) throw StoreError(400, "\"" + name + "\" is a built-in environment");
+    if (!valid_mesh_name(name))
+        throw StoreError(StoreFailure::invalid, "environment name must match [A-Za-z0-9_.-]{1,64}");
+    if (image::built_in_environment(name))
+        throw StoreError(StoreFailure::invalid, "\"" + name + "\" is a built-in environment");
     // Refused on its header before anything is decoded when it could never be held.
     cache_.check_fits("environment '" + name + "'", image::environment_size(bytes).decoded_bytes());
     auto decoded = std::make_shared<const image::EnvironmentMap>(image::decode_environment(bytes));
@@ -366,7 +377,8 @@ EditResult PgSceneStore::put_index_grid(const std::string& scene_id, IndexGrid g
     EditResult result = pg::in_transaction(*connection, "storing the index grid of scene '" + scene_id + "'", [&] {
         pg::Result row = connection->exec("SELECT revision, document::text FROM scenes WHERE id = $1 FOR UPDATE",
                                           {{scene_id}}, "reading scene '" + scene_id + "'");
-        if (row.rows() == 0) throw StoreError(404, "scene '" + scene_id + "' does not exist");
+        if (row.rows() == 0)
+            throw StoreError(StoreFailure::not_found, "scene '" + scene_id + "' does not exist");
         SceneSnapshot current = snapshot(scene_id, row.number(0, 0), row.text(0, 1));
         EditResult edit;
         edit.before = current.document;
@@ -412,8 +424,9 @@ void PgSceneStore::listen() {
                 pollfd fd{PQsocket(connection.raw()), POLLIN, 0};
                 if (::poll(&fd, 1, 250) < 0) continue;
                 if (PQconsumeInput(connection.raw()) == 0)
-                    throw StoreError(503, std::string("lost the notification connection: ") +
-                                              PQerrorMessage(connection.raw()));
+                    throw StoreError(
+                        StoreFailure::unavailable,
+                        std::string("lost the notification connection: ") + PQerrorMessage(connection.raw()));
                 while (PGnotify* note = PQnotifies(connection.raw())) {
                     std::optional<std::pair<StoreEvent, bool>> event = parse_notification(note->extra);
                     PQfreemem(note);

@@ -17,7 +17,8 @@ namespace refract::scene {
 class PgSceneStore final : public Store {
 public:
     // Connects to `url`, migrates the schema (pg_schema.h) and starts listening for other replicas'
-    // edits. Throws StoreError: 503 when the database cannot be reached, 500 when its schema is newer.
+    // edits. Throws StoreError: unavailable when the database cannot be reached, broken when its schema
+    // is newer.
     // At most `max_host_memory` bytes of decoded assets are held.
     PgSceneStore(const std::string& url, protocol::Limits limits, mesh::MeshLimits mesh_limits,
                  uint64_t max_host_memory = kDefaultMaxHostMemory);

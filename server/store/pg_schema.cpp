@@ -105,9 +105,10 @@ void migrate(Connection& connection) {
         Result found = connection.exec("SELECT version FROM refract_schema", "reading the schema version");
         const uint64_t version = found.rows() == 0 ? 0 : found.number(0, 0);
         if (version > kSchemaVersion)
-            throw StoreError(500, "the database's schema is version " + std::to_string(version) +
-                                      ", newer than this refractd's " + std::to_string(kSchemaVersion) +
-                                      "; refusing to start (run the refractd that migrated it, or a newer one)");
+            throw StoreError(StoreFailure::broken,
+                             "the database's schema is version " + std::to_string(version) +
+                                 ", newer than this refractd's " + std::to_string(kSchemaVersion) +
+                                 "; refusing to start (run the refractd that migrated it, or a newer one)");
         for (uint64_t step = version; step < kSchemaVersion; ++step)
             connection.exec_script(kMigrations[step], "migrating the schema to version " + std::to_string(step + 1));
         connection.exec("INSERT INTO refract_schema (version) VALUES (" + std::to_string(kSchemaVersion) +

@@ -10,7 +10,8 @@ namespace refract::scene::pg {
 constexpr int kSchemaVersion = 2;
 
 // Brings the database to kSchemaVersion under an advisory lock (replicas starting together migrate
-// once). Throws StoreError: 503 unreachable, 500 (naming both versions) when the database is newer.
+// once). Throws StoreError: unavailable when unreachable, broken (naming both versions) when the
+// database is newer.
 void migrate(Connection& connection);
 
 }  // namespace refract::scene::pg

@@ -48,7 +48,7 @@ void fsync_directory(const fs::path& dir) {
 
 std::string read_text_file(const fs::path& path) {
     std::ifstream in(path, std::ios::binary);
-    if (!in) throw StoreError(500, "cannot read " + path.string());
+    if (!in) throw StoreError(StoreFailure::broken, "cannot read " + path.string());
     std::ostringstream text;
     text << in.rdbuf();
     return text.str();
@@ -62,7 +62,8 @@ void write_file_atomically(const fs::path& path, const void* bytes, size_t size)
     temp += std::string(kTempMarker) + std::to_string(::getpid()) + "." + std::to_string(counter.fetch_add(1));
     {
         Fd f{::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)};
-        if (f.fd < 0) throw StoreError(500, "cannot create " + temp.string() + ": " + errno_text());
+        if (f.fd < 0)
+            throw StoreError(StoreFailure::broken, "cannot create " + temp.string() + ": " + errno_text());
         const char* p = static_cast<const char*>(bytes);
         size_t left = size;
         while (left > 0) {
@@ -71,7 +72,7 @@ void write_file_atomically(const fs::path& path, const void* bytes, size_t size)
             if (written <= 0) {
                 std::string why = errno_text();
                 ::unlink(temp.c_str());
-                throw StoreError(500, "cannot write " + temp.string() + ": " + why);
+                throw StoreError(StoreFailure::broken, "cannot write " + temp.string() + ": " + why);
             }
             p += written;
             left -= static_cast<size_t>(written);
@@ -79,13 +80,13 @@ void write_file_atomically(const fs::path& path, const void* bytes, size_t size)
         if (::fsync(f.fd) != 0) {
             std::string why = errno_text();
             ::unlink(temp.c_str());
-            throw StoreError(500, "cannot sync " + temp.string() + ": " + why);
+            throw StoreError(StoreFailure::broken, "cannot sync " + temp.string() + ": " + why);
         }
     }
     if (::rename(temp.c_str(), path.c_str()) != 0) {
         std::string why = errno_text();
         ::unlink(temp.c_str());
-        throw StoreError(500, "cannot rename to " + path.string() + ": " + why);
+        throw StoreError(StoreFailure::broken, "cannot rename to " + path.string() + ": " + why);
     }
     fsync_directory(path.parent_path());
 }
@@ -96,7 +97,9 @@ SceneStore::SceneStore(fs::path data_dir, protocol::Limits limits, mesh::MeshLim
     std::error_code ec;
     for (const char* sub : {"scenes", "meshes", "grids", "environments"}) {
         fs::create_directories(data_dir_ / sub, ec);
-        if (ec) throw StoreError(500, "cannot create " + (data_dir_ / sub).string() + ": " + ec.message());
+        if (ec)
+            throw StoreError(StoreFailure::broken,
+                             "cannot create " + (data_dir_ / sub).string() + ": " + ec.message());
     }
     lock_data_dir();
     try {
@@ -116,7 +119,8 @@ void SceneStore::lock_data_dir() {
     // postmaster.pid, names the holder and is released by the kernel however the holder dies.
     fs::path path = data_dir_ / "refractd.pid";
     lock_fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (lock_fd_ < 0) throw StoreError(500, "cannot open " + path.string() + ": " + errno_text());
+    if (lock_fd_ < 0)
+        throw StoreError(StoreFailure::broken, "cannot open " + path.string() + ": " + errno_text());
     if (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
         std::string why = errno == EWOULDBLOCK ? "" : ": " + errno_text();
         char holder[32] = {};
@@ -124,8 +128,9 @@ void SceneStore::lock_data_dir() {
         std::string pid = got > 0 ? std::string(holder, static_cast<size_t>(got)) : "";
         while (!pid.empty() && (pid.back() == '\n' || pid.back() == ' ')) pid.pop_back();
         ::close(lock_fd_);
-        throw StoreError(409, "data directory " + data_dir_.string() + " is in use by another refractd" +
-                                  (pid.empty() ? "" : " (pid " + pid + ")") + why);
+        throw StoreError(StoreFailure::in_use, "data directory " + data_dir_.string() +
+                                                   " is in use by another refractd" +
+                                                   (pid.empty() ? "" : " (pid " + pid + ")") + why);
     }
     std::string pid = std::to_string(::getpid()) + "\n";
     if (::ftruncate(lock_fd_, 0) != 0 || ::pwrite(lock_fd_, pid.data(), pid.size(), 0) < 0)
@@ -223,7 +228,8 @@ std::shared_ptr<SceneStore::Entry> SceneStore::find(const std::string& id) const
 }
 
 SceneSnapshot SceneStore::create(const std::string& id, const nlohmann::json& document) {
-    if (!id.empty() && !valid_scene_id(id)) throw StoreError(400, "scene id must match [a-z0-9-]{1,32}");
+    if (!id.empty() && !valid_scene_id(id))
+        throw StoreError(StoreFailure::invalid, "scene id must match [a-z0-9-]{1,32}");
     auto entry = std::make_shared<Entry>();
     entry->current.document = protocol::parse_scene(document, limits_);
     check_environment(entry->current.document, [this](const std::string& name) { return has_environment(name); });
@@ -235,11 +241,13 @@ SceneSnapshot SceneStore::create(const std::string& id, const nlohmann::json& do
             entry->current.id = random_hex_id();
         } while (scenes_.count(entry->current.id) != 0);
     } else {
-        if (scenes_.count(id) != 0) throw StoreError(409, "scene '" + id + "' already exists");
+        if (scenes_.count(id) != 0)
+            throw StoreError(StoreFailure::taken, "scene '" + id + "' already exists");
         for (const auto& file : quarantined_)
             if (file.scene_id == id)
-                throw StoreError(409, "scene '" + id + "' has a stored file that could not be read (kept at " +
-                                          file.path + "); repair or remove it and restart");
+                throw StoreError(StoreFailure::taken,
+                                 "scene '" + id + "' has a stored file that could not be read (kept at " +
+                                     file.path + "); repair or remove it and restart");
         entry->current.id = id;
     }
     persist_scene(entry->current);
@@ -275,7 +283,7 @@ bool SceneStore::remove(const std::string& id) {
     if (entry->deleted) return false;
     std::error_code ec;
     fs::remove(scene_path(id), ec);
-    if (ec) throw StoreError(500, "cannot delete scene file: " + ec.message());
+    if (ec) throw StoreError(StoreFailure::broken, "cannot delete scene file: " + ec.message());
     fsync_directory(data_dir_ / "scenes");
     entry->deleted = true;
     {
@@ -295,11 +303,13 @@ bool SceneStore::remove(const std::string& id) {
 EditResult SceneStore::apply(const std::shared_ptr<Entry>& entry, const nlohmann::json& merge_patch,
                              std::optional<uint64_t> if_match) {
     // Caller holds entry->edit_mutex: nobody else writes `current` meanwhile, so reading it unlocked is safe.
-    if (entry->deleted) throw StoreError(404, "scene '" + entry->current.id + "' does not exist");
+    if (entry->deleted)
+        throw StoreError(StoreFailure::not_found, "scene '" + entry->current.id + "' does not exist");
     const SceneSnapshot& current = entry->current;
     if (if_match && *if_match != current.revision)
-        throw StoreError(412, "scene is at revision " + std::to_string(current.revision) + ", not " +
-                                  std::to_string(*if_match));
+        throw StoreError(StoreFailure::stale_revision, "scene is at revision " +
+                                                           std::to_string(current.revision) + ", not " +
+                                                           std::to_string(*if_match));
     EditResult result;
     result.before = current.document;
     result.after = current;
@@ -318,7 +328,7 @@ EditResult SceneStore::apply(const std::shared_ptr<Entry>& entry, const nlohmann
 EditResult SceneStore::patch(const std::string& id, const nlohmann::json& merge_patch,
                              std::optional<uint64_t> if_match) {
     std::shared_ptr<Entry> entry = find(id);
-    if (!entry) throw StoreError(404, "scene '" + id + "' does not exist");
+    if (!entry) throw StoreError(StoreFailure::not_found, "scene '" + id + "' does not exist");
     EditResult result;
     {
         std::lock_guard edit(entry->edit_mutex);
@@ -329,7 +339,8 @@ EditResult SceneStore::patch(const std::string& id, const nlohmann::json& merge_
 }
 
 MeshEntry SceneStore::put_mesh(const std::string& name, const std::string& obj_text) {
-    if (!valid_mesh_name(name)) throw StoreError(400, "mesh name must match [A-Za-z0-9_.-]{1,64}");
+    if (!valid_mesh_name(name))
+        throw StoreError(StoreFailure::invalid, "mesh name must match [A-Za-z0-9_.-]{1,64}");
     auto parsed = std::make_shared<const mesh::Mesh>(mesh::parse_obj(obj_text, mesh_limits_));
     cache_.check_fits("mesh '" + name + "'", host_bytes(*parsed));
     MeshEntry entry{name, mesh::inspect(*parsed)};
@@ -390,7 +401,9 @@ bool SceneStore::remove_upload(AssetKind kind, const std::string& name, const fs
         // leaves the asset deleted, with a report nothing reads until the next upload of the name replaces
         // it (a grid has none).
         if (!fs::remove(main_file, ec)) {
-            if (ec) throw StoreError(500, "cannot delete " + main_file.string() + ": " + ec.message());
+            if (ec)
+                throw StoreError(StoreFailure::broken,
+                                 "cannot delete " + main_file.string() + ": " + ec.message());
             return false;
         }
         fs::remove(fs::path(main_file).replace_extension(".json"), ec);
@@ -448,8 +461,10 @@ std::shared_ptr<const mesh::Mesh> SceneStore::mesh(const std::string& name_or_re
 }
 
 EnvironmentEntry SceneStore::put_environment(const std::string& name, const std::string& bytes) {
-    if (!valid_mesh_name(name)) throw StoreError(400, "environment name must match [A-Za-z0-9_.-]{1,64}");
-    if (image::built_in_environment(name)) throw StoreError(400, "\"" + name + "\" is a built-in environment");
+    if (!valid_mesh_name(name))
+        throw StoreError(StoreFailure::invalid, "environment name must match [A-Za-z0-9_.-]{1,64}");
+    if (image::built_in_environment(name))
+        throw StoreError(StoreFailure::invalid, "\"" + name + "\" is a built-in environment");
     // Refused on its header before anything is decoded when it could never be held.
     cache_.check_fits("environment '" + name + "'", image::environment_size(bytes).decoded_bytes());
     auto decoded = std::make_shared<const image::EnvironmentMap>(image::decode_environment(bytes));
@@ -503,9 +518,9 @@ EditResult SceneStore::put_index_grid(const std::string& scene_id, IndexGrid gri
     validate_index_grid(grid);
     cache_.check_fits("the index grid", host_bytes(grid));
     std::shared_ptr<Entry> entry = find(scene_id);
-    if (!entry) throw StoreError(404, "scene '" + scene_id + "' does not exist");
+    if (!entry) throw StoreError(StoreFailure::not_found, "scene '" + scene_id + "' does not exist");
     std::unique_lock edit(entry->edit_mutex);
-    if (entry->deleted) throw StoreError(404, "scene '" + scene_id + "' does not exist");
+    if (entry->deleted) throw StoreError(StoreFailure::not_found, "scene '" + scene_id + "' does not exist");
     {
         // The grid is written before the scene points at it: a crash in between leaves the old revision.
         std::lock_guard lock(asset_mutex_);

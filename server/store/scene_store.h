@@ -20,7 +20,7 @@ namespace refract::scene {
 
 class SceneStore final : public Store {
 public:
-    // Opens (creating if needed) the data directory, locks it against a second daemon (StoreError(409)
+    // Opens (creating if needed) the data directory, locks it against a second daemon (StoreError(in_use)
     // naming the holder's pid) and loads every persisted scene, quarantining those it cannot read.
     // Uploaded assets stay on disk; at most `max_host_memory` bytes of them are held decoded.
     SceneStore(std::filesystem::path data_dir, protocol::Limits limits, mesh::MeshLimits mesh_limits,
@@ -30,7 +30,7 @@ public:
     SceneStore& operator=(const SceneStore&) = delete;
 
     // Creates a scene from a (possibly partial) document. `id` empty: a random one. Throws
-    // protocol::ValidationError, StoreError (400 bad id, 409 taken).
+    // protocol::ValidationError, StoreError (invalid id, taken).
     SceneSnapshot create(const std::string& id, const nlohmann::json& document) override;
     std::optional<SceneSnapshot> get(const std::string& id) const override;
     std::vector<SceneSnapshot> list() const override;
@@ -38,13 +38,14 @@ public:
     // Deletes a scene and its index grid; false when unknown.
     bool remove(const std::string& id) override;
 
-    // Applies a merge patch atomically. `if_match`: the revision the client edited (412 otherwise).
-    // Throws protocol::ValidationError (nothing changes), StoreError (404, 412, 500).
+    // Applies a merge patch atomically. `if_match`: the revision the client edited (stale_revision
+    // otherwise). Throws protocol::ValidationError (nothing changes), StoreError (not_found,
+    // stale_revision, out_of_revisions, broken).
     EditResult patch(const std::string& id, const nlohmann::json& merge_patch,
                      std::optional<uint64_t> if_match = std::nullopt) override;
 
     // Parses, inspects and stores an OBJ upload, replacing one of the same name. Throws mesh::MeshError,
-    // StoreError(400) for a bad name.
+    // StoreError(invalid) for a bad name.
     MeshEntry put_mesh(const std::string& name, const std::string& obj_text) override;
     std::vector<MeshEntry> list_meshes() const override;
     // The mesh named `name` (with or without the "upload:" prefix); nullptr when unknown; RenderError
@@ -104,7 +105,7 @@ private:
     uint64_t version_of(AssetKind kind, const std::string& name) const;
     uint64_t next_version(AssetKind kind, const std::string& name);
     // Deletes an uploaded asset (its `main_file` and the report beside it, NAME.json) unless a scene uses it
-    // (StoreError 409 naming them and `what`), and tells the listeners; false when there is none.
+    // (AssetInUse naming them and `what`), and tells the listeners; false when there is none.
     bool remove_upload(AssetKind kind, const std::string& name, const std::filesystem::path& main_file,
                        const std::string& what, StoreEvent::Kind event);
 
@@ -125,7 +126,7 @@ private:
 };
 
 // Writes `bytes` to `path` so that a crash leaves either the old or the new file: temp file, fsync,
-// rename, fsync of the directory. Throws StoreError(500).
+// rename, fsync of the directory. Throws StoreError(broken).
 void write_file_atomically(const std::filesystem::path& path, const void* bytes, size_t size);
 
 }  // namespace refract::scene

@@ -32,15 +32,17 @@ std::string strip_upload_prefix(const std::string& name) {
 }
 
 uint64_t next_revision(uint64_t revision) {
-    if (revision >= kMaxRevision) throw StoreError(409, "the scene is at the highest revision, 2^53 - 1");
+    if (revision >= kMaxRevision)
+        throw StoreError(StoreFailure::out_of_revisions, "the scene is at the highest revision, 2^53 - 1");
     return revision + 1;
 }
 
 void validate_index_grid(const IndexGrid& grid) {
     for (uint32_t side : {grid.nx, grid.ny, grid.nz}) {
         if (side < kMinGridSide || side > kMaxGridSide)
-            throw StoreError(400, "index grid sides must be between " + std::to_string(kMinGridSide) +
-                                      " and " + std::to_string(kMaxGridSide));
+            throw StoreError(StoreFailure::invalid, "index grid sides must be between " +
+                                                        std::to_string(kMinGridSide) + " and " +
+                                                        std::to_string(kMaxGridSide));
     }
     // Bounds the renderer's float coordinates hold: within a kilometre of the origin (a scene's box is
     // metres across), voxels at least a micrometre.
@@ -49,14 +51,18 @@ void validate_index_grid(const IndexGrid& grid) {
     for (size_t axis = 0; axis < 3; ++axis) {
         const double lo = grid.bounds.min[axis], hi = grid.bounds.max[axis];
         if (!std::isfinite(lo) || !std::isfinite(hi) || !(lo < hi))
-            throw StoreError(400, "index grid bounds need finite min < max on every axis");
+            throw StoreError(StoreFailure::invalid, "index grid bounds need finite min < max on every axis");
         if (std::abs(lo) > kMaxCoordinate || std::abs(hi) > kMaxCoordinate || (hi - lo) / sides[axis] < kMinVoxel)
-            throw StoreError(400, "index grid bounds must lie within 1000 m of the origin, with voxels of at least 1 um");
+            throw StoreError(
+                StoreFailure::invalid,
+                "index grid bounds must lie within 1000 m of the origin, with voxels of at least 1 um");
     }
     if (!has_cubic_voxels(grid))
-        throw StoreError(400, "index grid voxels must be cubic (within 1%): (max - min) / side the same on every axis");
+        throw StoreError(
+            StoreFailure::invalid,
+            "index grid voxels must be cubic (within 1%): (max - min) / side the same on every axis");
     if (grid.n.size() != size_t{grid.nx} * grid.ny * grid.nz)
-        throw StoreError(400,
+        throw StoreError(StoreFailure::invalid,
                          "index grid holds " + std::to_string(grid.n.size()) + " values, expected nx*ny*nz");
     for (size_t i = 0; i < grid.n.size(); ++i) {
         float n = grid.n[i];
@@ -64,7 +70,7 @@ void validate_index_grid(const IndexGrid& grid) {
             std::ostringstream message;
             message << "index grid value " << i << " is " << n
                     << "; every value must be finite and in [1, 4]";
-            throw StoreError(400, message.str());
+            throw StoreError(StoreFailure::invalid, message.str());
         }
     }
 }

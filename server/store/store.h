@@ -38,22 +38,40 @@ struct EditResult {
     bool changed = false;  // false: the edit was a no-op and the revision did not move
 };
 
-// Why the store refused a request; `status` is the HTTP status that fits (404, 409, 412, 400, 500, and
-// 503 when a shared store's database cannot be reached).
+// What went wrong in the store, in the store's own words. The front ends choose how each is answered
+// (http/service.h maps them to HTTP statuses); the store knows nothing of HTTP.
+enum class StoreFailure {
+    invalid,           // a scene id, asset name or index grid the store does not take
+    not_found,         // the scene named does not exist
+    taken,             // the scene id is taken (by a scene, or by a stored file that could not be read), or
+                       // another writer stored the same key first
+    in_use,            // an uploaded asset that scenes still name (AssetInUse); a data directory another
+                       // refractd holds
+    out_of_revisions,  // the scene is at kMaxRevision: no edit can make a new one
+    stale_revision,    // the scene is not (or no longer) at the revision the edit was made against
+    too_large,         // an asset that could never be held within the daemon's budget for decoded assets
+    broken,            // the storage failed: a file that cannot be read, written or decoded, a database
+                       // that refused a statement, answered nonsense or has a newer schema
+    unavailable,       // a shared store's database cannot be reached or is too busy, or a scene changes too
+                       // fast for an edit to land: retrying may succeed
+};
+
+// Why the store refused or failed a request: the failure, and a message for the user that says what.
 class StoreError : public std::runtime_error {
 public:
-    StoreError(int status, const std::string& message) : std::runtime_error(message), status_(status) {}
-    int status() const { return status_; }
+    StoreError(StoreFailure failure, const std::string& message)
+        : std::runtime_error(message), failure_(failure) {}
+    StoreFailure failure() const { return failure_; }
 
 private:
-    int status_;
+    StoreFailure failure_;
 };
 
 // A refused deletion: the asset is named by the documents of `scenes` (their ids, sorted).
 class AssetInUse : public StoreError {
 public:
     AssetInUse(const std::string& message, std::vector<std::string> scenes)
-        : StoreError(409, message), scenes_(std::move(scenes)) {}
+        : StoreError(StoreFailure::in_use, message), scenes_(std::move(scenes)) {}
     const std::vector<std::string>& scenes() const { return scenes_; }
 
 private:
@@ -104,7 +122,7 @@ uint64_t host_bytes(const mesh::Mesh& mesh);
 uint64_t host_bytes(const IndexGrid& grid);
 uint64_t host_bytes(const image::EnvironmentMap& map);
 
-// Validation of an imported index grid, in the words a user needs; throws StoreError(400).
+// Validation of an imported index grid, in the words a user needs; throws StoreError(invalid).
 void validate_index_grid(const IndexGrid& grid);
 
 // True for a name usable as a scene id ([a-z0-9-]{1,32}) or as a mesh name ([A-Za-z0-9_.-]{1,64}, not
@@ -116,7 +134,7 @@ bool valid_mesh_name(const std::string& name);
 nlohmann::json to_json(const mesh::MeshReport& report);
 mesh::MeshReport report_from_json(const nlohmann::json& j);
 
-// `revision` + 1; StoreError(409) at kMaxRevision.
+// `revision` + 1; StoreError(out_of_revisions) at kMaxRevision.
 uint64_t next_revision(uint64_t revision);
 // A mesh reference without its "upload:" prefix.
 std::string strip_upload_prefix(const std::string& name);
@@ -158,7 +176,7 @@ public:
     virtual ~Store() = default;
 
     // Creates a scene from a (possibly partial) document. `id` empty: a random one. Throws
-    // protocol::ValidationError, StoreError (400 bad id, 409 taken).
+    // protocol::ValidationError, StoreError (invalid id, taken).
     virtual SceneSnapshot create(const std::string& id, const nlohmann::json& document) = 0;
     virtual std::optional<SceneSnapshot> get(const std::string& id) const = 0;
     virtual std::vector<SceneSnapshot> list() const = 0;
@@ -166,31 +184,32 @@ public:
     // Deletes a scene and its index grid; false when unknown.
     virtual bool remove(const std::string& id) = 0;
 
-    // Applies a merge patch atomically. `if_match`: the revision the client edited (412 otherwise).
-    // Throws protocol::ValidationError (nothing changes), StoreError (404, 412, 500, 503).
+    // Applies a merge patch atomically. `if_match`: the revision the client edited (stale_revision
+    // otherwise). Throws protocol::ValidationError (nothing changes), StoreError (not_found,
+    // stale_revision, out_of_revisions, broken, unavailable).
     virtual EditResult patch(const std::string& id, const nlohmann::json& merge_patch,
                              std::optional<uint64_t> if_match = std::nullopt) = 0;
 
     // Parses, inspects and stores an OBJ upload, replacing one of the same name. Throws mesh::MeshError,
-    // StoreError(400) for a bad name.
+    // StoreError(invalid) for a bad name.
     virtual MeshEntry put_mesh(const std::string& name, const std::string& obj_text) = 0;
     virtual std::vector<MeshEntry> list_meshes() const = 0;
     // The mesh named `name` (with or without the "upload:" prefix); nullptr when unknown; RenderError
     // saying why when it is stored but cannot be read.
     virtual std::shared_ptr<const mesh::Mesh> mesh(const std::string& name) const = 0;
-    // Deletes the uploaded mesh `name` for good; false when none is stored. Throws AssetInUse (409) while
-    // any scene's document names it, and deletes nothing then.
+    // Deletes the uploaded mesh `name` for good; false when none is stored. Throws AssetInUse while any
+    // scene's document names it, and deletes nothing then.
     virtual bool remove_mesh(const std::string& name) = 0;
 
     // Decodes and stores an environment upload (.hdr or .exr bytes), replacing one of the same name.
-    // Throws image::EnvironmentError, StoreError(400) for a bad name or a built-in one.
+    // Throws image::EnvironmentError, StoreError(invalid) for a bad name or a built-in one.
     virtual EnvironmentEntry put_environment(const std::string& name, const std::string& bytes) = 0;
     // The uploaded environments (built-in ones are not stored).
     virtual std::vector<EnvironmentEntry> list_stored_environments() const = 0;
     // The uploaded environment `name`; nullptr when unknown, RenderError when it cannot be read.
     virtual std::shared_ptr<const image::EnvironmentMap> stored_environment(const std::string& name) const = 0;
     // Deletes the uploaded environment `name` for good; false when none is stored (a built-in one never
-    // is). Throws AssetInUse (409) while any scene's document names it.
+    // is). Throws AssetInUse while any scene's document names it.
     virtual bool remove_environment(const std::string& name) = 0;
     // Built-in and uploaded environments, by name.
     std::vector<EnvironmentEntry> list_environments() const;
@@ -202,7 +221,7 @@ public:
     // The grid stored for scene `name`; nullptr when unknown, RenderError when it cannot be read.
     virtual std::shared_ptr<const IndexGrid> grid(const std::string& name) const = 0;
     // Deletes the grid imported for scene `scene_id` for good; false when it has none. Throws AssetInUse
-    // (409) while any scene's document names it (its own, until an edit sets another index field).
+    // while any scene's document names it (its own, until an edit sets another index field).
     virtual bool remove_index_grid(const std::string& scene_id) = 0;
 
     // Stored scenes found unreadable at start (the file store's quarantine); empty for other stores.

@@ -155,6 +155,25 @@ uint32_t inspect_device(VkPhysicalDevice device, uint32_t index, DeviceInfo& inf
     return family;
 }
 
+// True when the device offers VK_EXT_shader_atomic_float's add on float32 storage buffers.
+bool has_float_atomic_add(VkPhysicalDevice device) {
+    uint32_t extension_count = 0;
+    REFRACT_VK_CHECK(vkEnumerateDeviceExtensionProperties(device, nullptr, &extension_count, nullptr));
+    std::vector<VkExtensionProperties> available(extension_count);
+    REFRACT_VK_CHECK(
+        vkEnumerateDeviceExtensionProperties(device, nullptr, &extension_count, available.data()));
+    const bool has = std::any_of(available.begin(), available.end(), [](const auto& e) {
+        return std::strcmp(e.extensionName, VK_EXT_SHADER_ATOMIC_FLOAT_EXTENSION_NAME) == 0;
+    });
+    if (!has) return false;
+    VkPhysicalDeviceShaderAtomicFloatFeaturesEXT float_atomics{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_FLOAT_FEATURES_EXT};
+    VkPhysicalDeviceFeatures2 query{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    query.pNext = &float_atomics;
+    vkGetPhysicalDeviceFeatures2(device, &query);
+    return float_atomics.shaderBufferFloat32AtomicAdd == VK_TRUE;
+}
+
 }  // namespace
 
 ContextOptions options_from_environment(ContextOptions options) {
@@ -196,112 +215,15 @@ Context::Context(const ContextOptions& options) {
             set_object_name_ = reinterpret_cast<PFN_vkSetDebugUtilsObjectNameEXT>(
                 vkGetInstanceProcAddr(instance_, "vkSetDebugUtilsObjectNameEXT"));
         }
-        if (options.validation && debug_utils) {
-            auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
-                vkGetInstanceProcAddr(instance_, "vkCreateDebugUtilsMessengerEXT"));
-            VkDebugUtilsMessengerCreateInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
-            info.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
-                                   VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
-            info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
-                               VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
-                               VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
-            info.pfnUserCallback = &Context::on_debug_message;
-            info.pUserData = this;
-            REFRACT_VK_CHECK(create(instance_, &info, nullptr, &messenger_));
-        }
-
-        uint32_t count = 0;
-        REFRACT_VK_CHECK(vkEnumeratePhysicalDevices(instance_, &count, nullptr));
-        std::vector<VkPhysicalDevice> devices(count);
-        REFRACT_VK_CHECK(vkEnumeratePhysicalDevices(instance_, &count, devices.data()));
-        if (count == 0) throw Error("no Vulkan devices found (install mesa-vulkan-drivers for lavapipe)");
-
-        // Pick: the named device if asked for, else the best-ranked suitable one.
-        std::ostringstream report;
-        int best_rank = -1;
-        for (uint32_t i = 0; i < count; ++i) {
-            DeviceInfo info;
-            const uint32_t family = inspect_device(devices[i], i, info);
-            VkPhysicalDeviceProperties p{};
-            vkGetPhysicalDeviceProperties(devices[i], &p);
-            const bool name_matches =
-                options.device_name.empty() || info.name.find(options.device_name) != std::string::npos;
-            report << "\n  " << info.name << " (" << info.type << "): ";
-            if (!name_matches) report << "not named by --device '" << options.device_name << "'";
-            else if (!info.suitable) {
-                report << "missing";
-                for (const auto& m : info.missing) report << " [" << m << "]";
-            } else report << "suitable";
-            if (!name_matches || !info.suitable) continue;
-            const int rank = type_rank(p.deviceType);
-            if (rank > best_rank) {
-                best_rank = rank;
-                physical_device_ = devices[i];
-                queue_family_ = family;
-                info_ = info;
-            }
-        }
-        if (physical_device_ == VK_NULL_HANDLE) throw Error("no suitable Vulkan device:" + report.str());
-        vkGetPhysicalDeviceProperties(physical_device_, &properties_);
-        vkGetPhysicalDeviceMemoryProperties(physical_device_, &memory_properties_);
-        VkPhysicalDeviceMaintenance3Properties maintenance3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
-        VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
-        properties2.pNext = &maintenance3;
-        vkGetPhysicalDeviceProperties2(physical_device_, &properties2);
-        max_memory_allocation_size_ = maintenance3.maxMemoryAllocationSize;
-
-        const float priority = 1.0f;
-        VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-        queue_info.queueFamilyIndex = queue_family_;
-        queue_info.queueCount = 1;
-        queue_info.pQueuePriorities = &priority;
-        std::vector<const char*> extensions = {VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME};
-        // Float atomics are optional: only `refract bench` uses them, to compare with integer deposits.
-        VkPhysicalDeviceShaderAtomicFloatFeaturesEXT float_atomics{
-            VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_FLOAT_FEATURES_EXT};
-        {
-            uint32_t extension_count = 0;
-            REFRACT_VK_CHECK(vkEnumerateDeviceExtensionProperties(physical_device_, nullptr, &extension_count, nullptr));
-            std::vector<VkExtensionProperties> available(extension_count);
-            REFRACT_VK_CHECK(
-                vkEnumerateDeviceExtensionProperties(physical_device_, nullptr, &extension_count, available.data()));
-            const bool has = std::any_of(available.begin(), available.end(), [](const auto& e) {
-                return std::strcmp(e.extensionName, VK_EXT_SHADER_ATOMIC_FLOAT_EXTENSION_NAME) == 0;
-            });
-            if (has) {
-                VkPhysicalDeviceFeatures2 query{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
-                query.pNext = &float_atomics;
-                vkGetPhysicalDeviceFeatures2(physical_device_, &query);
-                float_atomics_ = float_atomics.shaderBufferFloat32AtomicAdd == VK_TRUE;
-            }
-            float_atomics = {VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_FLOAT_FEATURES_EXT};
-            float_atomics.shaderBufferFloat32AtomicAdd = float_atomics_ ? VK_TRUE : VK_FALSE;
-            if (float_atomics_) extensions.push_back(VK_EXT_SHADER_ATOMIC_FLOAT_EXTENSION_NAME);
-        }
-        VkPhysicalDeviceVulkan12Features features12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
-        features12.pNext = float_atomics_ ? &float_atomics : nullptr;
-        features12.shaderBufferInt64Atomics = VK_TRUE;
-        features12.bufferDeviceAddress = VK_TRUE;
-        VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
-        features.pNext = &features12;
-        features.features.shaderInt64 = VK_TRUE;
-        VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
-        device_info.pNext = &features;
-        device_info.queueCreateInfoCount = 1;
-        device_info.pQueueCreateInfos = &queue_info;
-        device_info.enabledExtensionCount = static_cast<uint32_t>(extensions.size());
-        device_info.ppEnabledExtensionNames = extensions.data();
-        REFRACT_VK_CHECK(vkCreateDevice(physical_device_, &device_info, nullptr, &device_));
-        vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
-        push_descriptor_set = reinterpret_cast<PFN_vkCmdPushDescriptorSetKHR>(
-            vkGetDeviceProcAddr(device_, "vkCmdPushDescriptorSetKHR"));
-        if (!push_descriptor_set) throw Error("vkCmdPushDescriptorSetKHR not found on " + info_.name);
-
+        if (options.validation && debug_utils) create_messenger();
+        choose_device(options.device_name);
+        create_device();
         VkFenceCreateInfo fence_info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
         VkFence fence = VK_NULL_HANDLE;
         REFRACT_VK_CHECK(vkCreateFence(device_, &fence_info, nullptr, &fence));
         fence_ = UniqueFence(device_, fence);
     } catch (...) {
+        // The destructor does not run for a constructor that throws: undo here what was made.
         fence_.reset();
         if (device_) vkDestroyDevice(device_, nullptr);
         if (messenger_) {
@@ -312,6 +234,99 @@ Context::Context(const ContextOptions& options) {
         vkDestroyInstance(instance_, nullptr);
         throw;
     }
+}
+
+void Context::create_messenger() {
+    // Warnings and errors of every kind reach on_debug_message, which counts the errors.
+    auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+        vkGetInstanceProcAddr(instance_, "vkCreateDebugUtilsMessengerEXT"));
+    VkDebugUtilsMessengerCreateInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+    info.messageSeverity =
+        VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+    info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
+                       VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                       VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+    info.pfnUserCallback = &Context::on_debug_message;
+    info.pUserData = this;
+    REFRACT_VK_CHECK(create(instance_, &info, nullptr, &messenger_));
+}
+
+void Context::choose_device(const std::string& device_name) {
+    uint32_t count = 0;
+    REFRACT_VK_CHECK(vkEnumeratePhysicalDevices(instance_, &count, nullptr));
+    std::vector<VkPhysicalDevice> devices(count);
+    REFRACT_VK_CHECK(vkEnumeratePhysicalDevices(instance_, &count, devices.data()));
+    if (count == 0) throw Error("no Vulkan devices found (install mesa-vulkan-drivers for lavapipe)");
+
+    // Pick: the named device if asked for, else the best-ranked suitable one. Every device's verdict goes
+    // into the error when none will do.
+    std::ostringstream report;
+    int best_rank = -1;
+    for (uint32_t i = 0; i < count; ++i) {
+        DeviceInfo info;
+        const uint32_t family = inspect_device(devices[i], i, info);
+        VkPhysicalDeviceProperties p{};
+        vkGetPhysicalDeviceProperties(devices[i], &p);
+        const bool name_matches = device_name.empty() || info.name.find(device_name) != std::string::npos;
+        report << "\n  " << info.name << " (" << info.type << "): ";
+        if (!name_matches)
+            report << "not named by --device '" << device_name << "'";
+        else if (!info.suitable) {
+            report << "missing";
+            for (const auto& m : info.missing) report << " [" << m << "]";
+        } else
+            report << "suitable";
+        if (!name_matches || !info.suitable) continue;
+        const int rank = type_rank(p.deviceType);
+        if (rank > best_rank) {
+            best_rank = rank;
+            physical_device_ = devices[i];
+            queue_family_ = family;
+            info_ = info;
+        }
+    }
+    if (physical_device_ == VK_NULL_HANDLE) throw Error("no suitable Vulkan device:" + report.str());
+    vkGetPhysicalDeviceProperties(physical_device_, &properties_);
+    vkGetPhysicalDeviceMemoryProperties(physical_device_, &memory_properties_);
+    VkPhysicalDeviceMaintenance3Properties maintenance3{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
+    VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+    properties2.pNext = &maintenance3;
+    vkGetPhysicalDeviceProperties2(physical_device_, &properties2);
+    max_memory_allocation_size_ = maintenance3.maxMemoryAllocationSize;
+}
+
+void Context::create_device() {
+    const float priority = 1.0f;
+    VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+    queue_info.queueFamilyIndex = queue_family_;
+    queue_info.queueCount = 1;
+    queue_info.pQueuePriorities = &priority;
+    std::vector<const char*> extensions = {VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME};
+    // Float atomics are optional: only `refract bench` uses them, to compare with integer deposits.
+    float_atomics_ = has_float_atomic_add(physical_device_);
+    VkPhysicalDeviceShaderAtomicFloatFeaturesEXT float_atomics{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_FLOAT_FEATURES_EXT};
+    float_atomics.shaderBufferFloat32AtomicAdd = float_atomics_ ? VK_TRUE : VK_FALSE;
+    if (float_atomics_) extensions.push_back(VK_EXT_SHADER_ATOMIC_FLOAT_EXTENSION_NAME);
+    VkPhysicalDeviceVulkan12Features features12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+    features12.pNext = float_atomics_ ? &float_atomics : nullptr;
+    features12.shaderBufferInt64Atomics = VK_TRUE;
+    features12.bufferDeviceAddress = VK_TRUE;
+    VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    features.pNext = &features12;
+    features.features.shaderInt64 = VK_TRUE;
+    VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+    device_info.pNext = &features;
+    device_info.queueCreateInfoCount = 1;
+    device_info.pQueueCreateInfos = &queue_info;
+    device_info.enabledExtensionCount = static_cast<uint32_t>(extensions.size());
+    device_info.ppEnabledExtensionNames = extensions.data();
+    REFRACT_VK_CHECK(vkCreateDevice(physical_device_, &device_info, nullptr, &device_));
+    vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
+    push_descriptor_set = reinterpret_cast<PFN_vkCmdPushDescriptorSetKHR>(
+        vkGetDeviceProcAddr(device_, "vkCmdPushDescriptorSetKHR"));
+    if (!push_descriptor_set) throw Error("vkCmdPushDescriptorSetKHR not found on " + info_.name);
 }
 
 Context::~Context() {

@@ -87,6 +87,15 @@ public:
     PFN_vkCmdPushDescriptorSetKHR push_descriptor_set = nullptr;
 
 private:
+    // The constructor's steps, in this order (when one throws, the constructor releases what was made).
+    // The messenger that counts validation errors (validation with debug utils only).
+    void create_messenger();
+    // Picks the device named by `device_name` (a substring; empty: the best-ranked suitable one) and
+    // reads its properties. Throws Error, saying of every device why it was not chosen, when none fits.
+    void choose_device(const std::string& device_name);
+    // The logical device with its one compute queue and the features the passes need.
+    void create_device();
+
     static VKAPI_ATTR VkBool32 VKAPI_CALL on_debug_message(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
                                                           VkDebugUtilsMessageTypeFlagsEXT types,
                                                           const VkDebugUtilsMessengerCallbackDataEXT* data,

@@ -18,7 +18,7 @@ REFRACT_SHADERS_BEGIN
 // so it errs by at most this share of the difference: 1% of a pixel's light. Only the second internal
 // reflection is that faint through glass (T R^2, 0.15% at normal incidence; the front's R and the first
 // internal T R are 4%); in the default scene's still that path cost 17% of the eye-ray steps and about a
-// third of the viewing pass (a pixel's SIMD neighbours waited for its fourth march; docs/benchmarks.md).
+// third of the viewing pass (a pixel's SIMD neighbours waited for its fourth march; docs/perf-log/2026-12-01-faint-reflections-and-b-spline-voxelizer.md).
 #define FRESNEL_EYE_TRACED_SHARE 0.01f
 
 // The unpolarized reflectance (the mean of s and p) of light meeting an interface from index n1 into index

@@ -138,7 +138,7 @@ struct LightParams {
 // Specialization constant of the same passes, with several objects only: their field is stored in a
 // field atlas (render/field_atlas.h), found through its map (TransportParams::field_atlas), rather than in
 // images the lattice's size. A lookup through the map costs the photon and viewing passes a quarter more
-// on lavapipe (docs/benchmarks.md), so a scene takes the atlas only where it saves memory
+// on lavapipe (docs/perf-log/2026-12-02-memory-that-follows-the-content.md), so a scene takes the atlas only where it saves memory
 // (scene::field_atlas_for).
 #define TRANSPORT_CONSTANT_FIELD_ATLAS 5
 #define TRANSPORT_CONSTANT_COUNT 6  // a pass's own constants are numbered from here

@@ -9,7 +9,7 @@
 // The frame parameters (a storage buffer: transport.h says why), read through a private copy: lavapipe
 // loads a buffer field inside divergent control flow (the passes' loops) lane by lane, a bounds-checked
 // gather per field, while a copy taken once, at the start of main where every invocation is active,
-// reads like a local variable (the viewing pass 10-25% faster; docs/benchmarks.md). Every main() begins
+// reads like a local variable (the viewing pass 10-25% faster; docs/perf-log/2026-11-24-round-6-sampled-deposits-while-dragging.md). Every main() begins
 // with load_params().
 layout(std140, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams frame_params; };
 TransportParams params;

@@ -1,0 +1,67 @@
+#include "render/frame_inputs.h"
+
+#include "render/scene_gpu.h"
+#include "render/transport_inputs.h"
+
+namespace refract::scene {
+
+passes::FieldShape field_shape(const protocol::Object& object) {
+    passes::FieldShape shape;
+    shape.n = static_cast<float>(object.ior);
+    switch (object.index_field) {
+        case protocol::IndexFieldKind::uniform: shape.kind = INDEX_KIND_UNIFORM; break;
+        case protocol::IndexFieldKind::luneburg: shape.kind = INDEX_KIND_LUNEBURG; break;
+        case protocol::IndexFieldKind::maxwell:
+            shape.kind = INDEX_KIND_MAXWELL;
+            shape.n = static_cast<float>(object.maxwell_n0);
+            break;
+        case protocol::IndexFieldKind::grid: shape.kind = INDEX_KIND_GRID; break;
+    }
+    shape.sphere = glm::vec4(static_cast<float>(object.position[0]), static_cast<float>(object.position[1]),
+                             static_cast<float>(object.position[2]), static_cast<float>(object.scale));
+    return shape;
+}
+
+FrameInputs::Volume volume_inputs(const protocol::SceneDocument& document) {
+    FrameInputs::Volume in;
+    in.imported = document.object().index_field == protocol::IndexFieldKind::grid;
+    in.smoothing = document.volume.smoothing;
+    in.medium_ior = document.medium.ior;
+    // The medium joins the objects' fields as a uniform object of its index (index_field.comp).
+    protocol::Object medium;
+    medium.ior = document.medium.ior;
+    in.medium = field_shape(medium);
+    for (const auto& [name, object] : document.objects) in.objects.emplace_back(name, field_shape(object));
+    in.octree_epsilon = octree_epsilon(document);
+    return in;
+}
+
+FrameInputs::Transport photon_settings(const protocol::SceneDocument& document, const RunOptions& options) {
+    FrameInputs::Transport in;
+    in.channels = transport_channels(document);
+    in.bounces = photon_bounces(document, options.bounce_cap);
+    return in;
+}
+
+FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document, const passes::GridGeometry& grid,
+                                        const passes::EnvironmentLight& environment, const RunOptions& options) {
+    FrameInputs::Transport in = photon_settings(document, options);
+    in.fresnel = fresnel_reflects(document);
+    in.film = film_reflects(document);
+    TransportOptions transport;
+    transport.fixed_step = options.fixed_step;
+    transport.view_step = options.view_step;
+    transport.max_level = passes::octree_layout(grid.dims).max_level;
+    transport.radiance_factor = options.radiance_factor * grid.light_factor;
+    transport.direct_light = options.direct_light;
+    transport.photon_batch = options.photon_batch;
+    transport.view_sample = options.view_sample;
+    transport.bounce_cap = options.bounce_cap;
+    transport.environment = &environment;
+    in.lights = make_transport_params(document, grid, transport);
+    if (document.objects.size() > 1)
+        for (const auto& [name, object] : document.objects) in.materials.push_back(material_for(object, document.medium, grid));
+    return in;
+}
+
+}  // namespace refract::scene

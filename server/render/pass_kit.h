@@ -1,0 +1,32 @@
+// The compiled pipelines of every pass, created once per Vulkan context and shared by every scene.
+#pragma once
+
+#include "passes/direct_light.h"
+#include "passes/index_field.h"
+#include "passes/lit_pyramid.h"
+#include "passes/octree.h"
+#include "passes/photon_trace.h"
+#include "passes/radiance_resolve.h"
+#include "passes/tone_map.h"
+#include "passes/view.h"
+#include "passes/voxelize.h"
+#include "vk/context.h"
+
+namespace refract::scene {
+
+struct PassKit {
+    explicit PassKit(vk::Context& context);
+    vk::Context& context;
+    passes::VoxelizePass voxelize;
+    passes::IndexFieldPass index_field;
+    passes::OctreePass octree;
+    passes::DirectLightPass direct_light;
+    passes::PhotonTracePass photon_trace;
+    passes::RadianceResolvePass radiance_resolve;
+    passes::LitPyramidPass lit_pyramid;
+    passes::ViewPass view;
+    passes::ToneMapPass tone_map;
+    vk::UniqueSampler linear_sampler;
+};
+
+}  // namespace refract::scene

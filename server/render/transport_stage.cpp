@@ -1,0 +1,251 @@
+#include "render/transport_stage.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "assets/render_error.h"
+#include "passes/transport_params.h"
+#include "render/read_back.h"
+#include "render/scene_gpu.h"
+
+namespace refract::scene {
+
+namespace {
+glm::uvec2 halves(VkDeviceAddress a) { return glm::uvec2(static_cast<uint32_t>(a), static_cast<uint32_t>(a >> 32)); }
+}  // namespace
+
+TransportStage::TransportStage(PassKit& kit) : kit_(kit) {}
+
+void TransportStage::clear() {
+    accum_.reset();
+    radiance_ = {};
+    flux_ = {};
+    floor_map_ = {};
+}
+
+bool TransportStage::made_for(const FrameInputs::Transport& in, const RunOptions& options) const {
+    return options.radiance_factor == radiance_factor_ && options.sampled_deposits == sampled_deposits_ &&
+           in.channels == channels_ && in.bounces == bounces_;
+}
+
+void TransportStage::make_for(const FrameInputs::Transport& in, const RunOptions& options) {
+    sampled_deposits_ = options.sampled_deposits;
+    bounces_ = in.bounces;
+}
+
+RunOptions TransportStage::with_resident_photons(RunOptions options) const {
+    options.radiance_factor = radiance_factor_;
+    options.sampled_deposits = sampled_deposits_;
+    options.bounce_cap = bounces_;  // the document's bounces capped there are those its photons took
+    return options;
+}
+
+void TransportStage::prepare_environment(const passes::EnvironmentSource& source) {
+    if (environment_map_.get() && environment_source_ == source) return;
+    if (source.kind == passes::EnvironmentSource::Kind::image && source.image == nullptr)
+        throw RenderError("environment image '" + source.name + "' is not loaded");
+    environment_light_ = passes::make_environment_light(source);
+    const uint64_t bytes = environment_light_.texels.size() * sizeof(glm::vec4);
+    environment_map_ = {};
+    environment_map_ = vk::Buffer(kit_.context, bytes, VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT, vk::MemoryUse::upload,
+                                  "environment map");
+    environment_map_.write(environment_light_.texels.data(), bytes);
+    environment_light_.texels = {};  // the device holds the map; a large one is not kept twice
+    environment_source_ = source;
+}
+
+void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t photon_exit_count, bool record_exits,
+                              uint32_t radiance_factor, uint32_t channels) {
+    vk::Context& ctx = kit_.context;
+    const bool to_grey = channels == CHANNELS_GREY;
+    const uint32_t floor_texels = passes::floor_map_texels(lattice);
+    const uint32_t exits = record_exits ? photon_exit_count : 1u;
+    const uint32_t f = radiance_factor;
+    const vk::Extent3 radiance_dims = lattice.coarsened(f * lattice.light_factor);
+    if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_ ||
+        to_grey != grey()) {
+        accum_.reset();
+        accum_.emplace(passes::make_photon_accumulators(ctx, lattice.coarsened(lattice.light_factor), radiance_dims,
+                                                        floor_texels, passes::light_map_capacity(lattice), exits, to_grey));
+        exit_capacity_ = exits;
+    }
+    if (!flux_.get() || f != radiance_factor_) {
+        flux_ = {};
+        flux_ = vk::Image3D(ctx, radiance_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "net flux and fluence grid");
+        radiance_factor_ = f;
+    }
+    // Per-channel fluence only for coloured transport; grey transport binds a single texel it never reads.
+    const vk::Extent3 colour_dims = to_grey ? vk::Extent3{1, 1, 1} : radiance_dims;
+    if (!radiance_.get() || !(radiance_.extent() == colour_dims)) {
+        radiance_ = {};
+        radiance_ = vk::Image3D(ctx, colour_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "radiance grid (per channel)");
+    }
+    channels_ = channels;
+    if (floor_texels != floor_texels_ || !floor_map_.get()) {
+        floor_map_ = vk::Image3D(ctx, {floor_texels, floor_texels, 1}, VK_FORMAT_R16G16B16A16_SFLOAT, "floor caustic map");
+        floor_texels_ = floor_texels;
+    }
+}
+
+void TransportStage::prepare(const FrameInputs::Transport& in, PassSet stale, const RunOptions& options,
+                             const passes::GridGeometry& lattice, const VolumeStage& volume) {
+    light_params_ = in.lights;
+    // Several objects: their materials, by the object numbers the index field holds per voxel.
+    const bool several = !in.materials.empty();
+    if (several) {
+        if (!materials_.get())  // room for the most objects a scene may hold
+            materials_ = vk::Buffer(kit_.context, sizeof(shaders::Material) * protocol::kMaxObjects,
+                                    VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT, vk::MemoryUse::upload, "object materials");
+        materials_.write(in.materials.data(), in.materials.size() * sizeof(shaders::Material));
+    }
+    uint32_t most_photons = 0;  // of one light's dispatch (with the environment's, for the first)
+    for (const auto& light : light_params_) most_photons = std::max(most_photons, light.photon_info.x);
+    if (stale & kPhotons)
+        allocate(lattice, passes::photon_exit_count(most_photons, in.channels), options.record_photon_exits,
+                 options.radiance_factor, in.channels);
+    while (params_buffers_.size() < light_params_.size())
+        params_buffers_.emplace_back(kit_.context, sizeof(shaders::TransportParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                     vk::MemoryUse::upload, "transport params");
+    const FieldAtlas& atlas = volume.atlas();
+    for (size_t i = 0; i < light_params_.size(); ++i) {
+        shaders::TransportParams& params = light_params_[i];
+        params.flags.x = options.record_photon_exits ? 1u : 0u;
+        if (accum_) params.radiance_sums = glm::uvec4(halves(accum_->red_green.address()), halves(accum_->flux.address()));
+        params.environment_map = glm::uvec4(halves(environment_map_.address()), 0u, 0u);
+        if (several) params.materials = glm::uvec4(halves(materials_.address()), params.materials.z, 0u);
+        if (!atlas.dense) params.field_atlas = glm::uvec4(halves(volume.atlas_map().address()), 0u, 0u);
+        params.atlas_dims = glm::uvec4(atlas.dims.x, atlas.dims.y, atlas.dims.z, 0u);
+        params_buffers_[i].write(&params, sizeof(params));
+    }
+    const shaders::TransportParams& first = light_params_.front();
+    variant_ = {channels_, first.flags.y == COVERAGE_FETCH || first.flags.z == COVERAGE_FETCH, in.fresnel, in.film,
+                several, !atlas.dense};
+}
+
+passes::TransportInputs TransportStage::inputs_for(const vk::Buffer& params, const VolumeStage& volume) const {
+    return passes::TransportInputs{params,           volume.index_field(), volume.coverage_image(), volume.levels(),
+                                   kit_.linear_sampler.get(), variant_};
+}
+
+passes::TransportInputs TransportStage::view_inputs(const VolumeStage& volume) const {
+    return inputs_for(params_buffer(), volume);
+}
+
+bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet built, const RunOptions& options,
+                            const passes::GridGeometry& lattice, const VolumeStage& volume, bool& resolved) {
+    vk::CommandRecorder& recorder = recording.recorder();
+    if (stale & kPhotons && !(built & kPhotons)) {
+        for (const vk::Image3D* image : {&radiance_, &flux_, &floor_map_}) recorder.init_image(*image);
+    }
+    if (!(stale & kPhotons)) return true;
+    recording.begin(kPhotons);
+    passes::clear_photon_accumulators(recorder, *accum_, grey());
+    // Light by light: each one's sums hold its own unbent light (transport.h), so each is resolved into
+    // the radiance grid and floor map, the first replacing this batch's share and the rest adding theirs.
+    // A refinement step gives way after the direct light and after each resolve too (each a tenth of
+    // a second or more on two cores), not only between parts of the photons.
+    const passes::BetweenParts gap = recording.between_parts(kPhotons);
+    const uint32_t radiance_factor = options.radiance_factor * lattice.light_factor;
+    for (size_t i = 0; i < light_params_.size(); ++i) {
+        const shaders::TransportParams& light = light_params_[i];
+        const passes::TransportInputs light_inputs = inputs_for(params_buffers_[i], volume);
+        if (i > 0) passes::clear_for_next_light(recorder, *accum_, grey());
+        if (light.direct_light.w > 0.5f) {
+            kit_.direct_light.record(recorder, light_inputs, *accum_, static_cast<uint32_t>(light.direct_light.x),
+                                     lattice.coarsened(radiance_factor));
+            recorder.compute_barrier();
+            if (gap && gap()) return false;
+        }
+        if (!kit_.photon_trace.record(recorder, light_inputs, *accum_, light.photon_info.x, options.sampled_deposits,
+                                      bounces_ > 0, recording.between_parts(kPhotons)))
+            return false;
+        recorder.compute_barrier();
+        kit_.radiance_resolve.record(recorder, params_buffers_[i], *accum_, grey(), radiance_, flux_, floor_map_);
+        resolved = true;
+        recorder.compute_barrier();
+        if (gap && gap()) return false;
+    }
+    kit_.lit_pyramid.record(recorder, params_buffer(), flux_, accum_->lit_blocks, lattice.coarsened(lattice.light_factor));
+    recorder.compute_barrier();
+    recording.end();
+    photon_batches_ = options.photon_batch + 1;
+    return !((stale & kView) && recording.part(kView));
+}
+
+std::vector<glm::vec4> TransportStage::read_flux() const { return read_image<glm::vec4>(kit_.context, flux_); }
+
+std::vector<uint32_t> TransportStage::read_lit_pyramid() const {
+    return read_buffer<uint32_t>(kit_.context, accum_->lit_blocks);
+}
+
+std::vector<glm::vec4> TransportStage::read_radiance() const {
+    if (!grey()) return read_image<glm::vec4>(kit_.context, radiance_);
+    // Grey transport: the light's colour times the channels' mean, as the viewing pass shades it.
+    const glm::vec3 colour = shaders::grey_colour(light_params_.front().photon_flux);
+    std::vector<glm::vec4> out = read_flux();
+    for (glm::vec4& v : out) v = glm::vec4(colour * v.w, 0.0f);
+    return out;
+}
+
+namespace {
+// Half floats (the floor map) widened to float on the host.
+std::vector<glm::vec4> widen(const std::vector<uint16_t>& half) {
+    std::vector<glm::vec4> out(half.size() / 4);
+    for (size_t i = 0; i < out.size(); ++i)
+        for (int c = 0; c < 4; ++c) {
+            const uint16_t h = half[4 * i + static_cast<size_t>(c)];
+            const uint32_t sign = (h & 0x8000u) << 16;
+            const uint32_t exponent = (h >> 10) & 0x1fu;
+            const uint32_t mantissa = h & 0x3ffu;
+            float value;
+            if (exponent == 0) value = std::ldexp(static_cast<float>(mantissa), -24);
+            else if (exponent == 31) value = mantissa ? std::numeric_limits<float>::quiet_NaN() : std::numeric_limits<float>::infinity();
+            else value = std::ldexp(static_cast<float>(mantissa | 0x400u), static_cast<int>(exponent) - 25);
+            out[i][c] = sign ? -value : value;
+        }
+    return out;
+}
+}  // namespace
+
+std::vector<glm::vec4> TransportStage::read_floor_map() const {
+    return widen(read_image<uint16_t>(kit_.context, floor_map_));
+}
+
+std::vector<glm::vec4> TransportStage::read_floor_irradiance() const {
+    std::vector<glm::vec4> map = read_floor_map();
+    const shaders::TransportParams& p = light_params_.front();
+    const float texel = p.floor_map.z / static_cast<float>(floor_texels_);
+    for (uint32_t j = 0; j < floor_texels_; ++j)
+        for (uint32_t i = 0; i < floor_texels_; ++i) {
+            const glm::vec3 x(p.floor_map.x + (static_cast<float>(i) + 0.5f) * texel, p.floor_plane.x,
+                              p.floor_map.y + (static_cast<float>(j) + 0.5f) * texel);
+            // Mirrors direct_irradiance() in shaders/view.comp.
+            glm::vec3 direct(0.0f);
+            for (uint32_t k = 0; k < p.light_set.x; ++k) {
+                const shaders::LightParams& light = p.lights[k];
+                if (light.type.x == LIGHT_DIRECTIONAL) {
+                    direct += glm::vec3(light.power) * std::max(0.0f, -light.direction.y);
+                    continue;
+                }
+                const glm::vec3 l = glm::vec3(light.position) - x;
+                const float r2 = glm::dot(l, l);
+                const glm::vec3 to_light = l / std::sqrt(r2);
+                const bool in_cone = light.type.x != LIGHT_SPOT ||
+                                     glm::dot(-to_light, glm::vec3(light.direction)) >= light.position.w;
+                if (in_cone) direct += glm::vec3(light.power) * std::max(0.0f, to_light.y) / r2;
+            }
+            direct += glm::vec3(p.environment_light);
+            glm::vec4& texel_value = map[size_t{j} * floor_texels_ + i];
+            texel_value = glm::vec4(glm::max(glm::vec3(texel_value) + direct, glm::vec3(0.0f)), 0.0f);
+        }
+    return map;
+}
+
+std::vector<shaders::PhotonExit> TransportStage::read_photon_exits() const {
+    std::vector<shaders::PhotonExit> out(exit_capacity_);
+    accum_->exits.read(out.data(), out.size() * sizeof(shaders::PhotonExit));
+    return out;
+}
+
+}  // namespace refract::scene

@@ -1,0 +1,94 @@
+// The frame's second stage: light through the field (the paper's section 4.3). Each light's unbent
+// light in closed form, its photons along curved paths, both resolved into the radiance grid and the
+// floor's caustic map, then the lit pyramid the eye rays skip dark space with. It owns those images,
+// the photon accumulators, the environment's map and the frame's parameters, and knows what its
+// radiance grid was made with (so an interactive frame may shade from a still frame's photons).
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include "image/environment_map.h"
+#include "passes/environment_light.h"
+#include "passes/photon_trace.h"
+#include "passes/transport_pipeline.h"
+#include "render/frame_inputs.h"
+#include "render/frame_recording.h"
+#include "render/pass_kit.h"
+#include "render/volume_stage.h"
+
+namespace refract::scene {
+
+struct RunOptions;
+
+class TransportStage {
+public:
+    explicit TransportStage(PassKit& kit);
+
+    // Drops the photon images: the lattice is new.
+    void clear();
+    // Whether the resident radiance grid was made with these photon settings (radiance factor, deposits,
+    // bounces, kind of transport).
+    bool made_for(const FrameInputs::Transport& in, const RunOptions& options) const;
+    // Takes the photon settings of this run's grid.
+    void make_for(const FrameInputs::Transport& in, const RunOptions& options);
+    uint32_t photon_batches() const { return photon_batches_; }
+    // `options` with the photon settings the resident radiance grid was made with.
+    RunOptions with_resident_photons(RunOptions options) const;
+
+    // The environment's map, made again when what it is made of changed; a placeholder texel when it
+    // lights nothing, so the passes always address a buffer. Throws RenderError for an image not given.
+    void prepare_environment(const passes::EnvironmentSource& source);
+    const passes::EnvironmentLight& environment() const { return environment_light_; }
+    // The frame's parameters (with the device addresses they name), the materials, and the photon images
+    // when the photons are stale.
+    void prepare(const FrameInputs::Transport& in, PassSet stale, const RunOptions& options,
+                 const passes::GridGeometry& lattice, const VolumeStage& volume);
+    // Records the photon passes when stale; false when the run stopped at a part. `resolved` is set once
+    // a light's photons replaced the radiance grid's running mean.
+    bool record(FrameRecording& recording, PassSet stale, PassSet built, const RunOptions& options,
+                const passes::GridGeometry& lattice, const VolumeStage& volume, bool& resolved);
+
+    // What the viewing pass reads: the first light's parameters over the field, and the resolved light.
+    passes::TransportInputs view_inputs(const VolumeStage& volume) const;
+    const vk::Buffer& params_buffer() const { return params_buffers_.front(); }
+    const passes::PhotonAccumulators& accumulators() const { return *accum_; }
+    const vk::Image3D& radiance() const { return radiance_; }
+    const vk::Image3D& flux() const { return flux_; }
+    const vk::Image3D& floor_map() const { return floor_map_; }
+
+    // Read-backs (see SceneGpu).
+    uint32_t channels() const { return channels_; }
+    bool grey() const { return channels_ == CHANNELS_GREY; }
+    const std::vector<shaders::TransportParams>& light_params() const { return light_params_; }
+    uint32_t floor_map_side() const { return floor_texels_; }
+    std::vector<glm::vec4> read_radiance() const;
+    std::vector<glm::vec4> read_flux() const;
+    std::vector<uint32_t> read_lit_pyramid() const;
+    std::vector<glm::vec4> read_floor_map() const;
+    std::vector<glm::vec4> read_floor_irradiance() const;
+    std::vector<shaders::PhotonExit> read_photon_exits() const;
+
+private:
+    void allocate(const passes::GridGeometry& lattice, uint32_t photon_exit_count, bool record_exits,
+                  uint32_t radiance_factor, uint32_t channels);
+    passes::TransportInputs inputs_for(const vk::Buffer& params, const VolumeStage& volume) const;
+
+    PassKit& kit_;
+    uint32_t floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
+    bool sampled_deposits_ = false;  // how the photons in the radiance grid were deposited (RunOptions)
+    uint32_t bounces_ = 0;           // how often they could scatter (photon_bounces)
+    uint32_t photon_batches_ = 0;    // how many batches its running mean holds (with kPhotons built)
+    uint32_t channels_ = CHANNELS_RGB;
+    passes::TransportVariant variant_;
+    std::vector<shaders::TransportParams> light_params_{shaders::TransportParams{}};
+    std::optional<passes::PhotonAccumulators> accum_;
+    std::vector<vk::Buffer> params_buffers_;  // one per entry of light_params_
+    vk::Buffer materials_;
+    vk::Image3D radiance_, flux_, floor_map_;  // radiance_: per-channel fluence, coloured transport only
+    passes::EnvironmentLight environment_light_;
+    vk::Buffer environment_map_;
+    std::optional<passes::EnvironmentSource> environment_source_;  // what the map was made of
+};
+
+}  // namespace refract::scene

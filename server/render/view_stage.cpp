@@ -1,0 +1,57 @@
+#include "render/view_stage.h"
+
+namespace refract::scene {
+
+ViewStage::ViewStage(PassKit& kit) : kit_(kit) {}
+
+void ViewStage::allocate(const FrameInputs::View& in) {
+    if (in.width == width_ && in.height == height_ && hdr_.get()) return;
+    vk::Context& ctx = kit_.context;
+    const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+    hdr_ = {};
+    ldr_ = {};
+    refine_ = {};
+    const uint64_t pixels = uint64_t{in.width} * in.height;
+    hdr_ = vk::Buffer(ctx, pixels * sizeof(glm::vec4), usage, vk::MemoryUse::readback, "hdr frame");
+    ldr_ = vk::Buffer(ctx, pixels * sizeof(uint32_t), usage, vk::MemoryUse::readback, "ldr frame");
+    refine_ = vk::Buffer(ctx, sizeof(shaders::WorkListHeader) + pixels * sizeof(uint32_t),
+                         usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                         vk::MemoryUse::device, "view refinement list");
+    width_ = in.width;
+    height_ = in.height;
+}
+
+bool ViewStage::record(FrameRecording& recording, PassSet stale, bool adaptive, const VolumeStage& volume,
+                       const TransportStage& transport) {
+    vk::CommandRecorder& recorder = recording.recorder();
+    if (stale & kView) {
+        recording.begin(kView);
+        const passes::PhotonAccumulators& accum = transport.accumulators();
+        if (!kit_.view.record(recorder, transport.view_inputs(volume), transport.radiance(), transport.flux(),
+                              transport.floor_map(), {hdr_, accum.stats, accum.lit_blocks, refine_}, width_, height_,
+                              adaptive, recording.between_parts(kView)))
+            return false;
+        recorder.compute_barrier();
+        recording.end();
+    }
+    if (stale & kToneMap) {
+        recording.begin(kToneMap);
+        kit_.tone_map.record(recorder, transport.params_buffer(), hdr_, ldr_, width_, height_);
+        recording.end();
+    }
+    return true;
+}
+
+std::vector<glm::vec4> ViewStage::read_hdr() const {
+    std::vector<glm::vec4> out(size_t{width_} * height_);
+    hdr_.read(out.data(), out.size() * sizeof(glm::vec4));
+    return out;
+}
+
+std::vector<uint32_t> ViewStage::read_ldr() const {
+    std::vector<uint32_t> out(size_t{width_} * height_);
+    ldr_.read(out.data(), out.size() * sizeof(uint32_t));
+    return out;
+}
+
+}  // namespace refract::scene

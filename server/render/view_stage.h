@@ -1,0 +1,37 @@
+// The frame's last stage: eye rays along curved paths through the field, single scattering from the
+// radiance grid (the paper's section 4.4), then exposure and tone mapping. It owns the frame's buffers.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "render/frame_inputs.h"
+#include "render/frame_recording.h"
+#include "render/pass_kit.h"
+#include "render/transport_stage.h"
+#include "render/volume_stage.h"
+
+namespace refract::scene {
+
+class ViewStage {
+public:
+    explicit ViewStage(PassKit& kit);
+
+    // The frame's buffers for this size (kept while it stays).
+    void allocate(const FrameInputs::View& in);
+    // Records the view and tone map when stale; false when the run stopped at a part.
+    bool record(FrameRecording& recording, PassSet stale, bool adaptive, const VolumeStage& volume,
+                const TransportStage& transport);
+
+    uint32_t width() const { return width_; }
+    uint32_t height() const { return height_; }
+    std::vector<glm::vec4> read_hdr() const;
+    std::vector<uint32_t> read_ldr() const;
+
+private:
+    PassKit& kit_;
+    uint32_t width_ = 0, height_ = 0;
+    vk::Buffer hdr_, ldr_, refine_;
+};
+
+}  // namespace refract::scene
