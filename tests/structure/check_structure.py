@@ -4,6 +4,8 @@
   check_structure.py layering ROOT   a file includes only from its own folder and the folders below it
   check_structure.py sizes ROOT      no function in server/ over 120 lines, no client file over 500,
                                      README.md at most 300 lines, docs/benchmarks.md at most 400
+  check_structure.py links ROOT      every relative link and picture in the docs leads somewhere: the
+                                     file exists, and a #fragment into a markdown file names a heading
 
 Each prints every violation (file:line and why) and exits 1 when there is one.
 """
@@ -172,12 +174,58 @@ def check_sizes(root: Path) -> list[str]:
     return problems
 
 
+MARKDOWN_LINK = re.compile(r'!?\[(?:[^\[\]]|\[[^\]]*\])*\]\(([^)\s]+)(?:\s+"[^"]*")?\)')
+
+
+def heading_anchors(path: Path) -> set[str]:
+    """The anchors GitHub gives a markdown file's headings (repeats numbered -1, -2, ...)."""
+    anchors, seen, in_code = set(), {}, False
+    for line in path.read_text().splitlines():
+        if line.startswith("```"):
+            in_code = not in_code
+        match = None if in_code else re.match(r"^#{1,6}\s+(.*?)\s*#*\s*$", line)
+        if not match:
+            continue
+        text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", match.group(1))
+        slug = re.sub(r"[^\w\- ]", "", text.strip().lower()).replace(" ", "-")
+        count = seen.get(slug, 0)
+        seen[slug] = count + 1
+        anchors.add(slug if count == 0 else f"{slug}-{count}")
+    return anchors
+
+
+def check_links(root: Path) -> list[str]:
+    problems = []
+    pages = [root / "README.md", root / "protocol/README.md", root / "web-client/README.md"]
+    pages += sorted((root / "docs").rglob("*.md"))
+    for page in pages:
+        text = page.read_text()
+        # Code is not prose: fenced blocks and inline code are blanked, keeping the line numbers.
+        text = re.sub(r"(?ms)^```.*?^```", lambda m: re.sub(r"[^\n]", " ", m.group(0)), text)
+        text = re.sub(r"`[^`\n]*`", lambda m: " " * len(m.group(0)), text)
+        for match in MARKDOWN_LINK.finditer(text):
+            target = match.group(1)
+            if re.match(r"^[a-z]+:", target):
+                continue  # http:, https:, mailto:
+            where = f"{page.relative_to(root)}:{text.count(chr(10), 0, match.start()) + 1}: {target}"
+            path, _, fragment = target.partition("#")
+            linked = (page.parent / path).resolve() if path else page
+            if not linked.exists():
+                problems.append(f"{where}: no such file")
+            elif fragment and linked.suffix == ".md" and fragment not in heading_anchors(linked):
+                problems.append(f"{where}: no heading #{fragment} there")
+    return problems
+
+
+CHECKS = {"layering": check_layering, "sizes": check_sizes, "links": check_links}
+
+
 def main() -> int:
-    if len(sys.argv) != 3 or sys.argv[1] not in ("layering", "sizes"):
+    if len(sys.argv) != 3 or sys.argv[1] not in CHECKS:
         print(__doc__, file=sys.stderr)
         return 2
     root = Path(sys.argv[2]).resolve()
-    problems = check_layering(root) if sys.argv[1] == "layering" else check_sizes(root)
+    problems = CHECKS[sys.argv[1]](root)
     for problem in problems:
         print(problem)
     print(f"{sys.argv[1]}: {len(problems)} problem(s)")
