@@ -98,7 +98,7 @@ class Manifests(unittest.TestCase):
         # refractd tells browsers behind a proxy to upgrade through the proxy's port (X-Forwarded-For).
         self.assertIn("option forwardfor", routing_lines(HAPROXY_CFG))
         self.assertIn('req.has_header("X-Forwarded-For")', API_SERVER)
-        scene_routes = re.findall(r'route\("[A-Z]+", R"\((/api/scenes/[^"]*)\)"', API_SERVER)
+        scene_routes = re.findall(r'route(?:_authorized)?\("[A-Z]+", R"\((/api/scenes/[^"]*)\)"', API_SERVER)
         self.assertGreater(len(scene_routes), 3)
         for route in scene_routes:
             self.assertTrue(route.startswith("/api/scenes/([^/]+)"), route)
