@@ -110,13 +110,16 @@ float box_mean_factor(vec3 extent, float along, vec3 d) {
     return 1.0 + dot(extent * extent, 8.0 * d * d - 2.0) / (24.0 * along * along);
 }
 
-// The part of radiance voxel i inside the grid (index-field voxels): its low corner and extent.
-void voxel_box(uint i, out vec3 lo, out vec3 extent) {
-    uvec3 dims = params.radiance_grid.xyz;
-    uvec3 v = uvec3(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
+// The part of radiance voxel v inside the grid (index-field voxels): its low corner and extent.
+void voxel_box_at(uvec3 v, out vec3 lo, out vec3 extent) {
     uint f = params.radiance_grid.w;
     lo = vec3(f * v);
     extent = vec3(min(uvec3(f), params.grid_dims.xyz - f * v));
+}
+// The same for the voxel of linear index i.
+void voxel_box(uint i, out vec3 lo, out vec3 extent) {
+    uvec3 dims = params.radiance_grid.xyz;
+    voxel_box_at(uvec3(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y)), lo, extent);
 }
 
 // Stores mean fluence rate `fluence` over radiance voxel i's part inside the grid as the photons' sums
@@ -176,7 +179,8 @@ void mark_reach(uint i) {
 
 // 32 radiance voxels along x (one word of reach bits): where all of a voxel's corners take direct light,
 // the fluence at its centre (the midpoint rule); where some do, the voxel is listed for
-// deposit_edge_voxel (or done at once if the list is full).
+// deposit_edge_voxel, or done at once if the list is full (DIRECT_MODE_DEPOSIT_FULL only: lavapipe would
+// run that under an empty mask in every iteration where the list holds every voxel).
 void deposit_run(uint i) {
     uvec3 dims = params.radiance_grid.xyz;
     uint words = (dims.x + 31u) / 32u;
@@ -197,7 +201,7 @@ void deposit_run(uint i) {
         uint voxel = (first.z * dims.y + first.y) * dims.x + min(x, dims.x - 1u);
         if (inside && reached == 8u) {
             vec3 lo, extent;
-            voxel_box(voxel, lo, extent);
+            voxel_box_at(uvec3(x, first.yz), lo, extent);
             vec3 centre = lo + 0.5 * extent;
             float along;
             vec3 d = ray_through(to_world(centre), along);
@@ -216,7 +220,7 @@ void deposit_run(uint i) {
         }
         slot = subgroupBroadcastFirst(slot) + subgroupBallotExclusiveBitCount(ballot);
         if (edge && slot < uint(edge_voxels.length())) edge_voxels[slot] = voxel;
-        else if (edge) deposit_edge_voxel(voxel);
+        else if (kMode == DIRECT_MODE_DEPOSIT_FULL && edge) deposit_edge_voxel(voxel);
     }
 }
 
@@ -231,7 +235,7 @@ void main() {
         if (i < side * side) light_map[i] = light_map_value(uvec2(i % side, i / side));
     } else if (kMode == DIRECT_MODE_REACH) {
         mark_reach(i);
-    } else if (kMode == DIRECT_MODE_DEPOSIT) {
+    } else if (kMode == DIRECT_MODE_DEPOSIT || kMode == DIRECT_MODE_DEPOSIT_FULL) {
         deposit_run(i);
     } else {
         if (i < min(edges.count, uint(edge_voxels.length()))) deposit_edge_voxel(edge_voxels[i]);

@@ -19,7 +19,8 @@ constexpr vk::BindingLayout kOwnLayout[] = {
 constexpr auto kLayout = transport_layout(kOwnLayout);
 static_assert(DIRECT_CONSTANT_MODE == TRANSPORT_CONSTANT_COUNT);
 constexpr uint32_t kTrace[] = {DIRECT_MODE_TRACE}, kMargin[] = {DIRECT_MODE_MARGIN}, kReach[] = {DIRECT_MODE_REACH},
-                   kDeposit[] = {DIRECT_MODE_DEPOSIT}, kEdge[] = {DIRECT_MODE_EDGE};
+                   kDeposit[] = {DIRECT_MODE_DEPOSIT}, kDepositFull[] = {DIRECT_MODE_DEPOSIT_FULL},
+                   kEdge[] = {DIRECT_MODE_EDGE};
 
 std::array<vk::Binding, kLayout.size()> bindings(const TransportInputs& in, const PhotonAccumulators& accum) {
     const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP_TRACED, accum.light_map_traced),
@@ -50,6 +51,7 @@ DirectLightPass::DirectLightPass(vk::Context& context)
       margin_(context, direct_light_spv, kLayout, 0, "light map (margin)", kMargin),
       reach_(context, direct_light_spv, kLayout, 0, "direct light (reach)", kReach),
       deposit_(context, direct_light_spv, kLayout, 0, "direct light", kDeposit),
+      deposit_full_(context, direct_light_spv, kLayout, 0, "direct light (edge list full)", kDepositFull),
       edge_(context, direct_light_spv, kLayout, 0, "direct light (edge voxels)", kEdge) {}
 
 void DirectLightPass::record(vk::CommandRecorder& recorder, const TransportInputs& inputs,
@@ -64,7 +66,9 @@ void DirectLightPass::record(vk::CommandRecorder& recorder, const TransportInput
     recorder.compute_barrier();
     dispatch(reach_, recorder, inputs, accum, direct_reach_words(radiance_dims));
     recorder.compute_barrier();
-    dispatch(deposit_, recorder, inputs, accum, uint64_t{(radiance_dims.x + 31) / 32} * radiance_dims.y * radiance_dims.z);
+    const uint64_t listed = (accum.direct_edges.size() - sizeof(shaders::WorkListHeader)) / sizeof(uint32_t);
+    dispatch(radiance_dims.count() > listed ? deposit_full_ : deposit_, recorder, inputs, accum,
+             uint64_t{(radiance_dims.x + 31) / 32} * radiance_dims.y * radiance_dims.z);
     recorder.compute_barrier();
     edge_(direct_variant(inputs.variant)).dispatch_indirect(recorder.get(), bindings(inputs, accum), nullptr, 0, accum.direct_edges,
                                            offsetof(shaders::WorkListHeader, groups_x));

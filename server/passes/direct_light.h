@@ -16,7 +16,7 @@ public:
                 uint32_t light_map_side, vk::Extent3 radiance_dims) const;
 
 private:
-    TransportPipeline trace_, margin_, reach_, deposit_, edge_;  // by DIRECT_MODE_*
+    TransportPipeline trace_, margin_, reach_, deposit_, deposit_full_, edge_;  // by DIRECT_MODE_*
 };
 
 }  // namespace refract::passes

@@ -70,6 +70,8 @@ REFRACT_SHADERS_BEGIN
 #define DIRECT_MODE_DEPOSIT 3u   // one invocation per radiance voxel: the closed-form direct light where
                                  // all its corners take it; listed where only some do
 #define DIRECT_MODE_EDGE 4u      // one invocation per listed voxel: the same on a finer rule
+#define DIRECT_MODE_DEPOSIT_FULL 5u  // DIRECT_MODE_DEPOSIT where the list may fill up (more radiance voxels
+                                     // than one indirect dispatch takes): the voxels past it at once
 #define TRANSPORT_BINDING_DIRECT_EDGES 22  // WorkListHeader + radiance voxels (DIRECT_MODE_EDGE)
 #define TRANSPORT_BINDING_DIRECT_REACH 23  // bits per radiance-voxel corner, rows of 32 along x (DIRECT_MODE_REACH)
 #define DIRECT_MARGIN 2.0f       // voxels: a photon's ray lies between its texel's neighbours', not on one
