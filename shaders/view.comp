@@ -158,6 +158,7 @@ void shade(uvec2 pixel) {
             bool straight = false;
             if (kFresnel && pending_count > 0u) {
                 PendingPath next = pending[--pending_count];
+                view_step = params.tone.z;
                 ray = next.ray;
                 transmittance = next.transmittance;
                 cutoff = next.cutoff;
@@ -172,6 +173,7 @@ void shade(uvec2 pixel) {
             } else if (kDispersive && parted && next_channel < 3u) {
                 uint c = next_channel++;
                 ray_contrast = params.dispersion[c];
+                view_step = params.tone.y;
                 ray = split_ray;
                 transmittance = split_transmittance * channel_mask(c);
                 cutoff = split_cutoff;

@@ -51,6 +51,7 @@ FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document,
     TransportOptions transport;
     transport.fixed_step = options.fixed_step;
     transport.view_step = options.view_step;
+    transport.reflected_view_step = options.reflected_view_step;
     transport.max_level = passes::octree_layout(grid.dims).max_level;
     transport.radiance_factor = options.radiance_factor * grid.light_factor;
     transport.direct_light = options.direct_light;

@@ -22,6 +22,7 @@
 #include "render/transport_stage.h"
 #include "render/view_stage.h"
 #include "render/volume_stage.h"
+#include "fresnel.h"
 #include "transport.h"
 
 namespace refract::scene {
@@ -54,6 +55,8 @@ struct RunOptions {
     // stay; set, it voxelizes every object again (what a benchmark of a whole rebuild measures).
     bool revoxelize = false;
     float view_step = 1.0f;       // eye-ray step in scattering media (voxels); interactive frames use 2
+    // The view step of reflected eye paths, in view steps (FRESNEL_REFLECTED_VIEW_STEP; 1: as the first).
+    float reflected_view_step = FRESNEL_REFLECTED_VIEW_STEP;
     uint32_t radiance_factor = 1; // scene voxels (passes::GridGeometry::light_factor lattice voxels each) per
                                   // radiance-grid voxel per axis; interactive: 3
     bool sampled_deposits = false; // photons deposit once per radiance voxel of path, not exactly per

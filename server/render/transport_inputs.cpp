@@ -288,7 +288,8 @@ void set_camera(shaders::TransportParams& p, const protocol::SceneDocument& docu
     p.camera_right = glm::vec4(right, 0.0f);
     p.camera_up = glm::vec4(up, 0.0f);
     p.image = glm::uvec4(document.image.width, document.image.height, 0u, 0u);
-    p.tone = glm::vec4(std::exp2(static_cast<float>(document.image.exposure)), options.view_step, 0.0f, 0.0f);
+    p.tone = glm::vec4(std::exp2(static_cast<float>(document.image.exposure)), options.view_step,
+                       options.view_step * options.reflected_view_step, 0.0f);
     p.refinement = glm::vec4(1.0f / static_cast<float>(options.photon_batch + 1),
                              1.0f / static_cast<float>(options.view_sample + 1), passes::view_sample_offset(options.view_sample));
 }

@@ -17,6 +17,7 @@ struct TransportOptions {
     bool fixed_step = false;   // photons step one shell step everywhere (the unaccelerated reference)
     float shell_step = 1.0f;   // voxels, where n varies (octree level 0)
     float view_step = 1.0f;    // voxels, eye-ray step where the medium scatters
+    float reflected_view_step = 1.0f;  // the view step of reflected eye paths, in view steps
     uint32_t max_level = 0;    // octree levels present
     uint32_t radiance_factor = 1;  // index-field voxels per radiance voxel along each axis (1 or 2)
     bool direct_light = true;  // unbent light in closed form (DirectLightPass) rather than by photons

@@ -20,6 +20,11 @@ REFRACT_SHADERS_BEGIN
 // internal T R are 4%); in the default scene's still that path cost 17% of the eye-ray steps and about a
 // third of the viewing pass (a pixel's SIMD neighbours waited for its fourth march; docs/perf-log/2026-12-01-faint-reflections-and-b-spline-voxelizer.md).
 #define FRESNEL_EYE_TRACED_SHARE 0.01f
+// Reflected paths that are marched gather fog at this many times the view step: they carry a few percent
+// of a pixel's light (4% at normal incidence off glass), so the step's error in them is that share of a
+// step error already well under the photon noise, while tracing them was 45% of the viewing pass
+// (docs/perf-log/2026-12-03-where-a-still-frame-goes.md). TransportParams::tone.z holds the step.
+#define FRESNEL_REFLECTED_VIEW_STEP 2.0f
 
 // The unpolarized reflectance (the mean of s and p) of light meeting an interface from index n1 into index
 // n2 with sin_i the sine of its angle of incidence on the n1 side: 1 beyond the critical angle.

@@ -224,7 +224,8 @@ struct TransportParams {
     vec4 camera_right;
     vec4 camera_up;
     uvec4 image;              // x: width, y: height, zw: unused
-    vec4 tone;                // x: exposure multiplier (2^exposure), y: view step (voxels), zw: unused
+    vec4 tone;                // x: exposure multiplier (2^exposure), y: view step (voxels), z: the view step
+                              // of reflected eye paths (FRESNEL_REFLECTED_VIEW_STEP times y), w: unused
     vec4 sky_zenith;          // rgb background above the horizon
     vec4 sky_horizon;         // rgb background at the horizon
     uvec4 flags;              // x: 1 = record each photon's exit state (tests)
