@@ -374,8 +374,9 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     auto it = impl_->scenes.find(scene_id);
     // A scene prepared ahead (prepare) or whose last step gave way holds some passes built: the rest run.
     const ResidentScene* held = it != impl_->scenes.end() && it->second.gpu->built() != 0 ? &it->second : nullptr;
-    const FramePlan plan =
-        impl_->plan(held, it != impl_->scenes.end() ? it->second.budget : FrameBudget{}, requested, resolved, options);
+    const FrameBudget unmeasured;
+    const FrameBudget& budget = it != impl_->scenes.end() ? it->second.budget : unmeasured;
+    const FramePlan plan = impl_->plan(held, budget, requested, resolved, options);
     // The objects in world space fit the lattice; needed only when the volume is rebuilt.
     const WorldMeshes worlds = plan.stale & kVoxelize ? worlds_of(plan.document, resolved) : WorldMeshes{};
     FrameResult frame;

@@ -85,8 +85,9 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     }
     // Another radiance-grid resolution, deposit estimator or bounce cap (interactive <-> still) or kind of
     // transport means new photons into a new grid.
-    if (!transport_.made_for(photon_settings(document, options), options)) built_ &= ~(kPhotons | kView | kToneMap);
-    transport_.make_for(photon_settings(document, options), options);
+    const FrameInputs::Transport photons = photon_settings(document, options);
+    if (!transport_.made_for(photons, options)) built_ &= ~(kPhotons | kView | kToneMap);
+    transport_.make_for(photons, options);
     const PassSet asked = stale;
     // A refinement step adds a batch to the running mean of those before it. Given way before its first
     // resolve, it leaves that mean in the images, and the frame made from it, as they were (each photon

@@ -234,11 +234,8 @@ PgSceneStore::LostUpdate PgSceneStore::outcome_of_lost_update(const pg::Connecti
 }
 
 MeshEntry PgSceneStore::put_mesh(const std::string& name, const std::string& obj_text) {
-    if (!valid_mesh_name(name))
-        throw StoreError(StoreFailure::invalid, "mesh name must match [A-Za-z0-9_.-]{1,64}");
-    auto parsed = std::make_shared<const mesh::Mesh>(mesh::parse_obj(obj_text, mesh_limits_));
+    auto parsed = parse_mesh_upload(name, obj_text, mesh_limits_, cache_);
     const uint64_t size = host_bytes(*parsed);
-    cache_.check_fits("mesh '" + name + "'", size);
     MeshEntry entry{name, mesh::inspect(*parsed)};
     pg::Pool::Lease connection = pool_.acquire();
     // bytea, not text: an OBJ file need not be UTF-8.
@@ -321,13 +318,7 @@ bool PgSceneStore::remove_mesh(const std::string& name_or_reference) {
 }
 
 EnvironmentEntry PgSceneStore::put_environment(const std::string& name, const std::string& bytes) {
-    if (!valid_mesh_name(name))
-        throw StoreError(StoreFailure::invalid, "environment name must match [A-Za-z0-9_.-]{1,64}");
-    if (image::built_in_environment(name))
-        throw StoreError(StoreFailure::invalid, "\"" + name + "\" is a built-in environment");
-    // Refused on its header before anything is decoded when it could never be held.
-    cache_.check_fits("environment '" + name + "'", image::environment_size(bytes).decoded_bytes());
-    auto decoded = std::make_shared<const image::EnvironmentMap>(image::decode_environment(bytes));
+    auto decoded = decode_environment_upload(name, bytes, cache_);
     EnvironmentEntry entry{name, decoded->width, decoded->height, false};
     pg::Pool::Lease connection = pool_.acquire();
     pg::Result stored = connection->exec(

@@ -339,10 +339,7 @@ EditResult SceneStore::patch(const std::string& id, const nlohmann::json& merge_
 }
 
 MeshEntry SceneStore::put_mesh(const std::string& name, const std::string& obj_text) {
-    if (!valid_mesh_name(name))
-        throw StoreError(StoreFailure::invalid, "mesh name must match [A-Za-z0-9_.-]{1,64}");
-    auto parsed = std::make_shared<const mesh::Mesh>(mesh::parse_obj(obj_text, mesh_limits_));
-    cache_.check_fits("mesh '" + name + "'", host_bytes(*parsed));
+    auto parsed = parse_mesh_upload(name, obj_text, mesh_limits_, cache_);
     MeshEntry entry{name, mesh::inspect(*parsed)};
     std::string report = to_json(entry.report).dump(2);
     {
@@ -461,13 +458,7 @@ std::shared_ptr<const mesh::Mesh> SceneStore::mesh(const std::string& name_or_re
 }
 
 EnvironmentEntry SceneStore::put_environment(const std::string& name, const std::string& bytes) {
-    if (!valid_mesh_name(name))
-        throw StoreError(StoreFailure::invalid, "environment name must match [A-Za-z0-9_.-]{1,64}");
-    if (image::built_in_environment(name))
-        throw StoreError(StoreFailure::invalid, "\"" + name + "\" is a built-in environment");
-    // Refused on its header before anything is decoded when it could never be held.
-    cache_.check_fits("environment '" + name + "'", image::environment_size(bytes).decoded_bytes());
-    auto decoded = std::make_shared<const image::EnvironmentMap>(image::decode_environment(bytes));
+    auto decoded = decode_environment_upload(name, bytes, cache_);
     EnvironmentEntry entry{name, decoded->width, decoded->height, false};
     const std::string report = nlohmann::json{{"width", entry.width}, {"height", entry.height}}.dump();
     {

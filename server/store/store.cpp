@@ -118,6 +118,25 @@ bool valid_scene_id(const std::string& id) {
     return true;
 }
 
+std::shared_ptr<const mesh::Mesh> parse_mesh_upload(const std::string& name, const std::string& obj_text,
+                                                    const mesh::MeshLimits& limits, const AssetCache& cache) {
+    if (!valid_mesh_name(name))
+        throw StoreError(StoreFailure::invalid, "mesh name must match [A-Za-z0-9_.-]{1,64}");
+    auto parsed = std::make_shared<const mesh::Mesh>(mesh::parse_obj(obj_text, limits));
+    cache.check_fits("mesh '" + name + "'", host_bytes(*parsed));
+    return parsed;
+}
+
+std::shared_ptr<const image::EnvironmentMap> decode_environment_upload(const std::string& name, const std::string& bytes,
+                                                                       const AssetCache& cache) {
+    if (!valid_mesh_name(name))
+        throw StoreError(StoreFailure::invalid, "environment name must match [A-Za-z0-9_.-]{1,64}");
+    if (image::built_in_environment(name))
+        throw StoreError(StoreFailure::invalid, "\"" + name + "\" is a built-in environment");
+    cache.check_fits("environment '" + name + "'", image::environment_size(bytes).decoded_bytes());
+    return std::make_shared<const image::EnvironmentMap>(image::decode_environment(bytes));
+}
+
 bool valid_mesh_name(const std::string& name) {
     if (name.empty() || name.size() > 64 || name == "." || name == "..") return false;
     for (char c : name) {

@@ -122,6 +122,14 @@ uint64_t host_bytes(const mesh::Mesh& mesh);
 uint64_t host_bytes(const IndexGrid& grid);
 uint64_t host_bytes(const image::EnvironmentMap& map);
 
+// An upload as both stores take it in, checked before it is kept: a valid name, within the decoded-asset
+// budget (`cache`'s check_fits; an environment map on its header, before it is decoded), an environment
+// not named as a built-in one. Throws StoreError, or the parser's or decoder's error.
+std::shared_ptr<const mesh::Mesh> parse_mesh_upload(const std::string& name, const std::string& obj_text,
+                                                    const mesh::MeshLimits& limits, const AssetCache& cache);
+std::shared_ptr<const image::EnvironmentMap> decode_environment_upload(const std::string& name, const std::string& bytes,
+                                                                       const AssetCache& cache);
+
 // Validation of an imported index grid, in the words a user needs; throws StoreError(invalid).
 void validate_index_grid(const IndexGrid& grid);
 
