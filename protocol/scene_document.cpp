@@ -713,6 +713,46 @@ SceneDocument parse_scene(const json& j, const Limits& limits) {
     return Reader(limits, &j).document(j);
 }
 
+View parse_view(const json& j, const Limits& limits, const std::string& base) {
+    if (!j.is_object()) throw ValidationError(base, "must be an object {\"width\", \"height\", \"camera\"} or null");
+    for (const auto& [key, value] : j.items()) {
+        if (key != "width" && key != "height" && key != "camera")
+            throw ValidationError(child(base, key), "is not a member of a view (width, height, camera)");
+    }
+    for (const char* side : {"width", "height"}) {
+        if (!j.contains(side)) throw ValidationError(child(base, side), "is required: the view's image size in pixels");
+    }
+    // The document's own rules, on a document that holds only this image size and camera.
+    json document = {{"image", {{"width", j["width"]}, {"height", j["height"]}}}};
+    const bool own_camera = j.contains("camera") && !j["camera"].is_null();
+    if (own_camera) document["camera"] = j["camera"];
+    SceneDocument checked;
+    try {
+        checked = Reader(limits, &document).document(document);
+    } catch (const ValidationError& e) {
+        // "/image/width" is the view's "/width"; "/camera/..." its own "/camera/...".
+        const std::string& pointer = e.pointer();
+        const std::string image = "/image";
+        std::string moved = pointer.compare(0, image.size(), image) == 0 ? base + pointer.substr(image.size()) : base + pointer;
+        std::string rule = e.rule();
+        for (size_t at = rule.find("/camera/"); at != std::string::npos; at = rule.find("/camera/", at + base.size() + 1))
+            rule.insert(at, base);
+        throw ValidationError(std::move(moved), std::move(rule));
+    }
+    View view{checked.image.width, checked.image.height, std::nullopt};
+    if (own_camera) view.camera = checked.camera;
+    return view;
+}
+
+SceneDocument seen_through(SceneDocument document, const View& view) {
+    if (view.width != 0 && view.height != 0) {
+        document.image.width = view.width;
+        document.image.height = view.height;
+    }
+    if (view.camera) document.camera = *view.camera;
+    return document;
+}
+
 json to_json(const SceneDocument& d) {
     json volume = {{"resolution", d.volume.resolution},
                    {"smoothing", d.volume.smoothing},

@@ -205,6 +205,25 @@ struct Limits {
     uint32_t max_image_side = 4096;
 };
 
+// A viewer's own view of a scene (a WebSocket session's `view` setting): its image size and, unless it
+// follows the document's, its camera. Never stored and never a revision: the document's camera and
+// image size stay the scene's saved view (what exports, `refract render` and new viewers start from).
+struct View {
+    uint32_t width = 0;  // 0 (with height 0): the document's image size
+    uint32_t height = 0;
+    std::optional<Camera> camera;  // nullopt: the document's camera
+
+    bool operator==(const View&) const = default;
+};
+
+// Reads a view `{"width", "height", "camera"}`: width and height required (integers within
+// limits.max_image_side), camera a whole camera as in the document (members left out take their
+// defaults; null or absent: follow the document's). Checked whole by the document's own rules. Throws
+// ValidationError with pointers under `base` (the view's place in its message).
+View parse_view(const nlohmann::json& j, const Limits& limits, const std::string& base = "/view");
+// `document` as the view shows it: its image size and camera replaced where the view has its own.
+SceneDocument seen_through(SceneDocument document, const View& view);
+
 // Builds a document from JSON (missing fields take defaults). Throws ValidationError.
 SceneDocument parse_scene(const nlohmann::json& j, const Limits& limits = {});
 // The full document as JSON, every field present; parse_scene(to_json(d)) == d.

@@ -22,6 +22,7 @@
 #include <set>
 #include <thread>
 
+#include "daemon/api.h"
 #include "daemon/harness.h"
 #include "daemon/ws_client.h"
 #include "http/daemon_config.h"
@@ -41,20 +42,11 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-// Frames small enough for lavapipe on two cores.
-const json kSmallScene = {{"image", {{"width", 64}, {"height", 64}}},
-                          {"volume", {{"resolution", 32}}},
-                          {"photons", {{"count", 256}}}};
-
-constexpr const char* kMergePatch = "application/merge-patch+json";
 
 const char kTetrahedronObj[] =
     "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n"
     "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
 
-bool is_png(const std::string& bytes) {
-    return bytes.size() > 8 && bytes.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0;
-}
 
 // ---------------------------------------------------------------------------------------------------------
 // Unit tests: no daemon process.
@@ -729,69 +721,6 @@ TEST(DaemonRenderQueue, UnrenderableScenesAndMissingDevicesAreReported) {
 // ---------------------------------------------------------------------------------------------------------
 // Integration tests: a real refractd.
 
-json get_json(httplib::Client& client, const std::string& path, int expected_status = 200) {
-    auto res = client.Get(path);
-    EXPECT_TRUE(res) << "GET " << path << " failed";
-    if (!res) return {};
-    EXPECT_EQ(res->status, expected_status) << path << ": " << res->body;
-    return json::parse(res->body, nullptr, false);
-}
-
-std::string create_scene(httplib::Client& client, const std::string& id, const json& document = kSmallScene) {
-    auto res = client.Post("/api/scenes?id=" + id, document.dump(), "application/json");
-    EXPECT_TRUE(res);
-    if (!res) return {};
-    EXPECT_EQ(res->status, 201) << res->body;
-    return json::parse(res->body).at("id").get<std::string>();
-}
-
-// Frame bytes of a scene, with the response for its headers.
-httplib::Result get_frame(httplib::Client& client, const std::string& id, const std::string& query = "") {
-    auto res = client.Get("/api/scenes/" + id + "/frame.png" + query);
-    EXPECT_TRUE(res) << "frame of " << id;
-    if (res) {
-        EXPECT_EQ(res->status, 200) << res->body;
-        if (res->status == 200) {
-            EXPECT_TRUE(is_png(res->body));
-        }
-    }
-    return res;
-}
-
-httplib::Result patch(httplib::Client& client, const std::string& id, const json& merge_patch,
-                      const httplib::Headers& headers = {}) {
-    return client.Patch("/api/scenes/" + id, headers, merge_patch.dump(), kMergePatch);
-}
-
-// The value of a metric line ("refract_pass_runs_total{pass=\"view\"}"), 0 when absent.
-double metric(httplib::Client& client, const std::string& series) {
-    auto res = client.Get("/metrics");
-    if (!res) return -1;
-    std::istringstream lines(res->body);
-    std::string line;
-    while (std::getline(lines, line)) {
-        if (line.compare(0, series.size(), series) == 0 && line.size() > series.size() &&
-            line[series.size()] == ' ')
-            return std::stod(line.substr(series.size() + 1));
-    }
-    return 0;
-}
-
-void expect_alive(Daemon& daemon) {
-    ASSERT_TRUE(daemon.running()) << daemon.log();
-    auto client = daemon.client();
-    auto res = client.Get("/api/health");
-    ASSERT_TRUE(res) << daemon.log();
-    EXPECT_EQ(res->status, 200);
-}
-
-void expect_no_validation_errors(Daemon& daemon) {
-    auto client = daemon.client();
-    json health = get_json(client, "/api/health");
-    if (health.contains("validation_errors")) {
-        EXPECT_EQ(health["validation_errors"], 0) << daemon.log();
-    }
-}
 
 TEST(Daemon, HealthDescribesTheDeviceAndStartsWithADefaultScene) {
     TempDir dir;

@@ -622,6 +622,69 @@ TEST(Collections, BadCollectionsAreRejectedWithTheirPointerAndChangeNothing) {
 
 // ---- limits ---------------------------------------------------------------------------------------------
 
+// A viewer's own view (a WebSocket session setting): its size and camera, checked by the document's rules.
+TEST(View, ReadsASizeAndAnOptionalCameraAndSeesTheDocumentThroughThem) {
+    const View follows = parse_view(json{{"width", 640}, {"height", 360}}, Limits{});
+    EXPECT_EQ(follows.width, 640u);
+    EXPECT_EQ(follows.height, 360u);
+    EXPECT_FALSE(follows.camera);
+    EXPECT_FALSE(parse_view(json{{"width", 640}, {"height", 360}, {"camera", nullptr}}, Limits{}).camera);
+    const View own = parse_view(
+        json{{"width", 64.0}, {"height", 48}, {"camera", {{"position", {3, 1, 2}}, {"target", {0, 0, 0}}, {"fov_deg", 50}}}},
+        Limits{});
+    ASSERT_TRUE(own.camera);
+    EXPECT_EQ(own.camera->position, (Vec3{3, 1, 2}));
+    EXPECT_EQ(own.camera->up, Camera{}.up);  // left out: the default, as in a document
+    EXPECT_EQ(own.camera->fov_deg, 50.0);
+
+    const SceneDocument document = customised();
+    const SceneDocument seen = seen_through(document, own);
+    EXPECT_EQ(seen.camera, *own.camera);
+    EXPECT_EQ(seen.image.width, 64u);
+    EXPECT_EQ(seen.image.height, 48u);
+    EXPECT_EQ(seen.image.exposure, document.image.exposure);
+    EXPECT_EQ(seen.lights, document.lights);
+    EXPECT_EQ(seen_through(document, follows).camera, document.camera);
+    EXPECT_EQ(seen_through(document, View{}), document);  // no view: the document's own
+}
+
+TEST(View, HostileViewsAreRefusedWithAPointerUnderTheirPlace) {
+    const std::vector<std::pair<json, std::string>> cases = {
+        {json(nullptr), "/view"},
+        {json("640x360"), "/view"},
+        {json{{"width", 640}}, "/view/height"},
+        {json{{"height", 360}}, "/view/width"},
+        {json{{"width", 0}, {"height", 360}}, "/view/width"},
+        {json{{"width", 640}, {"height", -1}}, "/view/height"},
+        {json{{"width", 4097}, {"height", 360}}, "/view/width"},
+        {json{{"width", 640.5}, {"height", 360}}, "/view/width"},
+        {json{{"width", 1e19}, {"height", 360}}, "/view/width"},
+        {json{{"width", true}, {"height", 360}}, "/view/width"},
+        {json{{"width", 640}, {"height", 360}, {"exposure", 1}}, "/view/exposure"},
+        {json{{"width", 640}, {"height", 360}, {"camera", json::array()}}, "/view/camera"},
+        {json{{"width", 640}, {"height", 360}, {"camera", {{"position", {0, 0, 0}}, {"target", {0, 0, 0}}}}},
+         "/view/camera/target"},
+        // Looking straight down the default up: the value the view wrote is blamed.
+        {json{{"width", 640}, {"height", 360}, {"camera", {{"position", {0, 5, 0}}, {"target", {0, 0, 0}}}}},
+         "/view/camera/target"},
+        {json{{"width", 640}, {"height", 360}, {"camera", {{"up", {0, 0, 0}}}}}, "/view/camera/up"},
+        {json{{"width", 640}, {"height", 360}, {"camera", {{"fov_deg", 170}}}}, "/view/camera/fov_deg"},
+        {json{{"width", 640}, {"height", 360}, {"camera", {{"position", {0, 0, 1e5}}}}}, "/view/camera/position/2"},
+        {json{{"width", 640}, {"height", 360}, {"camera", {{"roll", 3}}}}, "/view/camera/roll"},
+    };
+    for (const auto& [view, pointer] : cases)
+        EXPECT_EQ(rejected_pointer([&] { parse_view(view, Limits{}); }), pointer) << view;
+    // The daemon's image limit, and the rule's words naming the view's own members.
+    Limits small;
+    small.max_image_side = 256;
+    EXPECT_EQ(rejected_pointer([&] { parse_view(json{{"width", 257}, {"height", 8}}, small); }), "/view/width");
+    try {
+        parse_view(json{{"width", 8}, {"height", 8}, {"camera", {{"position", {1, 1, 1}}, {"target", {1, 1, 1}}}}}, Limits{});
+    } catch (const ValidationError& e) {
+        EXPECT_NE(e.rule().find("/view/camera/position"), std::string::npos) << e.rule();
+    }
+}
+
 TEST(Limits, AreHonoured) {
     Limits limits;
     limits.max_resolution = 128;

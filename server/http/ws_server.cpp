@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
@@ -13,6 +14,7 @@
 #include <boost/beast/websocket.hpp>
 #include <cstdio>
 #include <deque>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -81,23 +83,62 @@ std::string scene_of_path(std::string_view path) {
     return scene::valid_scene_id(id) ? id : std::string();
 }
 
+// A camera as a render queue key: every member, shortest round-trip form.
+std::string camera_key(const protocol::Camera& camera) {
+    std::string key;
+    auto add = [&key](double value) {
+        char digits[32];
+        const auto end = std::to_chars(digits, digits + sizeof digits, value).ptr;
+        key.append(digits, end);
+        key += ',';
+    };
+    for (const protocol::Vec3& v : {camera.position, camera.target, camera.up})
+        for (double x : v) add(x);
+    add(camera.fov_deg);
+    return key;
+}
+
 }  // namespace
 
 // One client connection: the upgrade handshake, then a read loop and a write queue, all on one strand.
+class WsSession;
+
+// What a session tells the server about itself: the registry keeps who views which scene.
+struct SessionEvents {
+    std::function<void(WsSession*)> closed;                        // its destructor
+    std::function<void(WsSession*, const std::string&)> viewing;   // the handshake is done: it views a scene
+    std::function<void(WsSession*)> left;                          // its connection ended
+    std::function<void(WsSession*, const std::string&, uint64_t)> edited;  // it made a revision of a scene
+};
+
 class WsSession : public std::enable_shared_from_this<WsSession> {
 public:
-    WsSession(tcp::socket socket, Service& service, PlayChecker& checker, std::function<void(WsSession*)> on_close)
+    WsSession(tcp::socket socket, Service& service, PlayChecker& checker, SessionEvents events)
         : ws_(std::move(socket)),
           timer_(ws_.get_executor()),
           idle_timer_(ws_.get_executor()),
           service_(service),
           checker_(checker),
-          on_close_(std::move(on_close)) {
+          events_(std::move(events)) {
         service_.ws_sessions.fetch_add(1);
     }
     ~WsSession() {
         service_.ws_sessions.fetch_sub(1);
-        if (on_close_) on_close_(this);
+        if (events_.closed) events_.closed(this);
+    }
+
+    // The scene's viewers on this daemon are now `count` (one joined or left). Safe from any thread.
+    void viewers_changed(size_t count) {
+        net::post(ws_.get_executor(), [self = shared_from_this(), count] {
+            if (!self->closing_) self->send_text({{"type", "viewers"}, {"count", count}});
+        });
+    }
+
+    // Another viewer's message made `revision` of this session's scene. Safe from any thread.
+    void edited_by_another(uint64_t revision) {
+        net::post(ws_.get_executor(), [self = shared_from_this(), revision] {
+            if (!self->closing_ && !self->play_) self->send_text({{"type", "edited"}, {"revision", revision}, {"by", "viewer"}});
+        });
     }
 
     void start() {
@@ -114,7 +155,7 @@ public:
     }
 
     // Revision `revision` of scene `id` is committed (by anyone, on any replica): a viewer of that scene
-    // gets its frame unless it has asked for or rendered that revision already. nullopt: announcements
+    // gets its frame (from its own view) unless it has asked for or rendered that revision already. nullopt: announcements
     // may have been lost, every viewer gets a frame of what is current. Safe from any thread.
     void scene_changed(std::optional<std::pair<std::string, uint64_t>> revision) {
         net::post(ws_.get_executor(), [self = shared_from_this(), revision] {
@@ -145,6 +186,13 @@ public:
     }
 
 private:
+    // The settings a message may set for the session from then on (budget_ms, refine, view).
+    struct Settings {
+        double budget_ms = scene::kDefaultBudgetMs;
+        uint32_t refine_to = scene::kMaxRefinementLevel;
+        protocol::View view;
+    };
+
     // An animation played into this viewer (protocol/animation.h): its frames are rendered from the
     // animation's documents, never stored; the scene's own document is untouched.
     struct Play {
@@ -238,6 +286,7 @@ private:
         ws_.async_accept(req, [self = shared_from_this()](beast::error_code accept_ec) {
             if (accept_ec) return;
             self->viewing_ = true;
+            if (self->events_.viewing) self->events_.viewing(self.get(), self->scene_id_);
             self->log(101);
             self->read_message();
         });
@@ -250,6 +299,7 @@ private:
                 self->gone_->store(true);
                 self->timer_.cancel();
                 self->idle_timer_.cancel();
+                if (self->events_.left) self->events_.left(self.get());
                 return;
             }
             std::string text = beast::buffers_to_string(self->incoming_.data());
@@ -259,12 +309,20 @@ private:
         });
     }
 
-    void send_error(const json& seq, const std::string& message, std::optional<std::string> pointer = {}) {
+    // An error: `pointer` and `rule` (what the value broke, without the pointer) for a validation error.
+    void send_error(const json& seq, const std::string& message, std::optional<std::string> pointer = {},
+                    std::optional<std::string> rule = {}) {
         json error = {{"type", "error"}, {"seq", seq}, {"error", message}};
         if (pointer) error["pointer"] = *pointer;
-        // A client that sends and never reads must not grow the queue: past the bound, the oldest go.
+        if (rule) error["rule"] = *rule;
+        send_text(error);
+    }
+
+    // Queues a text message. A client that sends and never reads must not grow the queue: past the
+    // bound, the oldest go.
+    void send_text(const json& message) {
         if (outbox_.size() >= kMaxQueuedErrors) outbox_.pop_front();
-        outbox_.push_back({false, std::make_shared<const std::string>(dump_json(error)), nullptr});
+        outbox_.push_back({false, std::make_shared<const std::string>(dump_json(message)), nullptr});
         write_next();
     }
 
@@ -306,8 +364,9 @@ private:
             }
         }
         // Session settings: checked whole before anything (the patch included) is applied.
-        double budget_ms = budget_ms_;
-        uint32_t refine_to = refine_to_;
+        Settings settings{budget_ms_, refine_to_, view_};
+        double& budget_ms = settings.budget_ms;
+        uint32_t& refine_to = settings.refine_to;
         if (message.contains("budget_ms")) {
             const json& b = message["budget_ms"];
             if (!b.is_number() || !(b.get<double>() >= scene::kMinBudgetMs && b.get<double>() <= scene::kMaxBudgetMs)) {
@@ -325,15 +384,25 @@ private:
             }
             refine_to = static_cast<uint32_t>(r.get<uint64_t>());
         }
+        if (message.contains("view")) {
+            // The viewer's own image size and camera: refused whole, with a pointer into the message.
+            try {
+                const json& v = message["view"];
+                settings.view = v.is_null() ? protocol::View{} : protocol::parse_view(v, service_.store().limits());
+            } catch (const protocol::ValidationError& e) {
+                service_.metrics().record_ws_message(true);
+                return send_error(seq, e.what(), e.pointer(), e.rule());
+            }
+        }
         if (type == "play") {
             double fps = 24.0;
             try {
                 fps = play_fps(message);
             } catch (const protocol::ValidationError& e) {
                 service_.metrics().record_ws_message(true);
-                return send_error(seq, e.what(), e.pointer());  // a pointer into the message
+                return send_error(seq, e.what(), e.pointer(), e.rule());  // a pointer into the message
             }
-            return check_play(std::move(message), text.size(), seq, quality, budget_ms, refine_to, fps);
+            return check_play(std::move(message), text.size(), seq, quality, settings, fps);
         }
         if (type == "stop" && message.contains("patch")) {
             service_.metrics().record_ws_message(true);
@@ -341,25 +410,26 @@ private:
         }
         if (message.contains("patch")) {
             try {
-                service_.store().patch(scene_id_, message["patch"]);
+                const scene::EditResult edit = service_.store().patch(scene_id_, message["patch"]);
+                if (edit.changed && events_.edited) events_.edited(this, scene_id_, edit.after.revision);
             } catch (const protocol::ValidationError& e) {
                 service_.metrics().record_ws_message(true);
-                return send_error(seq, e.what(), e.pointer());  // a pointer into the scene document
+                return send_error(seq, e.what(), e.pointer(), e.rule());  // a pointer into the scene document
             } catch (const scene::StoreError& e) {
                 service_.metrics().record_ws_message(true);
                 return send_error(seq, e.what());
             }
         }
-        begin(seq, type == "stop", quality, budget_ms, refine_to, std::nullopt);
+        begin(seq, type == "stop", quality, settings, std::nullopt);
     }
 
     // A message accepted: its session settings taken, the play it starts (if any) playing, and its frame
     // asked for (`stop`: none).
-    void begin(const json& seq, bool stop, scene::Quality quality, double budget_ms, uint32_t refine_to,
-               std::optional<Play> play) {
+    void begin(const json& seq, bool stop, scene::Quality quality, const Settings& settings, std::optional<Play> play) {
         service_.metrics().record_ws_message(false);
-        budget_ms_ = budget_ms;
-        refine_to_ = refine_to;
+        budget_ms_ = settings.budget_ms;
+        refine_to_ = settings.refine_to;
+        view_ = settings.view;
         // Any message ends the animation playing (latest wins); `stop` asks for nothing more.
         if (play_) stop_play(seq);
         if (stop) return;
@@ -379,8 +449,8 @@ private:
 
     // Checks a play against the scene as it is now on the PlayChecker's thread, then begins it here
     // unless a newer message came meanwhile (which supersedes it, as it would end it playing).
-    void check_play(json message, size_t bytes, const json& seq, scene::Quality quality, double budget_ms,
-                    uint32_t refine_to, double fps) {
+    void check_play(json message, size_t bytes, const json& seq, scene::Quality quality, const Settings& settings,
+                    double fps) {
         if (checker_.waiting_bytes.fetch_add(bytes) + bytes > PlayChecker::kMaxWaitingBytes) {
             checker_.waiting_bytes.fetch_sub(bytes);
             service_.metrics().record_ws_message(true);
@@ -388,7 +458,7 @@ private:
         }
         const uint64_t ticket = messages_.load();
         net::post(checker_.pool, [self = shared_from_this(), message = std::move(message), bytes, seq, quality,
-                                  budget_ms, refine_to, fps, ticket]() mutable {
+                                  settings, fps, ticket]() mutable {
             std::optional<Play> play;
             std::optional<protocol::ValidationError> refused;
             if (ticket == self->messages_.load()) {
@@ -400,14 +470,14 @@ private:
             }
             message = nullptr;  // its memory goes before the next check's
             self->checker_.waiting_bytes.fetch_sub(bytes);
-            net::post(self->ws_.get_executor(), [self, seq, quality, budget_ms, refine_to, ticket, play = std::move(play),
+            net::post(self->ws_.get_executor(), [self, seq, quality, settings, ticket, play = std::move(play),
                                                  refused = std::move(refused)]() mutable {
                 if (self->closing_ || ticket != self->messages_.load()) return;
                 if (refused) {
                     self->service_.metrics().record_ws_message(true);
-                    return self->send_error(seq, refused->what(), refused->pointer());
+                    return self->send_error(seq, refused->what(), refused->pointer(), refused->rule());
                 }
-                self->begin(seq, false, quality, budget_ms, refine_to, std::move(play));
+                self->begin(seq, false, quality, settings, std::move(play));
             });
         });
     }
@@ -429,6 +499,9 @@ private:
             if (level >= refine_to_) return;
             wanted_seq_ = seq;
             wanted_options_ = yielding_still(level + 1);
+            // Viewers of one scene share its radiance grid: a level below the batches another view's
+            // refinement put there takes those batches instead of tracing anew.
+            wanted_options_.resume_up_to = refine_to_;
             want_frame_ = true;
             return submit_frame();
         }
@@ -469,7 +542,9 @@ private:
             return send_error(wanted_seq_, "the scene was deleted");
         }
         submitted_revision_ = std::max(submitted_revision_, snapshot->revision);
-        scene::FrameRequest request{snapshot->id, snapshot->revision, snapshot->document, wanted_options_, {}};
+        // The session's own view: frames at its size and from its camera, keyed apart by that camera.
+        scene::FrameRequest request{snapshot->id, snapshot->revision, protocol::seen_through(snapshot->document, view_),
+                                    wanted_options_, {}, view_.camera ? camera_key(*view_.camera) : std::string()};
         std::optional<PlayedFrame> played;
         if (play_) {
             // Played in real time: the frame due now, skipping those the renderer could not keep up with;
@@ -489,7 +564,7 @@ private:
             }
             const double time = static_cast<double>(index) / play_->fps;
             try {
-                request.document = play_->animation.at(time);
+                request.document = protocol::seen_through(play_->animation.at(time), view_);
             } catch (const protocol::ValidationError& e) {
                 want_frame_ = false;
                 const json seq = play_->seq;
@@ -637,6 +712,7 @@ private:
             if (ec) {
                 self->closing_ = true;
                 self->gone_->store(true);
+                if (self->events_.left) self->events_.left(self.get());
                 return;
             }
             self->write_next();
@@ -653,7 +729,7 @@ private:
     net::steady_timer idle_timer_;  // from an interactive frame to the still one (refine_after)
     Service& service_;
     PlayChecker& checker_;
-    std::function<void(WsSession*)> on_close_;
+    SessionEvents events_;
     beast::flat_buffer buffer_;
     beast::flat_buffer incoming_;
     std::optional<bhttp::request_parser<bhttp::string_body>> parser_;
@@ -669,6 +745,7 @@ private:
     json wanted_seq_ = nullptr;
     scene::FrameOptions wanted_options_{scene::Quality::interactive};
     double budget_ms_ = scene::kDefaultBudgetMs;           // this session's interactive frame budget
+    protocol::View view_;  // this session's own image size and camera (none: the document's)
     uint32_t refine_to_ = scene::kMaxRefinementLevel;      // the last refinement level pushed
     // Set by a message that arrives while a refinement level renders: the level gives way to it.
     std::shared_ptr<std::atomic<bool>> newer_message_ = std::make_shared<std::atomic<bool>>(false);
@@ -686,11 +763,55 @@ private:
     std::shared_ptr<const scene::FrameResult> png_after_header_;
 };
 
-// The live sessions, shared with each session so that the last one can leave after the server is gone.
+// The live sessions, shared with each session so that the last one can leave after the server is gone;
+// and which scene each views, so that a scene's viewers hear of each other (their count, their edits).
 struct SessionRegistry {
     std::mutex mutex;
     std::set<WsSession*> live;
     std::vector<std::weak_ptr<WsSession>> refs;
+    std::map<WsSession*, std::string> viewing;  // sessions past their handshake, and their scene
+
+    // `session` views `scene` from now on: every viewer of it is told their number.
+    void joined(WsSession* session, const std::string& scene) {
+        std::vector<std::shared_ptr<WsSession>> told;  // released after the lock (see tell)
+        std::lock_guard lock(mutex);
+        viewing[session] = scene;
+        tell(scene, nullptr, told, [count = viewers_of(scene)](WsSession& s) { s.viewers_changed(count); });
+    }
+    // `session` views nothing any more (its connection ended, or it is gone): the others are told.
+    void left(WsSession* session) {
+        std::vector<std::shared_ptr<WsSession>> told;
+        std::lock_guard lock(mutex);
+        auto it = viewing.find(session);
+        if (it == viewing.end()) return;
+        const std::string scene = it->second;
+        viewing.erase(it);
+        tell(scene, nullptr, told, [count = viewers_of(scene)](WsSession& s) { s.viewers_changed(count); });
+    }
+    // `by`'s message made `revision` of `scene`: its other viewers are told.
+    void edited(WsSession* by, const std::string& scene, uint64_t revision) {
+        std::vector<std::shared_ptr<WsSession>> told;
+        std::lock_guard lock(mutex);
+        tell(scene, by, told, [revision](WsSession& s) { s.edited_by_another(revision); });
+    }
+
+private:
+    size_t viewers_of(const std::string& scene) const {
+        return static_cast<size_t>(std::count_if(viewing.begin(), viewing.end(), [&](const auto& v) { return v.second == scene; }));
+    }
+    // Calls `what` for each live viewer of `scene` but `except` (under the lock; `what` only posts). The
+    // references go to `told`, released after the lock: a last reference's destructor takes the lock.
+    template <typename What>
+    void tell(const std::string& scene, WsSession* except, std::vector<std::shared_ptr<WsSession>>& told, What what) {
+        for (const auto& ref : refs) {
+            auto session = ref.lock();
+            if (!session || session.get() == except) continue;
+            auto it = viewing.find(session.get());
+            if (it == viewing.end() || it->second != scene) continue;
+            what(*session);
+            told.push_back(std::move(session));
+        }
+    }
 };
 
 struct WsServer::Impl {
@@ -712,11 +833,18 @@ struct WsServer::Impl {
     std::shared_ptr<WsSession> open_session(tcp::socket socket) {
         beast::error_code ignored;
         socket.set_option(tcp::no_delay(true), ignored);
-        auto session =
-            std::make_shared<WsSession>(std::move(socket), service, checker, [registry = registry](WsSession* gone) {
-                std::lock_guard lock(registry->mutex);
-                registry->live.erase(gone);
-            });
+        SessionEvents events;
+        events.closed = [registry = registry](WsSession* gone) {
+            registry->left(gone);
+            std::lock_guard lock(registry->mutex);
+            registry->live.erase(gone);
+        };
+        events.viewing = [registry = registry](WsSession* s, const std::string& scene) { registry->joined(s, scene); };
+        events.left = [registry = registry](WsSession* s) { registry->left(s); };
+        events.edited = [registry = registry](WsSession* by, const std::string& scene, uint64_t revision) {
+            registry->edited(by, scene, revision);
+        };
+        auto session = std::make_shared<WsSession>(std::move(socket), service, checker, std::move(events));
         std::lock_guard lock(registry->mutex);
         registry->live.insert(session.get());
         std::erase_if(registry->refs, [](const auto& ref) { return ref.expired(); });

@@ -37,6 +37,10 @@ std::string RenderQueue::key_of(const FrameRequest& request) {
         key += "|play:";
         key += request.playback;
     }
+    if (!request.view.empty()) {
+        key += "|view:";
+        key += request.view;
+    }
     return key;
 }
 
@@ -57,15 +61,16 @@ bool RenderQueue::submit(FrameRequest request, FrameCallback done, Withdrawn wit
         return true;
     }
 
-    // A frame of this revision (or newer) with the same size and quality exists: answer with it.
+    // A frame of this revision (or newer) with the same view, size and quality exists: answer with it.
     auto cached = last_frame_.find(request.scene_id);
-    if (request.playback.empty() && cached != last_frame_.end() && cached->second.key == key &&
-        cached->second.revision >= request.revision) {
-        FrameOutcome outcome{
-            FrameOutcome::Status::ok, {}, cached->second.revision, cached->second.frame, true};
-        lock.unlock();
-        done(outcome);
-        return true;
+    if (request.playback.empty() && cached != last_frame_.end()) {
+        for (const Rendered& rendered : cached->second) {
+            if (rendered.key != key || rendered.revision < request.revision) continue;
+            FrameOutcome outcome{FrameOutcome::Status::ok, {}, rendered.revision, rendered.frame, true};
+            lock.unlock();
+            done(outcome);
+            return true;
+        }
     }
     std::vector<FrameCallback> dropped;
     const bool counted = admission == Admission::bounded;
@@ -370,8 +375,12 @@ bool RenderQueue::render_one(std::list<InFlight>::iterator in_flight, size_t dep
     std::unique_lock lock(mutex_);
     std::vector<FrameCallback> waiters;
     for (Waiter& waiter : in_flight->pending.waiters) waiters.push_back(release(waiter));
-    if (outcome.frame && !in_flight->stale && request.playback.empty())
-        last_frame_[request.scene_id] = Rendered{in_flight->key, outcome.revision, outcome.frame};
+    if (outcome.frame && !in_flight->stale && request.playback.empty()) {
+        std::deque<Rendered>& kept = last_frame_[request.scene_id];
+        std::erase_if(kept, [&](const Rendered& r) { return r.key == in_flight->key; });
+        kept.push_front(Rendered{in_flight->key, outcome.revision, outcome.frame});
+        if (kept.size() > kCachedViewsPerScene) kept.pop_back();
+    }
     in_flight_.erase(in_flight);
     lock.unlock();
     answer(waiters, outcome);

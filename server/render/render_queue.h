@@ -37,6 +37,10 @@ struct FrameRequest {
     // revision's, so it is keyed by this tag, never answered from or kept as the scene's cached frame,
     // and shared with no other waiter.
     std::string playback;
+    // Non-empty for a viewer's own camera (protocol::View; the document's camera already replaced by it):
+    // frames are keyed by it, so that viewers of one scene who look from different places get frames of
+    // their own. Empty: the document's camera (followers of the scene's camera share their frames).
+    std::string view;
 };
 
 // What a waiter gets. `frame` is set on success; otherwise `status` says why and `error` in words.
@@ -141,6 +145,9 @@ private:
         uint64_t revision = 0;
         std::shared_ptr<const FrameResult> frame;
     };
+    // Views whose newest frame each scene keeps (last_frame_): viewers of one scene looking from
+    // different places (or at different sizes) each find theirs.
+    static constexpr size_t kCachedViewsPerScene = 4;
     // A frame on the render thread's stack: the one taken from the queue, and the other scenes' frames it
     // renders between its parts (at most one at a time: those do not nest further).
     struct InFlight {
@@ -193,7 +200,8 @@ private:
     // The frames being rendered, outermost first; late waiters for one join it there.
     std::list<InFlight> in_flight_;
     bool last_was_playback_ = false;              // the last frame taken was a played one (take_next)
-    std::map<std::string, Rendered> last_frame_;  // by scene id: its newest frame, answers repeats
+    // By scene id: the newest frame of each of its last kCachedViewsPerScene keys, newest first; answers repeats.
+    std::map<std::string, std::deque<Rendered>> last_frame_;
     std::deque<std::string> evictions_;
     size_t waiters_ = 0;          // all waiters
     size_t counted_waiters_ = 0;  // those of Admission::bounded

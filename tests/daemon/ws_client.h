@@ -33,12 +33,29 @@ public:
         ws_.text(true);
         ws_.write(boost::asio::buffer(text));
     }
-    // (is_text, payload)
+    // (is_text, payload): the next message but the notices about other viewers ("viewers", "edited"),
+    // which are kept in notices().
     std::pair<bool, std::string> read() {
+        for (;;) {
+            auto [text, payload] = read_any();
+            if (text) {
+                nlohmann::json message = nlohmann::json::parse(payload, nullptr, false);
+                if (message.is_object() && (message["type"] == "viewers" || message["type"] == "edited")) {
+                    notices_.push_back(std::move(message));
+                    continue;
+                }
+            }
+            return {text, std::move(payload)};
+        }
+    }
+    // The next message, whatever it is.
+    std::pair<bool, std::string> read_any() {
         boost::beast::flat_buffer buffer;
         ws_.read(buffer);
         return {ws_.got_text(), boost::beast::buffers_to_string(buffer.data())};
     }
+    // The notices read() has passed over so far, oldest first.
+    const std::vector<nlohmann::json>& notices() const { return notices_; }
     // The next frame: its header and PNG; error messages on the way are collected.
     std::pair<nlohmann::json, std::string> read_frame(std::vector<nlohmann::json>* errors = nullptr) {
         for (;;) {
@@ -58,6 +75,7 @@ public:
 private:
     boost::asio::io_context ioc_;
     boost::beast::websocket::stream<boost::asio::ip::tcp::socket> ws_{ioc_};
+    std::vector<nlohmann::json> notices_;
 };
 
 }  // namespace refract::test
