@@ -146,7 +146,7 @@ Animation::Animation(const SceneDocument& base, const json& keyframes, const Lim
             throw ValidationError(pointer(i, "time"), "must be a number of seconds");
         const double time = key["time"].get<double>();
         if (!std::isfinite(time) || time < 0.0 || time > kMaxAnimationSeconds)
-            throw ValidationError(pointer(i, "time"), "must be between 0 and " + std::to_string(kMaxAnimationSeconds) + " s");
+            throw ValidationError(pointer(i, "time"), "must be between 0 and " + std::to_string(static_cast<int64_t>(kMaxAnimationSeconds)) + " s (a day)");
         if (!times_.empty() && time <= times_.back())
             throw ValidationError(pointer(i, "time"), "must be later than the keyframe before it");
         if (!key.contains("patch") || !key["patch"].is_object())

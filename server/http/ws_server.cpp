@@ -83,19 +83,19 @@ std::string scene_of_path(std::string_view path) {
     return scene::valid_scene_id(id) ? id : std::string();
 }
 
+// A number in its shortest round-trip form ("86400", "0.25"), as a person would write it.
+std::string shortest(double value) {
+    char digits[32];
+    const auto end = std::to_chars(digits, digits + sizeof digits, value).ptr;
+    return std::string(digits, end);
+}
+
 // A camera as a render queue key: every member, shortest round-trip form.
 std::string camera_key(const protocol::Camera& camera) {
     std::string key;
-    auto add = [&key](double value) {
-        char digits[32];
-        const auto end = std::to_chars(digits, digits + sizeof digits, value).ptr;
-        key.append(digits, end);
-        key += ',';
-    };
     for (const protocol::Vec3& v : {camera.position, camera.target, camera.up})
-        for (double x : v) add(x);
-    add(camera.fov_deg);
-    return key;
+        for (double x : v) key += shortest(x) + ',';
+    return key + shortest(camera.fov_deg);
 }
 
 }  // namespace
@@ -569,7 +569,7 @@ private:
                 want_frame_ = false;
                 const json seq = play_->seq;
                 play_.reset();
-                return send_error(seq, "the animation's document at " + std::to_string(time) + " s: " + e.what());
+                return send_error(seq, "the animation's document at " + shortest(time) + " s: " + e.what());
             }
             request.playback = std::to_string(play_->id);
             played = PlayedFrame{play_->id, index, play_->frames, time};

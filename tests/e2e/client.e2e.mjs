@@ -261,27 +261,57 @@ async function main() {
     await shot(page, '01-first-frame.png');
   });
 
-  await check('the page fits the window and no tab stop scrolls it', async () => {
-    const size = await page.evaluate(() => ({
-      height: document.documentElement.scrollHeight, inner: window.innerHeight,
-    }));
-    assert(size.height <= size.inner, `the page is ${size.height} px tall in a ${size.inner} px window`);
-    await page.evaluate(() => { document.activeElement?.blur(); window.scrollTo(0, 0); window.tabbed = new Set(); });
-    const reached = [];
-    for (let i = 0; i < 300; ++i) {
-      await page.keyboard.press('Tab');
-      const at = await page.evaluate(() => {
-        const el = document.activeElement;
-        const again = window.tabbed.has(el);
-        window.tabbed.add(el);
-        return { x: window.scrollX, y: window.scrollY, id: el ? el.id || el.tagName : 'none', again };
-      });
-      assert(at.x === 0 && at.y === 0, `tabbing onto ${at.id} scrolled the page to ${at.x},${at.y}`);
-      if (at.again) break;  // around once
-      reached.push(at.id);
+  await check('the page fits the window and no tab stop scrolls it, at 1200x760 and at 1024x700', async () => {
+    for (const [width, height] of [[1200, 760], [1024, 700]]) {
+      await page.setViewportSize({ width, height });
+      await waitSettled(page);
+      const size = await page.evaluate(() => ({
+        height: document.documentElement.scrollHeight, inner: window.innerHeight,
+        width: document.documentElement.scrollWidth, innerWidth: window.innerWidth,
+        // No blank band: the layout fills the window to its bottom.
+        bottom: document.querySelector('main.layout').getBoundingClientRect().bottom,
+      }));
+      assert(size.height <= size.inner && size.width <= size.innerWidth,
+        `at ${width}x${height} the page is ${size.width}x${size.height} px`);
+      assert(size.bottom >= size.inner - 2, `at ${width}x${height} the layout ends at ${size.bottom} px, above the window's bottom`);
+      await page.evaluate(() => { document.activeElement?.blur(); window.scrollTo(0, 0); window.tabbed = new Set(); });
+      const reached = [];
+      for (let i = 0; i < 300; ++i) {
+        await page.keyboard.press('Tab');
+        const at = await page.evaluate(() => {
+          const el = document.activeElement;
+          const again = window.tabbed.has(el);
+          window.tabbed.add(el);
+          return { x: window.scrollX, y: window.scrollY, id: el ? el.id || el.tagName : 'none', again };
+        });
+        assert(at.x === 0 && at.y === 0, `at ${width}x${height} tabbing onto ${at.id} scrolled the page to ${at.x},${at.y}`);
+        if (at.again) break;  // around once
+        reached.push(at.id);
+      }
+      assert(reached.includes('environment-file') && reached.includes('view-save'),
+        `at ${width}x${height} the tab order never reached the HDR/EXR upload or Save this view: ${reached.join(' ')}`);
+      await page.evaluate(() => document.activeElement?.blur());
+      if (width === 1024) await shot(page, '01b-1024x700.png');
     }
-    assert(reached.includes('environment-file'), `the tab order never reached the HDR/EXR upload: ${reached.join(' ')}`);
-    await page.evaluate(() => document.activeElement?.blur());
+    await page.setViewportSize({ width: 1200, height: 760 });
+    await waitSettled(page);
+  });
+
+  await check('every number box is wide enough for its range (Photons: seven digits)', async () => {
+    const clipped = await page.evaluate(() => {
+      const ctx = document.createElement('canvas').getContext('2d');
+      return [...document.querySelectorAll('input.num[data-widest]')].filter((input) => input.getClientRects().length)
+        .map((input) => {
+          const style = getComputedStyle(input);
+          ctx.font = `${style.fontWeight} ${style.fontSize} ${style.fontFamily}`;
+          // The text, the padding and Chromium's spin buttons (about 15 px) must fit the box.
+          const need = ctx.measureText(input.dataset.widest).width + parseFloat(style.paddingLeft) + parseFloat(style.paddingRight) + 15;
+          return { id: input.id, widest: input.dataset.widest, need: Math.ceil(need), has: input.clientWidth };
+        }).filter((box) => box.need > box.has);
+    });
+    const photons = await page.evaluate(() => document.getElementById('ctl-photons-count-num').dataset.widest);
+    assert(photons && photons.length >= 7, `the Photons box is sized for "${photons}"`);
+    assert(clipped.length === 0, `number boxes too narrow: ${JSON.stringify(clipped)}`);
   });
 
   await check('the outliner adds a light, edits and renames it, and removes it', async () => {
@@ -513,25 +543,149 @@ async function main() {
     await shot(page, '02-light-moved.png');
   });
 
-  await check('arrow keys on the focused canvas orbit the camera', async () => {
+  await check('the light marker is never under the progress line', async () => {
+    await waitSettled(page);
+    const before = (await sceneOnServer(sceneId)).scene;
+    const cam = (await page.evaluate(() => window.refract.view())).camera;
+    // A light just above the top of the view, mid-image: its marker is pinned to the top edge, where the
+    // progress line is.
+    const sub = (a, b) => a.map((x, i) => x - b[i]);
+    const unit = (a) => a.map((x) => x / Math.hypot(...a));
+    const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+    const forward = unit(sub(cam.target, cam.position));
+    const up = cross(unit(cross(forward, cam.up)), forward);
+    const lift = Math.hypot(...sub(cam.target, cam.position)) * Math.tan((cam.fov_deg * Math.PI) / 360) * 1.3;
+    const high = cam.target.map((x, i) => Number((x + up[i] * lift).toFixed(4)));
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    const moved = await api('PATCH', `/api/scenes/${sceneId}`, { light: { position: high, direction: [0, -1, 0] } }, 'application/merge-patch+json');
+    assert(moved.status === 200, `PATCH light: ${moved.status}`);
+    await waitSettled(page, rev0);
+    const geo = await page.evaluate(() => {
+      const rect = (id) => document.getElementById(id).getBoundingClientRect().toJSON();
+      return { hidden: document.getElementById('light-marker').hidden, marker: rect('light-marker'), hud: rect('hud-status'), stage: rect('stage') };
+    });
+    await shot(page, '02e-light-marker-at-the-top.png');
+    const { marker: m, hud: h, stage: st } = geo;
+    assert(!geo.hidden, 'the light marker is hidden');
+    const cx = m.x + m.width / 2;
+    const cy = m.y + m.height / 2;
+    assert(!(m.right > h.left && m.left < h.right && m.bottom > h.top && m.top < h.bottom),
+      `the light marker ${JSON.stringify(m)} is under the progress line ${JSON.stringify(h)}`);
+    assert(cx > st.left && cx < st.right && cy > st.top && cy < st.bottom, `the marker is off the view: ${JSON.stringify(geo)}`);
+    assert(cy < st.top + st.height / 3, `the marker is not at the top: ${JSON.stringify(geo)}`);
+    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    const back = await api('PATCH', `/api/scenes/${sceneId}`, { lights: { light: before.light } }, 'application/merge-patch+json');
+    assert(back.status === 200, `PATCH back: ${back.status}`);
+    await waitSettled(page, rev1);
+  });
+
+  await check('arrow keys on the focused canvas orbit this viewer\'s own camera; the scene keeps its own', async () => {
     const before = await sceneOnServer(sceneId);
     const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    const frames0 = await page.evaluate(() => window.refract.framesReceived);
+    const view0 = await page.evaluate(() => window.refract.view());
     await page.focus('#view');
     for (let i = 0; i < 4; ++i) await page.keyboard.press('ArrowLeft');
     await page.keyboard.press('ArrowUp');
-    await waitSettled(page, rev0);
+    await waitFor(page, (n) => window.refract.framesReceived > n, frames0);
+    await waitSettled(page);
+    const view1 = await page.evaluate(() => window.refract.view());
     const after = await sceneOnServer(sceneId);
+    assert(after.revision === before.revision && JSON.stringify(after.scene.camera) === JSON.stringify(before.scene.camera),
+      `orbiting changed the scene: revision ${before.revision} -> ${after.revision}`);
+    assert(await page.evaluate(() => window.refract.lastRevision) === rev0, 'orbiting made a revision');
     const focus = await page.evaluate(() => ({
       id: document.activeElement?.id,
       ring: getComputedStyle(document.getElementById('stage')).boxShadow,
     }));
     assert(focus.id === 'view', `focus is on #${focus.id}, not the canvas`);
     assert(focus.ring && focus.ring !== 'none', 'no visible focus ring around the focused canvas');
-    const [a, b] = [before.scene.camera, after.scene.camera];
-    assert(JSON.stringify(a.position) !== JSON.stringify(b.position), 'camera did not move');
+    const [a, b] = [view0.camera, view1.camera];
+    assert(a && b && JSON.stringify(a.position) !== JSON.stringify(b.position), `the view's camera did not move: ${JSON.stringify([a, b])}`);
     const dist = (c) => Math.hypot(...c.position.map((x, i) => x - c.target[i]));
     assert(Math.abs(dist(a) - dist(b)) < 1e-2, `orbit changed the distance (${dist(a)} -> ${dist(b)})`);
     await shot(page, '03-keyboard-orbit.png');
+  });
+
+  await check('two viewers of different sizes orbit their own cameras (no letterbox, no revision); each sees the other; presenter mode; save the view', async () => {
+    await waitSettled(page);
+    const second = await browser.newContext({ viewport: { width: 1024, height: 700 } });
+    const page2 = await second.newPage();
+    page2.on('pageerror', (e) => { pageErrors.push(e.message); log('page error (second viewer):', e.message); });
+    const orbitWith = async (p, key, times) => {
+      const frames = await p.evaluate(() => window.refract.framesReceived);
+      await p.focus('#view');
+      for (let i = 0; i < times; ++i) await p.keyboard.press(key);
+      await waitFor(p, (n) => window.refract.framesReceived > n, frames);
+      await waitSettled(p);
+    };
+    const unboxed = async (p, who) => {
+      const d = await p.evaluate(() => window.refract.lastDraw);
+      assert(Math.abs(d.drawn[0] - d.canvas[0]) <= 2 && Math.abs(d.drawn[1] - d.canvas[1]) <= 2,
+        `${who}'s frame is letterboxed: ${JSON.stringify(d)}`);
+    };
+    try {
+      const before = await sceneOnServer(sceneId);
+      await page2.goto(pageUrl);
+      await waitSettled(page2);
+      await waitFor(page, () => window.refract.viewers() === 2);
+      await waitFor(page2, () => window.refract.viewers() === 2);
+      const badge = await page.evaluate(() => document.getElementById('viewers').textContent);
+      assert(badge === '2 viewers', `the header says "${badge}"`);
+      await orbitWith(page2, 'ArrowRight', 3);
+      await orbitWith(page, 'ArrowLeft', 3);
+      const views = await Promise.all([page, page2].map((p) => p.evaluate(() => window.refract.view())));
+      assert(views[0].width !== views[1].width || views[0].height !== views[1].height, `one size: ${JSON.stringify(views)}`);
+      assert(JSON.stringify(views[0].camera) !== JSON.stringify(views[1].camera), 'the two viewers share a camera');
+      for (const v of views) assert(JSON.stringify(v.camera.position) !== JSON.stringify(before.scene.camera.position), 'a view did not move');
+      await unboxed(page, 'the first viewer');
+      await unboxed(page2, 'the second viewer');
+      const meta2 = await page2.evaluate(() => window.refract.lastMeta);
+      assert(meta2.width === views[1].width && meta2.height === views[1].height, `the second viewer got ${meta2.width}x${meta2.height}`);
+      let now = await sceneOnServer(sceneId);
+      assert(now.revision === before.revision && JSON.stringify(now.scene.camera) === JSON.stringify(before.scene.camera) &&
+        JSON.stringify(now.scene.image) === JSON.stringify(before.scene.image), `views reached the scene: r${before.revision} -> r${now.revision}`);
+      await shot(page, '10a-first-viewer.png');
+      await shot(page2, '10b-second-viewer.png');
+
+      // Presenter mode: both follow the scene's camera; the first one's orbit moves it for the second.
+      await page2.click('#view-follow');
+      await waitSettled(page2);
+      await page.click('#view-follow');
+      await waitSettled(page);
+      const edits0 = await page2.evaluate(() => window.refract.otherEdits);
+      await snapshotCanvas(page2);
+      await page.focus('#view');
+      for (let i = 0; i < 3; ++i) await page.keyboard.press('ArrowRight');
+      await waitFor(page2, (rev) => window.refract.lastRevision > rev, before.revision);
+      await waitFor(page2, (n) => window.refract.otherEdits > n, edits0);
+      const hud = await page2.evaluate(() => document.getElementById('hud-status').textContent);
+      await shot(page2, '10c-follower-sees-the-presenter.png');
+      await waitSettled(page);
+      await waitSettled(page2, before.revision);
+      now = await sceneOnServer(sceneId);
+      assert(now.revision > before.revision && JSON.stringify(now.scene.camera) !== JSON.stringify(before.scene.camera),
+        'the presenter\'s orbit did not move the scene\'s camera');
+      assert(await page2.evaluate(() => window.refract.view().camera === null), 'the follower sends a camera of its own');
+      assert(await canvasChange(page2) > 0.005, 'the follower\'s frame did not change');
+      assert(/edit made elsewhere|Another viewer edited/.test(hud) && !/^Preview frame/.test(hud), `the follower's line said "${hud}"`);
+      log(`the follower's line said: ${hud}`);
+
+      // Back to a camera of its own, orbited, then saved: it becomes the scene's camera.
+      await page2.click('#view-follow');
+      await orbitWith(page2, 'ArrowUp', 2);
+      const own = (await page2.evaluate(() => window.refract.view())).camera;
+      const rev = now.revision;
+      await page2.click('#view-save');
+      await waitSettled(page2, rev);
+      now = await sceneOnServer(sceneId);
+      assert(JSON.stringify(now.scene.camera.position) === JSON.stringify(own.position), `saved ${JSON.stringify(now.scene.camera)}, own ${JSON.stringify(own)}`);
+      await page.click('#view-follow');
+      await waitSettled(page);
+    } finally {
+      await second.close();
+    }
+    await waitFor(page, () => window.refract.viewers() === 1);
   });
 
   await check('an invalid IOR is reported next to its control', async () => {
@@ -551,10 +705,16 @@ async function main() {
       return {
         invalid: input.getAttribute('aria-invalid'), text: msg.textContent, visible: !msg.hidden && r.height > 0,
         linked: described.includes(msg.id), otherErrors: document.querySelectorAll('.field-error:not([hidden])').length,
+        title: msg.title, number: input.value, slider: document.getElementById('ctl-object-ior').value,
       };
     });
     assert(ui.invalid === 'true', 'IOR input is not aria-invalid');
     assert(ui.visible && ui.text.length > 0, 'no inline error message next to the IOR control');
+    // In words, with the pointer in its tooltip; the control back at the scene's value.
+    assert(ui.text === 'IOR must be between 1 and 4', `the error reads "${ui.text}"`);
+    assert(/\/object\/ior/.test(ui.title), `the error's tooltip is "${ui.title}"`);
+    assert(Number(ui.number) === before.scene.object.ior && Number(ui.slider) === before.scene.object.ior,
+      `after the refusal the controls show ${ui.number} / ${ui.slider}, the scene has ${before.scene.object.ior}`);
     assert(ui.linked, 'the error message is not linked with aria-describedby');
     assert(ui.otherErrors === 1, `${ui.otherErrors} error messages are shown`);
     const after = await sceneOnServer(sceneId);
@@ -606,6 +766,7 @@ async function main() {
   await check('dragging a slider streams interactive frames, then a still', async () => {
     await waitSettled(page);
     const before = await page.evaluate(() => ({ rev: window.refract.lastRevision, sent: { ...window.refract.sent } }));
+    await page.locator('#ctl-light-intensity').scrollIntoViewIfNeeded();
     const box = await page.locator('#ctl-light-intensity').boundingBox();
     const y = box.y + box.height / 2;
     await page.mouse.move(box.x + box.width * 0.1, y);
@@ -615,7 +776,23 @@ async function main() {
       await sleep(40);
       if (i === 8) await shot(page, '05c-dragging-slider.png');  // previews streaming: fps in the progress line
     }
+    // What the progress line says from the release on: while the still is on its way, that (never
+    // "Rendering a preview" because a preview asked for before it is still unanswered).
+    const watching = page.evaluate(() => new Promise((resolve) => {
+      const seen = [];
+      const end = performance.now() + 2000;
+      const look = () => {
+        const asked = window.refract.inflight();
+        seen.push({ asked, text: document.getElementById('hud-status').textContent });
+        if (performance.now() < end) requestAnimationFrame(look); else resolve(seen);
+      };
+      look();
+    }));
     await page.mouse.up();
+    const lines = await watching;
+    const wrong = lines.filter((l) => l.asked.length && l.asked[l.asked.length - 1] === 'still' && !/^Rendering the still frame/.test(l.text));
+    assert(lines.some((l) => /^Rendering the still frame/.test(l.text)), `the line never said the still was rendering: ${JSON.stringify(lines.slice(-3))}`);
+    assert(wrong.length === 0, `while the still rendered the line said "${wrong[0]?.text}"`);
     await waitSettled(page, before.rev);
     const after = await page.evaluate(() => ({
       sent: { ...window.refract.sent }, quality: window.refract.lastQuality,
@@ -766,10 +943,13 @@ async function main() {
     await waitSettled(page, rev1);
     const own = (await sceneOnServer(sceneId)).scene.object;
     assert(own.mesh === 'upload:wide-box-2' && own.scale === 0.02, `kept units: ${JSON.stringify(own)}`);
-    const rev2 = await page.evaluate(() => window.refract.lastRevision);
+    const frames2 = await page.evaluate(() => window.refract.framesReceived);
     await page.click('#frame-object');
-    await waitSettled(page, rev2);
-    const cam = (await sceneOnServer(sceneId)).scene.camera;
+    await waitFor(page, (n) => window.refract.framesReceived > n, frames2);
+    await waitSettled(page);
+    // This viewer's own camera is framed on it (the scene's camera stays where it was).
+    const framed = await page.evaluate(() => window.refract.view());
+    const cam = framed.camera;
     const placed = [0, 1, 2].map((i) => own.position[i] + own.scale * (lo[i] + hi[i]) / 2);
     assert(cam.target.every((t, i) => Math.abs(t - placed[i]) < 1e-3), `camera aims at ${cam.target}, object at ${placed}`);
     // Every corner of the box is inside the view.
@@ -780,7 +960,7 @@ async function main() {
     const fwd = norm(sub(cam.target, cam.position));
     const right = norm(cross(fwd, cam.up));
     const up = cross(right, fwd);
-    const img = (await sceneOnServer(sceneId)).scene.image;
+    const img = framed;
     const t = Math.tan((cam.fov_deg * Math.PI) / 360);
     for (let k = 0; k < 8; ++k) {
       const p = [0, 1, 2].map((i) => own.position[i] + own.scale * ((k >> i) & 1 ? hi[i] : lo[i]));
@@ -886,7 +1066,7 @@ async function main() {
 
   await check('keyframes played into the view, the scene unchanged; bad keyframes reported', async () => {
     const before = await sceneOnServer(sceneId);
-    const played0 = await page.evaluate(() => window.refract.playedFrames);
+    const played0 = await page.evaluate(() => { window.refract.playedSizes = []; return window.refract.playedFrames; });
     // One second of a light swinging across (24 frames/s): the client shows each frame as it comes.
     const keys = [{ time: 0, patch: { light: { position: [2.5, 2.5, 1], direction: [-2.5, -3, -1] } } },
                   { time: 1, patch: { light: { position: [-2.5, 2.5, 1], direction: [2.5, -3, -1] } } }];
@@ -897,10 +1077,18 @@ async function main() {
     await shot(page, '07e-playing.png');
     await waitFor(page, () => window.refract.playing() === null);
     const played = await page.evaluate(() => window.refract.playedFrames);
-    const last = await page.evaluate(() => window.refract.lastMeta);
     assert(played - played0 >= 2, `only ${played - played0} played frames drawn`);
+    // The note says what was seen: the frames drawn of the 25, and the rest skipped to keep time.
     const note = await page.evaluate(() => document.getElementById('scene-file-status').textContent);
-    assert(/Played swing\.json: 25 frames/.test(note) || last.play === undefined, `status "${note}"`);
+    const counted = /^Played swing\.json: (\d+) of 25 frames shown(, (\d+) skipped to keep time .*)?\.$/.exec(note);
+    assert(counted, `status "${note}"`);
+    assert(Number(counted[1]) === played - played0 && Number(counted[1]) + Number(counted[3] || 0) === 25,
+      `"${note}", and ${played - played0} played frames were drawn`);
+    // Played at this viewer's size: the frames grow to it (the budget of a play lets them).
+    const playedAt = await page.evaluate(() => ({ sizes: window.refract.playedSizes, view: window.refract.view() }));
+    assert(playedAt.sizes.some(([w, h]) => w === playedAt.view.width && h === playedAt.view.height),
+      `played frames ${JSON.stringify(playedAt.sizes)}, the view ${playedAt.view.width}x${playedAt.view.height}`);
+    log(note);
     await waitSettled(page, -1);
     const after = await sceneOnServer(sceneId);
     assert(after.revision === before.revision, `playing changed the scene: r${before.revision} -> r${after.revision}`);
@@ -942,9 +1130,11 @@ async function main() {
   });
 
   await check('narrow window: stacked layout, no overflow, smaller image', async () => {
-    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    const server0 = await sceneOnServer(sceneId);
+    const frames0 = await page.evaluate(() => window.refract.framesReceived);
     await page.setViewportSize({ width: 390, height: 844 });
-    await waitSettled(page, rev0);
+    await waitFor(page, (n) => window.refract.framesReceived > n, frames0);
+    await waitSettled(page);
     const layout = await page.evaluate(() => {
       const stage = document.getElementById('stage').getBoundingClientRect();
       const panel = document.getElementById('panel').getBoundingClientRect();
@@ -962,13 +1152,18 @@ async function main() {
     assert(layout.offenders.length === 0, `controls overflow the window: ${layout.offenders.join(', ')}`);
     assert(layout.panelTop >= layout.stageBottom - 1, 'controls are not below the viewport');
     assert(layout.image <= 390 && layout.image >= 200, `image width ${layout.image} does not follow the canvas`);
+    // The frame is this viewer's view; the scene's own image size (its saved view) is not touched.
     const server = await sceneOnServer(sceneId);
-    assert(server.scene.image.width === layout.image, `scene image ${server.scene.image.width} != drawn ${layout.image}`);
+    const sent = await page.evaluate(() => window.refract.view());
+    assert(sent.width === layout.image, `view width ${sent.width} != drawn ${layout.image}`);
+    assert(JSON.stringify(server.scene.image) === JSON.stringify(server0.scene.image) && server.revision === server0.revision,
+      `the scene's image became ${JSON.stringify(server.scene.image)} (revision ${server0.revision} -> ${server.revision})`);
     await shot(page, '08-narrow.png');
     await shot(page, '08-narrow-full.png', { fullPage: true });
-    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    const frames1 = await page.evaluate(() => window.refract.framesReceived);
     await page.setViewportSize({ width: 1200, height: 760 });
-    await waitSettled(page, rev1);
+    await waitFor(page, (n) => window.refract.framesReceived > n, frames1);
+    await waitSettled(page);
   });
 
   await check('the client reconnects after a daemon restart and restores the view', async () => {

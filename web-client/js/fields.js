@@ -35,10 +35,12 @@ export class Field {
       input.setAttribute('aria-describedby', [...ids].join(' '));
     }
   }
-  setError(message) {
+  // Shows `message` under the field; `detail` (the daemon's JSON pointer and rule) as its tooltip.
+  setError(message, detail = '') {
     this.invalid = true;
     this.el.classList.add('invalid');
     this.error.textContent = message;
+    this.error.title = detail;
     this.error.hidden = false;
     for (const input of this.inputs) input.setAttribute('aria-invalid', 'true');
   }
@@ -76,14 +78,23 @@ export class RangeField extends Field {
     });
     this.describe(this.number, this.range);
     this.el.append(this.label, h('div', { class: 'row' }, this.range, this.number), this.error);
+    const value = (r) => (spec.fromSlider ? spec.fromSlider(r) : r);
+    this.fitNumber([spec.min, spec.max, spec.max - spec.step].map((r) => fmt(value(r), this.numberStep(), spec.format)));
+  }
+  // Widens the exact-value box to show the longest of `texts` (its range's ends) whole.
+  fitNumber(texts) {
+    const widest = texts.reduce((a, b) => (b.length > a.length ? b : a), '');
+    this.number.dataset.widest = widest;
+    this.number.style.width = `max(5.6em, calc(${widest.length}ch + 2.8em))`;
   }
   numberStep() { return this.spec.numberStep ?? this.spec.step; }
   setRange(v) { this.range.value = String(this.spec.toSlider ? this.spec.toSlider(v) : v); }
-  update(doc) {
+  // `force`: even into the input being edited (a refused value goes back to the scene's).
+  update(doc, force = false) {
     const v = getAt(doc, this.spec.ptr);
     if (typeof v !== 'number') return;
-    if (!isEditing(this.range)) this.setRange(v);
-    if (!isEditing(this.number)) this.number.value = fmt(v, this.numberStep(), this.spec.format);
+    if (force || !isEditing(this.range)) this.setRange(v);
+    if (force || !isEditing(this.number)) this.number.value = fmt(v, this.numberStep(), this.spec.format);
   }
 }
 
@@ -96,9 +107,9 @@ export class SelectField extends Field {
     this.describe(this.select);
     this.el.append(this.label, this.select, this.error);
   }
-  update(doc) {
+  update(doc, force = false) {
     const v = getAt(doc, this.spec.ptr);
-    if (typeof v === 'string' && !isEditing(this.select)) this.select.value = v;
+    if (typeof v === 'string' && (force || !isEditing(this.select))) this.select.value = v;
   }
 }
 
@@ -128,9 +139,9 @@ export class ColorField extends Field {
     this.describe(this.picker);
     this.el.append(h('div', { class: 'row' }, this.label, this.picker), this.error);
   }
-  update(doc) {
+  update(doc, force = false) {
     const v = getAt(doc, this.spec.ptr);
-    if (Array.isArray(v) && !isEditing(this.picker)) this.picker.value = linearToHex(v);
+    if (Array.isArray(v) && (force || !isEditing(this.picker))) this.picker.value = linearToHex(v);
   }
 }
 
@@ -165,11 +176,11 @@ export class RgbField extends Field {
       h('div', { class: 'row channels', role: 'group', 'aria-label': `${spec.label} per channel` }, this.channels),
       this.error);
   }
-  update(doc) {
+  update(doc, force = false) {
     const v = getAt(doc, this.spec.ptr);
     if (!Array.isArray(v) || v.length !== 3) return;
-    this.channels.forEach((c, i) => { if (!isEditing(c)) c.value = fmt(v[i], this.spec.step); });
-    if (!isEditing(this.all)) this.all.value = String(Math.max(...v));
+    this.channels.forEach((c, i) => { if (force || !isEditing(c)) c.value = fmt(v[i], this.spec.step); });
+    if (force || !isEditing(this.all)) this.all.value = String(Math.max(...v));
     this.all.setAttribute('aria-valuetext', v.map((x) => fmt(x, this.spec.step)).join(', '));
   }
 }
@@ -195,10 +206,10 @@ export class Vec3Field extends Field {
       h('span', { class: 'axis-name', 'aria-hidden': 'true', text: 'xyz'[i] }), input));
     this.el.append(this.label, h('div', { class: 'row axes', role: 'group', 'aria-label': spec.label }, cells), this.error);
   }
-  update(doc) {
+  update(doc, force = false) {
     const v = getAt(doc, this.spec.ptr);
     if (!Array.isArray(v) || v.length !== 3) return;
-    this.axes.forEach((a, i) => { if (!isEditing(a)) a.value = String(round(v[i], 5)); });
+    this.axes.forEach((a, i) => { if (force || !isEditing(a)) a.value = String(round(v[i], 5)); });
   }
 }
 
@@ -225,11 +236,11 @@ export class FogField extends Field {
     this.describe(this.number, this.range);
     this.el.append(this.label, h('div', { class: 'row' }, this.range, this.number), this.error);
   }
-  update(doc) {
+  update(doc, force = false) {
     const e = getAt(doc, '/medium/extinction');
     if (!Array.isArray(e)) return;
     const v = Math.max(...e);
-    if (!isEditing(this.range)) this.range.value = String(v);
-    if (!isEditing(this.number)) this.number.value = fmt(v, this.spec.step);
+    if (force || !isEditing(this.range)) this.range.value = String(v);
+    if (force || !isEditing(this.number)) this.number.value = fmt(v, this.spec.step);
   }
 }

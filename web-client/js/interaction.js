@@ -6,9 +6,9 @@ import { placedObject } from './catalog.js';
 import { $ } from './dom.js';
 import * as S from './scene.js';
 import { checkImageSize, edit, requestFrame } from './session.js';
-import { later, panel, state, view } from './state.js';
+import { later, panel, seenDocument, state } from './state.js';
 import { announce } from './status.js';
-import { canvas, imageRect, paintFrame, sizeCanvas, stage, updateLightMarker } from './viewport.js';
+import { canvas, desiredImageSize, imageRect, paintFrame, sizeCanvas, stage, updateLightMarker } from './viewport.js';
 
 const ORBIT_STEP = 5 * Math.PI / 180;  // arrow keys
 const ZOOM_STEP = 1.1;
@@ -17,13 +17,13 @@ let lightMode = false;
 const pointers = new Map();
 
 function orbitCamera(dAz, dEl, final) {
-  const cam = S.cameraOf(view());
+  const cam = S.cameraOf(seenDocument());
   const position = S.roundVec(S.orbit(cam.position, cam.target, dAz, dEl, 4));
   edit({ camera: { position } }, final);
 }
 
 function zoomCamera(factor, final) {
-  const cam = S.cameraOf(view());
+  const cam = S.cameraOf(seenDocument());
   edit({ camera: { position: S.roundVec(S.dolly(cam.position, cam.target, factor)) } }, final);
 }
 
@@ -31,10 +31,10 @@ function zoomCamera(factor, final) {
 function frameObject() {
   const doc = panel();
   const { center, radius } = placedObject(doc.object || {});
-  const image = doc.image || {};
+  const size = desiredImageSize();
   const cam = S.cameraOf(doc);
   const target = S.roundVec(center, 5);
-  const position = S.roundVec(S.framePosition(cam, center, radius, (image.width || 1) / (image.height || 1)), 5);
+  const position = S.roundVec(S.framePosition(cam, center, radius, size.width / size.height), 5);
   edit({ camera: { target, position } }, true);
 }
 

@@ -8,14 +8,15 @@ import { exportScene, importScene, loadExample, playKeyframes, savePng, uploadEn
 import { initView } from './interaction.js';
 import { members } from './outliner.js';
 import { buildPanel } from './panel.js';
-import { edit, link, stopPlay } from './session.js';
-import { hooks } from './state.js';
+import { edit, link, saveView, setFollow, stopPlay } from './session.js';
+import { hooks, state } from './state.js';
 import { stageMessage } from './status.js';
 
 window.refract = hooks;  // read by the end-to-end test and the benchmark (README: Test hooks)
 
 buildPanel($('controls'), edit, {
   uploadMesh, uploadEnvironment, meshPatch, loadExample, importScene, exportScene, playKeyframes, stopPlay, members,
+  saveView, setFollow, following: () => state.follow,
 });
 initView();
 $('save-png').addEventListener('click', savePng);

@@ -3,9 +3,9 @@
 
 import { $, h } from './dom.js';
 import { CheckboxField, ColorField, FogField, RangeField, RgbField, SelectField, Vec3Field } from './fields.js';
-import { EnvironmentField, ExampleField, MembersField, MeshField, SceneFileField } from './pickers.js';
+import { EnvironmentField, ExampleField, MembersField, MeshField, SceneFileField, ViewField } from './pickers.js';
 import { panelPointer, parsePointer } from './scene.js';
-import { hooks, state, view } from './state.js';
+import { hooks, panel, state, view } from './state.js';
 import { announce, showGlobalError } from './status.js';
 
 // Sliders whose position is not the value itself: `fromSlider` maps a slider position to the value,
@@ -50,7 +50,7 @@ const SECTIONS = [
       { kind: 'members', member: 'object', label: 'Objects (the panel and Alt+drag edit the one chosen)' },
       { kind: 'select', ptr: '/object/index_field', label: 'Index field',
         options: [['uniform', 'Uniform'], ['luneburg', 'Luneburg lens'], ['maxwell', 'Maxwell fish-eye']] },
-      { kind: 'range', ptr: '/object/ior', label: 'Index of refraction', min: 1, max: 4, step: 0.01,
+      { kind: 'range', ptr: '/object/ior', label: 'Index of refraction', short: 'IOR', min: 1, max: 4, step: 0.01,
         showIf: (doc) => (doc.object?.index_field ?? 'uniform') === 'uniform' },
       { kind: 'range', ptr: '/object/maxwell_n0', label: 'Fish-eye central index n₀', min: 1, max: 4, step: 0.01,
         showIf: (doc) => doc.object?.index_field === 'maxwell' },
@@ -101,6 +101,7 @@ const SECTIONS = [
   },
   {
     id: 'camera', title: 'Camera', controls: [
+      { kind: 'view' },
       { kind: 'range', ptr: '/camera/fov_deg', label: 'Field of view (vertical, °)', min: 10, max: 120, step: 1 },
     ],
   },
@@ -118,7 +119,7 @@ const SECTIONS = [
 const KINDS = {
   range: RangeField, select: SelectField, checkbox: CheckboxField, color: ColorField, rgb: RgbField,
   fog: FogField, example: ExampleField, mesh: MeshField, file: SceneFileField, vec3: Vec3Field, members: MembersField,
-  environment: EnvironmentField,
+  environment: EnvironmentField, view: ViewField,
 };
 
 // The panel once built (buildPanel, from main.js before anything else runs).
@@ -150,9 +151,9 @@ export function buildPanel(form, onEdit, actions) {
     file: fields.find((f) => f instanceof SceneFileField),
     outliners: fields.filter((f) => f instanceof MembersField),
     // Shows `doc` in every control, except those holding a rejected value the user has not fixed yet.
-    update(doc, { force = false } = {}) {
+    update(doc) {
       for (const f of fields) {
-        if (force || !f.invalid || f.alwaysShows) f.update(doc);
+        f.update(doc);
         // Controls that the current settings ignore are hidden (never one that shows an error).
         if (f.spec.showIf) f.el.hidden = !f.invalid && !f.spec.showIf(doc);
       }
@@ -178,6 +179,7 @@ export function buildPanel(form, onEdit, actions) {
         const top = f.spec.toSlider ? Math.floor(f.spec.toSlider(max)) : max;
         if (top < Number(f.range.max)) f.range.max = String(top);
         f.number.max = String(max);
+        f.fitNumber([f.number.dataset.widest || '', String(max)]);
       }
     },
   };
@@ -185,14 +187,35 @@ export function buildPanel(form, onEdit, actions) {
 
 // ---- complaints: errors shown at the control they are about ------------------------------------
 
-// A daemon's error, shown under the control that writes its pointer (the closest one), else in the banner.
-export function reportError(message, daemonPointer, seq = null) {
+// A rule as the daemon words it ("must be a number in [1, 4]") as a person would ("must be between 1
+// and 4"); other rules as they are.
+function wordRule(rule) {
+  const n = (x) => (Number.isFinite(Number(x)) ? String(Number(x)) : x);
+  const m = /^must be an? (number|integer) in ([[(])([^,]+), ([^\])]+)([\])])(.*)$/.exec(rule || '');
+  if (!m) return rule;
+  const [, kind, open, lo, hi, close, rest] = m;
+  const whole = kind === 'integer' ? ' (a whole number)' : '';
+  if (open === '[' && close === ']') return `must be between ${n(lo)} and ${n(hi)}${whole}${rest}`;
+  const from = open === '[' ? `at least ${n(lo)}` : `more than ${n(lo)}`;
+  const to = close === ']' ? `at most ${n(hi)}` : `less than ${n(hi)}`;
+  return `must be ${from} and ${to}${whole}${rest}`;
+}
+
+// The name a field's errors go by: its short name, else its label up to any explanation.
+const fieldName = (field) => field.spec.short || (field.label?.textContent || field.spec.label || '').split(/ \(|:/)[0];
+
+// A daemon's error, shown under the control that writes its pointer (the closest one), in words
+// ("IOR must be between 1 and 4"; the pointer and the daemon's own words in its tooltip), the control
+// back at the scene's value; else in the banner.
+export function reportError(message, daemonPointer, seq = null, rule = null) {
   const pointer = daemonPointer && panelPointer(daemonPointer, view(), state.selected);
   hooks.lastError = { error: message, pointer: pointer ?? null, seq };
   hooks.errors++;
   const field = controls.fieldFor(pointer);
   if (field) {
-    field.setError(message);
+    const name = fieldName(field);
+    field.setError(rule && name ? `${name} ${wordRule(rule)}` : message, pointer ? `${pointer}: ${rule || message}` : '');
+    field.update(panel(), true);
     if (field.el.getBoundingClientRect().height > 0) field.el.scrollIntoView({ block: 'nearest' });
   } else {
     showGlobalError(pointer ? `${message} (${pointer})` : message);

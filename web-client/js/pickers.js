@@ -188,3 +188,31 @@ export class EnvironmentField extends Field {
     this.select.value = v;
   }
 }
+
+// This viewer's view: its own camera (orbiting moves it alone; saved to the scene on request) or the
+// scene's camera, followed (presenter mode: this viewer's orbit moves it for every follower).
+export class ViewField extends Field {
+  constructor(spec, emit, actions) {
+    const id = 'view-follow';
+    super(spec, [], 'Your view', id);
+    this.alwaysShows = true;
+    this.follow = h('button', { type: 'button', id, class: 'toggle', 'aria-pressed': 'false', text: 'Follow the scene’s camera',
+      title: 'Look through the scene’s own camera; your orbit then moves it for everyone who follows it (presenter mode)' });
+    this.save = h('button', { type: 'button', id: 'view-save', text: 'Save this view to the scene',
+      title: 'Make your camera the scene’s camera: what new viewers, exports and `refract render` start from' });
+    this.note = h('p', { class: 'note', id: 'view-note', 'aria-live': 'polite' });
+    this.following = actions.following;
+    this.follow.addEventListener('click', () => actions.setFollow(!this.following()));
+    this.save.addEventListener('click', () => actions.saveView());
+    this.describe(this.follow, this.save);
+    this.el.append(this.label, h('div', { class: 'row wrap' }, this.follow, this.save), this.note, this.error);
+  }
+  update() {
+    const on = this.following();
+    this.follow.setAttribute('aria-pressed', String(on));
+    this.save.disabled = on;
+    this.note.textContent = on
+      ? 'You look through the scene’s camera: your orbit moves it for everyone who follows it.'
+      : 'Your own camera: orbiting moves only your view. The scene keeps its own until you save yours.';
+  }
+}

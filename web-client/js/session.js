@@ -16,12 +16,16 @@ import { $ } from './dom.js';
 import { clearComplaints, controls, reportError } from './panel.js';
 import * as S from './scene.js';
 import { hooks, later, panel, params, sentDocument, state, view } from './state.js';
-import { showDevice, showGlobalError, updateProgress } from './status.js';
+import { noteOtherEdit, showDevice, showGlobalError, showViewers, updateProgress } from './status.js';
 import { desiredImageSize, drawFrame, updateLightMarker } from './viewport.js';
 
 const REQUEST_TIMEOUT_MS = 180_000;  // a lost answer: give up on it and reconnect
 const QUALITY_RANK = { interactive: 0, still: 1 };
 const MAX_IN_FLIGHT = 2;  // requests on the WebSocket at once, the first an interactive one (see above)
+// A played animation's frames: interactive ones (the daemon keeps up with more of them) given a budget
+// that lets them grow to this viewer's own size; the drag's budget comes back with the next request.
+const PLAY_BUDGET_MS = 1000;
+const DRAG_BUDGET_MS = 100;
 
 let sentSeq = 0;               // the last request's (or play's, stop's) sequence number
 let forceFrame = false;        // request a frame even if nothing changed (connect, Refine)
@@ -31,6 +35,7 @@ let watchdog = null;
 let frameMeta = null;          // text header of the frame whose PNG comes next
 let lastFrame = null;          // { revision, quality }
 let viewUpdateQueued = false;
+let restoreBudget = false;     // the last play set the session's budget_ms: the next request sets it back
 
 // The panel and the light marker show the document as it is now; `force` also overwrites the values the
 // daemon refused that the user has not fixed yet.
@@ -41,8 +46,15 @@ export function showDocument(force = false) {
 
 // ---- edits on their way ----------------------------------------------------------------------------
 
-// Queues an edit (or, with a null patch, just a frame) and sends it when the link is free.
+// Queues an edit (or, with a null patch, just a frame) and sends it when the link is free. A camera
+// edit moves this viewer's own camera (its view, never stored) unless it follows the scene's camera.
 export function edit(patch, final) {
+  if (S.isObject(patch) && patch.camera && !state.follow && state.ownCamera) {
+    state.ownCamera = S.applyMergePatch(state.ownCamera, patch.camera);
+    const { camera, ...rest } = patch;
+    patch = Object.keys(rest).length ? rest : null;
+    scheduleViewUpdate();
+  }
   pendingSelection ??= { ...state.selected };
   if (patch) state.pending = S.composePatches(state.pending, S.memberPatch(patch, view(), state.selected));
   state.pendingQuality = final ? 'still' : 'interactive';
@@ -77,6 +89,29 @@ function slotFree() {
   return n === 0 || (previews && (n < MAX_IN_FLIGHT || (n === MAX_IN_FLIGHT && state.pendingQuality === 'still')));
 }
 
+// The view setting this viewer asks for: its canvas's image size, and its own camera or (null) the scene's.
+function currentView() {
+  return { ...desiredImageSize(), camera: state.follow ? null : state.ownCamera };
+}
+
+// Makes this viewer's camera the scene's (the document's camera: what new viewers, exports and
+// `refract render` start from).
+export function saveView() {
+  if (state.follow || !state.ownCamera) return;
+  state.pending = S.composePatches(state.pending, { camera: state.ownCamera });
+  state.pendingQuality = 'still';
+  pump();
+}
+
+// Presenter mode on (`on`): this viewer looks through the scene's camera, and its orbit moves that camera
+// for every viewer following it; off: it looks through a camera of its own, starting where the scene's is.
+export function setFollow(on) {
+  state.follow = on;
+  state.ownCamera = on ? null : S.deepClone(S.cameraOf(view()));
+  showDocument();
+  requestFrame('still');
+}
+
 function pump() {
   const ws = state.ws;
   if (!ws || ws.readyState !== WebSocket.OPEN || !slotFree() || state.replacing || !state.pendingQuality ||
@@ -95,11 +130,18 @@ function pump() {
   const last = lastFrame;
   const covered = state.inflight.length ? quality === 'interactive'
     : last && last.revision === state.confirmedRevision && QUALITY_RANK[last.quality] >= QUALITY_RANK[quality];
-  if (!patch && !force && covered) return;
+  const viewNow = JSON.stringify(currentView());
+  const viewChanged = viewNow !== state.viewSent;
+  if (!patch && !force && !viewChanged && covered) return;
 
   const seq = ++sentSeq;
   const message = { seq, quality };
   if (patch) message.patch = patch;
+  if (patch) state.otherEdit = null;  // what the line says next is about our own edit
+  if (viewChanged) message.view = JSON.parse(viewNow);
+  state.viewSent = viewNow;
+  if (restoreBudget) message.budget_ms = DRAG_BUDGET_MS;
+  restoreBudget = false;
   ws.send(JSON.stringify(message));
   // errorsBefore: an error shown after this request was sent is newer than its edit and must outlive it.
   // selection: what the outliner had chosen before the edits sent; a rejected Add or Rename goes back to it.
@@ -126,14 +168,14 @@ function answered(seq) {
   return done;
 }
 
-// The image size follows the canvas; `silent` adds it to the pending edit without asking for a frame.
-export function checkImageSize(silent = false) {
-  if (!state.confirmed) return;
+// The view's image size follows the canvas: a new size asks for a still frame at it (the scene's own
+// image size, its saved view's, is not touched).
+export function checkImageSize() {
+  if (!state.confirmed || !state.viewSent) return;
   const want = desiredImageSize();
-  const have = view().image || {};
-  if (Math.abs((have.width || 0) - want.width) <= 2 && Math.abs((have.height || 0) - want.height) <= 2) return;
-  if (silent) state.pending = S.composePatches(state.pending, { image: want });
-  else edit({ image: want }, true);
+  const have = JSON.parse(state.viewSent);
+  if (Math.abs(have.width - want.width) <= 2 && Math.abs(have.height - want.height) <= 2) return;
+  requestFrame('still');
 }
 
 // ---- answers: frames and errors ----------------------------------------------------------------------
@@ -142,9 +184,11 @@ function onText(data) {
   let msg;
   try { msg = JSON.parse(data); } catch { return; }
   if (msg.type === 'frame') frameMeta = msg;
+  else if (msg.type === 'viewers') showViewers(msg.count);
+  else if (msg.type === 'edited') noteOtherEdit(msg.revision);
   else if (msg.type === 'error' && state.playing && msg.seq === state.playing.seq) playFailed(msg);
   else if (msg.type === 'error') onServerError(msg);
-  else if (msg.type === 'stopped') endPlay(`Stopped after ${msg.frames} frame${msg.frames === 1 ? '' : 's'}.`);
+  else if (msg.type === 'stopped' && state.playing) endPlay(`Stopped: ${playedNote(state.playing, false)}`);
 }
 
 function onBinary(blob) {
@@ -155,6 +199,9 @@ function onBinary(blob) {
   const done = answered(meta.seq);
   const inf = done[done.length - 1];
   const quality = meta.quality || (inf ? inf.quality : 'still');
+  // Pushed unasked for an edit made elsewhere (not a refinement of our own frame, which echoes our seq).
+  state.pushed = meta.seq === null && !meta.play;
+  if (state.pushed) hooks.pushedFrames++;
   let ours = 0;  // edits this frame holds: each may have made a revision
   for (const req of done) {
     if (!req.patch) continue;
@@ -163,6 +210,10 @@ function onBinary(blob) {
   }
   if (inf) {
     hooks.latencyMs = Math.round(performance.now() - inf.sentAt);
+  } else if (state.pushed) {
+    hooks.latencyMs = null;  // nobody here waited for it
+  }
+  if (inf) {
     if (inf.patch && !inf.retry && hooks.errors === inf.errorsBefore) clearComplaints();
   }
   if (typeof meta.revision === 'number') {
@@ -174,8 +225,10 @@ function onBinary(blob) {
   }
   if (meta.play && state.playing) {
     hooks.playedFrames++;
+    hooks.playedSizes.push([meta.width, meta.height]);
+    state.playing.shown++;
     state.playing.at = meta.play;
-    if (meta.play.last) endPlay(`Played ${state.playing.name}: ${meta.play.frames} frames.`);
+    if (meta.play.last) endPlay(playedNote(state.playing));
   }
   lastFrame = { revision: state.confirmedRevision, quality };
   state.lastPng = blob;
@@ -193,6 +246,7 @@ function onServerError(msg) {
   if (!state.inflight.length) clearTimeout(watchdog);
   const inf = done[done.length - 1];
   const answers = Boolean(inf);
+  if (String(msg.pointer || '').startsWith('/view')) state.viewSent = null;  // the daemon kept the view it had
   // What the rejection takes back: the pointer, or all of a refused Add, Remove or Rename.
   const pointer = answers && inf.patch && msg.pointer ? S.rejectedScope(inf.patch, msg.pointer, sentDocument()) : msg.pointer;
   if (answers) {
@@ -215,7 +269,7 @@ function onServerError(msg) {
   const message = msg.error || 'The daemon rejected the edit.';
   const named = message.includes(msg.pointer) ? message : `${msg.pointer}: ${message}`;
   if (pointer !== msg.pointer) reportError(`The daemon refused the change: ${named}`, pointer, msg.seq);
-  else reportError(message, msg.pointer, msg.seq);
+  else reportError(message, msg.pointer, msg.seq, msg.rule);
   // Without a pointer it was not a validation error (e.g. the frame could not be rendered): the edit
   // may have been stored, so ask the daemon what the scene is now.
   if (msg.pointer === undefined || msg.pointer === null) resync();
@@ -266,6 +320,8 @@ function adoptScene(id, got) {
   setSceneId(id);
   state.confirmed = got.scene;
   state.confirmedRevision = typeof got.revision === 'number' ? got.revision : null;
+  // A new viewer starts from the scene's saved view.
+  if (!state.follow) state.ownCamera = S.deepClone(S.cameraOf(got.scene));
   showDocument(true);
 }
 
@@ -288,7 +344,7 @@ const untilIdle = async () => {
 };
 
 // Makes the scene the document `getDoc()` gives (a whole document; members it leaves out take their
-// defaults), keeping the image size the canvas asks for. Goes over HTTP (PATCH), which answers the full
+// defaults); this viewer then looks through its camera. Goes over HTTP (PATCH), which answers the full
 // document; the WebSocket is held meanwhile, and edits not yet sent are dropped (the new scene replaces
 // them). Throws what `getDoc` throws, or HttpError.
 export async function replaceScene(getDoc) {
@@ -297,14 +353,14 @@ export async function replaceScene(getDoc) {
   try {
     const doc = await getDoc();
     await untilIdle();
-    const wanted = S.applyMergePatch(doc, { image: desiredImageSize() });
-    const patch = S.replacementPatch(state.confirmed, wanted) || {};
+    const patch = S.replacementPatch(state.confirmed, doc) || {};
     const got = await api('PATCH', `/api/scenes/${encodeURIComponent(state.sceneId)}`, patch,
       'application/merge-patch+json');
     state.pending = null;
     state.newScene = true;
     state.confirmed = got.scene;
     state.confirmedRevision = got.revision;
+    if (!state.follow) state.ownCamera = S.deepClone(S.cameraOf(got.scene));
     controls.clearErrors();
     showDocument(true);
     return got;
@@ -326,9 +382,26 @@ export async function play(name, keyframes, { ended, failed }) {
   const ws = state.ws;
   if (!ws || ws.readyState !== WebSocket.OPEN) return false;
   const seq = ++sentSeq;
-  ws.send(JSON.stringify({ seq, type: 'play', fps: 24, keyframes, quality: 'interactive' }));
-  state.playing = { seq, name, at: null, ended, failed };
+  const message = { seq, type: 'play', fps: PLAY_FPS, keyframes, quality: 'interactive', budget_ms: PLAY_BUDGET_MS };
+  const viewNow = JSON.stringify(currentView());
+  if (viewNow !== state.viewSent) message.view = JSON.parse(viewNow);
+  state.viewSent = viewNow;
+  ws.send(JSON.stringify(message));
+  restoreBudget = true;
+  state.playing = { seq, name, at: null, shown: 0, ended, failed };
   return true;
+}
+
+const PLAY_FPS = 24;
+
+// What a play showed, as the viewer saw it: the frames drawn of those the animation has, and those the
+// daemon skipped to keep time. `done`: it reached its last frame.
+function playedNote(playing, done = true) {
+  const total = playing.at ? playing.at.frames : 0;
+  const shown = `${playing.shown} of ${total} frame${total === 1 ? '' : 's'} shown`;
+  const skipped = done ? total - playing.shown : (playing.at ? playing.at.frame + 1 : 0) - playing.shown;
+  const keptTime = skipped > 0 ? `, ${skipped} skipped to keep time (the renderer could not draw ${PLAY_FPS} a second)` : '';
+  return done ? `Played ${playing.name}: ${shown}${keptTime}.` : `${playing.shown} frame${playing.shown === 1 ? '' : 's'} shown${keptTime}.`;
 }
 
 export function stopPlay() {
@@ -366,7 +439,7 @@ export const link = {
   },
   opened() {
     frameMeta = null;
-    checkImageSize(true);
+    state.viewSent = null;  // a new session: its first message carries the view
     // A quick preview first (the daemon sizes it to its frame budget), then the still: on two CPU cores
     // the still of a fresh scene takes seconds. A still asked for before the socket opened (the first
     // resize settling) comes second too, or it would be the first frame.

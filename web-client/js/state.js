@@ -23,6 +23,14 @@ export const state = {
   lastPng: null,          // the PNG of the frame shown, for "Save PNG"
   playing: null,          // { seq, name, at, ended, failed }: keyframes playing into this view (at: the last frame's place)
   selected: { light: null, object: null },  // the light and object the panel edits (null: the first by name)
+  // This viewer's own view (the WebSocket session's `view` setting; never stored): its camera, or, when
+  // following, the scene's camera, which its orbit then edits for every follower (presenter mode).
+  ownCamera: null,
+  follow: false,
+  viewSent: null,         // the view setting last sent on this socket, as JSON (null: none yet)
+  viewers: 1,             // sessions viewing the scene on the daemon, this one included
+  otherEdit: null,        // { revision, at }: the last edit another viewer made, for the progress line
+  pushed: false,          // the frame shown was pushed for someone else's edit, not asked for here
 };
 
 // Named one-shot timers (debounces); `settled` below waits for all of them.
@@ -47,9 +55,16 @@ export function view() {
   return doc;
 }
 
-// The document as the panel shows it: the selected light and object as `light` and `object`.
+// The document as this viewer sees it: its own camera in place of the scene's, unless it follows that.
+export function seenDocument() {
+  const doc = view();
+  return state.follow || !state.ownCamera ? doc : { ...doc, camera: state.ownCamera };
+}
+
+// The document as the panel shows it: the selected light and object as `light` and `object`, and the
+// camera this viewer looks through.
 export function panel() {
-  return S.panelDocument(view(), state.selected);
+  return S.panelDocument(seenDocument(), state.selected);
 }
 
 // Test and debugging hooks: plain data, read by the end-to-end test via page.evaluate (main.js puts them
@@ -72,6 +87,12 @@ export const hooks = {
   sent: { interactive: 0, still: 0 },  // requests by quality
   maxInFlight: 0,
   doc: () => view(),
+  // This viewer's view as last sent to the daemon, and whether it follows the scene's camera.
+  view: () => (state.viewSent ? JSON.parse(state.viewSent) : null),
+  follow: () => state.follow,
+  viewers: () => state.viewers,
+  otherEdits: 0,       // notices of another viewer's edit received
+  pushedFrames: 0,     // frames drawn that were pushed for someone else's edit
   lastQuality: null,
   example: null,       // name of the example the scene still is
   lastDraw: null,      // how the last frame was drawn: source and canvas sizes, smoothing
@@ -79,7 +100,9 @@ export const hooks = {
   dims: 0,             // times the frame shown was dimmed for a pending one
   downloads: 0,
   playedFrames: 0,     // frames of played animations drawn
+  playedSizes: [],     // [width, height] of each played frame drawn
   playing: () => state.playing?.name ?? null,
+  inflight: () => state.inflight.map((inf) => inf.quality),  // the requests in flight, oldest first
   busy: () => Boolean(state.inflight.length || state.pendingQuality || state.replacing),
   // Connected, nothing in flight or queued or about to be, and the last frame is a decoded still.
   settled: () => hooks.connected && !state.inflight.length && !state.pendingQuality && !state.replacing &&

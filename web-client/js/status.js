@@ -6,6 +6,7 @@ import { $, h } from './dom.js';
 import { hooks, state } from './state.js';
 
 const DIM_AFTER_MS = 300;  // a frame pending this long (not while dragging) dims the one shown
+const OTHER_EDIT_MS = 4000;  // how long the progress line says that another viewer edited the scene
 const stage = $('stage');
 let frameTimes = [];
 let ticker = null;
@@ -51,6 +52,24 @@ export function showGlobalError(text) {
   box.hidden = false;
 }
 
+// How many view the scene (the daemon's count, this viewer included), in the header.
+export function showViewers(count) {
+  state.viewers = Number(count) || 1;
+  const el = $('viewers');
+  el.textContent = state.viewers === 1 ? 'Only you' : `${state.viewers} viewers`;
+  el.title = state.viewers === 1 ? 'Nobody else views this scene' : `${state.viewers} people view this scene now, you included`;
+  el.dataset.others = String(state.viewers > 1);
+}
+
+// Another viewer made revision `revision`: said on the progress line for a few seconds, and aloud.
+export function noteOtherEdit(revision) {
+  state.otherEdit = { revision, at: performance.now() };
+  hooks.otherEdits++;
+  announce(`Another viewer edited the scene (revision ${revision})`);
+  updateProgress();
+  setTimeout(updateProgress, OTHER_EDIT_MS + 50);
+}
+
 export function announce(text) {
   const el = $('announcer');
   el.textContent = '';
@@ -92,22 +111,18 @@ export function updateProgress() {
     text = 'Loading the scene…';
   } else if (state.playing) {
     const at = state.playing.at;
-    text = at ? `Playing ${at.frame + 1}/${at.frames} · ${at.time.toFixed(2)} s` : 'Starting the animation…';
+    text = at ? `Playing frame ${at.frame + 1} of ${at.frames} · ${at.time.toFixed(2)} s · ${state.playing.shown} shown`
+      : 'Starting the animation…';
   } else if (inf) {
-    const waited = now - inf.sentAt;
-    text = inf.quality === 'still' ? `Rendering still… ${duration(waited)}` : `Rendering preview… ${duration(waited)}`;
+    // The newest request says what the daemon renders now: a still asked for after a drag's previews is
+    // what comes, not the previews it replaced.
+    const newest = state.inflight[state.inflight.length - 1];
+    const waited = now - newest.sentAt;
+    text = newest.quality === 'still' ? `Rendering the still frame… ${duration(waited)}` : `Rendering a preview… ${duration(waited)}`;
     // A stream of previews (dragging, wheel, keys): how many arrive per second.
-    if (streaming && inf.quality === 'interactive') text = `${f.toFixed(f < 10 ? 1 : 0)} fps · ${text}`;
+    if (streaming && newest.quality === 'interactive') text = `${f.toFixed(f < 10 ? 1 : 0)} fps · ${text}`;
   } else if (hooks.lastQuality) {
-    const took = hooks.latencyMs ? `, ${duration(hooks.latencyMs)}` : '';
-    const meta = hooks.lastMeta || {};
-    // The daemon keeps refining a still frame (more photons, then anti-aliasing) until its cap.
-    text = hooks.lastQuality === 'still' ? `Still frame${took}` : `Preview frame${took}`;
-    if (hooks.lastQuality === 'still' && meta.level >= 1 && meta.refine > meta.level) {
-      text += ` · refining ${meta.level}/${meta.refine}`;
-    } else if (hooks.lastQuality === 'still' && meta.level > 1) {
-      text += ` · refined (level ${meta.level})`;
-    }
+    text = shownText(now);
   } else {
     text = 'Waiting for the first frame…';
   }
@@ -125,13 +140,31 @@ export function updateProgress() {
   }
 }
 
+// What the frame shown is: a still (and how far the daemon's refinement has come), a preview (the still
+// follows unasked), a frame pushed for an edit made elsewhere; and, for a while, another viewer's edit.
+function shownText(now) {
+  const meta = hooks.lastMeta || {};
+  const took = hooks.latencyMs && !state.pushed ? `, ${duration(hooks.latencyMs)}` : '';
+  const still = hooks.lastQuality === 'still';
+  let text = still ? `Still frame${took}` : `Preview${took}`;
+  if (state.pushed) text = still ? 'Still frame of an edit made elsewhere' : 'Preview of an edit made elsewhere';
+  // The daemon keeps refining a still frame (more photons, then anti-aliasing) until its cap.
+  if (still && meta.level >= 1 && meta.refine > meta.level) text += ` · refining ${meta.level}/${meta.refine}`;
+  else if (still && meta.level > 1) text += ` · refined (level ${meta.level})`;
+  else if (!still && meta.refine > 0 && !state.playing) text += ' · the still frame follows';
+  const other = state.otherEdit;
+  if (other && now - other.at < OTHER_EDIT_MS) text = `Another viewer edited the scene (revision ${other.revision}) · ${text}`;
+  return text;
+}
+
 const passClass = (name) => `pass pass-${String(name).replace(/[^a-z_]/g, '')}`;
 
 // The strip under the image: the last frame, and the time each pass took (the last frame that ran any).
 export function showStats(meta, quality) {
   const size = meta.width && meta.height ? `${meta.width}×${meta.height}` : '';
-  const what = quality === 'interactive' ? 'Preview' : 'Still';
-  const parts = [`${what} ${size}`.trim(), `revision ${meta.revision ?? '—'}`];
+  const what = meta.play ? `Played frame ${meta.play.frame + 1}/${meta.play.frames}` : quality === 'interactive' ? 'Preview' : 'Still';
+  const pushed = state.pushed ? ' (an edit made elsewhere)' : '';
+  const parts = [`${what} ${size}`.trim() + pushed, `revision ${meta.revision ?? '—'}`];
   if (quality === 'still' && meta.level > 1) {
     const photons = typeof meta.photons === 'number' ? `${(meta.photons / 1e6).toFixed(2)} M photons` : '';
     parts.push(`level ${meta.level}: ${photons}, ${meta.samples_per_pixel} sample${meta.samples_per_pixel > 1 ? 's' : ''}/pixel`);

@@ -3,12 +3,13 @@
 
 import { $ } from './dom.js';
 import * as S from './scene.js';
-import { hooks, panel, params, state, view } from './state.js';
+import { hooks, panel, params, state } from './state.js';
 import { noteFrame, showStats, updateProgress } from './status.js';
 
 const MAX_SIDE = Math.max(64, Math.min(768, Number(params.get('maxpx')) || 768));
 const MIN_SIDE = 64;
 const MAX_CANVAS = 2048;  // canvas backing store, per side
+const MARKER_RADIUS = 11;  // the light marker's, CSS pixels (style.css)
 
 export const canvas = $('view');
 const ctx = canvas.getContext('2d', { willReadFrequently: true, alpha: false });
@@ -73,8 +74,8 @@ export async function drawFrame(blob, meta, token, quality) {
 // Where the image sits inside the canvas element (CSS pixels; letterboxed as paintFrame draws it).
 export function imageRect() {
   const r = canvas.getBoundingClientRect();
-  const image = view().image || {};
-  const aspect = state.frame ? state.frame.width / state.frame.height : (image.width || 1) / (image.height || 1);
+  const size = desiredImageSize();
+  const aspect = state.frame ? state.frame.width / state.frame.height : size.width / size.height;
   let w = r.width;
   let h = r.height;
   if (w / h > aspect) w = h * aspect; else h = w / aspect;
@@ -85,10 +86,8 @@ export function updateLightMarker() {
   const marker = $('light-marker');
   const doc = panel();
   if (!doc.camera || !doc.light?.position) { marker.hidden = true; return; }
-  const image = doc.image || {};
-  const aspect = (image.width || canvas.width) / (image.height || canvas.height);
-  const p = S.project(S.cameraOf(doc), aspect, doc.light.position);
   const rect = imageRect();
+  const p = S.project(S.cameraOf(doc), rect.width / Math.max(1, rect.height), doc.light.position);
   if (!p) { marker.hidden = true; return; }
   // Off the image: pin the marker to the image border, in the light's direction.
   const out = Math.max(Math.abs(p.x), Math.abs(p.y));
@@ -96,9 +95,21 @@ export function updateLightMarker() {
   if (edge) { p.x = (p.x / out) * 0.96; p.y = (p.y / out) * 0.96; }
   marker.classList.toggle('edge', edge);
   marker.hidden = false;
-  marker.style.left = `${rect.left + ((p.x + 1) / 2) * rect.width}px`;
-  marker.style.top = `${rect.top + ((1 - p.y) / 2) * rect.height}px`;
+  const x = rect.left + ((p.x + 1) / 2) * rect.width;
+  let y = rect.top + ((1 - p.y) / 2) * rect.height;
+  // Never under the progress line: a marker there goes just below it, at the same x.
+  const s = stage.getBoundingClientRect();
+  const hud = $('hud-status').getBoundingClientRect();
+  const half = MARKER_RADIUS + 2;
+  if (x + half > hud.left - s.left && x - half < hud.right - s.left && y - half < hud.bottom - s.top && y + half > hud.top - s.top) {
+    y = hud.bottom - s.top + half;
+  }
+  marker.style.left = `${x}px`;
+  marker.style.top = `${y}px`;
 }
+
+// The progress line grows and shrinks with what it says: the light marker keeps out from under it.
+new ResizeObserver(() => updateLightMarker()).observe($('hud-status'));
 
 // The image size the stage asks for: its CSS size × devicePixelRatio, at most MAX_SIDE (?maxpx=) a side.
 export function desiredImageSize() {
