@@ -210,6 +210,40 @@ TEST(DaemonViews, HostileViewsAreRefusedWholeAndChangeNothing) {
     expect_alive(daemon);
 }
 
+// The last frame of a play of `keyframes` (still frames, 10 a second) into `ws`; every frame of it is
+// checked to come at `width` x `height`.
+std::string played(WsClient& ws, const json& keyframes, uint32_t width, uint32_t height) {
+    ws.send({{"seq", 50}, {"type", "play"}, {"fps", 10}, {"quality", "still"}, {"keyframes", keyframes}});
+    for (;;) {
+        auto [header, png] = ws.read_frame();
+        EXPECT_EQ(png_size(png), (std::pair{width, height})) << header;
+        if (header.contains("play") && header["play"]["last"] == true) return png;
+    }
+}
+
+// Animations played into a viewer come at its size and from its camera, unless they move the camera
+// themselves (a fly-through), whose frames take the animation's camera at the viewer's size.
+TEST(DaemonViews, PlaysComeAtTheViewersSizeAndFlyThroughsKeepTheirCamera) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    const std::string id = create_scene(client, "played");
+    WsClient own(daemon.ws_port(), ws_path(id));
+    WsClient follower(daemon.ws_port(), ws_path(id));
+    own.send({{"seq", 1}, {"refine", 0}, {"view", {{"width", 56}, {"height", 40}, {"camera", kCameraLeft}}}});
+    follower.send({{"seq", 1}, {"refine", 0}, {"view", {{"width", 56}, {"height", 40}}}});
+    own.read_frame();
+    follower.read_frame();
+
+    const json lights = {{{"time", 0}, {"patch", {{"light", {{"intensity", 10.0}}}}}},
+                         {{"time", 0.1}, {"patch", {{"light", {{"intensity", 30.0}}}}}}};
+    EXPECT_NE(played(own, lights, 56, 40), played(follower, lights, 56, 40)) << "the play ignored the viewer's camera";
+    const json fly = {{{"time", 0}, {"patch", {{"camera", {{"position", {0.0, 1.0, 4.0}}}}}}},
+                      {{"time", 0.1}, {"patch", {{"camera", {{"position", {0.5, 1.2, 4.0}}}}}}}};
+    EXPECT_EQ(played(own, fly, 56, 40), played(follower, fly, 56, 40)) << "a fly-through took the viewer's own camera";
+    EXPECT_EQ(revision_of(client, id), 1);
+}
+
 // A scene's viewers are told how many they are (on this daemon), and of the edits the others make.
 TEST(DaemonViews, ViewersAreCountedAndToldOfEachOthersEdits) {
     TempDir dir;

@@ -206,6 +206,8 @@ private:
         uint64_t next = 0;      // the first frame not yet rendered
         uint64_t rendered = 0;  // frames pushed
         json seq;
+        // A keyframe moves the camera (a fly-through): its frames take the viewer's size, not its camera.
+        bool moves_camera = false;
     };
     struct PlayedFrame {
         uint64_t play = 0, index = 0, frames = 0;
@@ -564,7 +566,9 @@ private:
             }
             const double time = static_cast<double>(index) / play_->fps;
             try {
-                request.document = protocol::seen_through(play_->animation.at(time), view_);
+                protocol::View view = view_;
+                if (play_->moves_camera) view.camera.reset();
+                request.document = protocol::seen_through(play_->animation.at(time), view);
             } catch (const protocol::ValidationError& e) {
                 want_frame_ = false;
                 const json seq = play_->seq;
@@ -669,7 +673,11 @@ private:
                 return !gone_->load() && ticket == messages_.load();
             });
             const auto frames = static_cast<uint64_t>(std::floor(animation.duration() * fps)) + 1;
-            return Play{std::move(animation), fps, frames, ++plays_started, std::nullopt, 0, 0, seq};
+            const bool moves_camera = std::any_of(keyframes.begin(), keyframes.end(), [](const json& keyframe) {
+                return keyframe.is_object() && keyframe.contains("patch") && keyframe["patch"].is_object() &&
+                       keyframe["patch"].contains("camera");
+            });
+            return Play{std::move(animation), fps, frames, ++plays_started, std::nullopt, 0, 0, seq, moves_camera};
         } catch (const protocol::ValidationError& e) {
             std::string pointer = "/keyframes";
             pointer += e.pointer();

@@ -68,7 +68,7 @@ function startDaemon(httpPort, wsPort) {
 
 // Every frame the daemon sent: its header (meta), when the header and the PNG arrived (epoch ms).
 const frames = [];
-const sent = [];  // requests the client sent: { t, quality, patch }
+const sent = [];  // requests the client sent: { t, seq, quality, patch, view }
 let pendingHeader = null;
 
 function watchSockets(page) {
@@ -95,7 +95,7 @@ function watchSockets(page) {
       if (typeof payload !== 'string') return;
       try {
         const msg = JSON.parse(payload);
-        sent.push({ t: Date.now(), seq: msg.seq ?? null, quality: msg.quality ?? null, patch: msg.patch ?? null });
+        sent.push({ t: Date.now(), seq: msg.seq ?? null, quality: msg.quality ?? null, patch: msg.patch ?? null, view: msg.view ?? null });
       } catch { /* not ours */ }
     });
   });
@@ -172,18 +172,28 @@ const median = (xs) => {
 async function sceneOnServer(id) {
   const res = await fetch(`${base}/api/scenes/${encodeURIComponent(id)}`);
   const body = await res.json();
-  return { revision: body.revision, width: body.scene.image.width, height: body.scene.image.height };
+  return { revision: body.revision };
+}
+
+// The image size the client last asked for (its view follows its canvas): full resolution.
+function viewSize() {
+  const last = [...sent].reverse().find((m) => m.view);
+  return last ? { width: last.view.width, height: last.view.height } : null;
 }
 
 // The first full-resolution still received after `since` that shows the scene as it is now: its
-// revision is the daemon's current one and the client sent no edit after it arrived. (A refinement
-// of an older revision, in flight when a drag began, does not count.)
+// revision is the daemon's current one, it answers (or refines) the client's last edit or change of
+// view before it, and the client sent none after it arrived. (A refinement of an older revision or of
+// the view before an orbit, in flight when a drag began, does not count.)
 async function stillOfLatest(sceneId, size, since, what) {
   const deadline = Date.now() + SETTLE_TIMEOUT_MS;
+  const changed = (m) => m.patch || m.view;
+  const lastChange = (t) => sent.filter((m) => m.t <= t && changed(m)).reduce((seq, m) => Math.max(seq, m.seq ?? -1), -1);
   while (Date.now() < deadline) {
     const { revision } = await sceneOnServer(sceneId);
-    const f = frames.find((x) => x.t >= since && isFull(x, size) && x.revision === revision);
-    if (f && !sent.some((m) => m.t > f.t && m.patch)) return f;
+    const f = frames.find((x) => x.t >= since && isFull(x, size) && x.revision === revision &&
+      (x.seq === null || x.seq >= lastChange(x.t)));
+    if (f && !sent.some((m) => m.t > f.t && changed(m))) return f;
     await sleep(50);
   }
   throw new Error(`timed out after ${SETTLE_TIMEOUT_MS / 1000} s waiting for ${what}`);
@@ -307,8 +317,7 @@ async function main() {
   const sceneId = await page.evaluate(() => new URL(location.href).searchParams.get('scene'));
   // The image size the client asked for (it follows the canvas), i.e. full resolution.
   await waitUntil(() => frames.some((f) => f.quality === 'still'), SETTLE_TIMEOUT_MS, 'a still frame');
-  const current = await sceneOnServer(sceneId);
-  const size = { width: current.width, height: current.height };
+  const size = viewSize();
   const firstFull = await stillOfLatest(sceneId, size, navStart, 'a full-resolution still');
   const draws = hooked ? await page.evaluate(() => window.__benchDraws) : [];
   const firstDraw = draws.find((d) => d.t >= navStart);

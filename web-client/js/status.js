@@ -63,9 +63,11 @@ export function showViewers(count) {
 
 // Another viewer made revision `revision`: said on the progress line for a few seconds, and aloud.
 export function noteOtherEdit(revision) {
-  state.otherEdit = { revision, at: performance.now() };
+  const now = performance.now();
+  // Said aloud once in a while, not for every step of someone's drag.
+  if (!state.otherEdit || now - state.otherEdit.at > OTHER_EDIT_MS) announce(`Another viewer edited the scene (revision ${revision})`);
+  state.otherEdit = { revision, at: now };
   hooks.otherEdits++;
-  announce(`Another viewer edited the scene (revision ${revision})`);
   updateProgress();
   setTimeout(updateProgress, OTHER_EDIT_MS + 50);
 }
