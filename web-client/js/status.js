@@ -56,8 +56,8 @@ export function showGlobalError(text) {
 export function showViewers(count) {
   state.viewers = Number(count) || 1;
   const el = $('viewers');
-  el.textContent = state.viewers === 1 ? 'Only you' : `${state.viewers} viewers`;
-  el.title = state.viewers === 1 ? 'Nobody else views this scene' : `${state.viewers} people view this scene now, you included`;
+  el.textContent = state.viewers === 1 ? '1 viewer' : `${state.viewers} viewers`;
+  el.title = state.viewers === 1 ? 'Nobody else views this scene now' : `${state.viewers} people view this scene now, you included`;
   el.dataset.others = String(state.viewers > 1);
 }
 
