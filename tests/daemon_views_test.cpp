@@ -154,6 +154,35 @@ TEST(DaemonViews, ALightEditTracesPhotonsOnceForAllViews) {
     expect_no_validation_errors(daemon);
 }
 
+// Views share the scene's radiance grid across refinement too: the still of a second view starts from the
+// photon batches the first view's refinement put there (its view alone runs), and its own refinement
+// adds to that grid instead of starting it anew.
+TEST(DaemonViews, ASecondViewsStillTakesTheBatchesAnotherViewRefined) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    const std::string id = create_scene(client, "refined");
+    WsClient first(daemon.ws_port(), ws_path(id));
+    first.send({{"seq", 1}, {"refine", 4}, {"quality", "still"}, {"view", {{"width", 48}, {"height", 40}, {"camera", kCameraLeft}}}});
+    for (int level = 0; level != 4;) level = first.read_frame().first["level"].get<int>();
+    const double before = photon_runs(client);
+
+    WsClient second(daemon.ws_port(), ws_path(id));
+    second.send({{"seq", 1}, {"refine", 6}, {"quality", "still"}, {"view", {{"width", 40}, {"height", 48}, {"camera", kCameraRight}}}});
+    auto [still, png] = second.read_frame();
+    EXPECT_EQ(still["level"], 4) << still;
+    EXPECT_EQ(still["passes"], json({"view", "tone_map"})) << still;
+    EXPECT_EQ(photon_runs(client), before);
+    // Levels 5 and 6 add one batch each to the same grid.
+    for (int level : {5, 6}) {
+        auto [header, refined] = second.read_frame();
+        EXPECT_EQ(header["level"], level);
+        EXPECT_EQ(png_size(refined), (std::pair{40u, 48u}));
+    }
+    EXPECT_EQ(photon_runs(client), before + 2);
+    EXPECT_EQ(revision_of(client, id), 1);
+}
+
 // A view out of range is refused whole, with a pointer into the message: the message's patch is not
 // applied, the session keeps its view and the scene its revision.
 TEST(DaemonViews, HostileViewsAreRefusedWholeAndChangeNothing) {
