@@ -40,13 +40,18 @@ json wait_notice(WsClient& ws, const std::string& type, Accept accept) {
     }
 }
 
+// A daemon on a temporary data directory, and an HTTP client of it.
+class DaemonViews : public ::testing::Test {
+protected:
+    TempDir dir;
+    Daemon daemon{dir.path() / "data"};
+    httplib::Client client = daemon.client();
+};
+
 // Two viewers with views of their own get frames of their own sizes and cameras, and neither makes a
 // revision; a third, following the document's camera, sees the document's camera edits, which move
 // nobody else's view; frames are keyed by view (the same view at the same revision is the same frame).
-TEST(DaemonViews, EachViewerSeesItsOwnViewAndNoneMakesARevision) {
-    TempDir dir;
-    Daemon daemon(dir.path() / "data");
-    auto client = daemon.client();
+TEST_F(DaemonViews, EachViewerSeesItsOwnViewAndNoneMakesARevision) {
     const std::string id = create_scene(client, "views");
     const json saved = get_json(client, "/api/scenes/" + id)["scene"];
 
@@ -108,10 +113,7 @@ TEST(DaemonViews, EachViewerSeesItsOwnViewAndNoneMakesARevision) {
 // Views of one scene share its photons and radiance grid: a light edit seen by three viewers with
 // three views traces photons once (asserted by the photon pass's runs in /metrics), and so do their
 // three still frames after it.
-TEST(DaemonViews, ALightEditTracesPhotonsOnceForAllViews) {
-    TempDir dir;
-    Daemon daemon(dir.path() / "data");
-    auto client = daemon.client();
+TEST_F(DaemonViews, ALightEditTracesPhotonsOnceForAllViews) {
     const std::string id = create_scene(client, "shared");
     const std::vector<json> views = {
         {{"width", 72}, {"height", 40}, {"camera", kCameraLeft}},
@@ -157,10 +159,7 @@ TEST(DaemonViews, ALightEditTracesPhotonsOnceForAllViews) {
 // Views share the scene's radiance grid across refinement too: the still of a second view starts from the
 // photon batches the first view's refinement put there (its view alone runs), and its own refinement
 // adds to that grid instead of starting it anew.
-TEST(DaemonViews, ASecondViewsStillTakesTheBatchesAnotherViewRefined) {
-    TempDir dir;
-    Daemon daemon(dir.path() / "data");
-    auto client = daemon.client();
+TEST_F(DaemonViews, ASecondViewsStillTakesTheBatchesAnotherViewRefined) {
     const std::string id = create_scene(client, "refined");
     WsClient first(daemon.ws_port(), ws_path(id));
     first.send({{"seq", 1}, {"refine", 4}, {"quality", "still"}, {"view", {{"width", 48}, {"height", 40}, {"camera", kCameraLeft}}}});
@@ -185,10 +184,7 @@ TEST(DaemonViews, ASecondViewsStillTakesTheBatchesAnotherViewRefined) {
 
 // A view out of range is refused whole, with a pointer into the message: the message's patch is not
 // applied, the session keeps its view and the scene its revision.
-TEST(DaemonViews, HostileViewsAreRefusedWholeAndChangeNothing) {
-    TempDir dir;
-    Daemon daemon(dir.path() / "data");
-    auto client = daemon.client();
+TEST_F(DaemonViews, HostileViewsAreRefusedWholeAndChangeNothing) {
     const std::string id = create_scene(client, "hostile");
     WsClient ws(daemon.ws_port(), ws_path(id));
     ws.send({{"seq", 0}, {"refine", 0}, {"quality", "still"}, {"view", {{"width", 48}, {"height", 40}, {"camera", kCameraLeft}}}});
@@ -252,10 +248,7 @@ std::string played(WsClient& ws, const json& keyframes, uint32_t width, uint32_t
 
 // Animations played into a viewer come at its size and from its camera, unless they move the camera
 // themselves (a fly-through), whose frames take the animation's camera at the viewer's size.
-TEST(DaemonViews, PlaysComeAtTheViewersSizeAndFlyThroughsKeepTheirCamera) {
-    TempDir dir;
-    Daemon daemon(dir.path() / "data");
-    auto client = daemon.client();
+TEST_F(DaemonViews, PlaysComeAtTheViewersSizeAndFlyThroughsKeepTheirCamera) {
     const std::string id = create_scene(client, "played");
     WsClient own(daemon.ws_port(), ws_path(id));
     WsClient follower(daemon.ws_port(), ws_path(id));
@@ -274,10 +267,7 @@ TEST(DaemonViews, PlaysComeAtTheViewersSizeAndFlyThroughsKeepTheirCamera) {
 }
 
 // A scene's viewers are told how many they are (on this daemon), and of the edits the others make.
-TEST(DaemonViews, ViewersAreCountedAndToldOfEachOthersEdits) {
-    TempDir dir;
-    Daemon daemon(dir.path() / "data");
-    auto client = daemon.client();
+TEST_F(DaemonViews, ViewersAreCountedAndToldOfEachOthersEdits) {
     const std::string id = create_scene(client, "together");
     const std::string other = create_scene(client, "elsewhere");
     auto count_is = [](size_t n) { return [n](const json& m) { return m["count"] == n; }; };
