@@ -517,7 +517,7 @@ private:
         const json* j =
             section(root, "", "volume", {"resolution", "smoothing", "octree_epsilon", "bounds", "margin"});
         if (j == nullptr) return;
-        v.resolution = uinteger(*j, base, "resolution", v.resolution, 32, limits_.max_resolution);
+        v.resolution = uinteger(*j, base, "resolution", v.resolution, kMinVolumeResolution, limits_.max_resolution);
         v.smoothing = number(*j, base, "smoothing", v.smoothing, kSmoothing);
         v.octree_epsilon = number(*j, base, "octree_epsilon", v.octree_epsilon, kEpsilon);
         const auto bit = j->find("bounds");

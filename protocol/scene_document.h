@@ -164,6 +164,8 @@ inline constexpr size_t kMaxLights = 8;
 inline constexpr size_t kMaxObjects = 64;
 // The fewest voxels an object may ask for along its longest side (Object::resolution, when not 0).
 inline constexpr uint32_t kMinObjectResolution = 16;
+// The fewest voxels the scene's lattice may have along its longest axis (Volume::resolution).
+inline constexpr uint32_t kMinVolumeResolution = 32;
 
 struct SceneDocument {
     Camera camera;

@@ -305,6 +305,44 @@ TEST_F(RendererTest, ACameraDragAfterAStillFrameShadesFromItsRadianceGrid) {
 // frame shades from it; during its photons, before the batch is resolved into the grid, the grid holds
 // the batches before it, whole, and the frame shades from them too; once the resolve has begun the grid
 // holds part of a batch and the frame traces anew.
+// Issue 37: an object drag rebuilds the volume with every frame, so its frames do that on a lattice of
+// half the voxels per axis (an eighth of the voxelize, index-field and octree work), with radiance voxels
+// of about the interactive size; the drag's other frames keep that lattice, and the still frame at its
+// release rebuilds the document's own.
+TEST_F(RendererTest, AnObjectDragRebuildsItsVolumeOnACoarseLatticeUntilTheStill) {
+    const SceneDocument doc = small({{"volume", {{"resolution", 64}}}, {"photons", {{"count", 4096}}}});
+    const auto moved = protocol::apply_merge_patch(doc, {{"objects", {{"object", {{"position", {0.1, 0, 0}}}}}}});
+    const auto camera = protocol::apply_merge_patch(moved, {{"camera", {{"position", {1, 1, 4}}}}});
+    Renderer renderer(*context), fresh(*context);
+    renderer.render("a", doc, no_assets);
+    const FrameResult dragged = renderer.render("a", moved, no_assets, {Quality::interactive});
+    EXPECT_EQ(pass_names(dragged.rerun), pass_names(kAllPasses));
+
+    // The frame is the interactive one of the document at 32 voxels, at the frame's size and photons.
+    RunOptions coarse = run_options_for(Quality::interactive);
+    coarse.radiance_factor = 2;
+    const auto reference_doc = protocol::apply_merge_patch(
+        moved, {{"volume", {{"resolution", 32}}},
+                {"image", {{"width", dragged.width}, {"height", dragged.height}}},
+                {"photons", {{"count", dragged.photons}}}});
+    PassKit kit(*context);
+    SceneGpu reference(kit);
+    reference.run(kAllPasses, reference_doc, world_meshes(reference_doc, [](const std::string&) { return nullptr; }),
+                  nullptr, coarse);
+    EXPECT_EQ(dragged.png, image::encode_png(reference.read_ldr(), reference.width(), reference.height()));
+
+    // The drag's camera frames keep the coarse volume; the still at its release is the document's own.
+    EXPECT_EQ(pass_names(renderer.render("a", camera, no_assets, {Quality::interactive}).rerun),
+              pass_names(kView | kToneMap));
+    const FrameResult released = renderer.render("a", camera, no_assets);
+    EXPECT_EQ(pass_names(released.rerun), pass_names(kAllPasses));
+    EXPECT_EQ(released.png, fresh.render("b", camera, no_assets).png);
+    // A camera drag after a still keeps the document's lattice.
+    const auto orbit = protocol::apply_merge_patch(camera, {{"camera", {{"position", {1.5, 1, 4}}}}});
+    EXPECT_EQ(pass_names(renderer.render("a", orbit, no_assets, {Quality::interactive}).rerun),
+              pass_names(kView | kToneMap));
+}
+
 TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
     const auto give_way = [] { return true; };
     const SceneDocument wide = small({{"image", {{"width", 512}, {"height", passes::kViewPart / 256}}}});

@@ -249,12 +249,14 @@ int bench_daemon(const std::string& address, int runs, bool as_json) {
         };
         double warm_trip = 0.0, warm_passes = 0.0;
         frame(json::object(), warm_trip, warm_passes);  // builds everything once
-        for (const std::string edit : {"camera", "light"}) {
+        // A move drags the object (Alt+drag in the client): its volume rebuilds with every frame.
+        for (const std::string edit : {"camera", "light", "move"}) {
             std::vector<double> trips, passes, overheads;
             for (int r = 0; r < runs; ++r) {
                 const double x = 0.3 * ((r % 2) ? 1.0 : -1.0);
                 const json patch = edit == "camera" ? json{{"camera", {{"position", {x, 0.5, 5.0}}}}}
-                                                    : json{{"light", {{"position", {2.0 + x, 3.0, 1.0}}}}};
+                                   : edit == "light" ? json{{"light", {{"position", {2.0 + x, 3.0, 1.0}}}}}
+                                                     : json{{"objects", {{"object", {{"position", {0.1 * x, 0.0, 0.0}}}}}}};
                 double trip = 0.0, pass = 0.0;
                 frame(patch, trip, pass);
                 trips.push_back(trip);

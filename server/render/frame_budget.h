@@ -15,11 +15,16 @@ namespace refract::scene {
 constexpr double kDefaultBudgetMs = 100.0;
 constexpr double kMinBudgetMs = 10.0;
 constexpr double kMaxBudgetMs = 10000.0;
+// While an object is dragged the lattice has half the voxels per axis (InteractiveSettings).
+constexpr uint32_t kDragLatticeDivisor = 2;
 
 // What an interactive frame renders, against the document's own still frame.
 struct InteractiveSettings {
     uint32_t width = 0, height = 0;  // image size
     uint32_t photons = 0;            // photon count
+    // The lattice's voxels per axis divided by this: 2 while an object moves (its volume rebuilt every
+    // frame at an eighth of the voxels), else 1, the document's own lattice.
+    uint32_t lattice_divisor = 1;
 };
 
 class FrameBudget {

@@ -24,18 +24,20 @@ double ms_since(Clock::time_point start) {
     return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-// The document an interactive frame renders: the budget's image size and photon count.
+// The document an interactive frame renders: the budget's image size and photon count, and the lattice
+// coarsened while an object moves (the scene's resolution and each object's own, within their limits).
 protocol::SceneDocument with_settings(protocol::SceneDocument document, const InteractiveSettings& settings) {
     document.image.width = settings.width;
     document.image.height = settings.height;
     document.photons.count = settings.photons;
+    const uint32_t divisor = settings.lattice_divisor;
+    document.volume.resolution = std::max(document.volume.resolution / divisor, std::min(document.volume.resolution, protocol::kMinVolumeResolution));
+    for (auto& [name, object] : document.objects)
+        if (object.resolution != 0)
+            object.resolution = std::max(object.resolution / divisor, std::min(object.resolution, protocol::kMinObjectResolution));
     return document;
 }
 
-// What a frame was rendered with, interactive or still (an interactive frame's document holds its settings).
-InteractiveSettings settings_of(const protocol::SceneDocument& document) {
-    return {document.image.width, document.image.height, document.photons.count};
-}
 
 // The milliseconds of a frame spent in passes whose cost the image size and photon count do not set
 // (a geometry edit while dragging), kept out of the budget's measurements.
@@ -128,8 +130,15 @@ struct ResidentScene {
     std::shared_ptr<const image::EnvironmentMap> environment;
     uint64_t last_used = 0;
     uint32_t level = 0;  // refinement level of the resident still frame (0: the frame is interactive or partial)
+    uint32_t lattice_divisor = 1;  // the interactive lattice's (InteractiveSettings), 1 after a still frame
     FrameBudget budget;  // this scene's dynamic resolution
 };
+
+// What the resident frame was rendered with, interactive or still (an interactive frame's document holds
+// its settings).
+InteractiveSettings settings_of(const ResidentScene& held) {
+    return {held.document.image.width, held.document.image.height, held.document.photons.count, held.lattice_divisor};
+}
 
 // What a frame is to be, decided from the request and the resident scene before anything is built.
 struct FramePlan {
@@ -233,7 +242,7 @@ struct Renderer::Impl {
                       FrameResult& frame);
     // Records what the resident state was built from.
     void keep(ResidentScene& resident, const protocol::SceneDocument& document, const ResolvedAssets& resolved,
-              uint32_t level);
+              uint32_t level, uint32_t lattice_divisor);
     // Called in a catch block: drops the scene and rethrows what failed, as a RenderError where the scene is
     // past this device's limits or memory.
     [[noreturn]] void drop_after_failure(const std::string& scene_id);
@@ -264,10 +273,15 @@ FramePlan Renderer::Impl::plan(const ResidentScene* held, const FrameBudget& bud
     if (asked.quality == Quality::interactive) {
         // What the edit reruns if the resident frame's settings were kept (a still frame's too: its photon
         // count keeps its radiance grid) decides which of them may change.
-        const InteractiveSettings resident = held ? settings_of(held->document) : InteractiveSettings{};
+        const InteractiveSettings resident = held ? settings_of(*held) : InteractiveSettings{};
         const PassSet would = held ? stale_against(held, with_settings(requested, resident), resolved) : kAllPasses;
         plan.settings = budget.choose(requested, (would & kPhotons) != 0, (would & kView) != 0,
                                       held ? &resident : nullptr, asked.budget_ms);
+        // A frame that rebuilds the volume (an object dragged) does so on the coarse lattice, and the
+        // frames after it keep that lattice until a still frame: the volume passes scale with the voxels,
+        // and at the document's lattice they alone would outlast the budget. Uploaded index grids keep theirs.
+        const bool rebuilds = held && (would & kVoxelize) != 0;
+        if (!resolved.grid && (rebuilds || resident.lattice_divisor > 1)) plan.settings.lattice_divisor = kDragLatticeDivisor;
         plan.document = with_settings(requested, plan.settings);
     }
     plan.stale = stale_against(held, plan.document, resolved);
@@ -341,7 +355,8 @@ bool Renderer::Impl::run_steps(ResidentScene& resident, const FramePlan& plan, c
         if (stats.gave_way) {
             // What the GPU holds now: this document, with part of a step the frame does not hold; a step
             // that gave way before its view leaves the frame of the level before it.
-            keep(resident, plan.document, resolved, resident.gpu->built() & kView ? step - 1 : 0);
+            keep(resident, plan.document, resolved, resident.gpu->built() & kView ? step - 1 : 0,
+                 plan.settings.lattice_divisor);
             return false;
         }
         frame.rerun |= stats.ran;
@@ -356,8 +371,9 @@ bool Renderer::Impl::run_steps(ResidentScene& resident, const FramePlan& plan, c
 }
 
 void Renderer::Impl::keep(ResidentScene& resident, const protocol::SceneDocument& document, const ResolvedAssets& resolved,
-                          uint32_t level) {
+                          uint32_t level, uint32_t lattice_divisor) {
     resident.document = document;
+    resident.lattice_divisor = lattice_divisor;
     resident.meshes = resolved.meshes;
     resident.grid = resolved.grid;
     resident.environment = resolved.environment;
@@ -417,6 +433,10 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     // quality made it: the first frame of a camera drag after a still frame runs no photons. Photons
     // that run go into the interactive grid.
     RunOptions frame_options = run_options_for(quality);
+    // On the coarse lattice of an object drag, radiance voxels of about the size the other interactive
+    // frames have (in the scene's units).
+    const uint32_t divisor = plan.settings.lattice_divisor;
+    frame_options.radiance_factor = std::max(1u, (frame_options.radiance_factor + divisor / 2) / divisor);
     if (quality == Quality::interactive && !(plan.stale & kPhotons))
         frame_options = resident.gpu->with_resident_photons(frame_options);
     try {
@@ -428,7 +448,8 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     } catch (...) {
         impl_->drop_after_failure(scene_id);
     }
-    impl_->keep(resident, plan.document, resolved, quality == Quality::still ? plan.level : 0);
+    impl_->keep(resident, plan.document, resolved, quality == Quality::still ? plan.level : 0,
+                plan.settings.lattice_divisor);
     if (quality == Quality::interactive) {
         const double photons = photon_ms(frame);
         resident.budget.observe(requested, plan.settings, photons, ms_since(start) - paused_ms - photons - volume_ms(frame));
