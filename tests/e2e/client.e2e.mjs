@@ -1105,6 +1105,11 @@ async function main() {
   await check('the dispersion example and its Abbe number control', async () => {
     await applyExample(page, 'dispersion');
     const applied = await sceneOnServer(sceneId);
+    // A loaded example shows a preview before its still (issue 37): the new scene's first frame drawn is
+    // interactive, its last the still.
+    const drawn = (await page.evaluate(() => window.refract.drawn)).filter((f) => f.revision >= applied.revision);
+    assert(drawn.length >= 2 && drawn[0].quality === 'interactive' && drawn[drawn.length - 1].quality === 'still',
+      `frames drawn of the loaded example: ${JSON.stringify(drawn)}`);
     assert(applied.scene.object.abbe > 0, `abbe is ${applied.scene.object.abbe}`);
     const shown = await page.evaluate(() => Number(document.getElementById('ctl-object-abbe-num').value));
     assert(shown === applied.scene.object.abbe, `the Abbe control shows ${shown}, the scene has ${applied.scene.object.abbe}`);

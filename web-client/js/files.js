@@ -5,7 +5,7 @@ import { OBJECT_SIZE, checkExample, loadedExample, meshPatch, refreshEnvironment
 import { api } from './connection.js';
 import { complain, controls } from './panel.js';
 import * as S from './scene.js';
-import { edit, play, replaceScene } from './session.js';
+import { edit, play, replaceScene, stillAfterPreview } from './session.js';
 import { hooks, panel, state, view } from './state.js';
 import { announce, updateProgress } from './status.js';
 
@@ -68,7 +68,8 @@ export async function uploadMesh(file, field) {
     field.setStatus(`Uploaded “${name}”${facts.length ? ` (${facts.join(', ')})` : ''}` +
       (fitted ? `; scaled by ${patch.object.scale} to fit ${OBJECT_SIZE} m and centred.` : '; in its own units.'),
     patch.object.mesh);
-    edit(patch, true);
+    edit(patch, false);  // a preview of the new mesh, then its still
+    stillAfterPreview();
     controls.mesh.update(panel());
   });
   if (!uploaded) field.el.scrollIntoView({ block: 'nearest' });

@@ -85,6 +85,7 @@ export function requestFrame(quality = 'still') {
 // comes after the preview rendering, not after two.
 function slotFree() {
   const n = state.inflight.length;
+  if (n > 0 && state.previewFirst) return false;
   const previews = state.inflight.every((inf) => inf.quality === 'interactive');
   return n === 0 || (previews && (n < MAX_IN_FLIGHT || (n === MAX_IN_FLIGHT && state.pendingQuality === 'still')));
 }
@@ -164,7 +165,10 @@ function answered(seq) {
   if (seq === null) return [];                                // pushed for someone else's edit
   const n = state.inflight.filter((inf) => inf.seq <= seq).length;
   const done = state.inflight.splice(0, n);
-  if (!state.inflight.length) clearTimeout(watchdog);
+  if (!state.inflight.length) {
+    clearTimeout(watchdog);
+    state.previewFirst = false;
+  }
   return done;
 }
 
@@ -243,7 +247,10 @@ function onServerError(msg) {
   const own = state.inflight.findIndex((req) => req.seq === msg.seq);
   const done = own >= 0 && msg.pointer ? state.inflight.splice(own, 1)
     : answered(msg.seq === undefined || msg.seq === null ? Infinity : msg.seq);
-  if (!state.inflight.length) clearTimeout(watchdog);
+  if (!state.inflight.length) {
+    clearTimeout(watchdog);
+    state.previewFirst = false;
+  }
   const inf = done[done.length - 1];
   const answers = Boolean(inf);
   if (String(msg.pointer || '').startsWith('/view')) state.viewSent = null;  // the daemon kept the view it had
@@ -366,9 +373,25 @@ export async function replaceScene(getDoc) {
     return got;
   } finally {
     state.replacing = false;
-    requestFrame('still');
+    previewThenStill();
     updateProgress();
   }
+}
+
+// A quick preview first (the daemon sizes it to its frame budget, and builds a new volume at half the
+// voxels per axis), then the still: a new scene's still takes seconds on two CPU cores, and until it
+// came the old scene stood there dimmed. The still is sent once the preview is answered: sent at once,
+// it would take the preview's place in the daemon's queue whenever the daemon was busy.
+export function previewThenStill() {
+  state.pendingQuality = null;
+  requestFrame('interactive');
+  stillAfterPreview();
+}
+
+// The still of an edit just sent as a preview (edit(patch, false)), once that preview is answered.
+export function stillAfterPreview() {
+  state.previewFirst = state.inflight.length > 0;
+  requestFrame('still');
 }
 
 // ---- keyframes played into the view --------------------------------------------------------------
@@ -440,17 +463,15 @@ export const link = {
   opened() {
     frameMeta = null;
     state.viewSent = null;  // a new session: its first message carries the view
-    // A quick preview first (the daemon sizes it to its frame budget), then the still: on two CPU cores
-    // the still of a fresh scene takes seconds. A still asked for before the socket opened (the first
-    // resize settling) comes second too, or it would be the first frame.
-    state.pendingQuality = null;
-    requestFrame('interactive');
-    requestFrame('still');
+    // A still asked for before the socket opened (the first resize settling) comes second too, or it
+    // would be the first frame.
+    previewThenStill();
   },
   text: onText,
   binary: onBinary,
   closed() {
     clearTimeout(watchdog);
+    state.previewFirst = false;
     // Whatever was in flight goes again after reconnecting (merge patches are idempotent).
     const lost = state.inflight.splice(0);
     if (lost.length) {

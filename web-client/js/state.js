@@ -16,6 +16,7 @@ export const state = {
   ws: null,
   replacing: false,       // the scene is being replaced over HTTP (example, import): hold the WebSocket
   newScene: false,        // the scene was replaced and its first frame is not drawn yet
+  previewFirst: false,    // a new scene's preview is in flight: the still is asked for once it is answered
   drawToken: 0,           // frames handed to the viewport to decode, and the newest of them drawn
   drawnToken: 0,
   drag: null,
@@ -85,6 +86,7 @@ export const hooks = {
   device: null,
   requestsSent: 0,
   sent: { interactive: 0, still: 0 },  // requests by quality
+  drawn: [],  // the last 16 frames drawn: { quality, revision }
   maxInFlight: 0,
   doc: () => view(),
   // This viewer's view as last sent to the daemon, and whether it follows the scene's camera.

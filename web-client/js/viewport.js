@@ -66,6 +66,7 @@ export async function drawFrame(blob, meta, token, quality) {
   hooks.lastSeq = meta.seq ?? null;
   hooks.lastMeta = meta;
   hooks.lastQuality = quality;
+  hooks.drawn = [...hooks.drawn.slice(-15), { quality, revision: meta.revision }];
   showStats(meta, quality);
   updateProgress();
   updateLightMarker();
