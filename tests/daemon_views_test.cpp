@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <chrono>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "daemon/api.h"
@@ -95,7 +97,8 @@ TEST_F(DaemonViews, EachViewerSeesItsOwnViewAndNoneMakesARevision) {
     auto [moved, moved_png] = follower.read_frame();
     EXPECT_EQ(moved["revision"], 2);
     EXPECT_NE(moved_png, follower_png) << "the follower did not see the document's camera edit";
-    right.read_frame();  // the frame pushed for revision 2, from its own camera
+    // The right viewer is told of the edit, and rendered nothing for it: its own camera replaces the one edited.
+    wait_notice(right, "edited", [](const json& m) { return m["revision"] == 2; });
     right.send({{"seq", 2}, {"quality", "still"}});
     auto [kept, kept_png] = right.read_frame();
     EXPECT_EQ(kept["revision"], 2);
@@ -180,6 +183,31 @@ TEST_F(DaemonViews, ASecondViewsStillTakesTheBatchesAnotherViewRefined) {
     }
     EXPECT_EQ(photon_runs(client), before + 2);
     EXPECT_EQ(revision_of(client, id), 1);
+}
+
+// An edit of what a viewer's own view replaces (the scene's camera, a presenter's orbit) renders nothing
+// for that viewer, only a notice; an edit it can see does.
+TEST_F(DaemonViews, AnEditOfTheScenesCameraRendersNothingForAViewerWithItsOwn) {
+    const std::string id = create_scene(client, "presented");
+    WsClient own(daemon.ws_port(), ws_path(id));
+    WsClient presenter(daemon.ws_port(), ws_path(id));
+    own.send({{"seq", 1}, {"refine", 0}, {"view", {{"width", 48}, {"height", 40}, {"camera", kCameraLeft}}}});
+    EXPECT_EQ(own.read_frame().first["revision"], 1);
+    presenter.send({{"seq", 1}, {"refine", 0}});
+    presenter.read_frame();
+    const double frames_before = metric(client, "refract_frames_total");
+
+    presenter.send({{"seq", 2}, {"patch", {{"camera", {{"position", {0.0, 2.0, 4.5}}}}}}});
+    EXPECT_EQ(presenter.read_frame().first["revision"], 2);
+    EXPECT_EQ(wait_notice(own, "edited", [](const json& m) { return m["revision"] == 2; })["by"], "viewer");
+    std::this_thread::sleep_for(std::chrono::milliseconds(400));  // a frame for it would be on its way by now
+    EXPECT_EQ(metric(client, "refract_frames_total"), frames_before + 1) << "the own view rendered the camera edit";
+
+    presenter.send({{"seq", 3}, {"patch", {{"light", {{"intensity", 9.0}}}}}});
+    presenter.read_frame();
+    auto [pushed, png] = own.read_frame();
+    EXPECT_EQ(pushed["revision"], 3) << "a frame of the camera edit came first";
+    EXPECT_EQ(png_size(png).first * 40, png_size(png).second * 48) << "not the own view's aspect";
 }
 
 // A view out of range is refused whole, with a pointer into the message: the message's patch is not

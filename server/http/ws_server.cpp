@@ -163,6 +163,7 @@ public:
             if (!self->viewing_ || self->closing_ || self->want_frame_ || self->play_) return;
             if (revision && (revision->first != self->scene_id_ || revision->second <= self->submitted_revision_))
                 return;
+            if (revision && self->sees_no_change(revision->second)) return;
             self->idle_timer_.cancel();
             self->newer_message_->store(true);  // a refinement level in flight gives way
             self->wanted_seq_ = nullptr;        // nobody on this session asked: no seq to echo
@@ -170,6 +171,23 @@ public:
             self->want_frame_ = true;
             self->submit_frame();
         });
+    }
+
+    // Whether `revision` of the scene looks, through this session's view, like the document of its last
+    // frame: an edit of what its own view replaces (the scene's camera, under a viewer's own camera)
+    // renders nothing for it. The revision counts as seen.
+    bool sees_no_change(uint64_t revision) {
+        if (!last_seen_) return false;
+        std::optional<scene::SceneSnapshot> current;
+        try {
+            current = service_.store().get(scene_id_);
+        } catch (const scene::StoreError&) {
+            return false;  // the frame's own read says what is wrong
+        }
+        if (!current || current->revision != revision || protocol::seen_through(current->document, view_) != *last_seen_)
+            return false;
+        submitted_revision_ = revision;
+        return true;
     }
 
     // Drops the connection (daemon shutdown); safe from any thread.
@@ -547,6 +565,7 @@ private:
         // The session's own view: frames at its size and from its camera, keyed apart by that camera.
         scene::FrameRequest request{snapshot->id, snapshot->revision, protocol::seen_through(snapshot->document, view_),
                                     wanted_options_, {}, view_.camera ? camera_key(*view_.camera) : std::string()};
+        last_seen_ = play_ ? std::nullopt : std::optional(request.document);
         std::optional<PlayedFrame> played;
         if (play_) {
             // Played in real time: the frame due now, skipping those the renderer could not keep up with;
@@ -754,6 +773,8 @@ private:
     scene::FrameOptions wanted_options_{scene::Quality::interactive};
     double budget_ms_ = scene::kDefaultBudgetMs;           // this session's interactive frame budget
     protocol::View view_;  // this session's own image size and camera (none: the document's)
+    // The document of the session's last frame as its view showed it (none while playing).
+    std::optional<protocol::SceneDocument> last_seen_;
     uint32_t refine_to_ = scene::kMaxRefinementLevel;      // the last refinement level pushed
     // Set by a message that arrives while a refinement level renders: the level gives way to it.
     std::shared_ptr<std::atomic<bool>> newer_message_ = std::make_shared<std::atomic<bool>>(false);

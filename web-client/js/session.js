@@ -16,7 +16,7 @@ import { $ } from './dom.js';
 import { clearComplaints, controls, reportError } from './panel.js';
 import * as S from './scene.js';
 import { hooks, later, panel, params, sentDocument, state, view } from './state.js';
-import { noteOtherEdit, showDevice, showGlobalError, showViewers, updateProgress } from './status.js';
+import { noteOtherEdit, playedNote, showDevice, showGlobalError, showViewers, updateProgress } from './status.js';
 import { desiredImageSize, drawFrame, updateLightMarker } from './viewport.js';
 
 const REQUEST_TIMEOUT_MS = 180_000;  // a lost answer: give up on it and reconnect
@@ -189,10 +189,10 @@ function onText(data) {
   try { msg = JSON.parse(data); } catch { return; }
   if (msg.type === 'frame') frameMeta = msg;
   else if (msg.type === 'viewers') showViewers(msg.count);
-  else if (msg.type === 'edited') noteOtherEdit(msg.revision);
+  else if (msg.type === 'edited') { noteOtherEdit(msg.revision); refreshDocument(); }
   else if (msg.type === 'error' && state.playing && msg.seq === state.playing.seq) playFailed(msg);
   else if (msg.type === 'error') onServerError(msg);
-  else if (msg.type === 'stopped' && state.playing) endPlay(`Stopped: ${playedNote(state.playing, false)}`);
+  else if (msg.type === 'stopped' && state.playing) endPlay(`Stopped: ${playedNote(state.playing, PLAY_FPS, false)}`);
 }
 
 function onBinary(blob) {
@@ -232,7 +232,7 @@ function onBinary(blob) {
     hooks.playedSizes.push([meta.width, meta.height]);
     state.playing.shown++;
     state.playing.at = meta.play;
-    if (meta.play.last) endPlay(playedNote(state.playing));
+    if (meta.play.last) endPlay(playedNote(state.playing, PLAY_FPS));
   }
   lastFrame = { revision: state.confirmedRevision, quality };
   state.lastPng = blob;
@@ -345,6 +345,22 @@ function resync() {
   }, 150);
 }
 
+// Another viewer made a revision: the controls show the scene as it is now. The daemon pushes a frame
+// of it only when this view shows a change (not for the scene's camera under a camera of our own), so
+// the frame shown stands for the new revision unless one comes.
+function refreshDocument() {
+  later('refresh', async () => {
+    try {
+      const got = await api('GET', `/api/scenes/${encodeURIComponent(state.sceneId)}`);
+      if (state.inflight.length || state.pending || !(got.revision > state.confirmedRevision)) return;
+      state.confirmed = got.scene;
+      state.confirmedRevision = got.revision;
+      if (lastFrame) lastFrame = { ...lastFrame, revision: got.revision };
+      showDocument();
+    } catch { /* the next frame or reconnect tells */ }
+  }, 300);
+}
+
 const untilIdle = async () => {
   const deadline = performance.now() + REQUEST_TIMEOUT_MS;
   while (state.inflight.length && performance.now() < deadline) await new Promise((r) => setTimeout(r, 30));
@@ -416,16 +432,6 @@ export async function play(name, keyframes, { ended, failed }) {
 }
 
 const PLAY_FPS = 24;
-
-// What a play showed, as the viewer saw it: the frames drawn of those the animation has, and those the
-// daemon skipped to keep time. `done`: it reached its last frame.
-function playedNote(playing, done = true) {
-  const total = playing.at ? playing.at.frames : 0;
-  const shown = `${playing.shown} of ${total} frame${total === 1 ? '' : 's'} shown`;
-  const skipped = done ? total - playing.shown : (playing.at ? playing.at.frame + 1 : 0) - playing.shown;
-  const keptTime = skipped > 0 ? `, ${skipped} skipped to keep time (the renderer could not draw ${PLAY_FPS} a second)` : '';
-  return done ? `Played ${playing.name}: ${shown}${keptTime}.` : `${playing.shown} frame${playing.shown === 1 ? '' : 's'} shown${keptTime}.`;
-}
 
 export function stopPlay() {
   if (!state.playing || state.ws?.readyState !== WebSocket.OPEN) return;

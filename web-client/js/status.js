@@ -159,6 +159,16 @@ function shownText(now) {
   return text;
 }
 
+// What a play showed, as the viewer saw it: the frames drawn of those the animation has, and those the
+// daemon skipped to keep time at `fps`. `done`: it reached its last frame.
+export function playedNote(playing, fps, done = true) {
+  const total = playing.at ? playing.at.frames : 0;
+  const shown = `${playing.shown} of ${total} frame${total === 1 ? '' : 's'} shown`;
+  const skipped = done ? total - playing.shown : (playing.at ? playing.at.frame + 1 : 0) - playing.shown;
+  const keptTime = skipped > 0 ? `, ${skipped} skipped to keep time (the renderer could not draw ${fps} a second)` : '';
+  return done ? `Played ${playing.name}: ${shown}${keptTime}.` : `${playing.shown} frame${playing.shown === 1 ? '' : 's'} shown${keptTime}.`;
+}
+
 const passClass = (name) => `pass pass-${String(name).replace(/[^a-z_]/g, '')}`;
 
 // The strip under the image: the last frame, and the time each pass took (the last frame that ran any).
