@@ -210,6 +210,27 @@ TEST_F(DaemonViews, AnEditOfTheScenesCameraRendersNothingForAViewerWithItsOwn) {
     EXPECT_EQ(png_size(png).first * 40, png_size(png).second * 48) << "not the own view's aspect";
 }
 
+// A viewer with a camera of its own still gets its still frame after a preview whose revision a
+// presenter's orbit has already passed: the orbit changes nothing it sees, so its preview stands for it.
+TEST_F(DaemonViews, AnOrbitElsewhereDoesNotStopAViewersStillFrame) {
+    const std::string id = create_scene(client, "stills");
+    WsClient own(daemon.ws_port(), ws_path(id), 20);
+    WsClient presenter(daemon.ws_port(), ws_path(id));
+    own.send({{"seq", 1}, {"refine", 1}, {"view", {{"width", 48}, {"height", 40}, {"camera", kCameraLeft}}}});
+    while (own.read_frame().first["quality"] != "still") {
+    }
+    // A light edit (which the viewer sees) and at once an orbit (which it does not).
+    presenter.send({{"seq", 1}, {"refine", 0}, {"patch", {{"light", {{"intensity", 14.0}}}}}});
+    presenter.send({{"seq", 2}, {"refine", 0}, {"patch", {{"camera", {{"position", {0.4, 2.0, 4.5}}}}}}});
+    auto [preview, preview_png] = own.read_frame();
+    EXPECT_EQ(preview["quality"], "interactive");
+    EXPECT_GE(preview["revision"], 2);
+    auto [still, still_png] = own.read_frame();
+    EXPECT_EQ(still["quality"], "still");
+    EXPECT_EQ(still["revision"], 3);
+    EXPECT_EQ(png_size(still_png), (std::pair{48u, 40u}));
+}
+
 // A view out of range is refused whole, with a pointer into the message: the message's patch is not
 // applied, the session keeps its view and the scene its revision.
 TEST_F(DaemonViews, HostileViewsAreRefusedWholeAndChangeNothing) {

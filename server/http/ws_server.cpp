@@ -514,7 +514,12 @@ private:
         } catch (const scene::StoreError&) {
             return;  // the store is away: refinement waits for the next message
         }
-        if (!current || current->revision != revision) return;
+        // A newer revision this view shows no change in (the scene's camera, under a camera of its own)
+        // pushed no frame (sees_no_change): the frame stands for it, and refines on.
+        if (!current) return;
+        if (current->revision != revision &&
+            !(last_seen_ && protocol::seen_through(current->document, view_) == *last_seen_))
+            return;
         if (rendered.quality == scene::Quality::still) {
             if (level >= refine_to_) return;
             wanted_seq_ = seq;
