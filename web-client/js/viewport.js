@@ -28,16 +28,22 @@ export function sizeCanvas() {
   return true;
 }
 
-// Draws the frame shown, scaled to fit the canvas (letterboxed) with smooth filtering.
+// Where a frame of aspect `aspect` goes in a box `width` x `height`: all of it when the aspects agree
+// within the rounding of the view's size to whole pixels (no sliver of a letterbox), else letterboxed.
+function fitted(width, height, aspect) {
+  if (Math.abs(aspect / (width / height) - 1) < 0.02) return { w: width, h: height };
+  return width / height > aspect ? { w: height * aspect, h: height } : { w: width, h: width / aspect };
+}
+
+// Draws the frame shown, scaled to fit the canvas with smooth filtering (letterboxed only while its
+// aspect is not the canvas's, as after a resize, until the frame of the new size comes).
 export function paintFrame() {
   sizeCanvas();
   ctx.fillStyle = '#07090d';
   ctx.fillRect(0, 0, canvas.width, canvas.height);
   const f = state.frame;
   if (!f) return;
-  const k = Math.min(canvas.width / f.width, canvas.height / f.height);
-  const w = f.width * k;
-  const h = f.height * k;
+  const { w, h } = fitted(canvas.width, canvas.height, f.width / f.height);
   ctx.imageSmoothingEnabled = true;
   ctx.imageSmoothingQuality = 'high';
   ctx.drawImage(f.bitmap, 0, 0, f.bitmap.width, f.bitmap.height, (canvas.width - w) / 2, (canvas.height - h) / 2, w, h);
@@ -77,9 +83,7 @@ export function imageRect() {
   const r = canvas.getBoundingClientRect();
   const size = desiredImageSize();
   const aspect = state.frame ? state.frame.width / state.frame.height : size.width / size.height;
-  let w = r.width;
-  let h = r.height;
-  if (w / h > aspect) w = h * aspect; else h = w / aspect;
+  const { w, h } = fitted(r.width, r.height, aspect);
   return { left: (r.width - w) / 2, top: (r.height - h) / 2, width: w, height: h };
 }
 
