@@ -190,10 +190,16 @@ void deposit_floor(vec3 x, vec3 weight, int sign) {
         if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, ivec2(side)))) continue;
         float bw = ((k & 1) == 1 ? f.x : 1.0 - f.x) * ((k >> 1) == 1 ? f.y : 1.0 - f.y);
         ivec3 q = sign * ivec3(weight * bw * params.stepping.w + next_unit());
-        uint index = 3u * uint(t.y * side + t.x);
+        uint index = FLOOR_WORDS * uint(t.y * side + t.x);
         if (q.r != 0) atomicAdd(accum_floor[index], uint(q.r));
         if (q.g != 0) atomicAdd(accum_floor[index + 1u], uint(q.g));
         if (q.b != 0) atomicAdd(accum_floor[index + 2u], uint(q.b));
+        // The share squared, for how many photons the texel's value stands on (radiance_spread.comp): a
+        // shadow's removals cancel hits in the sum, so the sum cannot tell. Rounded to nearest, which
+        // draws nothing from the photon's random stream.
+        float share = (weight.r + weight.g + weight.b) * (1.0 / 3.0) * bw;
+        uint square = uint(share * share * FLOOR_SQUARE_SCALE + 0.5);
+        if (square != 0u) atomicAdd(accum_floor[index + 3u], square);
     }
     if (sign > 0) atomicAdd(stats.floor_hits, 1u);
 }

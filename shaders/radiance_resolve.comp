@@ -68,10 +68,14 @@ void resolve_floor_texel(uint texel) {
     float texel_area = (params.floor_map.z / float(side)) * (params.floor_map.z / float(side));
     float to_irradiance = reference_flux / (params.stepping.w * texel_area);
     // Signed sums (two's complement in uint): the grid both removes and adds floor light.
-    vec3 irradiance = vec3(float(int(accum_floor[3u * texel])), float(int(accum_floor[3u * texel + 1u])),
-                           float(int(accum_floor[3u * texel + 2u]))) * to_irradiance;
+    uint at = FLOOR_WORDS * texel;
+    vec3 irradiance = vec3(float(int(accum_floor[at])), float(int(accum_floor[at + 1u])),
+                           float(int(accum_floor[at + 2u]))) * to_irradiance;
     ivec3 t = ivec3(texel % side, texel / side, 0);
-    imageStore(floor_map, t, batch_mean(imageLoad(floor_map, t), vec4(irradiance, 0.0)));
+    // w: the sum of the photons' squared shares, for the adaptive density estimate (radiance_spread.comp),
+    // kept within half-float range.
+    float squares = min(float(accum_floor[at + 3u]) * (1.0 / FLOOR_SQUARE_SCALE), 6.0e4);
+    imageStore(floor_map, t, batch_mean(imageLoad(floor_map, t), vec4(irradiance, squares)));
 }
 
 // Two dispatches, one per job (kFloorMap): lavapipe would run both jobs' code in every invocation.

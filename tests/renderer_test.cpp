@@ -278,6 +278,7 @@ TEST_F(RendererTest, ACameraDragAfterAStillFrameShadesFromItsRadianceGrid) {
     RunOptions over_still_grid = run_options_for(Quality::interactive);
     over_still_grid.radiance_factor = 1;
     over_still_grid.sampled_deposits = false;
+    over_still_grid.adaptive_density = false;
     over_still_grid.bounce_cap = protocol::kMaxBounces;
     const auto reference_doc =
         protocol::apply_merge_patch(camera, {{"image", {{"width", moved.width}, {"height", moved.height}}}});

@@ -383,6 +383,84 @@ TEST_F(ViewTest, SingleScatteringOfASpotBeamMatchesTheAirlightIntegralInItsCone)
 // resolution (interactive frames), for a narrow beam that lights some cells only; and on a lattice
 // twice as fine as the scene's voxel (an object asking for it), where blocks are LIT_BLOCK of the
 // scene's voxels.
+// Interactive frames' adaptive density estimate (radiance_spread.comp): each radiance voxel's and
+// floor-map texel's light spread over a box sized by the photons behind it. Spreading moves light and
+// never makes or loses any, so the grid's and the floor map's totals are what the resolve left (to float
+// rounding: a voxel sums at most 27 shares, 1e-6 of the total is far above that; the floor map is half
+// floats, rounded once more after the spread: 2^-11 of each texel, so 1e-3 of the texels' absolute sum).
+// And it quiets what few photons make: the difference between two seeds' grids and floor maps (photon
+// noise alone) is smaller spread than raw. The default scene's glass ball sends Fresnel reflections
+// everywhere, a few photons each: the floor's speckle in a light drag.
+TEST_F(ViewTest, AdaptiveDensityKeepsTheGridsTotalAndQuietsSparsePhotons) {
+    const SceneDocument doc = document({{"image", {{"width", 32}, {"height", 32}}}, {"volume", {{"resolution", 64}}},
+                                        {"photons", {{"count", 4096}}}});
+    struct Grids {
+        std::vector<glm::vec4> flux, floor;
+        shaders::TransportParams params;
+    };
+    auto run = [&](uint32_t seed, bool spread) {
+        SceneDocument seeded = doc;
+        seeded.photons.seed = seed;
+        scene::SceneGpu gpu(kit());
+        scene::RunOptions options;
+        options.sampled_deposits = true;
+        options.adaptive_density = spread;
+        gpu.run(scene::kAllPasses, seeded, worlds(seeded), nullptr, options);
+        return Grids{gpu.read_flux(), gpu.read_floor_map(), gpu.params()};
+    };
+    auto total = [](const std::vector<glm::vec4>& v, int c) {
+        double sum = 0.0, absolute = 0.0;
+        for (const auto& x : v) {
+            sum += static_cast<double>(x[c]);
+            absolute += std::abs(static_cast<double>(x[c]));
+        }
+        return std::pair{sum, absolute};
+    };
+    // Over the light's channels: the floor map's w holds what the spread reads, not light.
+    auto seed_difference = [](const std::vector<glm::vec4>& a, const std::vector<glm::vec4>& b, int channels) {
+        double sum = 0.0;
+        for (size_t i = 0; i < a.size(); ++i)
+            for (int c = 0; c < channels; ++c) sum += std::pow(static_cast<double>(a[i][c] - b[i][c]), 2);
+        return std::sqrt(sum / static_cast<double>(a.size()));
+    };
+    const Grids raw1 = run(1, false), raw2 = run(2, false), spread1 = run(1, true), spread2 = run(2, true);
+    for (const auto& [raw, spread] : {std::pair{&raw1, &spread1}, std::pair{&raw2, &spread2}}) {
+        ASSERT_EQ(raw->flux.size(), spread->flux.size());
+        for (int c = 0; c < 4; ++c) {
+            const auto [raw_sum, raw_abs] = total(raw->flux, c);
+            EXPECT_NEAR(total(spread->flux, c).first, raw_sum, 1e-6 * raw_abs) << "flux channel " << c;
+        }
+        for (int c = 0; c < 3; ++c) {
+            const auto [raw_sum, raw_abs] = total(raw->floor, c);
+            EXPECT_GT(raw_abs, 0.0);
+            EXPECT_NEAR(total(spread->floor, c).first, raw_sum, 1e-3 * raw_abs) << "floor channel " << c;
+        }
+    }
+    EXPECT_LT(seed_difference(spread1.flux, spread2.flux, 4), seed_difference(raw1.flux, raw2.flux, 4));
+    // The floor's bright caustic stands on many photons and stays as it is; the speckle is in the texels
+    // that stand on few (an effective count (sum w)^2 / sum w^2 under SPREAD_TRACKS in both seeds, from
+    // the raw maps' w: radiance_spread.comp), and there the spread must quiet it.
+    const shaders::TransportParams& p = raw1.params;
+    const double texel = static_cast<double>(p.floor_map.z / p.floor_map.w);
+    auto effective = [&](const glm::vec4& v) {
+        const double shares = static_cast<double>(v.r + v.g + v.b) / 3.0 * texel * texel / static_cast<double>(p.photon_flux.w);
+        return v.w > 0.0f ? shares * shares / static_cast<double>(v.w) : 0.0;
+    };
+    auto sparse = [&](const Grids& a, const Grids& b) {
+        std::vector<glm::vec4> x, y;
+        for (size_t i = 0; i < raw1.floor.size(); ++i)
+            if (effective(raw1.floor[i]) < double{SPREAD_TRACKS} && effective(raw2.floor[i]) < double{SPREAD_TRACKS}) {
+                x.push_back(a.floor[i]);
+                y.push_back(b.floor[i]);
+            }
+        return std::pair{x, y};
+    };
+    const auto [raw_a, raw_b] = sparse(raw1, raw2);
+    const auto [spread_a, spread_b] = sparse(spread1, spread2);
+    ASSERT_GT(raw_a.size(), 100u);
+    EXPECT_LT(seed_difference(spread_a, spread_b, 3), seed_difference(raw_a, raw_b, 3));
+}
+
 TEST_F(ViewTest, LitPyramidMarksExactlyTheCellsWithinReachOfLitRadianceVoxels) {
     const json isotropic = {{"model", "isotropic"}, {"g", 0}};
     json scene = airlight_scene(isotropic, kSigma, 6.0);

@@ -27,7 +27,7 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
                                  "radiance sums red+green");
     accum.flux = vk::Buffer(context, voxels * RADIANCE_FLUX_WORDS * sizeof(uint64_t), addressed,
                             vk::MemoryUse::device, "radiance sums blue (grey: mean)+net flux");
-    accum.floor = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * 3 * sizeof(uint32_t), usage,
+    accum.floor = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * FLOOR_WORDS * sizeof(uint32_t), usage,
                              vk::MemoryUse::device, "floor flux sum");
     accum.stats = vk::Buffer(context, sizeof(shaders::PhotonStats), usage, vk::MemoryUse::readback, "photon stats");
     const uint64_t lit_cells = passes::lit_pyramid_offsets(dims)[LIT_LEVELS];

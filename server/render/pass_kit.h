@@ -7,6 +7,7 @@
 #include "passes/octree.h"
 #include "passes/photon_trace.h"
 #include "passes/radiance_resolve.h"
+#include "passes/radiance_spread.h"
 #include "passes/tone_map.h"
 #include "passes/view.h"
 #include "passes/voxelize.h"
@@ -23,6 +24,7 @@ struct PassKit {
     passes::DirectLightPass direct_light;
     passes::PhotonTracePass photon_trace;
     passes::RadianceResolvePass radiance_resolve;
+    passes::RadianceSpreadPass radiance_spread;
     passes::LitPyramidPass lit_pyramid;
     passes::ViewPass view;
     passes::ToneMapPass tone_map;

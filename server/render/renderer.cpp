@@ -199,6 +199,7 @@ RunOptions run_options_for(Quality quality) {
         options.radiance_factor = 3;
         options.sampled_deposits = true;
         options.adaptive_view = true;
+        options.adaptive_density = true;
         options.bounce_cap = kInteractiveBounces;
     }
     return options;

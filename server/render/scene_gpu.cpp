@@ -16,6 +16,7 @@ PassKit::PassKit(vk::Context& ctx)
       direct_light(ctx),
       photon_trace(ctx),
       radiance_resolve(ctx),
+      radiance_spread(ctx),
       lit_pyramid(ctx),
       view(ctx),
       tone_map(ctx),

@@ -62,6 +62,9 @@ struct RunOptions {
     bool sampled_deposits = false; // photons deposit once per radiance voxel of path, not exactly per
                                    // voxel crossed (photon_trace.comp); interactive
     bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
+    // Each radiance voxel's light spread over a box sized by the photons behind it (radiance_spread.comp):
+    // smooth where photons are few; interactive.
+    bool adaptive_density = false;
     bool direct_light = true;     // unbent light in closed form; false: photons carry all light (tests)
     uint32_t bounce_cap = protocol::kMaxBounces;  // most of photons.max_bounces a frame takes; interactive: 4
     // Progressive refinement (still frames): a photon run with photon_batch k > 0 draws new photons and

@@ -22,21 +22,26 @@ void TransportStage::clear() {
     radiance_ = {};
     flux_ = {};
     floor_map_ = {};
+    raw_radiance_ = {};
+    raw_flux_ = {};
+    raw_floor_map_ = {};
 }
 
 bool TransportStage::made_for(const FrameInputs::Transport& in, const RunOptions& options) const {
     return options.radiance_factor == radiance_factor_ && options.sampled_deposits == sampled_deposits_ &&
-           in.channels == channels_ && in.bounces == bounces_;
+           options.adaptive_density == adaptive_density_ && in.channels == channels_ && in.bounces == bounces_;
 }
 
 void TransportStage::make_for(const FrameInputs::Transport& in, const RunOptions& options) {
     sampled_deposits_ = options.sampled_deposits;
+    adaptive_density_ = options.adaptive_density;
     bounces_ = in.bounces;
 }
 
 RunOptions TransportStage::with_resident_photons(RunOptions options) const {
     options.radiance_factor = radiance_factor_;
     options.sampled_deposits = sampled_deposits_;
+    options.adaptive_density = adaptive_density_;
     options.bounce_cap = bounces_;  // the document's bounces capped there are those its photons took
     return options;
 }
@@ -56,7 +61,7 @@ void TransportStage::prepare_environment(const passes::EnvironmentSource& source
 }
 
 void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t photon_exit_count, bool record_exits,
-                              uint32_t radiance_factor, uint32_t channels) {
+                              uint32_t radiance_factor, uint32_t channels, bool adaptive_density) {
     vk::Context& ctx = kit_.context;
     const bool to_grey = channels == CHANNELS_GREY;
     const uint32_t floor_texels = passes::floor_map_texels(lattice);
@@ -82,9 +87,25 @@ void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t phot
         radiance_ = vk::Image3D(ctx, colour_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "radiance grid (per channel)");
     }
     channels_ = channels;
+    // The resolve's own images, for the spread to read, at the same sizes.
+    if (!adaptive_density) {
+        raw_flux_ = {};
+        raw_radiance_ = {};
+    } else if (!raw_flux_.get() || !(raw_flux_.extent() == radiance_dims) || !(raw_radiance_.extent() == colour_dims)) {
+        raw_flux_ = {};
+        raw_radiance_ = {};
+        raw_flux_ = vk::Image3D(ctx, radiance_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "resolved flux before the spread");
+        raw_radiance_ = vk::Image3D(ctx, colour_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "resolved radiance before the spread");
+    }
     if (floor_texels != floor_texels_ || !floor_map_.get()) {
         floor_map_ = vk::Image3D(ctx, {floor_texels, floor_texels, 1}, VK_FORMAT_R16G16B16A16_SFLOAT, "floor caustic map");
         floor_texels_ = floor_texels;
+    }
+    if (!adaptive_density) {
+        raw_floor_map_ = {};
+    } else if (!raw_floor_map_.get() || !(raw_floor_map_.extent() == floor_map_.extent())) {
+        raw_floor_map_ = {};
+        raw_floor_map_ = vk::Image3D(ctx, floor_map_.extent(), VK_FORMAT_R16G16B16A16_SFLOAT, "floor map before the spread");
     }
 }
 
@@ -103,7 +124,7 @@ void TransportStage::prepare(const FrameInputs::Transport& in, PassSet stale, co
     for (const auto& light : light_params_) most_photons = std::max(most_photons, light.photon_info.x);
     if (stale & kPhotons)
         allocate(lattice, passes::photon_exit_count(most_photons, in.channels), options.record_photon_exits,
-                 options.radiance_factor, in.channels);
+                 options.radiance_factor, in.channels, options.adaptive_density);
     while (params_buffers_.size() < light_params_.size())
         params_buffers_.emplace_back(kit_.context, sizeof(shaders::TransportParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                                      vk::MemoryUse::upload, "transport params");
@@ -136,7 +157,8 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
                             const passes::GridGeometry& lattice, const VolumeStage& volume, bool& resolved) {
     vk::CommandRecorder& recorder = recording.recorder();
     if (stale & kPhotons && !(built & kPhotons)) {
-        for (const vk::Image3D* image : {&radiance_, &flux_, &floor_map_}) recorder.init_image(*image);
+        for (const vk::Image3D* image : {&radiance_, &flux_, &floor_map_, &raw_radiance_, &raw_flux_, &raw_floor_map_})
+            if (image->get()) recorder.init_image(*image);
     }
     if (!(stale & kPhotons)) return true;
     recording.begin(kPhotons);
@@ -161,10 +183,17 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
                                       bounces_ > 0, recording.between_parts(kPhotons)))
             return false;
         recorder.compute_barrier();
-        kit_.radiance_resolve.record(recorder, params_buffers_[i], *accum_, grey(), radiance_, flux_, floor_map_);
+        const bool spread = raw_flux_.get() != VK_NULL_HANDLE;
+        kit_.radiance_resolve.record(recorder, params_buffers_[i], *accum_, grey(), spread ? raw_radiance_ : radiance_,
+                                     spread ? raw_flux_ : flux_, spread ? raw_floor_map_ : floor_map_);
         resolved = true;
         recorder.compute_barrier();
         if (gap && gap()) return false;
+    }
+    if (raw_flux_.get()) {
+        kit_.radiance_spread.record(recorder, params_buffer(), grey(), {raw_radiance_, raw_flux_, raw_floor_map_},
+                                   {radiance_, flux_, floor_map_});
+        recorder.compute_barrier();
     }
     kit_.lit_pyramid.record(recorder, params_buffer(), flux_, accum_->lit_blocks, lattice.coarsened(lattice.light_factor));
     recorder.compute_barrier();

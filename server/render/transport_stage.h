@@ -71,12 +71,13 @@ public:
 
 private:
     void allocate(const passes::GridGeometry& lattice, uint32_t photon_exit_count, bool record_exits,
-                  uint32_t radiance_factor, uint32_t channels);
+                  uint32_t radiance_factor, uint32_t channels, bool adaptive_density);
     passes::TransportInputs inputs_for(const vk::Buffer& params, const VolumeStage& volume) const;
 
     PassKit& kit_;
     uint32_t floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
     bool sampled_deposits_ = false;  // how the photons in the radiance grid were deposited (RunOptions)
+    bool adaptive_density_ = false;  // whether the grid holds their light spread (RunOptions)
     uint32_t bounces_ = 0;           // how often they could scatter (photon_bounces)
     uint32_t photon_batches_ = 0;    // how many batches its running mean holds (with kPhotons built)
     uint32_t channels_ = CHANNELS_RGB;
@@ -86,6 +87,8 @@ private:
     std::vector<vk::Buffer> params_buffers_;  // one per entry of light_params_
     vk::Buffer materials_;
     vk::Image3D radiance_, flux_, floor_map_;  // radiance_: per-channel fluence, coloured transport only
+    // Under adaptive density, what the resolve writes and the spread reads (else empty).
+    vk::Image3D raw_radiance_, raw_flux_, raw_floor_map_;
     passes::EnvironmentLight environment_light_;
     vk::Buffer environment_map_;
     std::optional<passes::EnvironmentSource> environment_source_;  // what the map was made of

@@ -38,7 +38,13 @@ REFRACT_SHADERS_BEGIN
 // many radiance-voxel sides from the light or more take unbent deposits. Directions within such a voxel
 // stay within 12 degrees of the direction to its centre, and their mean is that direction to second order.
 #define UNBENT_MIN_DISTANCE 4.0f
-#define TRANSPORT_BINDING_ACCUM_FLOOR 10    // fixed-point signed floor flux change, 3 per texel
+#define TRANSPORT_BINDING_ACCUM_FLOOR 10    // FLOOR_WORDS per texel: fixed-point signed floor flux change
+                                            // (rgb), then the sum of its squared shares (FLOOR_SQUARE_SCALE)
+#define FLOOR_WORDS 4u
+// Fixed-point units of the floor map's sum of squared shares: each share (a photon's channel mean, relative
+// to the reference flux, times its bilinear weight) squared, in 1/1024ths. 2^21 photon events on one
+// texel stay within 2^31.
+#define FLOOR_SQUARE_SCALE 1024.0f
 #define TRANSPORT_BINDING_STATS 11          // photon statistics (see PhotonStats)
 #define TRANSPORT_BINDING_RADIANCE 12       // rgba32f: fluence rate (W/m^2) rgb; coloured transport only
 #define TRANSPORT_BINDING_FLUX 13           // rgba32f: net flux vector (W/m^2) xyz, w fluence rate (channel mean)
@@ -74,6 +80,23 @@ REFRACT_SHADERS_BEGIN
                                      // than one indirect dispatch takes): the voxels past it at once
 #define TRANSPORT_BINDING_DIRECT_EDGES 22  // WorkListHeader + radiance voxels (DIRECT_MODE_EDGE)
 #define TRANSPORT_BINDING_DIRECT_REACH 23  // bits per radiance-voxel corner, rows of 32 along x (DIRECT_MODE_REACH)
+// The adaptive density estimate of interactive frames (radiance_spread.comp): the radiance grid as the
+// resolve left it, before each voxel's light is spread over a box sized by the photon tracks behind it.
+#define TRANSPORT_BINDING_RAW_RADIANCE 24  // rgba32f, as TRANSPORT_BINDING_RADIANCE
+#define TRANSPORT_BINDING_RAW_FLUX 25      // rgba32f, as TRANSPORT_BINDING_FLUX
+#define TRANSPORT_BINDING_RAW_FLOOR_MAP 26  // rgba16f, as TRANSPORT_BINDING_FLOOR_MAP
+// A voxel whose photon tracks (in voxel lengths of photons of the reference flux) number fewer than
+// SPREAD_TRACKS spreads its light evenly over the smallest box of (2r + 1)^3 voxels that would hold that
+// many at its density, r at most SPREAD_VOXEL_RADIUS: about a quarter relative noise where photons are
+// few, the voxel itself where they are many. A floor-map texel likewise over (2r + 1)^2 texels, r at
+// most SPREAD_TEXEL_RADIUS. (A voxel radius of 2 read 125 voxels for each: a third of an interactive
+// light edit's photon time on two cores.)
+#define SPREAD_TRACKS 16.0f
+#define SPREAD_VOXEL_RADIUS 1
+#define SPREAD_TEXEL_RADIUS 2
+// One specialization per job, as the resolve's (after the transport constants): true for the dispatch
+// that spreads the floor map's texels (photon hits, (2r + 1)^2 texels), false for the radiance grid's voxels.
+#define SPREAD_CONSTANT_FLOOR TRANSPORT_CONSTANT_COUNT
 #define DIRECT_MARGIN 2.0f       // voxels: a photon's ray lies between its texel's neighbours', not on one
 // Direct light treats a gradient of n (per voxel) and a coverage up to this as none: the smoothing
 // Gaussian's tails leave values of 1e-15 and so far from any object, which over a 1000-voxel path bend

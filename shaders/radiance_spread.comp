@@ -1,0 +1,98 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// Adaptive density estimation for interactive frames (TEMPORAL.md): each radiance voxel's light is
+// spread evenly over a box of (2r + 1)^3 voxels around it, r chosen from the photon tracks behind its
+// fluence (transport.h, SPREAD_*): wide where few photons passed, the voxel alone where many did or
+// where the direct light's closed form fills it. A low-photon frame then shows a smooth, slightly soft
+// beam instead of speckle, and the estimate sharpens by itself as photons grow. Each voxel's share is
+// divided by its box's voxels inside the grid, so the grid's sum is what the resolve left (energy kept).
+// Written as a gather (each voxel adds the boxes that reach it), so no atomics. The floor map's texels
+// (the photons' hits: what the grid changes of the floor's light) spread alike, in squares.
+#include "transport.h"
+layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
+#include "linear_id.glsl"
+
+layout(std140, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams params; };
+layout(binding = TRANSPORT_BINDING_RAW_RADIANCE, rgba32f) uniform readonly image3D raw_radiance;
+layout(binding = TRANSPORT_BINDING_RAW_FLUX, rgba32f) uniform readonly image3D raw_flux;
+layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform writeonly image3D radiance;
+layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform writeonly image3D flux;
+layout(binding = TRANSPORT_BINDING_RAW_FLOOR_MAP, rgba16f) uniform readonly image3D raw_floor_map;
+layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D floor_map;
+layout(constant_id = SPREAD_CONSTANT_FLOOR) const bool kFloorMap = false;
+
+// The photon track length behind fluence `fluence` of radiance voxel v, in its voxel lengths, as photons
+// of the reference flux would lay it (the resolve's conversion backwards: radiance_resolve.comp).
+float tracks(float fluence, ivec3 v) {
+    uint f = params.radiance_grid.w;
+    uvec3 inside = min(uvec3(f), params.grid_dims.xyz - f * uvec3(v));
+    float inside_fraction = float(inside.x * inside.y * inside.z) / float(f * f * f);
+    float h = params.grid_origin.w * float(f);
+    return fluence * h * h * inside_fraction / params.photon_flux.w;
+}
+
+// The radius of the box (dimensions 3: voxels) or square (2: texels) that holds SPREAD_TRACKS tracks or
+// hits at n per voxel or texel, at most `most`.
+int spread_radius(float n, int dimensions, int most) {
+    for (int r = 0; r < most; ++r)
+        if (pow(float(2 * r + 1), float(dimensions)) * n >= SPREAD_TRACKS) return r;
+    return most;
+}
+
+// The photons floor-map texel value `source` stands on, as an effective count (sum w)^2 / sum w^2 of
+// its shares w (relative to the reference flux): their number where all are alike, fewer where hits and
+// removals cancel (a shadow's edge), whose sum is noisier than its size suggests.
+float effective_hits(vec4 source) {
+    float texel = params.floor_map.z / params.floor_map.w;
+    float shares = (source.r + source.g + source.b) * (1.0 / 3.0) * texel * texel / params.photon_flux.w;
+    return source.w > 0.0 ? shares * shares / source.w : 0.0;
+}
+
+void spread_floor_texel(uint i) {
+    int side = int(params.floor_map.w);
+    if (i >= uint(side * side)) return;
+    ivec2 t = ivec2(int(i) % side, int(i) / side);
+    vec3 change = vec3(0.0);
+    ivec2 lo = max(t - SPREAD_TEXEL_RADIUS, ivec2(0)), hi = min(t + SPREAD_TEXEL_RADIUS, ivec2(side - 1));
+    for (int y = lo.y; y <= hi.y; ++y)
+        for (int x = lo.x; x <= hi.x; ++x) {
+            ivec2 j = ivec2(x, y);
+            vec4 source = imageLoad(raw_floor_map, ivec3(j, 0));
+            int r = spread_radius(effective_hits(source), 2, SPREAD_TEXEL_RADIUS);
+            ivec2 apart = abs(t - j);
+            if (max(apart.x, apart.y) > r) continue;
+            ivec2 square = min(j + r, ivec2(side - 1)) - max(j - r, ivec2(0)) + 1;
+            change += source.rgb / float(square.x * square.y);
+        }
+    imageStore(floor_map, ivec3(t, 0), vec4(change, 0.0));
+}
+
+void spread_voxel(uint i) {
+    ivec3 dims = ivec3(params.radiance_grid.xyz);
+    if (i >= uint(dims.x * dims.y * dims.z)) return;
+    ivec3 v = ivec3(int(i) % dims.x, (int(i) / dims.x) % dims.y, int(i) / (dims.x * dims.y));
+    vec4 net = vec4(0.0);
+    vec3 colour = vec3(0.0);
+    ivec3 lo = max(v - SPREAD_VOXEL_RADIUS, ivec3(0)), hi = min(v + SPREAD_VOXEL_RADIUS, dims - 1);
+    for (int z = lo.z; z <= hi.z; ++z)
+        for (int y = lo.y; y <= hi.y; ++y)
+            for (int x = lo.x; x <= hi.x; ++x) {
+                ivec3 j = ivec3(x, y, z);
+                vec4 source = imageLoad(raw_flux, j);
+                int r = spread_radius(tracks(source.w, j), 3, SPREAD_VOXEL_RADIUS);
+                ivec3 apart = abs(v - j);
+                if (max(apart.x, max(apart.y, apart.z)) > r) continue;
+                ivec3 box = min(j + r, dims - 1) - max(j - r, ivec3(0)) + 1;  // its box's voxels inside the grid
+                float share = 1.0 / float(box.x * box.y * box.z);
+                net += share * source;
+                if (!kGreyTransport) colour += share * imageLoad(raw_radiance, j).rgb;
+            }
+    imageStore(flux, v, net);
+    if (!kGreyTransport) imageStore(radiance, v, vec4(colour, 0.0));
+}
+
+// Two dispatches, one per job (kFloorMap): lavapipe would run both jobs' code in every invocation.
+void main() {
+    if (kFloorMap) spread_floor_texel(linear_invocation());
+    else spread_voxel(linear_invocation());
+}
