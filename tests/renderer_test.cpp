@@ -344,6 +344,39 @@ TEST_F(RendererTest, AnObjectDragRebuildsItsVolumeOnACoarseLatticeUntilTheStill)
               pass_names(kView | kToneMap));
 }
 
+// Issue 37: a light dragged less than a radiance voxel keeps half of the radiance grid's light from the
+// frames before it (kPhotonHistory) and adds its own photons, of a seed of their own: the frame is that
+// exponential moving average, as SceneGpu makes it from the two documents in turn. A light moved farther,
+// or any other edit, starts from its own photons alone: the frame a fresh scene makes.
+TEST_F(RendererTest, ALightDraggedALittleKeepsAShareOfTheLastFramesPhotons) {
+    const SceneDocument doc = small();  // at the budget's floor: interactive frames at the document's sizes
+    auto light_at = [&](double x) {
+        return protocol::apply_merge_patch(doc, {{"lights", {{"light", {{"position", {x, 3.0, 1.0}}}}}}});
+    };
+    const SceneDocument near = light_at(2.0005), far = light_at(3.0);
+    Renderer renderer(*context), fresh(*context);
+    renderer.render("a", doc, no_assets, {Quality::interactive});
+    const FrameResult nudged = renderer.render("a", near, no_assets, {Quality::interactive});
+    EXPECT_EQ(pass_names(nudged.rerun), pass_names(kPhotons | kView | kToneMap));
+    EXPECT_NE(nudged.png, fresh.render("b", near, no_assets, {Quality::interactive}).png);
+
+    PassKit kit(*context);
+    SceneGpu reference(kit);
+    const auto no_meshes = [](const std::string&) { return nullptr; };
+    RunOptions options = run_options_for(Quality::interactive);
+    reference.run(kAllPasses, doc, world_meshes(doc, no_meshes), nullptr, options);
+    options.photon_history = kPhotonHistory;
+    options.history_frame = 1;
+    reference.run(kPhotons | kView | kToneMap, near, world_meshes(near, no_meshes), nullptr, options);
+    EXPECT_EQ(nudged.png, image::encode_png(reference.read_ldr(), reference.width(), reference.height()));
+
+    const FrameResult moved = renderer.render("a", far, no_assets, {Quality::interactive});
+    EXPECT_EQ(moved.png, fresh.render("c", far, no_assets, {Quality::interactive}).png);
+    const auto brighter = protocol::apply_merge_patch(far, {{"lights", {{"light", {{"intensity", 30.0}}}}}});
+    EXPECT_EQ(renderer.render("a", brighter, no_assets, {Quality::interactive}).png,
+              fresh.render("d", brighter, no_assets, {Quality::interactive}).png);
+}
+
 TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
     const auto give_way = [] { return true; };
     const SceneDocument wide = small({{"image", {{"width", 512}, {"height", passes::kViewPart / 256}}}});

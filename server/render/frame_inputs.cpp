@@ -56,6 +56,8 @@ FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document,
     transport.radiance_factor = options.radiance_factor * grid.light_factor;
     transport.direct_light = options.direct_light;
     transport.photon_batch = options.photon_batch;
+    transport.photon_history = options.photon_history;
+    transport.history_frame = options.history_frame;
     transport.view_sample = options.view_sample;
     transport.bounce_cap = options.bounce_cap;
     transport.environment = &environment;

@@ -39,6 +39,32 @@ protocol::SceneDocument with_settings(protocol::SceneDocument document, const In
 }
 
 
+// Whether the photons of `before`'s frame still hold for `after`, a frame of a light drag: nothing but
+// the view, the budget's settings and the lights' places changed, and no light moved farther than
+// `radiance_voxel` (metres) where its light lands, up to `reach` metres away (its position's move plus
+// what its turn sweeps there). Farther, the kernel would not hide the old light's place (TEMPORAL.md).
+bool photons_still_hold(protocol::SceneDocument before, const protocol::SceneDocument& after, double radiance_voxel,
+                        double reach) {
+    if (before.lights.size() != after.lights.size()) return false;
+    for (auto& [name, light] : before.lights) {
+        const auto other = after.lights.find(name);
+        if (other == after.lights.end()) return false;
+        const glm::dvec3 from(light.position[0], light.position[1], light.position[2]);
+        const glm::dvec3 to(other->second.position[0], other->second.position[1], other->second.position[2]);
+        const glm::dvec3 d0 = glm::normalize(glm::dvec3(light.direction[0], light.direction[1], light.direction[2]));
+        const glm::dvec3 d1 = glm::normalize(glm::dvec3(other->second.direction[0], other->second.direction[1],
+                                                        other->second.direction[2]));
+        const double turn = std::acos(std::clamp(glm::dot(d0, d1), -1.0, 1.0));
+        if (glm::length(to - from) + reach * turn >= radiance_voxel) return false;
+        light.position = other->second.position;
+        light.direction = other->second.direction;
+    }
+    before.camera = after.camera;
+    before.image = after.image;
+    before.photons.count = after.photons.count;
+    return before == after;
+}
+
 // The milliseconds of a frame spent in passes whose cost the image size and photon count do not set
 // (a geometry edit while dragging), kept out of the budget's measurements.
 double volume_ms(const FrameResult& frame) {
@@ -131,6 +157,7 @@ struct ResidentScene {
     uint64_t last_used = 0;
     uint32_t level = 0;  // refinement level of the resident still frame (0: the frame is interactive or partial)
     uint32_t lattice_divisor = 1;  // the interactive lattice's (InteractiveSettings), 1 after a still frame
+    uint32_t history_frames = 0;   // frames of a light drag whose photons the radiance grid holds a share of
     FrameBudget budget;  // this scene's dynamic resolution
 };
 
@@ -440,6 +467,19 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     frame_options.radiance_factor = std::max(1u, (frame_options.radiance_factor + divisor / 2) / divisor);
     if (quality == Quality::interactive && !(plan.stale & kPhotons))
         frame_options = resident.gpu->with_resident_photons(frame_options);
+    // A light dragged a little keeps part of the last frames' photons: smooth light while it moves.
+    const passes::GridGeometry& lattice = resident.gpu->grid();
+    const bool history = quality == Quality::interactive && (plan.stale & kPhotons) && resident.level == 0 &&
+                         resident.gpu->photon_batches(plan.document, frame_options) > 0 &&
+                         photons_still_hold(resident.document, plan.document,
+                                            static_cast<double>(lattice.voxel_size) *
+                                                (lattice.light_factor * frame_options.radiance_factor),
+                                            static_cast<double>(glm::length(lattice.max_corner() - lattice.origin)));
+    resident.history_frames = history ? resident.history_frames + 1 : 0;
+    if (history) {
+        frame_options.photon_history = kPhotonHistory;
+        frame_options.history_frame = resident.history_frames;
+    }
     try {
         if (!impl_->run_steps(resident, plan, worlds, resolved, frame_options, give_way, frame)) {
             frame.outcome = FrameResult::Outcome::superseded;  // the resident state is whole; only the frame was not made

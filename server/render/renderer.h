@@ -34,6 +34,10 @@ enum class Quality { interactive, still };
 // Scattering events per photon the photons of interactive frames take at most: each bounce costs about
 // one more free path of steps, and the first few carry most of the glow (docs/multiple-scattering.md).
 inline constexpr uint32_t kInteractiveBounces = 4;
+// The share of the radiance grid's light a light drag's frame keeps from the frames before it, while the
+// light has moved less than a radiance voxel (RunOptions::photon_history): the last frame's photons
+// weigh a half, the one before a quarter, and so on.
+inline constexpr float kPhotonHistory = 0.5f;
 
 // How the passes run for a quality: `interactive` takes two-voxel eye-ray steps in fog, a radiance
 // grid of a third of the resolution per axis, sampled photon deposits, adaptive pixels and at most

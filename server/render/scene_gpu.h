@@ -72,6 +72,11 @@ struct RunOptions {
     // a jittered sample into the frame's running mean of s + 1 samples. Runs must come in order.
     uint32_t photon_batch = 0;
     uint32_t view_sample = 0;
+    // Interactive light drags: the share of the radiance grid's light its previous frames keep (their
+    // photons, weighted by age as an exponential moving average; 0: the new photons replace them), and
+    // which frame of such a run this is (each draws photons of its own seed).
+    float photon_history = 0.0f;
+    uint32_t history_frame = 0;
     // Set (the render queue sets it for every frame): the photon and view dispatches then run in parts of
     // about passes::kWorkPart photons or kViewPart pixels, a submission each, and this is asked after
     // each; when it says to stop, the run stops there (RunStats::gave_way), and what its photon and view passes hold is

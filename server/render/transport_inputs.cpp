@@ -290,7 +290,10 @@ void set_camera(shaders::TransportParams& p, const protocol::SceneDocument& docu
     p.image = glm::uvec4(document.image.width, document.image.height, 0u, 0u);
     p.tone = glm::vec4(std::exp2(static_cast<float>(document.image.exposure)), options.view_step,
                        options.view_step * options.reflected_view_step, 0.0f);
-    p.refinement = glm::vec4(1.0f / static_cast<float>(options.photon_batch + 1),
+    // A light drag's frame joins the photons of the frames before it as an exponential moving average.
+    const float batch_weight = options.photon_history > 0.0f ? 1.0f - options.photon_history
+                                                             : 1.0f / static_cast<float>(options.photon_batch + 1);
+    p.refinement = glm::vec4(batch_weight,
                              1.0f / static_cast<float>(options.view_sample + 1), passes::view_sample_offset(options.view_sample));
 }
 
@@ -368,7 +371,7 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
         // Each refinement batch draws its own photons: another seed (a Weyl step, so batches never repeat
         // one), and so does each light.
         const uint32_t seed = document.photons.seed + options.photon_batch * 0x9e3779b9u +
-                              static_cast<uint32_t>(i) * 0x632be5abu;
+                              static_cast<uint32_t>(i) * 0x632be5abu + options.history_frame * 0x2545f491u;
         const uint32_t count = photons + environment_share;
         q.photon_info = glm::uvec4(count, seed, max_steps, options.fixed_step ? 1u : 0u);
         // Fixed-point scales chosen so no voxel or texel sum can overflow 2^31 even if every photon

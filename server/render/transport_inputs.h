@@ -22,6 +22,8 @@ struct TransportOptions {
     uint32_t radiance_factor = 1;  // index-field voxels per radiance voxel along each axis (1 or 2)
     bool direct_light = true;  // unbent light in closed form (DirectLightPass) rather than by photons
     uint32_t photon_batch = 0;  // progressive refinement: which batch of photons (0: the document's seed)
+    float photon_history = 0.0f;    // RunOptions::photon_history
+    uint32_t history_frame = 0;     // RunOptions::history_frame
     uint32_t view_sample = 0;   // progressive refinement: which eye-ray sample per pixel (0: the centre)
     uint32_t bounce_cap = protocol::kMaxBounces;  // most of photons.max_bounces taken (interactive: fewer)
     const passes::EnvironmentLight* environment = nullptr;  // the document's environment (nullptr: lights nothing)
