@@ -53,7 +53,19 @@ vec3 direct_irradiance(vec3 x) {
     return irradiance;
 }
 
-vec3 floor_radiance(vec3 x) {
+// The checker's square wave along one axis (+1 on even cells, -1 on odd ones, u in cells), averaged over
+// [u - w / 2, u + w / 2]: differences of its integral, a triangle wave. The box filter of the pixel's
+// footprint, exactly, so the checker does not alias into moire toward the horizon (TEMPORAL.md).
+float checker_integral(float u) { return 1.0 - abs(mod(u, 2.0) - 1.0); }
+float filtered_square(float u, float w) {
+    if (w < 1e-3) return mod(floor(u), 2.0) == 0.0 ? 1.0 : -1.0;
+    return (checker_integral(u + 0.5 * w) - checker_integral(u - 0.5 * w)) / w;
+}
+
+// The floor's radiance at x for an eye ray arriving along d that has come `distance` (metres) from the
+// eye: the checker filtered over the pixel's footprint there (its cone's width, stretched along the
+// ray's horizontal direction by 1 / |d.y|; the box around that ellipse).
+vec3 floor_radiance(vec3 x, vec3 d, float distance) {
     // Unobstructed light plus what the grid changed (shadow, caustics; see photon_trace.comp).
     vec2 m = (x.xz - params.floor_map.xy) / params.floor_map.z;
     vec3 irradiance = direct_irradiance(x) + params.environment_light.rgb;
@@ -61,8 +73,14 @@ vec3 floor_radiance(vec3 x) {
         irradiance = max(irradiance + textureLod(floor_map, vec3(m, 0.5), 0.0).rgb, vec3(0.0));
     vec3 albedo = params.floor_albedo.rgb;
     if (params.floor_plane.w > 0.5) {
-        ivec2 cell = ivec2(floor(x.xz / params.floor_plane.y));
-        if (((cell.x + cell.y) & 1) != 0) albedo *= 0.35;
+        float cell = params.floor_plane.y;
+        float across = distance * 2.0 * params.camera_position.w / float(params.image.y) / cell;
+        float along = min(across / max(abs(d.y), 1e-3), 1e4);
+        vec2 u = length(d.xz) > 1e-6 ? normalize(d.xz) : vec2(1.0, 0.0);
+        vec2 w = sqrt(along * along * u * u + across * across * u.yx * u.yx);
+        vec2 c = x.xz / cell;
+        float dark = 0.5 - 0.5 * filtered_square(c.x, w.x) * filtered_square(c.y, w.y);
+        albedo *= mix(1.0, 0.35, dark);
     }
     return albedo * (1.0 / kPi) * irradiance;
 }
@@ -318,7 +336,8 @@ void shade(uvec2 pixel) {
             // the floor, whichever of the two the march's rounding found first.
             bool sees_floor = on_floor || (floor_on && end_d.y < 0.0 && end.y > params.floor_plane.x - 1e-3 * h);
             vec3 floor_point = on_floor ? end : end + end_d * ((end.y - params.floor_plane.x) / -end_d.y);
-            pixel_radiance += transmittance * (sees_floor ? floor_radiance(floor_point) : sky(end_d));
+            pixel_radiance += transmittance * (sees_floor ? floor_radiance(floor_point, end_d, length(floor_point - params.camera_position.xyz))
+                                                          : sky(end_d));
         }
     }
     atomicAdd(stats.view_steps, march_steps);

@@ -461,6 +461,56 @@ TEST_F(ViewTest, AdaptiveDensityKeepsTheGridsTotalAndQuietsSparsePhotons) {
     EXPECT_LT(seed_difference(spread_a, spread_b, 3), seed_difference(raw_a, raw_b, 3));
 }
 
+// The checker floor is box-filtered over each pixel's footprint (view.comp, floor_radiance), so toward
+// the horizon it turns to the cells' mean instead of moire. The same frame with the checker off gives the
+// light the floor receives, so their ratio is the filtered albedo factor mix(1, 0.35, dark), dark =
+// (1 - F_x F_z) / 2, where each axis's box mean F of the +-1 square wave is at most 1 / w in size over a
+// box w cells wide. Where the footprint's box spans w_x, w_z >= 2 cells (computed here as the shader does:
+// the pixel cone's width at the hit, stretched by 1 / |d.y| along the ray's horizontal direction), the
+// ratio is within 0.325 / (w_x w_z) of the mean 0.675; an unfiltered checker gives 1 or 0.35 there.
+TEST_F(ViewTest, CheckerFloorIsBoxFilteredOverThePixelsFootprint) {
+    const json scene = {{"image", {{"width", 96}, {"height", 64}}},
+                        {"camera", {{"position", {0.0, 0.4, 4.0}}, {"target", {0.0, -0.6, -8.0}}, {"fov_deg", 50}}},
+                        {"lights", {{"light", {{"type", "directional"}, {"direction", {0.3, -1.0, 0.2}}, {"intensity", 2.0}}}}},
+                        {"objects", {{"object", {{"position", {0.0, 0.0, 8.0}}, {"scale", 0.2}}}}},
+                        {"medium", {{"extinction", {0, 0, 0}}, {"scattering", {0, 0, 0}}}},
+                        {"floor", {{"enabled", true}, {"height", -1.0}, {"checker", true}, {"checker_size", 0.25}}},
+                        {"volume", {{"resolution", 32}}},
+                        {"photons", {{"count", 4096}}}};
+    json plain = scene;
+    plain["floor"]["checker"] = false;
+    std::vector<glm::vec4> frames[2];
+    shaders::TransportParams p{};
+    for (int i = 0; i < 2; ++i) {
+        const SceneDocument doc = document(i == 0 ? scene : plain);
+        scene::SceneGpu gpu(kit());
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
+        frames[i] = gpu.read_hdr();
+        p = gpu.params();
+    }
+    const double height = static_cast<double>(p.floor_plane.x), cell = static_cast<double>(p.floor_plane.y);
+    const double pixel_angle = 2.0 * static_cast<double>(p.camera_position.w) / p.image.y;
+    int far = 0;
+    for (uint32_t y = 0; y < p.image.y; ++y)
+        for (uint32_t x = 0; x < p.image.x; ++x) {
+            const EyeRay ray = eye_ray(p, x, y);
+            if (ray.dir.y >= -1e-3) continue;
+            const double t = (ray.origin.y - height) / -ray.dir.y;
+            const double across = t * pixel_angle / cell, along = std::min(across / std::abs(ray.dir.y), 1e4);
+            const glm::dvec2 u = glm::normalize(glm::dvec2(ray.dir.x, ray.dir.z));
+            const double wx = std::sqrt(along * along * u.x * u.x + across * across * u.y * u.y);
+            const double wz = std::sqrt(along * along * u.y * u.y + across * across * u.x * u.x);
+            if (wx < 2.0 || wz < 2.0) continue;
+            const size_t i = size_t{y} * p.image.x + x;
+            const double lit = grey(frames[1][i]);
+            ASSERT_GT(lit, 0.0) << x << "," << y;
+            EXPECT_NEAR(grey(frames[0][i]) / lit, 0.675, 0.325 / (wx * wz) + 1e-3) << x << "," << y;
+            ++far;
+        }
+    std::printf("checker: %d pixels with footprints of 2 cells or more\n", far);
+    EXPECT_GT(far, 200);
+}
+
 TEST_F(ViewTest, LitPyramidMarksExactlyTheCellsWithinReachOfLitRadianceVoxels) {
     const json isotropic = {{"model", "isotropic"}, {"g", 0}};
     json scene = airlight_scene(isotropic, kSigma, 6.0);
@@ -629,12 +679,13 @@ char symbol(Seen s) { return s == Seen::sky ? '.' : s == Seen::light_cell ? 'O' 
 //    at each of the two interfaces (measured on photons through this sphere: rms <= 0.02 rad for impact
 //    parameters below 0.75 R, ~0.005 rad in between).
 //  - Far floor near the horizon too dim to tell from the sky (a dark cell below 10x the brightest sky
-//    colour) is left out.
+//    colour) is left out, and so is floor seen directly within half its pixel's footprint of a checker
+//    edge (the shader box-filters the checker over the footprint: CheckerFloorIsBoxFilteredOver...).
 // A pixel's class in the rendering: sky below sqrt(10) x the brightest sky colour; else light or dark
 // cell by comparison with sqrt(0.35) x the analytic light-cell radiance at the sharp trace's floor point
 // (the shader's dark cells reflect 0.35 of the light cells' albedo). Required: >= 95% of the compared
 // pixels seen through the sphere agree, and >= 99% of those seeing the floor or sky directly. Measured:
-// 98.8% of 692 and 99.9% of 1372. Refraction alone (Fresnel off), as the sharp trace has no reflection:
+// 99.3% of 692 and 100% of 1054. Refraction alone (Fresnel off), as the sharp trace has no reflection:
 // light the sphere reflects lands on the far floor beside it (grazing reflections, where reflectance
 // nears 1) and lit 25 of those dark cells with the isotropic gradient, as many with 64 times the
 // photons: the reflected light itself, not its noise.
@@ -681,6 +732,18 @@ void expect_sharp_interface_classes(const scene::SceneGpu& gpu) {
             if (on_floor(sharp.seen)) {
                 compare = compare && checker_edge_distance(sharp.floor_point) >= 2.0 * voxel + 0.02 * sharp.lens_to_floor &&
                           0.35 * light_cell_radiance(sharp.floor_point) >= 10.0 * sky_max;
+                // The shader box-filters the checker over the pixel's footprint: seen directly, a floor point
+                // within half the footprint's box of an edge in either axis takes some of the other cell.
+                if (!sharp.through_sphere) {
+                    const double across = glm::length(sharp.floor_point - ray.origin) * 2.0 *
+                                          static_cast<double>(p.camera_position.w) / h;
+                    const double along = across / std::max(std::abs(ray.dir.y), 1e-3);
+                    const glm::dvec2 u = glm::normalize(glm::dvec2(ray.dir.x, ray.dir.z));
+                    const glm::dvec2 box(std::sqrt(along * along * u.x * u.x + across * across * u.y * u.y),
+                                         std::sqrt(along * along * u.y * u.y + across * across * u.x * u.x));
+                    auto edge = [](double v) { return std::abs(v / kChecker - std::round(v / kChecker)) * kChecker; };
+                    compare = compare && edge(sharp.floor_point.x) >= 0.5 * box.x && edge(sharp.floor_point.z) >= 0.5 * box.y;
+                }
             }
             const double m = grey(hdr[size_t{y} * w + x]);
             Seen rendered = Seen::sky;
