@@ -10,7 +10,7 @@
 //   - the daemon's warm-up (health's warming_up), which navigation waits for, as a user opening the
 //     client on a running daemon would;
 //   - navigation to the first frame received and drawn, and to the first full-resolution still;
-//   - a 3 s orbit drag and a 3 s shift-drag of the light: frames received per second while dragging,
+//   - a 3 s orbit drag, a 3 s shift-drag of the light and a 3 s alt-drag of the object: frames received per second while dragging,
 //     and the time from releasing the mouse to the first full-resolution still;
 //   - an exposure edit over HTTP (POST frame.png with a merge patch): the Server-Timing pass sum and
 //     the request's wall time.
@@ -199,9 +199,11 @@ async function stillOfLatest(sceneId, size, since, what) {
   throw new Error(`timed out after ${SETTLE_TIMEOUT_MS / 1000} s waiting for ${what}`);
 }
 
-// A drag of DRAG_MS over the canvas (with Shift: the light), then release; frames while dragging
-// and the time from release to the first full-resolution still. Returns [measurements, that still].
-async function drag(page, sceneId, size, light) {
+// A drag of DRAG_MS over the canvas (`what`: 'orbit'; 'light' with Shift; 'object' with Alt), then
+// release; frames while dragging and the time from release to the first full-resolution still. Returns
+// [measurements, that still].
+async function drag(page, sceneId, size, what) {
+  const modifier = { orbit: null, light: 'Shift', object: 'Alt' }[what];
   const box = await page.locator('#view').boundingBox();
   const cx = box.x + box.width / 2;
   const cy = box.y + box.height / 2;
@@ -209,7 +211,7 @@ async function drag(page, sceneId, size, light) {
   const firstIndex = frames.length;
   const sentIndex = sent.length;
   await page.mouse.move(cx, cy);
-  if (light) await page.keyboard.down('Shift');
+  if (modifier) await page.keyboard.down(modifier);
   await page.mouse.down();
   const start = Date.now();
   let moves = 0;
@@ -221,9 +223,9 @@ async function drag(page, sceneId, size, light) {
   }
   const end = Date.now();
   await page.mouse.up();
-  if (light) await page.keyboard.up('Shift');
+  if (modifier) await page.keyboard.up(modifier);
   const during = frames.slice(firstIndex).filter((f) => f.t >= start && f.t <= end);
-  const still = await stillOfLatest(sceneId, size, end, `a full-resolution still after the ${light ? 'light' : 'orbit'} drag`);
+  const still = await stillOfLatest(sceneId, size, end, `a full-resolution still after the ${what} drag`);
   const interactive = during.filter((f) => f.quality === 'interactive');
   const firstDuring = frames.slice(firstIndex).find((f) => f.t >= start);
   // Frames of the drag's own edits: from the first one answering a request sent while dragging.
@@ -337,13 +339,17 @@ async function main() {
 
   // 2. Drags, each LOOK_MS after the still before it.
   const refinedBeforeOrbit = await look(firstFull);
-  const [orbit, orbitStill] = await drag(page, sceneId, size, false);
+  const [orbit, orbitStill] = await drag(page, sceneId, size, 'orbit');
   orbit.frames_before = refinedBeforeOrbit;
   log('orbit', JSON.stringify(orbit));
   const refinedBeforeLight = await look(orbitStill);
-  const [light] = await drag(page, sceneId, size, true);
+  const [light, lightStill] = await drag(page, sceneId, size, 'light');
   light.frames_before = refinedBeforeLight;
   log('light', JSON.stringify(light));
+  const refinedBeforeObject = await look(lightStill);
+  const [object] = await drag(page, sceneId, size, 'object');
+  object.frames_before = refinedBeforeObject;
+  log('object', JSON.stringify(object));
   const maxLevel = Math.max(0, ...frames.map((f) => f.level ?? 0));
   await page.close();
   await context.close();
@@ -354,7 +360,7 @@ async function main() {
 
   return {
     label: LABEL, refractd: REFRACTD, web_root: WEB_ROOT, device, hooks: hooked, scene: sceneId,
-    frames_total: frames.length, max_level: maxLevel, load, orbit, light,
+    frames_total: frames.length, max_level: maxLevel, load, orbit, light, object,
     frames: frames.map((f) => [f.t - navStart, f.quality, `${f.width}x${f.height}`, f.level, f.revision, f.seq,
       f.passMs === null ? null : Math.round(f.passMs), roundTimings(f.timings), sinceAsked(f)]),
     exposure: {
@@ -378,6 +384,9 @@ function table(r) {
     ['light drag: frames/s', r.light.fps.toFixed(1), `${r.light.frames} frames in ${r.light.seconds.toFixed(1)} s, interactive ${r.light.interactive_size ?? '—'}`],
     ['light: first frame of the drag\'s edits', ms(r.light.first_answer_ms), `then ${r.light.steady_fps === null ? '—' : r.light.steady_fps.toFixed(1)} frames/s, interactive passes ${ms(r.light.interactive_pass_ms)}`],
     ['light release -> full-resolution still', ms(r.light.release_to_full_ms), `passes ${ms(r.light.still_pass_ms)}`],
+    ['object drag (Alt): frames/s', r.object.fps.toFixed(1), `${r.object.frames} frames in ${r.object.seconds.toFixed(1)} s, interactive ${r.object.interactive_size ?? '—'}`],
+    ['object: first frame of the drag\'s edits', ms(r.object.first_answer_ms), `then ${r.object.steady_fps === null ? '—' : r.object.steady_fps.toFixed(1)} frames/s, interactive passes ${ms(r.object.interactive_pass_ms)}`],
+    ['object release -> full-resolution still', ms(r.object.release_to_full_ms), `passes ${ms(r.object.still_pass_ms)}`],
     ['exposure edit: pass sum (Server-Timing)', ms(r.exposure.first_pass_ms), `median of ${EXPOSURE_EDITS.length}: ${ms(r.exposure.median_pass_ms)}`],
     ['exposure edit: wall time (HTTP)', ms(r.exposure.first_wall_ms), `median of ${EXPOSURE_EDITS.length}: ${ms(r.exposure.median_wall_ms)}`],
   ];
