@@ -288,8 +288,8 @@ async function main() {
         if (at.again) break;  // around once
         reached.push(at.id);
       }
-      assert(reached.includes('environment-file') && reached.includes('view-save'),
-        `at ${width}x${height} the tab order never reached the HDR/EXR upload or Save this view: ${reached.join(' ')}`);
+      assert(reached.includes('environment-file') && reached.includes('view-follow'),
+        `at ${width}x${height} the tab order never reached the HDR/EXR upload or Follow the scene's camera: ${reached.join(' ')}`);
       await page.evaluate(() => document.activeElement?.blur());
       if (width === 1024) await shot(page, '01b-1024x700.png');
     }
@@ -680,6 +680,11 @@ async function main() {
       await waitSettled(page2, rev);
       now = await sceneOnServer(sceneId);
       assert(JSON.stringify(now.scene.camera.position) === JSON.stringify(own.position), `saved ${JSON.stringify(now.scene.camera)}, own ${JSON.stringify(own)}`);
+      // The panel says so, and there is nothing more to save until the view moves.
+      const savedUi = await page2.evaluate(() => ({
+        note: document.getElementById('view-note').textContent, disabled: document.getElementById('view-save').disabled,
+      }));
+      assert(/saved view/.test(savedUi.note) && savedUi.disabled, `after saving: ${JSON.stringify(savedUi)}`);
       await page.click('#view-follow');
       await waitSettled(page);
     } finally {

@@ -9,14 +9,14 @@ import { initView } from './interaction.js';
 import { members } from './outliner.js';
 import { buildPanel } from './panel.js';
 import { edit, link, saveView, setFollow, stopPlay } from './session.js';
-import { hooks, state } from './state.js';
+import { hooks, state, view } from './state.js';
 import { stageMessage } from './status.js';
 
 window.refract = hooks;  // read by the end-to-end test and the benchmark (README: Test hooks)
 
 buildPanel($('controls'), edit, {
   uploadMesh, uploadEnvironment, meshPatch, loadExample, importScene, exportScene, playKeyframes, stopPlay, members,
-  saveView, setFollow, following: () => state.follow,
+  saveView, setFollow, following: () => state.follow, sceneCamera: () => view().camera,
 });
 initView();
 $('save-png').addEventListener('click', savePng);

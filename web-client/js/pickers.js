@@ -4,7 +4,7 @@
 
 import { h } from './dom.js';
 import { Field, isEditing } from './fields.js';
-import { getAt } from './scene.js';
+import { deepEqual, getAt } from './scene.js';
 
 const BUILTIN_MESHES = [['sphere', 'Sphere'], ['cube', 'Cube'], ['torus', 'Torus'], ['prism', 'Prism'], ['bunny', 'Bunny']];
 
@@ -202,17 +202,20 @@ export class ViewField extends Field {
       title: 'Make your camera the scene’s camera: what new viewers, exports and `refract render` start from' });
     this.note = h('p', { class: 'note', id: 'view-note', 'aria-live': 'polite' });
     this.following = actions.following;
+    this.sceneCamera = actions.sceneCamera;
     this.follow.addEventListener('click', () => actions.setFollow(!this.following()));
     this.save.addEventListener('click', () => actions.saveView());
     this.describe(this.follow, this.save);
     this.el.append(this.label, h('div', { class: 'row wrap' }, this.follow, this.save), this.note, this.error);
   }
-  update() {
+  // `doc` as this viewer sees it (its own camera, or the scene's when following).
+  update(doc) {
     const on = this.following();
+    const saved = !on && deepEqual(doc.camera, this.sceneCamera());
     this.follow.setAttribute('aria-pressed', String(on));
-    this.save.disabled = on;
-    this.note.textContent = on
-      ? 'You look through the scene’s camera: your orbit moves it for everyone who follows it.'
-      : 'Your own camera: orbiting moves only your view. The scene keeps its own until you save yours.';
+    this.save.disabled = on || saved;
+    if (on) this.note.textContent = 'You look through the scene’s camera: your orbit moves it for everyone who follows it.';
+    else if (saved) this.note.textContent = 'Your view is the scene’s saved view. Orbiting moves only yours.';
+    else this.note.textContent = 'Your own camera: orbiting moves only your view. The scene keeps its own until you save yours.';
   }
 }

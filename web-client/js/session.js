@@ -101,6 +101,7 @@ export function saveView() {
   if (state.follow || !state.ownCamera) return;
   state.pending = S.composePatches(state.pending, { camera: state.ownCamera });
   state.pendingQuality = 'still';
+  showDocument();
   pump();
 }
 
