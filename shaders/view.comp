@@ -35,8 +35,12 @@ float unlit_cell(vec3 p) {
 
 const float kPi = 3.14159265358979;
 
-// Irradiance straight from every light at a floor point (normal +y), without occlusion.
-vec3 direct_irradiance(vec3 x) {
+// Irradiance straight from every light at a floor point (normal +y), without occlusion, over a pixel's
+// footprint there, the box with edges `along` and `across` (metres, on the floor): a spot's cone edge is
+// box-filtered across it (the share of the footprint inside the cone, by the angle off the spot's axis,
+// which changes across the box by the box's extent along that angle's gradient), so the lit disc's rim
+// is not stair-stepped.
+vec3 direct_irradiance(vec3 x, vec3 along, vec3 across) {
     vec3 irradiance = vec3(0.0);
     for (uint k = 0u; k < params.light_set.x; ++k) {
         LightParams light = params.lights[k];
@@ -47,8 +51,18 @@ vec3 direct_irradiance(vec3 x) {
         vec3 l = light.position.xyz - x;
         float r2 = dot(l, l);
         vec3 to_light = l / sqrt(r2);
-        if (light.type.x == LIGHT_SPOT && dot(-to_light, light.direction.xyz) < light.position.w) continue;
-        irradiance += light.power.rgb * max(0.0, to_light.y) / r2;
+        float inside = 1.0;
+        if (light.type.x == LIGHT_SPOT) {
+            float cos_off = clamp(dot(-to_light, light.direction.xyz), -1.0, 1.0);
+            float off_axis = acos(cos_off);
+            float rim = acos(clamp(light.position.w, -1.0, 1.0));
+            // The gradient of the off-axis angle at x: away from the axis, of size 1 / r.
+            vec3 away = cos_off * -to_light - light.direction.xyz;
+            vec3 gradient = away / max(length(away) * sqrt(r2), 1e-12);
+            float width = abs(dot(gradient, along)) + abs(dot(gradient, across));
+            inside = width > 1e-6 ? clamp((rim - off_axis) / width + 0.5, 0.0, 1.0) : (off_axis <= rim ? 1.0 : 0.0);
+        }
+        irradiance += inside * light.power.rgb * max(0.0, to_light.y) / r2;
     }
     return irradiance;
 }
@@ -68,16 +82,17 @@ float filtered_square(float u, float w) {
 vec3 floor_radiance(vec3 x, vec3 d, float distance) {
     // Unobstructed light plus what the grid changed (shadow, caustics; see photon_trace.comp).
     vec2 m = (x.xz - params.floor_map.xy) / params.floor_map.z;
-    vec3 irradiance = direct_irradiance(x) + params.environment_light.rgb;
+    float across = distance * 2.0 * params.camera_position.w / float(params.image.y);  // metres
+    float along = across / max(abs(d.y), 1e-3);  // stretched along the ray's horizontal direction
+    vec2 u = length(d.xz) > 1e-6 ? normalize(d.xz) : vec2(1.0, 0.0);
+    vec3 irradiance = direct_irradiance(x, along * vec3(u.x, 0.0, u.y), across * vec3(-u.y, 0.0, u.x)) +
+                      params.environment_light.rgb;
     if (all(greaterThanEqual(m, vec2(0.0))) && all(lessThanEqual(m, vec2(1.0))))
         irradiance = max(irradiance + textureLod(floor_map, vec3(m, 0.5), 0.0).rgb, vec3(0.0));
     vec3 albedo = params.floor_albedo.rgb;
     if (params.floor_plane.w > 0.5) {
         float cell = params.floor_plane.y;
-        float across = distance * 2.0 * params.camera_position.w / float(params.image.y) / cell;
-        float along = min(across / max(abs(d.y), 1e-3), 1e4);
-        vec2 u = length(d.xz) > 1e-6 ? normalize(d.xz) : vec2(1.0, 0.0);
-        vec2 w = sqrt(along * along * u * u + across * across * u.yx * u.yx);
+        vec2 w = sqrt(along * along * u * u + across * across * u.yx * u.yx) / cell;
         vec2 c = x.xz / cell;
         float dark = 0.5 - 0.5 * filtered_square(c.x, w.x) * filtered_square(c.y, w.y);
         albedo *= mix(1.0, 0.35, dark);

@@ -511,6 +511,64 @@ TEST_F(ViewTest, CheckerFloorIsBoxFilteredOverThePixelsFootprint) {
     EXPECT_GT(far, 200);
 }
 
+// A spot's lit disc on the floor has a box-filtered rim too (view.comp, direct_irradiance): a pixel whose
+// footprint lies wholly inside the cone (or outside) shows the floor as a hard edge would, and one whose
+// footprint straddles the rim shows a share of it, strictly between: the rim is a ramp at most a pixel
+// or two wide instead of a staircase. Whether a footprint straddles is decided here from the off-axis
+// angle's change across it (its box's extent along the angle's gradient, 1 / r in size), with a tenth of
+// a pixel's margin either way for the shader's float arithmetic.
+TEST_F(ViewTest, SpotRimOnTheFloorIsBoxFilteredOverThePixelsFootprint) {
+    const json scene = {{"image", {{"width", 96}, {"height", 64}}},
+                        {"camera", {{"position", {0.0, 0.4, 4.0}}, {"target", {0.0, -0.6, -8.0}}, {"fov_deg", 50}}},
+                        {"lights", {{"light", {{"type", "spot"}, {"position", {0.0, 3.0, 0.0}}, {"direction", {0.0, -1.0, -0.3}},
+                                               {"intensity", 20.0}, {"cone_deg", 25.0}}}}},
+                        {"objects", {{"object", {{"position", {0.0, 0.0, 8.0}}, {"scale", 0.2}}}}},
+                        {"medium", {{"extinction", {0, 0, 0}}, {"scattering", {0, 0, 0}}}},
+                        {"floor", {{"enabled", true}, {"height", -1.0}, {"checker", false}}},
+                        {"volume", {{"resolution", 32}}},
+                        {"photons", {{"count", 4096}}}};
+    const SceneDocument doc = document(scene);
+    scene::SceneGpu gpu(kit());
+    gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr);
+    const auto hdr = gpu.read_hdr();
+    const shaders::TransportParams& p = gpu.params();
+    const dvec3 light(0.0, 3.0, 0.0), axis = glm::normalize(dvec3(0.0, -1.0, -0.3));
+    const double rim = glm::radians(25.0), height = static_cast<double>(p.floor_plane.x);
+    const double pixel_angle = 2.0 * static_cast<double>(p.camera_position.w) / p.image.y;
+    const double albedo = static_cast<double>(p.floor_albedo.r + p.floor_albedo.g + p.floor_albedo.b) / 3.0;
+    int straddling = 0, whole = 0;
+    for (uint32_t y = 0; y < p.image.y; ++y)
+        for (uint32_t x = 0; x < p.image.x; ++x) {
+            const EyeRay ray = eye_ray(p, x, y);
+            if (ray.dir.y >= -1e-2) continue;
+            const double t = (ray.origin.y - height) / -ray.dir.y;
+            const dvec3 hit = ray.origin + t * ray.dir;
+            const double across = t * pixel_angle, along = across / std::abs(ray.dir.y);
+            const glm::dvec2 u = glm::normalize(glm::dvec2(ray.dir.x, ray.dir.z));
+            const dvec3 to_hit = hit - light;
+            const double r = glm::length(to_hit);
+            const dvec3 s_dir = to_hit / r;
+            const double off_axis = std::acos(std::clamp(glm::dot(s_dir, axis), -1.0, 1.0));
+            const dvec3 away = glm::dot(s_dir, axis) * s_dir - axis;
+            const dvec3 gradient = away / (glm::length(away) * r);
+            const double width = std::abs(glm::dot(gradient, along * dvec3(u.x, 0.0, u.y))) +
+                                 std::abs(glm::dot(gradient, across * dvec3(-u.y, 0.0, u.x)));
+            const double inside = albedo / kPi * 20.0 * std::max(0.0, -s_dir.y) / (r * r);
+            const double seen = grey(hdr[size_t{y} * p.image.x + x]);
+            if (std::abs(off_axis - rim) > 0.6 * width) {
+                EXPECT_NEAR(seen, off_axis < rim ? inside : 0.0, 1e-3 * inside + 1e-6) << x << "," << y;
+                ++whole;
+            } else if (std::abs(off_axis - rim) < 0.4 * width) {
+                EXPECT_GT(seen, 0.0) << x << "," << y;
+                EXPECT_LT(seen, inside) << x << "," << y;
+                ++straddling;
+            }
+        }
+    std::printf("spot rim: %d pixels straddle it, %d lie wholly on one side\n", straddling, whole);
+    EXPECT_GT(straddling, 20);
+    EXPECT_GT(whole, 1000);
+}
+
 TEST_F(ViewTest, LitPyramidMarksExactlyTheCellsWithinReachOfLitRadianceVoxels) {
     const json isotropic = {{"model", "isotropic"}, {"g", 0}};
     json scene = airlight_scene(isotropic, kSigma, 6.0);
