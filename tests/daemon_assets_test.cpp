@@ -1,6 +1,7 @@
 // Hostile uploads against a real refractd (issue 35): every upload is bounded before anything is
 // allocated for it, decoded assets are held within --max-host-memory, and uploaded assets can be deleted
 // (refused while a scene uses them, for good once done). Memory is read as the daemon's VmRSS.
+#include <numbers>
 #include <gtest/gtest.h>
 
 #include <cstdint>
@@ -179,6 +180,29 @@ TEST(DaemonAssetsTest, DecodedEnvironmentsStayWithinTheHostMemoryBudget) {
     }
     EXPECT_EQ(maps, 6u);
     EXPECT_FALSE(has(environment_names(client), "large-0"));
+}
+
+// One environment's entry tells a client how brightly it lights the scene at intensity 1: a uniform map of
+// radiance 0.5 (RGBE 128,128,128 at exponent 128) gives an up-facing surface pi / 2.
+TEST(DaemonAssetsTest, AnEnvironmentsEntryStatesItsIrradianceOnAnUpwardSurface) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    ASSERT_EQ(client.Put("/api/environments/studio", constant_rle_hdr(64, 32, 128), "image/vnd.radiance")->status, 201);
+    const json studio = get_json(client, "/api/environments/studio");
+    EXPECT_EQ(studio["width"], 64);
+    EXPECT_EQ(studio["built_in"], false);
+    for (size_t c = 0; c < 3; ++c) EXPECT_NEAR(studio["irradiance"][c].get<double>(), std::numbers::pi / 2, 1e-6);
+    const json sky = get_json(client, "/api/environments/sky-sun");
+    EXPECT_EQ(sky["built_in"], true);
+    EXPECT_GT(sky["irradiance"][0].get<double>(), studio["irradiance"][0].get<double>());
+    for (const char* path : {"/api/environments/nothing", "/api/environments/..%2Fscenes", "/api/environments/a%00b"}) {
+        auto missing = client.Get(path);
+        ASSERT_TRUE(missing) << path;
+        EXPECT_EQ(missing->status, 404) << path << ": " << missing->body;
+        EXPECT_TRUE(json::parse(missing->body).contains("error")) << missing->body;
+    }
+    ASSERT_TRUE(daemon.running());
 }
 
 TEST(DaemonAssetsTest, AssetsAreDeletedOnlyWhenNoSceneUsesThemAndStayDeleted) {

@@ -211,6 +211,37 @@ TEST(EnvironmentMapTest, TheBuiltInSkyHasASunAboveTheHorizon) {
     EXPECT_LT(sky->rgb[3 * (100 * 256 + 64)], 1.0f);
 }
 
+// A uniform sky of radiance L gives an up-facing surface pi L (Lambert), whatever the map's size, also when
+// a row straddles the horizon (an odd height); the ground half adds nothing; a sun disc at elevation e adds
+// its radiance times its solid angle times sin(e).
+TEST(EnvironmentMapTest, HorizontalIrradianceIsTheCosineWeightedUpperHemisphere) {
+    for (const uint32_t height : {4u, 33u, 128u}) {
+        image::EnvironmentMap map{2 * height, height, {}};
+        for (uint32_t row = 0; row < height; ++row)
+            for (uint32_t column = 0; column < map.width; ++column) {
+                const bool sky = row + 0.5 < height / 2.0;
+                map.rgb.insert(map.rgb.end(), {sky ? 2.0f : 9.0f, sky ? 1.0f : 9.0f, 0.0f});
+            }
+        // With an odd height the middle row is half sky, half ground: fill it with the sky's radiance.
+        if (height % 2 == 1)
+            for (uint32_t column = 0; column < map.width; ++column) {
+                float* rgb = &map.rgb[3 * ((height / 2) * size_t{map.width} + column)];
+                rgb[0] = 2.0f, rgb[1] = 1.0f;
+            }
+        const auto irradiance = image::horizontal_irradiance(map);
+        EXPECT_NEAR(irradiance[0], 2.0 * std::numbers::pi, 1e-9) << height;
+        EXPECT_NEAR(irradiance[1], std::numbers::pi, 1e-9) << height;
+        EXPECT_EQ(irradiance[2], 0.0);
+    }
+    // The built-in sky's sun (2000 W/(m^2 sr) red over a 2.5 degree disc, 30 degrees up) adds its radiance times
+    // its solid angle times sin(30 deg) to a sky no brighter than 0.75 in red; the disc drawn with 1.4 degree
+    // pixels by their centres covers between half and twice its true solid angle.
+    const auto irradiance = image::horizontal_irradiance(*image::built_in_environment("sky-sun"));
+    const double sun = 2000.0 * 2.0 * std::numbers::pi * (1.0 - std::cos(2.5 * std::numbers::pi / 180.0)) * 0.5;
+    EXPECT_GT(irradiance[0], 0.5 * sun);
+    EXPECT_LT(irradiance[0], 2.0 * sun + 0.75 * std::numbers::pi);
+}
+
 TEST(EnvironmentProtocolTest, ImageEnvironmentsNeedANameAndARotationInRange) {
     const auto doc = protocol::parse_scene(
         {{"environment", {{"type", "image"}, {"image", "sky-sun"}, {"rotation_deg", 45.0}, {"intensity", 2.0}}}});

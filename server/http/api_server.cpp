@@ -194,6 +194,7 @@ struct ApiServer::Impl {
         route_authorized("PUT", R"(/api/meshes/([^/]+))", &Impl::put_mesh);
         route_authorized("DELETE", R"(/api/meshes/([^/]+))", &Impl::delete_mesh);
         route_authorized("GET", "/api/environments", &Impl::list_environments);
+        route_authorized("GET", R"(/api/environments/([^/]+))", &Impl::get_environment);
         route_authorized("PUT", R"(/api/environments/([^/]+))", &Impl::put_environment);
         route_authorized("DELETE", R"(/api/environments/([^/]+))", &Impl::delete_environment);
         // Example scenes (logic in http/examples.cpp).
@@ -571,6 +572,28 @@ struct ApiServer::Impl {
                             {"height", entry.height},
                             {"built_in", entry.built_in}});
         send_json(res, 200, {{"environments", list}});
+    }
+
+    // One environment with what a client balances lights against: its irradiance on a surface facing up.
+    void get_environment(const Request& req, Response& res) {
+        const std::string name = req.matches[1];
+        try {
+            const auto map = service.store().environment(name);
+            if (!map) {
+                send_error(res, 404, "no environment named '" + name + "'");
+                return;
+            }
+            send_json(res, 200,
+                      {{"name", name},
+                       {"width", map->width},
+                       {"height", map->height},
+                       {"built_in", image::built_in_environment(name) != nullptr},
+                       {"irradiance", image::horizontal_irradiance(*map)}});
+        } catch (const scene::StoreError& e) {
+            send_store_error(res, e);
+        } catch (const scene::RenderError& e) {
+            send_error(res, 500, e.what());
+        }
     }
 
     void put_environment(const Request& req, Response& res) {

@@ -364,6 +364,22 @@ EnvironmentSize environment_size(std::string_view bytes) {
     return {static_cast<uint32_t>(layout.width), static_cast<uint32_t>(layout.height)};
 }
 
+std::array<double, 3> horizontal_irradiance(const EnvironmentMap& map) {
+    std::array<double, 3> irradiance{};
+    const double dphi = 2.0 * std::numbers::pi / map.width;
+    for (uint32_t row = 0; row < map.height; ++row) {
+        const double theta0 = std::numbers::pi * row / map.height;
+        const double theta1 = std::min(std::numbers::pi * (row + 1) / map.height, std::numbers::pi / 2);
+        if (theta0 >= theta1) break;
+        // The integral of cos(theta) sin(theta) over the row's polar span.
+        const double weight = 0.5 * (std::pow(std::sin(theta1), 2) - std::pow(std::sin(theta0), 2)) * dphi;
+        for (uint32_t column = 0; column < map.width; ++column)
+            for (size_t c = 0; c < 3; ++c)
+                irradiance[c] += weight * double{map.rgb[3 * (size_t{row} * map.width + column) + c]};
+    }
+    return irradiance;
+}
+
 std::string encode_hdr(const EnvironmentMap& map) {
     std::string out = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y " + std::to_string(map.height) + " +X " +
                       std::to_string(map.width) + "\n";

@@ -3,6 +3,7 @@
 // Refract (generated here, so the default install downloads nothing).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <stdexcept>
@@ -46,6 +47,12 @@ struct EnvironmentSize {
 // The size `bytes` declare, from the header alone (checked as decode_environment checks headers), so a
 // caller can tell what decoding would take before anything is allocated. Throws EnvironmentError.
 EnvironmentSize environment_size(std::string_view bytes);
+
+// The irradiance (W/m^2, RGB) the map at intensity 1 gives a surface facing up: its radiance times the
+// cosine from the zenith over the upper hemisphere, each row weighted by its exact cosine-weighted solid
+// angle, so a uniform map of radiance L gives pi L. Rotation about the vertical does not change it; what a
+// client compares lights with when it balances an environment against them.
+std::array<double, 3> horizontal_irradiance(const EnvironmentMap& map);
 
 // Writes `map` as an uncompressed Radiance .hdr (RGBE); for tests and tools.
 std::string encode_hdr(const EnvironmentMap& map);

@@ -1107,6 +1107,45 @@ async function main() {
     assert(await page.evaluate(() => window.refract.playing()) === null, 'a refused play is still shown as playing');
   });
 
+  await check('an environment picked in a lamp-lit scene is balanced against the lamps, not washing them out', async () => {
+    await applyExample(page, 'two_lamps');
+    // Mean luminance of a box of the canvas at (x, y), fractions of its size: the lamps' pools meet on the
+    // floor at the bottom centre; the floor outside them is at the bottom-left corner.
+    const poolContrast = () => page.evaluate(() => {
+      const c = document.getElementById('view');
+      const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+      const mean = (fx, fy) => {
+        let sum = 0, n = 0;
+        for (let y = Math.floor((fy - 0.04) * c.height); y < (fy + 0.04) * c.height; y++)
+          for (let x = Math.floor((fx - 0.05) * c.width); x < (fx + 0.05) * c.width; x++, n++) {
+            const i = 4 * (y * c.width + x);
+            sum += 0.2126 * d[i] + 0.7152 * d[i + 1] + 0.0722 * d[i + 2];
+          }
+        return sum / n;
+      };
+      return mean(0.5, 0.85) / Math.max(1, mean(0.07, 0.93));
+    });
+    const unlit = await poolContrast();
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await page.selectOption('#ctl-environment', 'image:sky-sun');
+    await waitSettled(page, rev0);
+    const env = (await sceneOnServer(sceneId)).scene.environment;
+    const note = await page.evaluate(() => document.getElementById('environment-status').textContent);
+    assert(env.image === 'sky-sun' && env.intensity > 0 && env.intensity < 0.2, `environment ${JSON.stringify(env)}`);
+    assert(note.includes(`Intensity ${env.intensity}`), `the environment's note says "${note}"`);
+    const balanced = await poolContrast();
+    await shot(page, '07e-two-lamps-sky-sun.png');
+    // The same sky at intensity 1: the pools vanish in daylight, which is what the balance prevents.
+    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    await page.fill('#ctl-environment-intensity-num', '1');
+    await page.press('#ctl-environment-intensity-num', 'Enter');
+    await waitSettled(page, rev1);
+    const daylight = await poolContrast();
+    log(`pool contrast: lamps alone ${unlit.toFixed(2)}, balanced sky ${balanced.toFixed(2)}, sky at 1 ${daylight.toFixed(2)}`);
+    assert(balanced > 1.5, `the lamps' pools are washed out by the balanced sky (contrast ${balanced.toFixed(2)})`);
+    assert(daylight < balanced, `the sky at intensity 1 did not wash out more (${daylight.toFixed(2)})`);
+  });
+
   await check('the dispersion example and its Abbe number control', async () => {
     await applyExample(page, 'dispersion');
     const applied = await sceneOnServer(sceneId);

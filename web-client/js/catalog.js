@@ -61,6 +61,29 @@ export async function refreshEnvironments() {
   } catch { /* the sky and a uniform colour still work */ }
 }
 
+// An environment image lights a scene that has lamps of its own at the intensity that puts half the
+// brightest lamp's irradiance on the floor: its pool stays three times as bright as the rest, where the
+// image at intensity 1 (a sunny sky gives ten times a 26 W/sr lamp's floor) would wash the lamps out.
+export const ENVIRONMENT_SHARE_OF_LAMPS = 0.5;
+
+// The edit that lights the scene with the environment image `name`, and what it says about its intensity.
+export async function environmentPatch(name) {
+  const environment = { type: 'image', image: name };
+  const doc = view();
+  const lamps = S.lampIrradiance(doc);
+  if (!(lamps > 0) || doc.environment?.lights === false) return { patch: { environment }, note: '' };
+  const info = await api('GET', `/api/environments/${encodeURIComponent(name)}`);
+  const own = S.luminance(info?.irradiance ?? [0, 0, 0]);
+  if (!(own > 0)) return { patch: { environment }, note: '' };
+  environment.intensity = Number(((ENVIRONMENT_SHARE_OF_LAMPS * lamps) / own).toPrecision(2));
+  const brighter = Number((own / lamps).toPrecision(2));
+  return {
+    patch: { environment },
+    note: `Intensity ${environment.intensity}: “${name}” lights the floor half as much as the brightest lamp ` +
+      `(at 1 it is ${brighter}× as bright). Raise it for daylight.`,
+  };
+}
+
 export async function refreshExamples() {
   try {
     const list = await api('GET', '/api/examples');

@@ -1,7 +1,7 @@
 // Files in and out: OBJ and HDR/EXR uploads, example scenes and imported documents that replace the
 // scene, the document exported as JSON, keyframes played into the view, and the frame saved as PNG.
 
-import { OBJECT_SIZE, checkExample, loadedExample, meshPatch, refreshEnvironments, refreshMeshes, rememberBounds } from './catalog.js';
+import { OBJECT_SIZE, checkExample, environmentPatch, loadedExample, meshPatch, refreshEnvironments, refreshMeshes, rememberBounds } from './catalog.js';
 import { api } from './connection.js';
 import { complain, controls } from './panel.js';
 import * as S from './scene.js';
@@ -38,8 +38,9 @@ export function uploadEnvironment(file, field) {
     const info = await api('PUT', `/api/environments/${encodeURIComponent(name)}`, await file.arrayBuffer(),
       'application/octet-stream');
     await refreshEnvironments();
-    field.setStatus(`Uploaded “${name}” (${info?.width} x ${info?.height}).`);
-    edit({ environment: { type: 'image', image: name } }, true);
+    const { patch, note } = await environmentPatch(name);
+    field.setStatus(`Uploaded “${name}” (${info?.width} x ${info?.height}). ${note}`.trim());
+    edit(patch, true);
     controls.environment.update(view());
   });
 }

@@ -165,9 +165,18 @@ export class EnvironmentField extends Field {
       .map(([v, t]) => h('option', { value: v, text: t })));
     this.images = h('optgroup', { label: 'Images', hidden: true });
     this.select.append(this.images);
-    this.select.addEventListener('change', () => {
+    this.select.addEventListener('change', async () => {
       const v = this.select.value;
-      emit(this, { environment: v.startsWith('image:') ? { type: 'image', image: v.slice(6) } : { type: v } }, true);
+      this.setStatus('');
+      if (!v.startsWith('image:')) return emit(this, { environment: { type: v } }, true);
+      try {
+        const { patch, note } = await actions.environmentPatch(v.slice(6));
+        this.setStatus(note);
+        emit(this, patch, true);
+      } catch (e) {
+        this.select.value = this.shown;  // the scene's environment is unchanged
+        this.setError(`Could not read the environment “${v.slice(6)}”: ${e.message}`);
+      }
     });
     const picker = filePicker('environment-file', '.hdr,.exr', 'Upload HDR/EXR…', (f) => actions.uploadEnvironment(f, this));
     this.status = h('p', { class: 'note', id: 'environment-status', 'aria-live': 'polite' });
@@ -186,6 +195,7 @@ export class EnvironmentField extends Field {
       this.images.hidden = false;
     }
     this.select.value = v;
+    this.shown = v;
   }
 }
 

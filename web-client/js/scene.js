@@ -287,6 +287,32 @@ export function linearToHex(rgb) {
 // selection, under the older form's singular names ('/light', '/object'), so its controls and the light
 // marker need not know names; edits and error pointers are translated at the edges.
 
+// Luminance of a linear RGB colour (Rec. 709).
+export const luminance = (rgb) => 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+
+// The irradiance (W/m^2, luminance) of the brightest pool the scene's lights throw on the floor (or, with
+// no floor, on the level of the camera's target): a spot's on its axis, a point light's straight below it,
+// a directional light's anywhere; 0 when no light reaches it. What an environment is balanced against.
+export function lampIrradiance(doc) {
+  const level = doc.floor?.enabled ? (doc.floor.height ?? -1) : (doc.camera?.target?.[1] ?? 0);
+  let brightest = 0;
+  for (const light of Object.values(doc.lights || {})) {
+    const type = light.type ?? 'spot';
+    const power = luminance(light.color ?? [1, 1, 1]) * (light.intensity ?? 20);
+    const axis = normalize(light.direction ?? [-2, -3, -1]);
+    const height = (light.position ?? [2, 3, 1])[1] - level;
+    let irradiance = 0;
+    if (type === 'directional') irradiance = power * Math.max(0, -axis[1]);
+    else if (height > 0 && type === 'point') irradiance = power / (height * height);
+    else if (height > 0 && axis[1] < 0) {
+      const distance = height / -axis[1];
+      irradiance = (power * -axis[1]) / (distance * distance);
+    }
+    brightest = Math.max(brightest, irradiance);
+  }
+  return brightest;
+}
+
 export const COLLECTIONS = { light: 'lights', object: 'objects' };
 // Fields every member of a collection must share (the daemon refuses objects of differing Abbe numbers:
 // dispersion is one per scene): the panel's edit of one writes them all.
