@@ -93,6 +93,8 @@ constexpr Range kChecker{0.0, kCoordMax, true, false, "a number in (0, 1e4]"};
 
 constexpr std::size_t kMaxNameLength = 64;
 
+}  // namespace
+
 bool valid_name(std::string_view name) {
     if (name.empty() || name.size() > kMaxNameLength) return false;
     if (name == "." || name == "..") return false;  // never a usable file or key name
@@ -101,6 +103,8 @@ bool valid_name(std::string_view name) {
                c == '.' || c == '-';
     });
 }
+
+namespace {
 
 double length(const Vec3& v) {
     // Scaled so that tiny or large components neither underflow nor overflow.

@@ -9,6 +9,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include <nlohmann/json_fwd.hpp>
 
@@ -225,6 +226,9 @@ struct View {
 View parse_view(const nlohmann::json& j, const Limits& limits, const std::string& base = "/view");
 // `document` as the view shows it: its image size and camera replaced where the view has its own.
 SceneDocument seen_through(SceneDocument document, const View& view);
+
+// True for a member, upload or environment name: 1 to 64 characters of [A-Za-z0-9_.-], not "." or "..".
+bool valid_name(std::string_view name);
 
 // Builds a document from JSON (missing fields take defaults). Throws ValidationError.
 SceneDocument parse_scene(const nlohmann::json& j, const Limits& limits = {});

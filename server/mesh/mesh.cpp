@@ -658,6 +658,7 @@ Mesh make_blobby_bunny() {
 }
 
 std::string to_obj(const Mesh& mesh, std::string_view comment, int decimals) {
+    const bool shortest = decimals < 0;
     decimals = std::clamp(decimals, 0, 9);
     std::string out;
     out.reserve(mesh.positions.size() * 32 + mesh.triangles.size() * 24 + comment.size() + 64);
@@ -675,9 +676,10 @@ std::string to_obj(const Mesh& mesh, std::string_view comment, int decimals) {
         out += 'v';
         for (int a = 0; a < 3; ++a) {
             double value = static_cast<double>(p[a]);
-            if (std::round(value * unit) == 0.0) value = 0.0;  // no "-0.00000"
+            if (shortest ? value == 0.0 : std::round(value * unit) == 0.0) value = 0.0;  // no "-0.00000"
             const auto [end, ec] =
-                std::to_chars(buf, buf + sizeof buf, value, std::chars_format::fixed, decimals);
+                shortest ? std::to_chars(buf, buf + sizeof buf, static_cast<float>(value))
+                         : std::to_chars(buf, buf + sizeof buf, value, std::chars_format::fixed, decimals);
             out += ' ';
             if (ec == std::errc()) {
                 out.append(buf, end);
@@ -870,8 +872,8 @@ MeshReport inspect(const Mesh& mesh) {
     return report;
 }
 
-glm::dmat3 rotation(glm::vec3 rotation_deg) {
-    const glm::dvec3 r = glm::dvec3(rotation_deg) * (std::numbers::pi / 180.0);
+glm::dmat3 rotation(glm::dvec3 rotation_deg) {
+    const glm::dvec3 r = rotation_deg * (std::numbers::pi / 180.0);
     const double cx = std::cos(r.x), sx = std::sin(r.x), cy = std::cos(r.y), sy = std::sin(r.y),
                  cz = std::cos(r.z), sz = std::sin(r.z);
     // glm matrices are column-major: glm::dmat3(col0, col1, col2).

@@ -63,7 +63,8 @@ Mesh make_torus(uint32_t major_segments = 96, uint32_t minor_segments = 48);
 Mesh make_blobby_bunny();
 
 // Writes the mesh as OBJ text ("v x y z" with `decimals` decimals, then "f a b c" with 1-based indices),
-// preceded by `comment` as '#' lines when it is not empty.
+// preceded by `comment` as '#' lines when it is not empty. `decimals` < 0: each coordinate as the shortest
+// text that reads back as the same float (an upload made from a mesh in memory keeps it exactly).
 std::string to_obj(const Mesh& mesh, std::string_view comment = {}, int decimals = 5);
 
 // Parses OBJ text (polygons are triangulated, see triangulate.h). Throws MeshError on empty/unparseable
@@ -80,7 +81,7 @@ Mesh load_obj_file(const std::string& path, const MeshLimits& limits = {});
 MeshReport inspect(const Mesh& mesh);
 
 // The rotation of XYZ Euler angles (degrees): X first, then Y, then Z.
-glm::dmat3 rotation(glm::vec3 rotation_deg);
+glm::dmat3 rotation(glm::dvec3 rotation_deg);
 
 // Applies scale, then rotation (degrees, X then Y then Z), then translation. A negative scale mirrors the
 // mesh, so the triangles are flipped to stay outward-facing.

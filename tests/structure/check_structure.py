@@ -19,7 +19,7 @@ from pathlib import Path
 LAYERS = [
     ["protocol", "shaders"],
     ["vk", "mesh", "image"],
-    ["assets"],
+    ["assets", "gltf"],
     ["passes"],
     ["render", "store"],
     ["http", "cli"],
@@ -28,7 +28,7 @@ LAYERS = [
 # Lower folders a folder may NOT use although they sit below it: the passes take plain inputs, never the
 # scene document or what the store and renderer share.
 FORBIDDEN = {
-    "passes": {"protocol", "assets"},
+    "passes": {"protocol", "assets", "gltf"},
     "vk": {"shaders"},
 }
 RANK = {folder: rank for rank, folders in enumerate(LAYERS) for folder in folders}
