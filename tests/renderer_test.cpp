@@ -492,6 +492,38 @@ TEST_F(RendererTest, StillFramesAfterACameraDragAreTheirLevelsBytes) {
     }
 }
 
+// Two viewers of one scene refining at once (views of their own: size and camera) take turns: each comes
+// back to its own refined frame, re-toned, and adds the next eye-ray sample to it rather than starting its
+// samples over; an interactive frame of one between them changes nothing of it. An edit of the scene drops
+// the parked frames: the edit undone starts from the photon batches again.
+TEST_F(RendererTest, ViewsRefiningInTurnsResumeTheirOwnFrames) {
+    const SceneDocument first = small();
+    const SceneDocument second = protocol::seen_through(first, {96, 64, protocol::Camera{{1.0, 1.0, 4.0}}});
+    const uint32_t refined = kMaxPhotonBatches + 2;
+    FrameOptions resume{Quality::still, kDefaultBudgetMs, 1};
+    resume.resume_up_to = kMaxRefinementLevel;
+    Renderer renderer(*context), fresh(*context);
+    renderer.render("a", first, no_assets, {Quality::still, kDefaultBudgetMs, refined});
+    renderer.render("a", second, no_assets, {Quality::interactive});
+    EXPECT_EQ(renderer.render("a", second, no_assets, {Quality::still, kDefaultBudgetMs, refined - 1}).level, refined - 1);
+    for (const auto& [document, level] : {std::pair{first, refined}, std::pair{second, refined - 1}}) {
+        const FrameResult back = renderer.render("a", document, no_assets, resume);
+        EXPECT_EQ(back.level, level);
+        EXPECT_EQ(pass_names(back.rerun), pass_names(kToneMap));
+        EXPECT_EQ(back.png, fresh.render("b", document, no_assets, {Quality::still, kDefaultBudgetMs, level}).png);
+    }
+    const FrameResult next = renderer.render("a", first, no_assets, {Quality::still, kDefaultBudgetMs, refined + 1});
+    EXPECT_EQ(pass_names(next.rerun), pass_names(kView | kToneMap));
+    EXPECT_EQ(next.png, fresh.render("b", first, no_assets, {Quality::still, kDefaultBudgetMs, refined + 1}).png);
+    // The second view's frame is parked again; an edit of the scene, undone, leaves nothing parked.
+    const auto dimmer = protocol::apply_merge_patch(first, {{"light", {{"intensity", 5.0}}}});
+    renderer.render("a", dimmer, no_assets);
+    renderer.render("a", first, no_assets);
+    const FrameResult restarted = renderer.render("a", second, no_assets, resume);
+    EXPECT_EQ(restarted.level, 1u);
+    EXPECT_EQ(restarted.png, fresh.render("c", second, no_assets).png);
+}
+
 // Extinction that differs by channel switches the resident scene from grey to coloured transport (a
 // per-channel radiance grid appears), dispersion to dispersive transport (three paths per photon
 // sample), and back: each frame must equal a fresh scene's frame of the same document, so nothing of

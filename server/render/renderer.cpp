@@ -147,6 +147,21 @@ int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes&
            estimate_environment_bytes(environment);
 }
 
+// Still frames of other views of the scene kept for their refinement (ViewStage::ParkedFrame): a few
+// viewers refining at once take turns without starting their eye-ray samples over.
+constexpr size_t kMaxParkedViews = 4;
+
+struct ParkedView {
+    protocol::SceneDocument document;  // as rendered: the scene seen through that view
+    uint32_t level = 0;
+    ViewStage::ParkedFrame frame;
+};
+
+// Whether `a` and `b` are the same scene, seen through views that may differ.
+bool same_scene(const protocol::SceneDocument& a, const protocol::SceneDocument& b) {
+    return a == protocol::seen_through(b, {a.image.width, a.image.height, a.camera});
+}
+
 // A scene's resident GPU state and what it was built from.
 struct ResidentScene {
     std::unique_ptr<SceneGpu> gpu;
@@ -159,7 +174,36 @@ struct ResidentScene {
     uint32_t lattice_divisor = 1;  // the interactive lattice's (InteractiveSettings), 1 after a still frame
     uint32_t history_frames = 0;   // frames of a light drag whose photons the radiance grid holds a share of
     FrameBudget budget;  // this scene's dynamic resolution
+    std::vector<ParkedView> parked;  // least recently rendered first
 };
+
+int64_t parked_bytes(const ResidentScene& held) {
+    int64_t bytes = 0;
+    for (const ParkedView& view : held.parked) bytes += view.frame.bytes();
+    return bytes;
+}
+
+// Before a frame of `requested`: the resident still frame is parked when `requested` shows the same scene
+// through another view, and a still frame comes back from the parked ones when one is of its view and the
+// resident state was last made by a still frame of this scene (its photon settings; whether the grid
+// still holds the frame's batches is for the plan). Parked frames of an older scene state are dropped.
+void switch_view(ResidentScene& held, const protocol::SceneDocument& requested, Quality quality) {
+    std::erase_if(held.parked, [&](const ParkedView& view) { return !same_scene(view.document, requested); });
+    const bool resident_still = held.level > 0 && (held.gpu->built() & kView);
+    if (resident_still && held.document != requested && same_scene(held.document, requested)) {
+        if (held.parked.size() == kMaxParkedViews) held.parked.erase(held.parked.begin());
+        held.parked.push_back({held.document, held.level, held.gpu->park_view()});
+        held.level = 0;
+    }
+    if (quality != Quality::still || !same_scene(held.document, requested)) return;
+    const auto view = std::find_if(held.parked.begin(), held.parked.end(),
+                                   [&](const ParkedView& parked) { return parked.document == requested; });
+    if (view == held.parked.end() || held.document == requested) return;
+    held.gpu->restore_view(std::move(view->frame));
+    held.document = view->document;
+    held.level = view->level;
+    held.parked.erase(view);
+}
 
 // What the resident frame was rendered with, interactive or still (an interactive frame's document holds
 // its settings).
@@ -333,7 +377,7 @@ bool Renderer::Impl::make_room(const std::string& scene_id, const ResidentScene*
         return r.gpu->built() ? estimate_scene_bytes(held_grid, r.gpu->field_atlas().dims.count(), held_grid.dims.count(),
                                                      held_grid.coarsened(held_grid.light_factor).count(), r.gpu->width(),
                                                      r.gpu->height()) +
-                                    estimate_environment_bytes(r.environment.get())
+                                    estimate_environment_bytes(r.environment.get()) + parked_bytes(r)
                               : int64_t{0};
     };
     auto it = scenes.find(scene_id);
@@ -418,6 +462,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     auto it = impl_->scenes.find(scene_id);
     // A scene prepared ahead (prepare) or whose last step gave way holds some passes built: the rest run.
     const ResidentScene* held = it != impl_->scenes.end() && it->second.gpu->built() != 0 ? &it->second : nullptr;
+    if (held) switch_view(it->second, requested, quality);
     const FrameBudget unmeasured;
     const FrameBudget& budget = it != impl_->scenes.end() ? it->second.budget : unmeasured;
     const FramePlan plan = impl_->plan(held, budget, requested, resolved, options);

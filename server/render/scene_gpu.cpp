@@ -146,6 +146,16 @@ PassSet SceneGpu::passes_for(PassSet stale) const {
     return kAllPasses & ~(first - 1);
 }
 
+ViewStage::ParkedFrame SceneGpu::park_view() {
+    built_ &= ~(kView | kToneMap);
+    return view_.park();
+}
+
+void SceneGpu::restore_view(ViewStage::ParkedFrame parked) {
+    view_.restore(std::move(parked));
+    built_ = (built_ | kView) & ~kToneMap;
+}
+
 uint32_t SceneGpu::photon_batches(const protocol::SceneDocument& document, const RunOptions& options) const {
     return (built_ & kPhotons) && transport_.made_for(photon_settings(document, options), options)
                ? transport_.photon_batches()

@@ -130,6 +130,10 @@ public:
     RunOptions with_resident_photons(RunOptions options) const { return transport_.with_resident_photons(options); }
     uint32_t width() const { return view_.width(); }
     uint32_t height() const { return view_.height(); }
+    // The still frame of one view put aside while another renders, and put back (ViewStage::ParkedFrame):
+    // parked, the view and tone map are no longer built; restored, the view is, its tone map not.
+    ViewStage::ParkedFrame park_view();
+    void restore_view(ViewStage::ParkedFrame parked);
 
     // Read-backs (each a separate submission): float per voxel / texel, x fastest. The field's (coverage,
     // objects, index field, levels) are per voxel of the lattice, what the transport's lookups see there

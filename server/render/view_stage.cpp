@@ -5,20 +5,41 @@ namespace refract::scene {
 ViewStage::ViewStage(PassKit& kit) : kit_(kit) {}
 
 void ViewStage::allocate(const FrameInputs::View& in) {
-    if (in.width == width_ && in.height == height_ && hdr_.get()) return;
+    if (in.width != width_ || in.height != height_) {
+        hdr_ = {};
+        ldr_ = {};
+        refine_ = {};
+        width_ = in.width;
+        height_ = in.height;
+    }
     vk::Context& ctx = kit_.context;
     const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-    hdr_ = {};
-    ldr_ = {};
-    refine_ = {};
     const uint64_t pixels = uint64_t{in.width} * in.height;
-    hdr_ = vk::Buffer(ctx, pixels * sizeof(glm::vec4), usage, vk::MemoryUse::readback, "hdr frame");
-    ldr_ = vk::Buffer(ctx, pixels * sizeof(uint32_t), usage, vk::MemoryUse::readback, "ldr frame");
-    refine_ = vk::Buffer(ctx, sizeof(shaders::WorkListHeader) + pixels * sizeof(uint32_t),
-                         usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                         vk::MemoryUse::device, "view refinement list");
-    width_ = in.width;
-    height_ = in.height;
+    if (!hdr_.get())
+        hdr_ = vk::Buffer(ctx, pixels * sizeof(glm::vec4), usage, vk::MemoryUse::readback, "hdr frame");
+    if (!ldr_.get())
+        ldr_ = vk::Buffer(ctx, pixels * sizeof(uint32_t), usage, vk::MemoryUse::readback, "ldr frame");
+    if (!refine_.get())
+        refine_ = vk::Buffer(ctx, sizeof(shaders::WorkListHeader) + pixels * sizeof(uint32_t),
+                             usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                             vk::MemoryUse::device, "view refinement list");
+}
+
+ViewStage::ParkedFrame ViewStage::park() {
+    ParkedFrame parked{width_, height_, std::move(hdr_)};
+    hdr_ = {};
+    return parked;
+}
+
+void ViewStage::restore(ParkedFrame parked) {
+    if (parked.width != width_ || parked.height != height_) {
+        ldr_ = {};
+        refine_ = {};
+        width_ = parked.width;
+        height_ = parked.height;
+    }
+    hdr_ = std::move(parked.hdr);
+    allocate({width_, height_});
 }
 
 bool ViewStage::record(FrameRecording& recording, PassSet stale, bool adaptive, const VolumeStage& volume,

@@ -15,10 +15,23 @@ namespace refract::scene {
 
 class ViewStage {
 public:
+    // A still frame's linear image put aside while the scene renders another view, so that its refinement
+    // resumes where it stopped when its view comes back (the eye-ray samples of a level are the view's own;
+    // the photons they shade from are the scene's).
+    struct ParkedFrame {
+        uint32_t width = 0, height = 0;
+        vk::Buffer hdr;
+        int64_t bytes() const { return int64_t{width} * height * int64_t{sizeof(glm::vec4)}; }
+    };
+
     explicit ViewStage(PassKit& kit);
 
-    // The frame's buffers for this size (kept while it stays).
+    // The frame's buffers for this size (kept while it stays; a parked image is made anew).
     void allocate(const FrameInputs::View& in);
+    // Takes the linear image out; the tone-mapped one stays until the next frame replaces it.
+    ParkedFrame park();
+    // Puts a parked image back as the frame's, with the other buffers of its size.
+    void restore(ParkedFrame parked);
     // Records the view and tone map when stale; false when the run stopped at a part.
     bool record(FrameRecording& recording, PassSet stale, bool adaptive, const VolumeStage& volume,
                 const TransportStage& transport);
