@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <numbers>
 #include <stdexcept>
 
@@ -14,7 +16,24 @@ constexpr double kDegrees = 180.0 / std::numbers::pi;
 constexpr double kTolerance = 1e-9;
 
 glm::dvec3 dvec(const protocol::Vec3& v) { return {v[0], v[1], v[2]}; }
-protocol::Vec3 vec3(const glm::dvec3& v) { return {v.x, v.y, v.z}; }
+
+// A number derived from glTF's, rounded to 12 significant digits of `size` (its own, or its vector's
+// largest): the 0.5 and 90 a file meant rather than 0.49999999999999994 and 90.00000000000001, and an
+// exact 0 for an axis's 2e-16. Within float printing, and the same float for the renderer.
+double tidy(double x, double size) {
+    if (!(size > 0.0) || !std::isfinite(x)) return x;
+    const int decimals = std::clamp(11 - static_cast<int>(std::floor(std::log10(size))), 0, 330);
+    char text[400];
+    std::snprintf(text, sizeof text, "%.*f", decimals, x);
+    const double y = std::strtod(text, nullptr);
+    return y == 0.0 ? 0.0 : y;  // never -0
+}
+double tidy(double x) { return tidy(x, std::fabs(x)); }
+
+protocol::Vec3 vec3(const glm::dvec3& v) {
+    const double size = std::max({std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)});
+    return {tidy(v.x, size), tidy(v.y, size), tidy(v.z, size)};
+}
 json rgb(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
 
 // A node matrix from a position and a frame whose -Z is `forward` and whose +Y leans towards `up`.
@@ -147,7 +166,7 @@ std::optional<Placement> placement(const glm::dmat4& world) {
     } else {
         z = std::atan2(-r[1][0], r[1][1]);  // gimbal lock: only x + z or x - z is defined; x is 0
     }
-    return Placement{vec3(glm::dvec3(world[3])), {x * kDegrees, std::asin(sy) * kDegrees, z * kDegrees}, scale};
+    return Placement{vec3(glm::dvec3(world[3])), vec3(glm::dvec3(x, std::asin(sy), z) * kDegrees), tidy(scale)};
 }
 
 protocol::Light light_from(const json& light, const glm::dmat4& world, std::vector<std::string>& warnings) {
@@ -162,10 +181,10 @@ protocol::Light light_from(const json& light, const glm::dmat4& world, std::vect
     if (!(glm::length(forward) > 0.0)) throw std::invalid_argument("the light's node has no direction (zero scale)");
     l.direction = vec3(glm::normalize(forward));
     l.color = vec3(color(light, "color", glm::dvec3(1.0)));
-    l.intensity = number(light, "intensity", 1.0) / kLumensPerWatt;
+    l.intensity = tidy(number(light, "intensity", 1.0) / kLumensPerWatt);
     const json& spot = member(light, "spot");
     const double outer = number(spot, "outerConeAngle", std::numbers::pi / 4.0);
-    l.cone_deg = outer * kDegrees;
+    l.cone_deg = tidy(outer * kDegrees);
     if (l.type == protocol::LightType::spot && number(spot, "innerConeAngle", 0.0) < outer * (1.0 - 1e-6))
         warnings.push_back("innerConeAngle " + std::to_string(number(spot, "innerConeAngle", 0.0)) +
                            " (a soft edge) has no meaning here: the spot is a hard cone at its outerConeAngle");
@@ -180,7 +199,7 @@ protocol::Camera camera_from(const json& camera, const glm::dmat4& world) {
     c.position = vec3(position);
     c.target = vec3(position + glm::normalize(-glm::dvec3(world[2])));
     c.up = vec3(glm::normalize(glm::dvec3(world[1])));
-    c.fov_deg = number(member(camera, "perspective"), "yfov", 0.0) * kDegrees;
+    c.fov_deg = tidy(number(member(camera, "perspective"), "yfov", 0.0) * kDegrees);
     return c;
 }
 
@@ -198,8 +217,7 @@ void glass_from(const json& extensions, protocol::Object& object, std::vector<st
     const glm::dvec3 tint = color(volume, "attenuationColor", glm::dvec3(1.0));
     for (int c = 0; c < 3; ++c) {
         if (tint[c] > 0.0) {
-            // max: a white channel is 0, not -0.
-            object.extinction[static_cast<size_t>(c)] = std::isfinite(distance) ? std::max(0.0, -std::log(tint[c]) / distance) : 0.0;
+            object.extinction[static_cast<size_t>(c)] = std::isfinite(distance) ? tidy(-std::log(tint[c]) / distance) : 0.0;
         } else {
             object.extinction[static_cast<size_t>(c)] = 1000.0;
             warnings.push_back(where + ": attenuationColor 0 (opaque) taken as extinction 1000/m, the most Refract takes");
@@ -207,7 +225,7 @@ void glass_from(const json& extensions, protocol::Object& object, std::vector<st
     }
     object.scattering = {0.0, 0.0, 0.0};  // glTF's volume only absorbs
     const double dispersion = number(member(extensions, "KHR_materials_dispersion"), "dispersion", 0.0);
-    object.abbe = dispersion > 0.0 ? 20.0 / dispersion : 0.0;
+    object.abbe = dispersion > 0.0 ? tidy(20.0 / dispersion) : 0.0;
     const json& film = member(extensions, "KHR_materials_iridescence");
     const double factor = number(film, "iridescenceFactor", 0.0);
     if (factor > 0.0) {

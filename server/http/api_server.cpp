@@ -12,6 +12,8 @@
 #include <sstream>
 
 #include "http/examples.h"
+#include "http/gltf_scenes.h"
+#include "gltf/gltf_error.h"
 #include "http/http_server.h"
 #include "http/static_files.h"
 #include "render/invalidation.h"
@@ -185,6 +187,7 @@ struct ApiServer::Impl {
         route_authorized("PATCH", R"(/api/scenes/([^/]+))", &Impl::patch_scene);
         route_authorized("DELETE", R"(/api/scenes/([^/]+))", &Impl::delete_scene);
         // Frames: of the scene as it is, or after an edit sent with the request.
+        route_authorized("GET", R"(/api/scenes/([^/]+)/scene\.glb)", &Impl::get_scene_glb);
         route_authorized("GET", R"(/api/scenes/([^/]+)/frame\.png)", &Impl::get_frame);
         route_authorized("POST", R"(/api/scenes/([^/]+)/frame\.png)", &Impl::edit_and_get_frame);
         // Uploads: a scene's imported index grid, meshes, environment maps.
@@ -278,8 +281,11 @@ struct ApiServer::Impl {
 
     void create_scene(const Request& req, Response& res) {
         const std::string& body = req.body;
+        if (media_type(req) == "model/gltf-binary" || media_type(req) == "model/gltf+json") return import_scene(req, res);
         if (!body.empty() && !is_json_type(media_type(req))) {
-            send_error(res, 415, "a scene document needs Content-Type: application/json");
+            send_error(res, 415,
+                       "a scene needs Content-Type: application/json (a document), model/gltf-binary (.glb) or "
+                       "model/gltf+json (.gltf)");
             return;
         }
         json document = json::object();
@@ -293,6 +299,39 @@ struct ApiServer::Impl {
             send_validation_error(res, e);
         } catch (const scene::StoreError& e) {
             send_store_error(res, e);
+        }
+    }
+
+    // A glTF body: the scene it maps to, with the meshes it uploaded and what it said that has no meaning here.
+    void import_scene(const Request& req, Response& res) {
+        try {
+            GltfImport imported = import_gltf_scene(service, req.get_param_value("id"), req.body);
+            res.set_header("Location", "/api/scenes/" + imported.created.id);
+            res.set_header("ETag", etag(imported.created.revision));
+            json answer = scene_json(imported.created);
+            answer["meshes"] = imported.meshes;
+            answer["warnings"] = imported.warnings;
+            send_json(res, 201, answer);
+        } catch (const gltf::GltfError& e) {
+            send_json(res, 422, {{"error", e.what()}, {"gltf_path", e.path()}});
+        } catch (const mesh::MeshError& e) {
+            send_error(res, 400, std::string("unusable glTF mesh: ") + e.what());
+        } catch (const scene::StoreError& e) {
+            send_store_error(res, e);
+        }
+    }
+
+    void get_scene_glb(const Request& req, Response& res) {
+        auto snapshot = find_scene(req.matches[1], res);
+        if (!snapshot) return;
+        try {
+            const std::string glb = export_gltf_scene(service, snapshot->document);
+            res.set_header("ETag", etag(snapshot->revision));
+            res.set_header("Content-Disposition", "attachment; filename=\"" + snapshot->id + ".glb\"");
+            res.status = 200;
+            res.set_content(glb, "model/gltf-binary");
+        } catch (const std::invalid_argument& e) {
+            send_error(res, 422, e.what());
         }
     }
 
