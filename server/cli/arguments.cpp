@@ -155,9 +155,11 @@ Command slices_command(const std::string& name, const std::string& description) 
 // render's options besides the common ones.
 std::vector<Option> render_options() {
     return {
-        {"--out", "-o", "FRAME.png", "the frame, 8-bit sRGB; required",
+        {"--out", "-o", "FRAME.png",
+         "the frame, 8-bit sRGB; or FRAME.exr, linear half-float RGB with\n"
+         "the frame's photons, level and camera in its header; required",
          [](Arguments& a, const std::string& flag, const std::string& file) {
-             check_output_file(flag, file, ".png");
+             check_output_file(flag, file, ends_with_ignoring_case(file, ".exr") ? ".exr" : ".png");
              a.out = file;
          }},
         {"--hdr", "", "FRAME.pfm", "also the linear frame, 32-bit float RGB",
@@ -263,7 +265,7 @@ const std::vector<Command>& commands() {
             "(PNG), and photon statistics in summary.json."));
         t.push_back(
             {"render",
-             "SCENE.json -o FRAME.png [--hdr FRAME.pfm] [--stats STATS.json] [--quality still|interactive]",
+             "SCENE.json -o FRAME.png|FRAME.exr [--hdr FRAME.pfm] [--stats STATS.json] [--quality still|interactive]",
              "Runs the whole pipeline once and writes the frame; prints a summary (device, size, photons,\n"
              "per-pass GPU milliseconds) as JSON.",
              true, with_common_options(render_options()),
@@ -408,7 +410,9 @@ std::string usage_text(const std::string& name) {
         line((o.alias.empty() ? "" : o.alias + ", ") + o.name + (o.value.empty() ? "" : " " + o.value),
              o.help);
     line("-h, --help", "this text");
-    if (command.takes_scene) out << "\nSCENE.json may be - for the default scene {}.\n";
+    if (command.takes_scene)
+        out << "\nSCENE.json may be - for the default scene {}, or a glTF 2.0 scene (.glb, or .gltf with\n"
+               "data: buffers; docs/gltf.md).\n";
     return out.str();
 }
 

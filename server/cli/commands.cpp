@@ -1,6 +1,7 @@
 #include "cli/commands.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -12,7 +13,10 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/slices.h"
+#include "gltf/gltf_error.h"
+#include "gltf/gltf_import.h"
 #include "image/environment_map.h"
+#include "image/exr.h"
 #include "image/png.h"
 #include "mesh/mesh.h"
 #include "protocol/animation.h"
@@ -43,11 +47,47 @@ json read_json_file(const std::string& path) {
     }
 }
 
+// The path's extension in lower case (".glb", ".exr").
+std::string extension_of(const std::string& path) {
+    std::string extension = std::filesystem::path(path).extension().string();
+    for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return extension;
+}
+
+bool is_gltf(const std::string& path) { return extension_of(path) == ".glb" || extension_of(path) == ".gltf"; }
+
+// A glTF scene: its document, and its meshes beside those --mesh gave; what it says that has no meaning
+// here goes to stderr.
+void load_gltf(const std::string& path, Loaded& loaded) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream bytes;
+    bytes << in.rdbuf();
+    try {
+        gltf::ImportedScene imported = gltf::import_gltf(bytes.str(), [&](const std::string& reference) {
+            protocol::Object object;
+            object.mesh = reference;
+            return scene::base_mesh(object, [&](const std::string& name) -> std::shared_ptr<const mesh::Mesh> {
+                const auto it = loaded.meshes.find(name);
+                return it == loaded.meshes.end() ? nullptr : it->second;
+            });
+        });
+        for (auto& m : imported.meshes) loaded.meshes[m.name] = std::make_shared<mesh::Mesh>(std::move(m.mesh));
+        for (const auto& warning : imported.warnings) std::cerr << path << ": " << warning << "\n";
+        loaded.document = std::move(imported.document);
+    } catch (const gltf::GltfError& e) {
+        throw std::runtime_error(path + ": " + e.what());
+    }
+}
+
 Loaded load(const Arguments& args) {
     Loaded loaded;
-    loaded.document = protocol::parse_scene(args.positional[0] == "-" ? json::object() : read_json_file(args.positional[0]));
     for (const auto& [name, file] : args.meshes)
         loaded.meshes[name] = std::make_shared<mesh::Mesh>(mesh::load_obj_file(file));
+    const std::string& scene = args.positional[0];
+    if (is_gltf(scene))
+        load_gltf(scene, loaded);
+    else
+        loaded.document = protocol::parse_scene(scene == "-" ? json::object() : read_json_file(scene));
     for (const auto& [name, file] : args.environments) {
         std::ifstream in(file, std::ios::binary);
         std::ostringstream bytes;
@@ -127,6 +167,30 @@ void write_index_slices(const std::filesystem::path& dir, const scene::SceneGpu&
     const auto levels = gpu.read_levels();
     std::vector<float> l(levels.begin(), levels.end());
     write_slice_png((dir / "octree_levels_xy.png").string(), l, gpu.grid().dims, SliceAxis::xy, 0.0f, 5.0f);
+}
+
+// What a compositor wants to know of a frame: how refined it is and where its camera stood.
+image::ExrAttributes exr_attributes(const protocol::SceneDocument& document, uint32_t level, uint64_t photons) {
+    image::ExrAttributes a;
+    a.text = {{"software", "Refract " REFRACT_VERSION}, {"refractPhotons", std::to_string(photons)}};
+    a.numbers = {{"refractLevel", level}, {"refractExposure", document.image.exposure},
+                 {"cameraFovDeg", document.camera.fov_deg}};
+    a.vectors = {{"cameraPosition", document.camera.position},
+                 {"cameraTarget", document.camera.target},
+                 {"cameraUp", document.camera.up}};
+    return a;
+}
+
+// The frame as PNG, or for a .exr path as linear half-float RGB with the frame's metadata.
+void write_frame(const std::string& path, const scene::SceneGpu& gpu, const protocol::SceneDocument& document) {
+    if (extension_of(path) != ".exr") {
+        image::write_file(path, image::encode_png(gpu.read_ldr(), gpu.width(), gpu.height()));
+        return;
+    }
+    const auto hdr = gpu.read_hdr();
+    const std::string exr = image::encode_exr(std::span<const float>(&hdr[0].x, hdr.size() * 4), gpu.width(),
+                                              gpu.height(), exr_attributes(document, 1, document.photons.count));
+    image::write_file(path, std::span(reinterpret_cast<const uint8_t*>(exr.data()), exr.size()));
 }
 
 }  // namespace
@@ -231,9 +295,8 @@ int render_command(const Arguments& args) {
                                scene::run_options_for(args.interactive ? scene::Quality::interactive : scene::Quality::still),
                                environment_of(loaded).get());
     const auto encode_start = std::chrono::steady_clock::now();
-    const auto png = image::encode_png(gpu.read_ldr(), gpu.width(), gpu.height());
+    write_frame(args.out, gpu, loaded.document);
     const auto end = std::chrono::steady_clock::now();
-    image::write_file(args.out, png);
     if (!args.hdr.empty()) {
         const auto hdr = gpu.read_hdr();
         image::write_pfm(args.hdr, std::span<const float>(&hdr[0].x, hdr.size() * 4), gpu.width(), gpu.height());
