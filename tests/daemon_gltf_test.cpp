@@ -1,8 +1,19 @@
-// glTF scenes against a real refractd (issue 40): a .glb posted as a scene renders the frame of the
-// document written by hand for it; its export imports back to the same document and frame; hostile
-// files are refused with the glTF path named and leave no scene and no mesh behind.
+// glTF scenes and OpenEXR frames against a real refractd (issue 40): a .glb posted as a scene renders the
+// frame of the document written by hand for it; its export imports back to the same document and frame;
+// hostile files are refused with the glTF path named and leave no scene and no mesh behind; frame.exr is
+// half-float radiance with the frame's metadata.
 #include <gtest/gtest.h>
 
+#include <ImfChannelList.h>
+#include <ImfDoubleAttribute.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfStdIO.h>
+#include <ImfStringAttribute.h>
+#include <ImfVecAttribute.h>
+
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -149,6 +160,40 @@ TEST_F(DaemonGltf, HostileFilesAreRefusedWithTheirPathAndLeaveNothingStored) {
                           after["scenes"].end());
     EXPECT_EQ(after, scenes);
     EXPECT_EQ(get_json(c, "/api/meshes"), meshes);
+}
+
+TEST_F(DaemonGltf, AFrameAsOpenExrIsLinearHalfFloatWithItsMetadata) {
+    auto c = client();
+    create_scene(c, "exr", kHandWritten);
+    auto res = c.Get("/api/scenes/exr/frame.exr?width=24&height=16");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200) << res->body;
+    EXPECT_EQ(res->get_header_value("Content-Type"), "image/x-exr");
+    Imf::StdISStream stream;
+    stream.str(res->body);
+    Imf::InputFile file(stream);
+    const Imf::Header& header = file.header();
+    EXPECT_EQ(header.dataWindow().max.x + 1, 24);
+    EXPECT_EQ(header.dataWindow().max.y + 1, 16);
+    EXPECT_EQ(header.channels().findChannel("G")->type, Imf::HALF);
+    EXPECT_EQ(header.typedAttribute<Imf::StringAttribute>("refractRevision").value(), res->get_header_value("X-Refract-Revision"));
+    EXPECT_EQ(header.typedAttribute<Imf::StringAttribute>("refractPhotons").value(), "256");
+    EXPECT_EQ(header.typedAttribute<Imf::DoubleAttribute>("refractLevel").value(), 1.0);
+    EXPECT_EQ(header.typedAttribute<Imf::V3dAttribute>("cameraPosition").value(), Imath::V3d(0, 0.5, 5));
+    std::vector<float> green(24 * 16);
+    Imf::FrameBuffer buffer;
+    buffer.insert("G", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(green.data()), sizeof(float), sizeof(float) * 24));
+    file.setFrameBuffer(buffer);
+    file.readPixels(0, 15);
+    EXPECT_GT(*std::max_element(green.begin(), green.end()), 0.01f);  // radiance, not a black frame
+    // The same revision again comes from the cache; a PNG is a frame of its own, not the EXR's.
+    auto again = c.Get("/api/scenes/exr/frame.exr?width=24&height=16");
+    ASSERT_TRUE(again);
+    EXPECT_EQ(again->get_header_value("X-Refract-Cached"), "1");
+    EXPECT_EQ(again->body, res->body);
+    auto png = get_frame(c, "exr", "?width=24&height=16");
+    ASSERT_TRUE(png);
+    EXPECT_TRUE(is_png(png->body));
 }
 
 }  // namespace

@@ -169,18 +169,6 @@ void write_index_slices(const std::filesystem::path& dir, const scene::SceneGpu&
     write_slice_png((dir / "octree_levels_xy.png").string(), l, gpu.grid().dims, SliceAxis::xy, 0.0f, 5.0f);
 }
 
-// What a compositor wants to know of a frame: how refined it is and where its camera stood.
-image::ExrAttributes exr_attributes(const protocol::SceneDocument& document, uint32_t level, uint64_t photons) {
-    image::ExrAttributes a;
-    a.text = {{"software", "Refract " REFRACT_VERSION}, {"refractPhotons", std::to_string(photons)}};
-    a.numbers = {{"refractLevel", level}, {"refractExposure", document.image.exposure},
-                 {"cameraFovDeg", document.camera.fov_deg}};
-    a.vectors = {{"cameraPosition", document.camera.position},
-                 {"cameraTarget", document.camera.target},
-                 {"cameraUp", document.camera.up}};
-    return a;
-}
-
 // The frame as PNG, or for a .exr path as linear half-float RGB with the frame's metadata.
 void write_frame(const std::string& path, const scene::SceneGpu& gpu, const protocol::SceneDocument& document) {
     if (extension_of(path) != ".exr") {
@@ -189,7 +177,7 @@ void write_frame(const std::string& path, const scene::SceneGpu& gpu, const prot
     }
     const auto hdr = gpu.read_hdr();
     const std::string exr = image::encode_exr(std::span<const float>(&hdr[0].x, hdr.size() * 4), gpu.width(),
-                                              gpu.height(), exr_attributes(document, 1, document.photons.count));
+                                              gpu.height(), image::frame_attributes(document, 1, document.photons.count));
     image::write_file(path, std::span(reinterpret_cast<const uint8_t*>(exr.data()), exr.size()));
 }
 

@@ -16,6 +16,7 @@
 #include "gltf/gltf_error.h"
 #include "http/http_server.h"
 #include "http/static_files.h"
+#include "image/exr.h"
 #include "render/invalidation.h"
 
 namespace refract::http {
@@ -189,6 +190,7 @@ struct ApiServer::Impl {
         // Frames: of the scene as it is, or after an edit sent with the request.
         route_authorized("GET", R"(/api/scenes/([^/]+)/scene\.glb)", &Impl::get_scene_glb);
         route_authorized("GET", R"(/api/scenes/([^/]+)/frame\.png)", &Impl::get_frame);
+        route_authorized("GET", R"(/api/scenes/([^/]+)/frame\.exr)", &Impl::get_frame_exr);
         route_authorized("POST", R"(/api/scenes/([^/]+)/frame\.png)", &Impl::edit_and_get_frame);
         // Uploads: a scene's imported index grid, meshes, environment maps.
         route_authorized("PUT", R"(/api/scenes/([^/]+)/index-field)", &Impl::put_index_field);
@@ -381,6 +383,16 @@ struct ApiServer::Impl {
         answer_frame(req, res, *snapshot, *options);
     }
 
+    // The frame's linear radiance as OpenEXR: a frame of its own in the queue (it reads the radiance back).
+    void get_frame_exr(const Request& req, Response& res) {
+        auto snapshot = find_scene(req.matches[1], res);
+        if (!snapshot) return;
+        auto options = frame_options(req, res);
+        if (!options) return;
+        options->render.linear = true;
+        answer_frame(req, res, *snapshot, *options);
+    }
+
     // A body is an edit, applied before the frame renders; without one this is get_frame.
     void edit_and_get_frame(const Request& req, Response& res) {
         std::string id = req.matches[1];
@@ -495,7 +507,16 @@ struct ApiServer::Impl {
             std::string timing = server_timing(frame);
             if (!timing.empty()) res.set_header("Server-Timing", timing);
         }
-        res.set_content(reinterpret_cast<const char*>(frame.png.data()), frame.png.size(), "image/png");
+        if (!options.render.linear) {
+            res.set_content(reinterpret_cast<const char*>(frame.png.data()), frame.png.size(), "image/png");
+            return;
+        }
+        if (frame.linear.size() != size_t{frame.width} * frame.height) return send_error(res, 500, "the frame has no radiance");
+        // The header describes the asked revision's camera and exposure (a newer revision answering has its own).
+        res.set_content(image::encode_exr(std::span<const float>(&frame.linear[0].x, frame.linear.size() * 4), frame.width,
+                                          frame.height,
+                                          image::frame_attributes(snapshot.document, frame.level, frame.photons, outcome->revision)),
+                        "image/x-exr");
     }
 
     // 202: the edit is committed (its revision and ETag say which) but no frame comes with it; the client

@@ -15,6 +15,20 @@
 
 namespace refract::image {
 
+ExrAttributes frame_attributes(const protocol::SceneDocument& document, uint32_t level, uint64_t photons,
+                               uint64_t revision) {
+    ExrAttributes a;
+    // 64-bit counts as text: EXR's integer attribute is 32 bits.
+    a.text = {{"software", "Refract " REFRACT_VERSION}, {"refractPhotons", std::to_string(photons)}};
+    if (revision) a.text.emplace_back("refractRevision", std::to_string(revision));
+    a.numbers = {{"refractLevel", level}, {"refractExposure", document.image.exposure},
+                 {"cameraFovDeg", document.camera.fov_deg}};
+    a.vectors = {{"cameraPosition", document.camera.position},
+                 {"cameraTarget", document.camera.target},
+                 {"cameraUp", document.camera.up}};
+    return a;
+}
+
 std::string encode_exr(std::span<const float> rgba, uint32_t width, uint32_t height, const ExrAttributes& attributes) {
     const size_t pixels = size_t{width} * height;
     if (rgba.size() != pixels * 4) throw std::runtime_error("encode_exr: the pixels are not width x height x 4 floats");

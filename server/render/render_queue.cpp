@@ -33,6 +33,7 @@ std::string RenderQueue::key_of(const FrameRequest& request) {
         key += std::to_string(options.level);
         if (options.resume_up_to > options.level) key += "-" + std::to_string(options.resume_up_to);
     }
+    if (options.linear) key += "|linear";  // a frame that also holds its radiance answers only those asking for it
     if (!request.playback.empty()) {
         key += "|play:";
         key += request.playback;

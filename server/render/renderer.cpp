@@ -531,6 +531,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
             return frame;
         }
         impl_->finish_frame(resident, plan, frame_options, frame);
+        if (options.linear) frame.linear = resident.gpu->read_hdr();
     } catch (...) {
         impl_->drop_after_failure(scene_id);
     }

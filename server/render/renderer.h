@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <glm/glm.hpp>
+
 #include "assets/assets.h"
 #include "assets/render_error.h"
 #include "protocol/scene_document.h"
@@ -84,6 +86,8 @@ struct FrameOptions {
     // holds, or the refined frame an exposure edit re-tones). The still after a camera drag then shows
     // the grid that drag was shaded from instead of rerunning the photons of level 1. 0: exactly `level`.
     uint32_t resume_up_to = 0;
+    // Also read back the frame's linear radiance (FrameResult::linear), for an OpenEXR answer.
+    bool linear = false;
 };
 
 struct FrameResult {
@@ -94,6 +98,7 @@ struct FrameResult {
     enum class Outcome { made, superseded, deferred };
     Outcome outcome = Outcome::made;
     std::vector<uint8_t> png;
+    std::vector<glm::vec4> linear;  // RGBA radiance before exposure, top row first; FrameOptions::linear only
     uint32_t width = 0, height = 0;
     PassSet rerun = 0;                // passes that ran for this frame
     std::vector<std::string> voxelized;  // the objects the voxelize pass ran for, by name
