@@ -300,6 +300,19 @@ TEST(GltfHostile, NonFiniteTransforms) {
     EXPECT_NE(refusal(text).find("does not parse"), std::string::npos) << refusal(text);
 }
 
+TEST(GltfHostile, DeeplyNestedJson) {
+    // tinygltf copies extras recursively: 200,000 levels would exhaust its stack. Refused before it reads.
+    const std::string deep = std::string(200000, '[') + std::string(200000, ']');
+    GltfBuilder b = one_tetra();
+    std::string text = b.gltf_text();
+    text.insert(text.size() - 1, ",\"extras\":" + deep);
+    EXPECT_NE(refusal(text).find("(root): the JSON nests 200001 levels deep (at most 64)"), std::string::npos) << refusal(text);
+    // Brackets inside strings are text, not nesting.
+    text = b.gltf_text();
+    text.insert(text.size() - 1, ",\"extras\":\"" + std::string(1000, '[') + "\"");
+    EXPECT_EQ(refusal(text), "(imported)");
+}
+
 TEST(GltfHostile, MorePrimitivesThanTheObjectLimit) {
     GltfBuilder b = one_tetra();
     for (size_t i = 1; i < protocol::kMaxObjects; ++i) b.add_node({{"mesh", 0}});

@@ -1,5 +1,6 @@
 #include "gltf/glb_container.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -13,6 +14,9 @@ using nlohmann::json;
 
 constexpr uint32_t kJsonChunk = 0x4E4F534A;  // "JSON"
 constexpr uint32_t kBinChunk = 0x004E4942;   // "BIN\0"
+// glTF's own structure nests about 6 levels (extensions within materials within the root); extras may
+// go deeper, but not this deep.
+constexpr size_t kMaxNesting = 64;
 
 uint32_t read_u32(std::string_view bytes, size_t at) {
     uint32_t v = 0;
@@ -68,12 +72,36 @@ void check_uris(const json& document, const char* section, const ImportLimits& l
     }
 }
 
+// How deeply arrays and objects nest in JSON text (strings skipped), read without parsing: tinygltf
+// copies extras recursively, so a file nested a few hundred thousand levels would exhaust its stack.
+size_t nesting(std::string_view text) {
+    size_t depth = 0, deepest = 0;
+    bool in_string = false;
+    for (size_t i = 0; i < text.size(); ++i) {
+        const char c = text[i];
+        if (in_string) {
+            if (c == '\\') ++i;
+            else if (c == '"') in_string = false;
+        } else if (c == '"') {
+            in_string = true;
+        } else if (c == '[' || c == '{') {
+            deepest = std::max(deepest, ++depth);
+        } else if ((c == ']' || c == '}') && depth > 0) {
+            --depth;
+        }
+    }
+    return deepest;
+}
+
 }  // namespace
 
 bool is_glb(std::string_view bytes) { return bytes.size() >= 4 && bytes.substr(0, 4) == "glTF"; }
 
 json checked_json(std::string_view bytes, const ImportLimits& limits) {
     const std::string_view text = is_glb(bytes) ? glb_json_chunk(bytes) : bytes;
+    if (const size_t depth = nesting(text); depth > kMaxNesting)
+        throw GltfError("", "the JSON nests " + std::to_string(depth) + " levels deep (at most " +
+                                std::to_string(kMaxNesting) + ")");
     json document = json::parse(text.begin(), text.end(), nullptr, false);
     if (document.is_discarded() || !document.is_object()) throw GltfError("", "not glTF: the JSON does not parse to an object");
     check_uris(document, "buffers", limits);

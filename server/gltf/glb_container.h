@@ -20,7 +20,7 @@ bool is_glb(std::string_view bytes);
 // The glTF JSON of `bytes` (a .glb's JSON chunk, or the whole .gltf), parsed. Throws GltfError at "(glb)"
 // for a bad header, a truncated or overlong chunk, a JSON chunk that is not first; at the URI's path
 // ("/buffers/0/uri") for an external URI or a data: URI over limits.max_bytes; at "" for JSON that does
-// not parse or is not an object.
+// not parse, is not an object or nests more than 64 levels deep.
 nlohmann::json checked_json(std::string_view bytes, const ImportLimits& limits);
 
 }  // namespace refract::gltf

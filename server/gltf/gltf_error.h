@@ -1,5 +1,6 @@
 // A glTF that cannot be imported: `path` is the JSON pointer of the offending part of the glTF
-// ("/meshes/2/primitives/0"), or "(glb)" for the binary container itself.
+// ("/meshes/2/primitives/0"; "" for the whole file, "(root)" in the message), or "(glb)" for the binary
+// container itself.
 #pragma once
 
 #include <stdexcept>
@@ -10,7 +11,7 @@ namespace refract::gltf {
 class GltfError : public std::runtime_error {
 public:
     GltfError(std::string path, const std::string& rule)
-        : std::runtime_error(path + ": " + rule), path_(std::move(path)) {}
+        : std::runtime_error((path.empty() ? "(root)" : path) + ": " + rule), path_(std::move(path)) {}
     const std::string& path() const { return path_; }
 
 private:

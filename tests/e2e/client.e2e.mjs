@@ -1027,7 +1027,7 @@ async function main() {
     assert(edited.picked === '' && edited.name === null, `still named after an edit: ${JSON.stringify(edited)}`);
   });
 
-  await check('export and import the scene document; save the frame as PNG', async () => {
+  await check('export and import the scene document (JSON, and glTF); save the frame as PNG', async () => {
     await waitSettled(page);
     const exported = await downloadFrom(page, '#scene-export');
     const doc = JSON.parse(fs.readFileSync(exported, 'utf8'));
@@ -1067,6 +1067,37 @@ async function main() {
     const err = await page.evaluate(() => document.getElementById('scene-file').closest('.field').querySelector('.field-error').textContent);
     assert(/junk\.json/.test(err), `import error "${err}"`);
     assert((await sceneOnServer(sceneId)).revision === back.revision, 'a broken import changed the scene');
+
+    // A glTF scene: the daemon maps it (its meshes uploaded), the scene takes its objects and lights.
+    const rev2 = await page.evaluate(() => window.refract.lastRevision);
+    const glbPath = path.join(REPO, 'examples/gltf/glass_shelf.glb');
+    const glb = fs.readFileSync(glbPath);
+    const shelf = JSON.parse(glb.subarray(20, 20 + glb.readUInt32LE(12)).toString());  // the GLB's JSON chunk
+    await page.setInputFiles('#scene-file', glbPath);
+    await waitSettled(page, rev2);
+    const imported = await sceneOnServer(sceneId);
+    const glass = imported.scene;
+    const names = shelf.nodes.filter((n) => n.mesh !== undefined).map((n) => n.name).sort();
+    assert(JSON.stringify(Object.keys(glass.objects).sort()) === JSON.stringify(names),
+      `glTF import: objects ${Object.keys(glass.objects)}, the file's ${names}`);
+    assert(glass.objects.crown_ball.mesh.startsWith('upload:') && glass.lights.key.type === 'spot',
+      `glTF import: ${JSON.stringify(glass.objects.crown_ball)} ${JSON.stringify(glass.lights)}`);
+    const note = await page.evaluate(() => document.getElementById('scene-file-status').textContent);
+    assert(/Imported glass_shelf\.glb/.test(note), `glTF import note "${note}"`);
+    await shot(page, '07d-imported-gltf.png');
+
+    // A glTF naming a file outside itself is refused at the import control with its path; nothing changes.
+    const errors1 = await page.evaluate(() => window.refract.errors);
+    const external = JSON.stringify({ asset: { version: '2.0' }, buffers: [{ uri: 'secret.bin', byteLength: 4 }] });
+    await page.setInputFiles('#scene-file', { name: 'outside.gltf', mimeType: 'model/gltf+json', buffer: Buffer.from(external) });
+    await waitFor(page, (n) => window.refract.errors > n, errors1);
+    const refused = await page.evaluate(() => document.getElementById('scene-file').closest('.field').querySelector('.field-error').textContent);
+    assert(/\/buffers\/0\/uri/.test(refused), `glTF import error "${refused}"`);
+    assert((await sceneOnServer(sceneId)).revision === imported.revision, 'a refused glTF changed the scene');
+
+    // The scene as the checks after these expect it (one light, one object).
+    await page.setInputFiles('#scene-file', exported);
+    await waitSettled(page, imported.revision);
   });
 
   await check('keyframes played into the view, the scene unchanged; bad keyframes reported', async () => {

@@ -1,5 +1,5 @@
-// Files in and out: OBJ and HDR/EXR uploads, example scenes and imported documents that replace the
-// scene, the document exported as JSON, keyframes played into the view, and the frame saved as PNG.
+// Files in and out: OBJ and HDR/EXR uploads, example scenes and imported documents (JSON or glTF) that
+// replace the scene, the document exported as JSON, keyframes played into the view, and the frame saved as PNG.
 
 import { OBJECT_SIZE, checkExample, environmentPatch, loadedExample, meshPatch, refreshEnvironments, refreshMeshes, rememberBounds } from './catalog.js';
 import { api } from './connection.js';
@@ -93,17 +93,35 @@ export async function loadExample(name, field) {
   }
 }
 
+// The document a file holds: a scene document (JSON), or a glTF scene (.glb, or .gltf with its buffers
+// inside), which the daemon maps as a scene of its own (uploading its meshes); that scene is only the way
+// in and is deleted again, its meshes stay (the document names them). `warnings`: what the glTF says that
+// has no meaning here.
+async function documentOf(file) {
+  if (!/\.(glb|gltf)$/i.test(file.name)) {
+    let doc;
+    try { doc = JSON.parse(await file.text()); } catch (e) { throw new Error(`not JSON (${e.message})`); }
+    if (!S.isObject(doc)) throw new Error('not a scene document (a JSON object)');
+    return { doc, warnings: [] };
+  }
+  const type = /\.glb$/i.test(file.name) ? 'model/gltf-binary' : 'model/gltf+json';
+  const got = await api('POST', '/api/scenes', await file.arrayBuffer(), type);
+  api('DELETE', `/api/scenes/${encodeURIComponent(got.id)}`).catch(() => {});
+  return { doc: got.scene, warnings: got.warnings || [] };
+}
+
 export async function importScene(file, field) {
   field.clearError();
   field.status.textContent = `Reading ${file.name}…`;
   try {
+    let warnings = [];
     await replaceScene(async () => {
-      let doc;
-      try { doc = JSON.parse(await file.text()); } catch (e) { throw new Error(`not JSON (${e.message})`); }
-      if (!S.isObject(doc)) throw new Error('not a scene document (a JSON object)');
-      return doc;
+      const read = await documentOf(file);
+      warnings = read.warnings;
+      return read.doc;
     });
-    field.status.textContent = `Imported ${file.name}.`;
+    field.status.textContent = `Imported ${file.name}.` +
+      (warnings.length ? ` Not taken (${warnings.length}): ${warnings.join('; ')}` : '');
     hooks.imports = (hooks.imports || 0) + 1;
     checkExample();
   } catch (e) {

@@ -45,12 +45,13 @@ function filePicker(id, accept, text, onFile) {
   return { input, label: h('label', { for: id, class: 'button-like', text }) };
 }
 
-// Importing and exporting the scene document as a JSON file.
+// Importing the scene document from a JSON or glTF file, and exporting it as JSON.
 export class SceneFileField extends Field {
   constructor(spec, emit, actions) {
     const id = 'scene-file';
     super(spec, [], 'Scene document', id);
-    const picker = filePicker(id, '.json,application/json', 'Import JSON…', (f) => actions.importScene(f, this));
+    const picker = filePicker(id, '.json,application/json,.glb,.gltf,model/gltf-binary,model/gltf+json', 'Import JSON or glTF…',
+      (f) => actions.importScene(f, this));
     this.file = picker.input;
     this.exportButton = h('button', { type: 'button', id: 'scene-export', text: 'Export JSON' });
     this.status = h('p', { class: 'note', id: 'scene-file-status', 'aria-live': 'polite' });
