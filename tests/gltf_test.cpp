@@ -128,6 +128,7 @@ TEST(Gltf, KnownValuesMapToTheExpectedDocument) {
           {"tetra", {{"mesh", "upload:tetra"}, {"position", {0, 1, -1}}, {"rotation_deg", {0, 0, 0}}, {"scale", 1.0},
                      {"ior", 1.33}, {"abbe", 40.0}, {"extinction", {0, 0, 0}}, {"film", {{"top_nm", 0.0}}}}}}}};
     EXPECT_EQ(difference(protocol::to_json(scene.document), want), "");
+    EXPECT_FALSE(std::signbit(scene.document.objects.at("glass").extinction[2]));  // 0, not -0: printed "0.0"
     // What glTF cannot say is the default document's.
     const protocol::SceneDocument defaults;
     EXPECT_EQ(scene.document.medium, defaults.medium);

@@ -21,12 +21,13 @@ glm::dvec3 dvec(const protocol::Vec3& v) { return {v[0], v[1], v[2]}; }
 // largest): the 0.5 and 90 a file meant rather than 0.49999999999999994 and 90.00000000000001, and an
 // exact 0 for an axis's 2e-16. Within float printing, and the same float for the renderer.
 double tidy(double x, double size) {
+    if (x == 0.0) return 0.0;  // never -0 (a white channel's -ln 1)
     if (!(size > 0.0) || !std::isfinite(x)) return x;
     const int decimals = std::clamp(11 - static_cast<int>(std::floor(std::log10(size))), 0, 330);
     char text[400];
     std::snprintf(text, sizeof text, "%.*f", decimals, x);
     const double y = std::strtod(text, nullptr);
-    return y == 0.0 ? 0.0 : y;  // never -0
+    return y == 0.0 ? 0.0 : y;
 }
 double tidy(double x) { return tidy(x, std::fabs(x)); }
 
