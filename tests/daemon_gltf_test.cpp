@@ -149,6 +149,14 @@ TEST_F(DaemonGltf, HostileFilesAreRefusedWithTheirPathAndLeaveNothingStored) {
         EXPECT_EQ(res->status, 422) << res->body;
         EXPECT_EQ(json::parse(res->body).value("gltf_path", ""), bad.path) << res->body;
     }
+    // A scene naming an environment the daemon does not have: refused by the store, its meshes removed.
+    GltfBuilder dark = two_glasses();
+    dark.gltf["scenes"][0]["extras"]["refract"]["environment"] = {{"type", "image"}, {"image", "nowhere"}};
+    dark.gltf["meshes"][1]["name"] = "dark-tetra";  // uploaded, then removed again
+    auto unlit = c.Post("/api/scenes?id=hostile", dark.glb(), kGlb);
+    ASSERT_TRUE(unlit);
+    EXPECT_EQ(unlit->status, 422) << unlit->body;
+    EXPECT_EQ(json::parse(unlit->body).value("pointer", ""), "/environment/image") << unlit->body;
     // A good file under a taken id: refused before its mesh is uploaded.
     create_scene(c, "taken");
     auto res = c.Post("/api/scenes?id=taken", glb, kGlb);

@@ -7,6 +7,7 @@
 #include <optional>
 #include <set>
 #include <stdexcept>
+#include <type_traits>
 #include <utility>
 
 #include <nlohmann/json.hpp>
@@ -239,8 +240,7 @@ private:
     // The reference for a glTF mesh's geometry: a built-in or an upload it equals, else a new upload.
     std::string reference(const std::string& name, mesh::Mesh geometry) {
         const std::string base = protocol::valid_name(name) && name.size() <= 55 ? name : "mesh";
-        if (const auto builtin = existing_(base); builtin && base.find(':') == std::string::npos && same_mesh(*builtin, geometry))
-            return base;
+        if (const auto builtin = existing_(base); builtin && same_mesh(*builtin, geometry)) return base;
         for (const std::string& candidate : {base, base + hash_suffix(geometry)}) {
             const std::string ref = "upload:" + candidate;
             const auto it = chosen_.find(candidate);

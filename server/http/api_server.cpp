@@ -316,6 +316,8 @@ struct ApiServer::Impl {
             send_json(res, 201, answer);
         } catch (const gltf::GltfError& e) {
             send_json(res, 422, {{"error", e.what()}, {"gltf_path", e.path()}});
+        } catch (const protocol::ValidationError& e) {
+            send_validation_error(res, e);
         } catch (const mesh::MeshError& e) {
             send_error(res, 400, std::string("unusable glTF mesh: ") + e.what());
         } catch (const scene::StoreError& e) {

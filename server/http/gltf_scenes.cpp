@@ -22,6 +22,9 @@ GltfImport import_gltf_scene(Service& service, const std::string& id, const std:
     limits.max_bytes = service.config().max_body;
     gltf::ImportedScene imported = gltf::import_gltf(
         body, [&](const std::string& reference) { return existing_mesh(service, reference); }, store.limits(), limits);
+    // Refused before anything is uploaded; the store checks both again when it creates the scene.
+    if (!id.empty() && !scene::valid_scene_id(id))
+        throw scene::StoreError(scene::StoreFailure::invalid, "scene id must match [a-z0-9-]{1,32}");
     if (!id.empty() && store.get(id)) throw scene::StoreError(scene::StoreFailure::taken, "scene '" + id + "' exists");
     GltfImport result;
     result.warnings = std::move(imported.warnings);

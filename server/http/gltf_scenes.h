@@ -18,7 +18,8 @@ struct GltfImport {
 // Creates scene `id` (empty: a random id) from a .glb or .gltf body. The document is mapped and
 // validated before anything is stored; then the new meshes are uploaded and the scene created, and if
 // that fails, the meshes this import uploaded are removed again: a refused import leaves nothing.
-// Throws gltf::GltfError, mesh::MeshError, scene::StoreError.
+// Throws gltf::GltfError, mesh::MeshError, scene::StoreError, protocol::ValidationError (an environment
+// image the scene's extras name that the store does not have).
 GltfImport import_gltf_scene(Service& service, const std::string& id, const std::string& body);
 
 // The scene's document as a .glb. Throws std::invalid_argument for a scene glTF cannot hold.
