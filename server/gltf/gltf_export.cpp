@@ -72,8 +72,9 @@ tinygltf::Primitive add_geometry(tinygltf::Model& model, const mesh::Mesh& m) {
     positions.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
     positions.type = TINYGLTF_TYPE_VEC3;
     positions.count = m.positions.size();
-    positions.minValues = {bounds.min.x, bounds.min.y, bounds.min.z};
-    positions.maxValues = {bounds.max.x, bounds.max.y, bounds.max.z};
+    const glm::dvec3 lo(bounds.min), hi(bounds.max);
+    positions.minValues = {lo.x, lo.y, lo.z};
+    positions.maxValues = {hi.x, hi.y, hi.z};
     tinygltf::Accessor indices;
     indices.bufferView = add_view(model, m.triangles.data(), m.triangles.size() * sizeof(glm::uvec3),
                                   TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
@@ -214,7 +215,7 @@ void glass_from(const json& extensions, protocol::Object& object, std::vector<st
     if (!extensions.contains("KHR_materials_volume"))
         warnings.push_back(where + ": no KHR_materials_volume (glTF's thin wall): imported as solid glass");
     const json& volume = member(extensions, "KHR_materials_volume");
-    const double distance = number(volume, "attenuationDistance", INFINITY);
+    const double distance = number(volume, "attenuationDistance", std::numeric_limits<double>::infinity());
     const glm::dvec3 tint = color(volume, "attenuationColor", glm::dvec3(1.0));
     for (int c = 0; c < 3; ++c) {
         if (tint[c] > 0.0) {
