@@ -133,6 +133,8 @@ std::vector<glm::uvec3> triangles(const std::vector<uint32_t>& idx, int mode) {
 }  // namespace
 
 tinygltf::Model load_model(std::string_view bytes) {
+    // tinygltf takes the length as 32 bits.
+    if (bytes.size() > std::numeric_limits<unsigned>::max()) throw GltfError("", "a glTF of 4 GiB or more");
     tinygltf::TinyGLTF loader;
     loader.SetStoreOriginalJSONForExtrasAndExtensions(true);
     loader.SetImageLoader(keep_undecoded, nullptr);
