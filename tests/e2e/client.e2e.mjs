@@ -1095,9 +1095,23 @@ async function main() {
     assert(/\/buffers\/0\/uri/.test(refused), `glTF import error "${refused}"`);
     assert((await sceneOnServer(sceneId)).revision === imported.revision, 'a refused glTF changed the scene');
 
-    // The scene as the checks after these expect it (one light, one object).
+    // The scene as the checks after these expect it (one light, one object)...
     await page.setInputFiles('#scene-file', exported);
     await waitSettled(page, imported.revision);
+    // ...and a .glb dropped anywhere on the page imports as one chosen does; then that scene again.
+    const rev3 = await page.evaluate(() => window.refract.lastRevision);
+    const dropped = await page.evaluateHandle((bytes) => {
+      const transfer = new DataTransfer();
+      transfer.items.add(new File([new Uint8Array(bytes)], 'dropped.glb', { type: 'model/gltf-binary' }));
+      return transfer;
+    }, [...glb]);
+    await page.dispatchEvent('body', 'drop', { dataTransfer: dropped });
+    await waitSettled(page, rev3);
+    const afterDrop = await sceneOnServer(sceneId);
+    assert(JSON.stringify(Object.keys(afterDrop.scene.objects).sort()) === JSON.stringify(names),
+      `dropped glTF: objects ${Object.keys(afterDrop.scene.objects)}`);
+    await page.setInputFiles('#scene-file', exported);
+    await waitSettled(page, afterDrop.revision);
   });
 
   await check('keyframes played into the view, the scene unchanged; bad keyframes reported', async () => {

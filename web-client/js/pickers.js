@@ -62,6 +62,18 @@ export class SceneFileField extends Field {
     this.stopButton = h('button', { type: 'button', id: 'play-stop', text: 'Stop', hidden: true });
     this.stopButton.addEventListener('click', () => actions.stopPlay());
     this.describe(this.file);
+    // A scene file dropped anywhere on the page is imported as if chosen here; any other dropped file is
+    // kept from replacing the page (the browser's default), and said so.
+    window.addEventListener('dragover', (e) => {
+      if (e.dataTransfer?.types?.includes('Files')) e.preventDefault();
+    });
+    window.addEventListener('drop', (e) => {
+      const f = e.dataTransfer?.files?.[0];
+      if (!f) return;
+      e.preventDefault();
+      if (/\.(json|glb|gltf)$/i.test(f.name)) actions.importScene(f, this);
+      else this.status.textContent = `${f.name}: drop a scene (.json, .glb or .gltf) here; meshes go through Upload OBJ…`;
+    });
     this.el.append(this.label, h('div', { class: 'row' }, this.file, picker.label, this.exportButton),
       h('div', { class: 'row' }, this.playFile, play.label, this.stopButton), this.status, this.error);
   }
