@@ -285,6 +285,7 @@ TEST(Cli, GoodArgumentsReachTheDevice) {
         {"render", kScene, "-o", frame, "--hdr", (dir / "frame.pfm").string(), "--stats",
          (dir / "s.json").string(), "--quality", "interactive", "--device", "none"},
         {"render", "-", "--out=" + frame, "--mesh", "bunny=" REFRACT_SOURCE_DIR "/examples/meshes/bunny.obj"},
+        {"render", REFRACT_SOURCE_DIR "/examples/gltf/glass_shelf.glb", "-o", (dir / "frame.exr").string()},
         {"voxelize", kScene, "--out", slices},
         {"trace", "-", "-o", slices},
         {"animate", kScene, keyframes, "-o", slices, "--fps", "2"},
@@ -324,6 +325,17 @@ TEST(Cli, AnimateRefusesBadKeyframesBeforeTheDevice) {
         EXPECT_FALSE(fs::exists(out));
     }
     fs::remove_all(dir);
+}
+
+// A glTF scene is read before a device starts: one it cannot import is refused with its glTF path (exit 1).
+TEST(Cli, RenderRefusesAnUnusableGltfBeforeTheDevice) {
+    const fs::path file = fs::temp_directory_path() / ("refract_cli_" + std::to_string(::getpid()) + ".gltf");
+    std::ofstream(file) << R"({"asset": {"version": "2.0"}, "buffers": [{"uri": "mesh.bin", "byteLength": 4}]})";
+    const Outcome run = run_refract({"render", file.string(), "-o", (fs::temp_directory_path() / "x.exr").string()});
+    EXPECT_EQ(run.status, 1);
+    EXPECT_NE(run.err.find(file.string() + ": /buffers/0/uri: external URI 'mesh.bin' refused"), std::string::npos) << run.err;
+    EXPECT_EQ(run.err.find("VK_ERROR_"), std::string::npos) << run.err;
+    fs::remove(file);
 }
 
 }  // namespace
