@@ -5,6 +5,7 @@
 #include <limits>
 #include <vector>
 
+#include "gltf/glb_container.h"
 #include "gltf/gltf_error.h"
 
 namespace refract::gltf {
@@ -142,7 +143,7 @@ tinygltf::Model load_model(std::string_view bytes) {
     tinygltf::Model model;
     std::string err, warn;
     const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
-    const bool ok = bytes.substr(0, 4) == "glTF"
+    const bool ok = is_glb(bytes)
                         ? loader.LoadBinaryFromMemory(&model, &err, &warn, data, static_cast<unsigned>(bytes.size()), "")
                         : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(),
                                                      static_cast<unsigned>(bytes.size()), "");
