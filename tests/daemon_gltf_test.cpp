@@ -206,5 +206,21 @@ TEST_F(DaemonGltf, AFrameAsOpenExrIsLinearHalfFloatWithItsMetadata) {
     EXPECT_TRUE(is_png(png->body));
 }
 
+// A .gltf whose data: URI would pass the body limit never reaches the importer: the body is refused
+// first (413), and nothing is stored.
+TEST(DaemonGltfLimit, ADataUriOverTheBodyLimitIsRefusedWithTheBody) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--max-body", "4K"});
+    auto c = daemon.client();
+    GltfBuilder b;
+    const std::vector<glm::vec3> many(400, glm::vec3(0.0f));  // 4.8 KB of positions, 6.4 KB as base64
+    b.add_node({{"mesh", b.add_mesh("big", many, {{0, 1, 2}})}});
+    auto res = c.Post("/api/scenes?id=big", b.gltf_text(), "model/gltf+json");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 413) << res->body;
+    get_json(c, "/api/scenes/big", 404);
+    EXPECT_EQ(get_json(c, "/api/meshes")["meshes"], json::array());
+}
+
 }  // namespace
 }  // namespace refract::test
