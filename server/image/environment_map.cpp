@@ -375,7 +375,7 @@ std::array<double, 3> horizontal_irradiance(const EnvironmentMap& map) {
         const double weight = 0.5 * (std::pow(std::sin(theta1), 2) - std::pow(std::sin(theta0), 2)) * dphi;
         for (uint32_t column = 0; column < map.width; ++column)
             for (size_t c = 0; c < 3; ++c)
-                irradiance[c] += weight * double{map.rgb[3 * (size_t{row} * map.width + column) + c]};
+                irradiance[c] += weight * static_cast<double>(map.rgb[3 * (size_t{row} * map.width + column) + c]);
     }
     return irradiance;
 }

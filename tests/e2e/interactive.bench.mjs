@@ -11,7 +11,10 @@
 //     client on a running daemon would;
 //   - navigation to the first frame received and drawn, and to the first full-resolution still;
 //   - a 3 s orbit drag, a 3 s shift-drag of the light and a 3 s alt-drag of the object: frames received per second while dragging,
-//     and the time from releasing the mouse to the first full-resolution still;
+//     and the time from releasing the mouse to the first full-resolution still; for the orbit and the
+//     light, the width of the frames shown while dragging and the RMSE of the last one shown against
+//     the same state refined to level 16 (what the canvas shows, 8-bit sRGB);
+//   - every example loaded from the picker: the slowest first frame and full-resolution still;
 //   - an exposure edit over HTTP (POST frame.png with a merge patch): the Server-Timing pass sum and
 //     the request's wall time.
 // Frames are observed on the page's WebSocket (header, then PNG), which works for any client
@@ -44,6 +47,8 @@ const SETTLE_TIMEOUT_MS = 90_000;   // a still frame after navigation or a drag
 const LOOK_MS = 2000;               // a drag begins this long after the still before it arrived
 const HARD_LIMIT_MS = 8 * 60_000;   // the whole run
 const EXPOSURE_EDITS = [1.3, 0.7, 1.3];
+const REFINED_LEVEL = 16;           // what a drag's last frame is compared with (issue 37): all photon batches in
+const HOLD_MS = 400;                // the pointer held still before a measured release
 
 const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'refract-bench-'));
 const dataDir = path.join(tmp, 'data');
@@ -175,10 +180,13 @@ async function sceneOnServer(id) {
   return { revision: body.revision };
 }
 
-// The image size the client last asked for (its view follows its canvas): full resolution.
+// The image size the client last asked for (its view follows its canvas): full resolution. A client
+// from before views (issue 38) patched the document's image size instead.
 function viewSize() {
-  const last = [...sent].reverse().find((m) => m.view);
-  return last ? { width: last.view.width, height: last.view.height } : null;
+  const last = [...sent].reverse().find((m) => m.view || (m.patch?.image?.width && m.patch?.image?.height));
+  if (!last) return null;
+  const { width, height } = last.view || last.patch.image;
+  return { width, height };
 }
 
 // The first full-resolution still received after `since` that shows the scene as it is now: its
@@ -200,9 +208,10 @@ async function stillOfLatest(sceneId, size, since, what) {
 }
 
 // A drag of DRAG_MS over the canvas (`what`: 'orbit'; 'light' with Shift; 'object' with Alt), then
-// release; frames while dragging and the time from release to the first full-resolution still. Returns
-// [measurements, that still].
-async function drag(page, sceneId, size, what) {
+// release; frames while dragging and the time from release to the first full-resolution still; with
+// `refined`, the pointer held still for HOLD_MS before the release and the RMSE of the last frame shown
+// then against that state refined to REFINED_LEVEL. Returns [measurements, the last frame waited for].
+async function drag(page, sceneId, size, what, refined = false) {
   const modifier = { orbit: null, light: 'Shift', object: 'Alt' }[what];
   const box = await page.locator('#view').boundingBox();
   const cx = box.x + box.width / 2;
@@ -222,10 +231,17 @@ async function drag(page, sceneId, size, what) {
     await sleep(MOVE_EVERY_MS);
   }
   const end = Date.now();
+  if (refined) {
+    // The pointer held still before the release, so that the last frame shown is of the state the
+    // refined still shows; then what the canvas shows (at the viewport's size).
+    await sleep(HOLD_MS);
+    await page.evaluate(() => { window.__benchShown = canvasNow(); });
+  }
+  const released = Date.now();
   await page.mouse.up();
   if (modifier) await page.keyboard.up(modifier);
   const during = frames.slice(firstIndex).filter((f) => f.t >= start && f.t <= end);
-  const still = await stillOfLatest(sceneId, size, end, `a full-resolution still after the ${what} drag`);
+  const still = await stillOfLatest(sceneId, size, released, `a full-resolution still after the ${what} drag`);
   const interactive = during.filter((f) => f.quality === 'interactive');
   const firstDuring = frames.slice(firstIndex).find((f) => f.t >= start);
   // Frames of the drag's own edits: from the first one answering a request sent while dragging.
@@ -246,11 +262,61 @@ async function drag(page, sceneId, size, what) {
     steady_fps: steadySpan > 0 ? (answering.length - 1) / steadySpan : null,
     interactive_size: interactive.length ? `${median(interactive.map((f) => f.width))}x${median(interactive.map((f) => f.height))}` : null,
     interactive_pass_ms: median(interactive.map((f) => f.passMs)),
-    release_to_full_ms: still.t - end,
+    release_to_full_ms: still.t - released,
     still_pass_ms: still.passMs,
     still_level: still.level,
+    viewport_width: size.width,
+    displayed_width: median(interactive.map((f) => f.width)),
   };
+  if (refined) {
+    // Against the same state refined: the first frame of it at REFINED_LEVEL or above, once drawn.
+    const settled = await waitUntil(() => frames.find((f) => f.t >= still.t && isFull(f, size) &&
+      f.revision === still.revision && (f.level ?? 0) >= REFINED_LEVEL), SETTLE_TIMEOUT_MS, `level ${REFINED_LEVEL}`);
+    await sleep(150);  // drawn
+    result.rmse_vs_still = await page.evaluate(() => srgbRmse(window.__benchShown, canvasNow()));
+    result.refined_level = settled.level;
+    return [result, settled];
+  }
   return [result, still];
+}
+
+// Installs the page helpers the drags measure with: the canvas's pixels now, and the RMSE of two such
+// snapshots over the 8-bit sRGB channels (null when their sizes differ).
+async function installPixelHelpers(page) {
+  await page.evaluate(() => {
+    window.canvasNow = () => {
+      const c = document.getElementById('view');
+      return c.getContext('2d').getImageData(0, 0, c.width, c.height);
+    };
+    window.srgbRmse = (a, b) => {
+      if (!a || !b || a.width !== b.width || a.height !== b.height) return null;
+      let sum = 0;
+      for (let i = 0; i < a.data.length; i += 4)
+        for (let c = 0; c < 3; c++) sum += (a.data[i + c] - b.data[i + c]) ** 2;
+      return Math.sqrt(sum / (3 * a.width * a.height));
+    };
+  });
+}
+
+// Loads every example from the picker (as a user does, the scene replaced) and times, from the click,
+// its first frame and its first full-resolution still.
+async function loadExamples(page, sceneId, size) {
+  const list = await (await fetch(`${base}/api/examples`)).json();
+  const names = (list.examples || []).map((e) => e.name);
+  const loads = [];
+  for (const name of names) {
+    const before = (await sceneOnServer(sceneId)).revision;
+    const since = Date.now();
+    await page.selectOption('#ctl-example', name);
+    await page.click('#example-load');
+    const first = await waitUntil(() => frames.find((f) => f.t >= since && (f.revision ?? 0) > before),
+      SETTLE_TIMEOUT_MS, `the first frame of ${name}`);
+    const full = await stillOfLatest(sceneId, size, since, `the still of ${name}`);
+    loads.push({ name, first_frame_ms: first.t - since, first_quality: first.quality, full_ms: full.t - since });
+    log('example', JSON.stringify(loads[loads.length - 1]));
+  }
+  const slowest = (key) => Math.max(...loads.map((l) => l[key]));
+  return { examples_first_frame_ms: slowest('first_frame_ms'), examples_full_ms: slowest('full_ms'), loads };
 }
 
 // An exposure edit over HTTP on the daemon's "default" scene, rendered once before (not timed).
@@ -338,12 +404,13 @@ async function main() {
   log('load', JSON.stringify(load));
 
   // 2. Drags, each LOOK_MS after the still before it.
+  await installPixelHelpers(page);
   const refinedBeforeOrbit = await look(firstFull);
-  const [orbit, orbitStill] = await drag(page, sceneId, size, 'orbit');
+  const [orbit, orbitStill] = await drag(page, sceneId, size, 'orbit', true);
   orbit.frames_before = refinedBeforeOrbit;
   log('orbit', JSON.stringify(orbit));
   const refinedBeforeLight = await look(orbitStill);
-  const [light, lightStill] = await drag(page, sceneId, size, 'light');
+  const [light, lightStill] = await drag(page, sceneId, size, 'light', true);
   light.frames_before = refinedBeforeLight;
   log('light', JSON.stringify(light));
   const refinedBeforeObject = await look(lightStill);
@@ -351,16 +418,20 @@ async function main() {
   object.frames_before = refinedBeforeObject;
   log('object', JSON.stringify(object));
   const maxLevel = Math.max(0, ...frames.map((f) => f.level ?? 0));
+  // 3. Every example loaded, the slowest first frame and still (issue 37).
+  const examples = await loadExamples(page, sceneId, size);
   await page.close();
   await context.close();
 
-  // 3. The exposure edit, with no page rendering alongside.
+  // 4. The exposure edit, with no page rendering alongside.
   const edits = await exposureEdits();
   log('exposure', JSON.stringify(edits.map(({ passes, ...e }) => e)));
 
   return {
     label: LABEL, refractd: REFRACTD, web_root: WEB_ROOT, device, hooks: hooked, scene: sceneId,
     frames_total: frames.length, max_level: maxLevel, load, orbit, light, object,
+    examples_first_frame_ms: examples.examples_first_frame_ms, examples_full_ms: examples.examples_full_ms,
+    examples: examples.loads,
     frames: frames.map((f) => [f.t - navStart, f.quality, `${f.width}x${f.height}`, f.level, f.revision, f.seq,
       f.passMs === null ? null : Math.round(f.passMs), roundTimings(f.timings), sinceAsked(f)]),
     exposure: {
@@ -373,6 +444,7 @@ async function main() {
 
 function table(r) {
   const ms = (v) => (typeof v === 'number' ? `${Math.round(v)} ms` : '—');
+  const num = (v) => (typeof v === 'number' ? v.toFixed(1) : '—');
   const rows = [
     ['daemon warm-up, waited before navigation', ms(r.load.warm_up_ms), 'health: warming_up'],
     ['navigation -> first frame received', ms(r.load.first_frame_ms), `${r.load.first_quality} ${r.load.first_size}`],
@@ -384,9 +456,13 @@ function table(r) {
     ['light drag: frames/s', r.light.fps.toFixed(1), `${r.light.frames} frames in ${r.light.seconds.toFixed(1)} s, interactive ${r.light.interactive_size ?? '—'}`],
     ['light: first frame of the drag\'s edits', ms(r.light.first_answer_ms), `then ${r.light.steady_fps === null ? '—' : r.light.steady_fps.toFixed(1)} frames/s, interactive passes ${ms(r.light.interactive_pass_ms)}`],
     ['light release -> full-resolution still', ms(r.light.release_to_full_ms), `passes ${ms(r.light.still_pass_ms)}`],
+    ['orbit / light: frame width shown while dragging', `${r.orbit.displayed_width} / ${r.light.displayed_width}`, `the viewport's: ${r.orbit.viewport_width}`],
+    ['orbit / light: RMSE of the last drag frame vs refined', `${num(r.orbit.rmse_vs_still)} / ${num(r.light.rmse_vs_still)}`, `8-bit sRGB, against level ${REFINED_LEVEL}+`],
     ['object drag (Alt): frames/s', r.object.fps.toFixed(1), `${r.object.frames} frames in ${r.object.seconds.toFixed(1)} s, interactive ${r.object.interactive_size ?? '—'}`],
     ['object: first frame of the drag\'s edits', ms(r.object.first_answer_ms), `then ${r.object.steady_fps === null ? '—' : r.object.steady_fps.toFixed(1)} frames/s, interactive passes ${ms(r.object.interactive_pass_ms)}`],
     ['object release -> full-resolution still', ms(r.object.release_to_full_ms), `passes ${ms(r.object.still_pass_ms)}`],
+    ['examples: slowest first frame after Load', ms(r.examples_first_frame_ms), `${r.examples.length} examples`],
+    ['examples: slowest full-resolution still after Load', ms(r.examples_full_ms), ''],
     ['exposure edit: pass sum (Server-Timing)', ms(r.exposure.first_pass_ms), `median of ${EXPOSURE_EDITS.length}: ${ms(r.exposure.median_pass_ms)}`],
     ['exposure edit: wall time (HTTP)', ms(r.exposure.first_wall_ms), `median of ${EXPOSURE_EDITS.length}: ${ms(r.exposure.median_wall_ms)}`],
   ];
