@@ -92,7 +92,7 @@ const SECTIONS = [
       { kind: 'environment' },
       { kind: 'color', ptr: '/environment/color', label: 'Environment colour',
         showIf: (doc) => doc.environment?.type === 'uniform' },
-      { kind: 'range', ptr: '/environment/intensity', label: 'Environment intensity', min: 0, max: 20, step: 0.05 },
+      { kind: 'range', ptr: '/environment/intensity', label: 'Environment intensity', min: 0, max: 20, step: 0.001 },
       { kind: 'range', ptr: '/environment/rotation_deg', label: 'Environment rotation (° about the vertical)',
         min: -180, max: 180, step: 1, showIf: (doc) => doc.environment?.type === 'image' },
       { kind: 'checkbox', ptr: '/environment/lights', label: 'The environment lights the scene (off: a backdrop only)',
