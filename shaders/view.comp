@@ -4,7 +4,8 @@
 // equation inside it, gathering single scattering (transmittance x scattering x phase x fluence) from
 // the radiance grid, then finish on the floor (lit analytically, plus the photons' floor map of what
 // the grid changes: its shadow and caustics) or the environment. Where a ray crosses the object's boundary the
-// reflected part is traced too (fresnel.glsl). Output: linear radiance and a tone-mapped sRGB pixel.
+// reflected part is traced too (fresnel.glsl). Output: linear radiance, and in w the inverse depth its
+// light comes from (temporal reuse).
 #include "transport_common.glsl"
 #include "fresnel.glsl"
 #include "phase.h"
@@ -183,6 +184,10 @@ void shade(uvec2 pixel) {
     bool parted = false;
     uint next_channel = 0u;
     vec3 pixel_radiance = vec3(0.0);
+    // The inverse depth the pixel's light comes from, for temporal reuse (temporal_reuse.comp): each
+    // run's gathered light and the floor's or sky's weigh 1 / their distance from the eye, as parallax
+    // goes; the sky's is 0.
+    float light_weight = 0.0, weighted_inverse_depth = 0.0;
     // One march and one floor_radiance call site for all paths: lavapipe runs every call (and its fetches)
     // for every pixel.
     for (uint path = 0u; path < kPaths; ++path) {
@@ -271,6 +276,7 @@ void shade(uvec2 pixel) {
                 vec3 step_attenuation = exp(-kappa * gather_step);
                 vec3 step_path = transmitted_path(kappa, gather_step, step_attenuation);
                 float t = 0.0;
+                vec3 gathered_before = radiance_sum;
                 // A run that enters unlit fog inside its leaf gathers zeros there rather than stopping:
                 // a lit-pyramid lookup on every step cost more (~10% of a camera edit in the default
                 // scene) than the unlit steps it saved in a narrow beam. Leaves that start unlit are
@@ -287,6 +293,10 @@ void shade(uvec2 pixel) {
                     ++steps;
                 }
                 run = t;
+                vec3 gathered = radiance_sum - gathered_before;
+                float share = (gathered.r + gathered.g + gathered.b) * (1.0 / 3.0);
+                light_weight += share;
+                weighted_inverse_depth += share / max(length(to_world(ray.p + (0.5 * run) * ray.d) - params.camera_position.xyz), 1e-6);
             } else {
                 transmittance *= exp(-kappa * run);
                 ++steps;
@@ -351,15 +361,20 @@ void shade(uvec2 pixel) {
             // the floor, whichever of the two the march's rounding found first.
             bool sees_floor = on_floor || (floor_on && end_d.y < 0.0 && end.y > params.floor_plane.x - 1e-3 * h);
             vec3 floor_point = on_floor ? end : end + end_d * ((end.y - params.floor_plane.x) / -end_d.y);
-            pixel_radiance += transmittance * (sees_floor ? floor_radiance(floor_point, end_d, length(floor_point - params.camera_position.xyz))
-                                                          : sky(end_d));
+            float floor_distance = length(floor_point - params.camera_position.xyz);
+            vec3 seen = transmittance * (sees_floor ? floor_radiance(floor_point, end_d, floor_distance) : sky(end_d));
+            pixel_radiance += seen;
+            float share = (seen.r + seen.g + seen.b) * (1.0 / 3.0);
+            light_weight += share;
+            if (sees_floor) weighted_inverse_depth += share / max(floor_distance, 1e-6);
         }
     }
     atomicAdd(stats.view_steps, march_steps);
     uint index = pixel.y * width + pixel.x;
     // Refinement samples keep the frame the running mean of every sample so far (a box filter).
     float weight = params.refinement.y;
-    hdr[index] = vec4(weight < 1.0 ? mix(hdr[index].rgb, pixel_radiance, weight) : pixel_radiance, 1.0);
+    float inverse_depth = light_weight > 0.0 ? weighted_inverse_depth / light_weight : 0.0;
+    hdr[index] = weight < 1.0 ? mix(hdr[index], vec4(pixel_radiance, inverse_depth), weight) : vec4(pixel_radiance, inverse_depth);
 }
 
 // The queue runs through the image (or its coarse pixels) tile by tile (view_tiles.glsl). Listed pixels

@@ -33,11 +33,11 @@ void main() {
     bool bounded = all(lessThan(pixel + odd, uvec2(width, height)));  // the far neighbour exists
     uint corner[4] = uint[4](lo.y * width + lo.x, lo.y * width + hi.x, hi.y * width + lo.x, hi.y * width + hi.x);
     uvec3 least = uvec3(255u), most = uvec3(0u);
-    vec3 sum = vec3(0.0);
+    vec4 sum = vec4(0.0);
     for (int k = 0; k < 4; ++k) {
         uint c = inside ? corner[k] : 0u;
-        vec3 radiance = hdr[c].rgb;
-        uvec3 b = bytes_of(srgb8(radiance, params.tone.x));
+        vec4 radiance = hdr[c];  // w: inverse depth, averaged alike
+        uvec3 b = bytes_of(srgb8(radiance.rgb, params.tone.x));
         least = min(least, b);
         most = max(most, b);
         sum += radiance;
@@ -45,7 +45,7 @@ void main() {
     bool agree = bounded && all(lessThanEqual(most - least, uvec3(VIEW_REFINE_LEVELS)));
     uint index = pixel.y * width + pixel.x;
     if (inside && !traced && agree) {
-        hdr[index] = vec4(0.25 * sum, 1.0);
+        hdr[index] = 0.25 * sum;
     }
     bool listed = inside && !traced && !agree;
     uvec4 ballot = subgroupBallot(listed);

@@ -98,6 +98,12 @@ std::string camera_key(const protocol::Camera& camera) {
     return key + shortest(camera.fov_deg);
 }
 
+// Numbers the sessions, from 1, across all threads.
+uint64_t next_session_number() {
+    static std::atomic<uint64_t> sessions{0};
+    return sessions.fetch_add(1) + 1;
+}
+
 }  // namespace
 
 // One client connection: the upgrade handshake, then a read loop and a write queue, all on one strand.
@@ -601,6 +607,10 @@ private:
             }
             request.playback = std::to_string(play_->id);
             played = PlayedFrame{play_->id, index, play_->frames, time};
+        } else if (request.options.quality == scene::Quality::interactive) {
+            // The session's drags reuse what it was shown (render/temporal_history.h); a played frame is
+            // another scene state each time, with nothing to reuse.
+            request.options.history = history_key_;
         }
         json seq = wanted_seq_;
         scene::FrameOptions options = wanted_options_;
@@ -776,6 +786,8 @@ private:
     bool want_frame_ = false;
     json wanted_seq_ = nullptr;
     scene::FrameOptions wanted_options_{scene::Quality::interactive};
+    // Names this session's temporal history in the renderer: unique for the daemon's life, unlike its address.
+    const std::string history_key_ = "session " + std::to_string(next_session_number());
     double budget_ms_ = scene::kDefaultBudgetMs;           // this session's interactive frame budget
     protocol::View view_;  // this session's own image size and camera (none: the document's)
     // The document of the session's last frame as its view showed it (none while playing).

@@ -59,6 +59,7 @@ FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document,
     transport.photon_history = options.photon_history;
     transport.history_frame = options.history_frame;
     transport.view_sample = options.view_sample;
+    transport.view_jitter = options.view_jitter;
     transport.bounce_cap = options.bounce_cap;
     transport.environment = &environment;
     in.lights = make_transport_params(document, grid, transport);

@@ -13,6 +13,7 @@
 #include "render/object_mesh.h"
 #include "render/scene_gpu.h"
 #include "render/scene_lattice.h"
+#include "render/temporal_history.h"
 #include "vk/context.h"
 
 namespace refract::scene {
@@ -151,6 +152,10 @@ int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes&
 // viewers refining at once take turns without starting their eye-ray samples over.
 constexpr size_t kMaxParkedViews = 4;
 
+// Viewers whose drags a scene keeps a temporal history for (render/temporal_history.h), the least
+// recently used dropped past this.
+constexpr size_t kMaxHistories = 4;
+
 struct ParkedView {
     protocol::SceneDocument document;  // as rendered: the scene seen through that view
     uint32_t level = 0;
@@ -175,12 +180,44 @@ struct ResidentScene {
     uint32_t history_frames = 0;   // frames of a light drag whose photons the radiance grid holds a share of
     FrameBudget budget;  // this scene's dynamic resolution
     std::vector<ParkedView> parked;  // least recently rendered first
+    std::map<std::string, std::unique_ptr<TemporalHistory>> histories;  // by FrameOptions::history
+    uint64_t stills = 0;  // still frames made, which number them for TemporalHistory::seeded_from
 };
 
-int64_t parked_bytes(const ResidentScene& held) {
+// Device memory the views of a scene hold beside its frame: parked frames and temporal histories.
+int64_t view_bytes(const ResidentScene& held) {
     int64_t bytes = 0;
     for (const ParkedView& view : held.parked) bytes += view.frame.bytes();
+    for (const auto& [key, history] : held.histories) bytes += history->bytes();
     return bytes;
+}
+
+// The history of viewer `key` (made when new, the least recently used dropped past kMaxHistories), seeded
+// from the scene's newest still frame when that is at the viewer's size and newer than what the history
+// holds: the resident one, or the one switch_view just parked for this frame's view.
+TemporalHistory& history_for(ResidentScene& held, PassKit& kit, const std::string& key,
+                             const protocol::SceneDocument& requested, uint64_t now) {
+    auto it = held.histories.find(key);
+    if (it == held.histories.end()) {
+        if (held.histories.size() >= kMaxHistories)
+            held.histories.erase(std::min_element(held.histories.begin(), held.histories.end(), [](const auto& a, const auto& b) {
+                return a.second->last_used < b.second->last_used;
+            }));
+        it = held.histories.emplace(key, std::make_unique<TemporalHistory>(kit)).first;
+    }
+    TemporalHistory& history = *it->second;
+    history.last_used = now;
+    const bool sized = held.gpu->width() == requested.image.width && held.gpu->height() == requested.image.height;
+    if (held.stills != history.seeded_from) {
+        if (held.level > 0 && (held.gpu->built() & kView) && sized) {
+            history.seed(held.gpu->hdr_buffer(), held.document);
+        } else if (!held.parked.empty() && held.parked.back().frame.width == requested.image.width &&
+                   held.parked.back().frame.height == requested.image.height) {
+            history.seed(held.parked.back().frame.hdr, held.parked.back().document);
+        }
+        history.seeded_from = held.stills;
+    }
+    return history;
 }
 
 // Before a frame of `requested`: the resident still frame is parked when `requested` shows the same scene
@@ -310,8 +347,10 @@ struct Renderer::Impl {
                    const ResolvedAssets& resolved, const RunOptions& frame_options,
                    const std::function<bool()>& give_way, FrameResult& frame);
     // The frame's levels and its PNG.
+    // The frame's levels and its PNG: an interactive frame with a viewer's `temporal` history is taken into
+    // it and sent at the viewer's size (`requested`'s).
     void finish_frame(ResidentScene& resident, const FramePlan& plan, const RunOptions& frame_options,
-                      FrameResult& frame);
+                      const protocol::SceneDocument& requested, TemporalHistory* temporal, FrameResult& frame);
     // Records what the resident state was built from.
     void keep(ResidentScene& resident, const protocol::SceneDocument& document, const ResolvedAssets& resolved,
               uint32_t level, uint32_t lattice_divisor);
@@ -377,7 +416,7 @@ bool Renderer::Impl::make_room(const std::string& scene_id, const ResidentScene*
         return r.gpu->built() ? estimate_scene_bytes(held_grid, r.gpu->field_atlas().dims.count(), held_grid.dims.count(),
                                                      held_grid.coarsened(held_grid.light_factor).count(), r.gpu->width(),
                                                      r.gpu->height()) +
-                                    estimate_environment_bytes(r.environment.get()) + parked_bytes(r)
+                                    estimate_environment_bytes(r.environment.get()) + view_bytes(r)
                               : int64_t{0};
     };
     auto it = scenes.find(scene_id);
@@ -521,6 +560,10 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
                                                 (lattice.light_factor * frame_options.radiance_factor),
                                             static_cast<double>(glm::length(lattice.max_corner() - lattice.origin)));
     resident.history_frames = history ? resident.history_frames + 1 : 0;
+    TemporalHistory* temporal = quality == Quality::interactive && !options.history.empty()
+                                    ? &history_for(resident, impl_->kit, options.history, requested, resident.last_used)
+                                    : nullptr;
+    if (temporal) frame_options.view_jitter = temporal->next_jitter();
     if (history) {
         frame_options.photon_history = kPhotonHistory;
         frame_options.history_frame = resident.history_frames;
@@ -530,13 +573,14 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
             frame.outcome = FrameResult::Outcome::superseded;  // the resident state is whole; only the frame was not made
             return frame;
         }
-        impl_->finish_frame(resident, plan, frame_options, frame);
+        impl_->finish_frame(resident, plan, frame_options, requested, temporal, frame);
         if (options.linear) frame.linear = resident.gpu->read_hdr();
     } catch (...) {
         impl_->drop_after_failure(scene_id);
     }
     impl_->keep(resident, plan.document, resolved, quality == Quality::still ? plan.level : 0,
                 plan.settings.lattice_divisor);
+    if (quality == Quality::still) ++resident.stills;
     if (quality == Quality::interactive) {
         const double photons = photon_ms(frame);
         resident.budget.observe(requested, plan.settings, photons, ms_since(start) - paused_ms - photons - volume_ms(frame));
@@ -547,18 +591,26 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
 }
 
 void Renderer::Impl::finish_frame(ResidentScene& resident, const FramePlan& plan, const RunOptions& frame_options,
+                                  const protocol::SceneDocument& requested, TemporalHistory* temporal,
                                   FrameResult& frame) {
     frame.level = plan.level;
     frame.refinement = refinement_at(plan.level);
     // An interactive frame may be shaded from a still frame's refined grid.
     frame.refinement.photon_batches = resident.gpu->photon_batches(plan.document, frame_options);
     frame.photons = uint64_t{frame.refinement.photon_batches} * plan.document.photons.count;
-    const auto encode_start = Clock::now();
-    const auto pixels = resident.gpu->read_ldr();
-    frame.png = image::encode_png(pixels, resident.gpu->width(), resident.gpu->height());
-    frame.timings.push_back({"encode", 0.0, ms_since(encode_start)});
     frame.width = resident.gpu->width();
     frame.height = resident.gpu->height();
+    if (temporal) {
+        const auto temporal_start = Clock::now();
+        temporal->add(resident.gpu->hdr_buffer(), frame.width, frame.height, requested, (frame.rerun & kView) != 0);
+        frame.timings.push_back({"temporal", 0.0, ms_since(temporal_start)});
+        frame.width = temporal->width();
+        frame.height = temporal->height();
+    }
+    const auto encode_start = Clock::now();
+    const auto pixels = temporal ? temporal->read_ldr() : resident.gpu->read_ldr();
+    frame.png = image::encode_png(pixels, frame.width, frame.height);
+    frame.timings.push_back({"encode", 0.0, ms_since(encode_start)});
 }
 
 void Renderer::Impl::drop_after_failure(const std::string& scene_id) {

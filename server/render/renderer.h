@@ -88,6 +88,10 @@ struct FrameOptions {
     uint32_t resume_up_to = 0;
     // Also read back the frame's linear radiance (FrameResult::linear), for an OpenEXR answer.
     bool linear = false;
+    // Interactive frames: the viewer (a WebSocket session) whose temporal history (render/temporal_history.h)
+    // takes the frame in; the frame is then that history at the document's image size. Empty: none, the
+    // frame is at the budget's size.
+    std::string history;
 };
 
 struct FrameResult {

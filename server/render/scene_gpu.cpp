@@ -20,6 +20,7 @@ PassKit::PassKit(vk::Context& ctx)
       lit_pyramid(ctx),
       view(ctx),
       tone_map(ctx),
+      temporal_reuse(ctx),
       linear_sampler(vk::make_linear_sampler(ctx)) {}
 
 int64_t estimate_scene_bytes(const passes::GridGeometry& grid, uint64_t field_voxels, uint64_t object_voxels,

@@ -72,6 +72,10 @@ struct RunOptions {
     // a jittered sample into the frame's running mean of s + 1 samples. Runs must come in order.
     uint32_t photon_batch = 0;
     uint32_t view_sample = 0;
+    // Temporal reuse (render/temporal_history.h): an interactive frame's one eye-ray sample per pixel at
+    // the sub-pixel offset of view sample `view_jitter` (0: the centre), so successive frames sample
+    // different points.
+    uint32_t view_jitter = 0;
     // Interactive light drags: the share of the radiance grid's light its previous frames keep (their
     // photons, weighted by age as an exponential moving average; 0: the new photons replace them), and
     // which frame of such a run this is (each draws photons of its own seed).
@@ -159,6 +163,7 @@ public:
     // unobstructed light plus the map's change, clamped at zero.
     std::vector<glm::vec4> read_floor_irradiance() const { return transport_.read_floor_irradiance(); }
     std::vector<glm::vec4> read_hdr() const { return view_.read_hdr(); }
+    const vk::Buffer& hdr_buffer() const { return view_.hdr(); }  // what temporal reuse takes in
     std::vector<uint32_t> read_ldr() const { return view_.read_ldr(); }
     std::vector<shaders::PhotonExit> read_photon_exits() const { return transport_.read_photon_exits(); }
     // The last run's parameters: the first light's (which the viewing pass reads), and every light's.

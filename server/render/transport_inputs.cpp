@@ -278,15 +278,11 @@ void set_floor(shaders::TransportParams& p, const protocol::Floor& floor, const 
 
 // The camera, the image and this refinement step's sample.
 void set_camera(shaders::TransportParams& p, const protocol::SceneDocument& document, const TransportOptions& options) {
-    const auto& camera = document.camera;
-    const glm::vec3 eye = vec(camera.position);
-    const glm::vec3 forward = glm::normalize(vec(camera.target) - eye);
-    const glm::vec3 right = glm::normalize(glm::cross(forward, vec(camera.up)));
-    const glm::vec3 up = glm::cross(right, forward);
-    p.camera_position = glm::vec4(eye, std::tan(glm::radians(static_cast<float>(camera.fov_deg)) * 0.5f));
-    p.camera_forward = glm::vec4(forward, 0.0f);
-    p.camera_right = glm::vec4(right, 0.0f);
-    p.camera_up = glm::vec4(up, 0.0f);
+    const shaders::TemporalCamera camera = pinhole_camera(document.camera);
+    p.camera_position = camera.position;
+    p.camera_forward = camera.forward;
+    p.camera_right = camera.right;
+    p.camera_up = camera.up;
     p.image = glm::uvec4(document.image.width, document.image.height, 0u, 0u);
     p.tone = glm::vec4(std::exp2(static_cast<float>(document.image.exposure)), options.view_step,
                        options.view_step * options.reflected_view_step, 0.0f);
@@ -294,7 +290,8 @@ void set_camera(shaders::TransportParams& p, const protocol::SceneDocument& docu
     const float batch_weight = options.photon_history > 0.0f ? 1.0f - options.photon_history
                                                              : 1.0f / static_cast<float>(options.photon_batch + 1);
     p.refinement = glm::vec4(batch_weight,
-                             1.0f / static_cast<float>(options.view_sample + 1), passes::view_sample_offset(options.view_sample));
+                             1.0f / static_cast<float>(options.view_sample + 1),
+                             passes::view_sample_offset(options.view_sample + options.view_jitter));
 }
 
 // The frame's parameters `p` once per light whose photons run, and the environment's photons with the
@@ -393,6 +390,15 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
 }
 
 }  // namespace
+
+shaders::TemporalCamera pinhole_camera(const protocol::Camera& camera) {
+    const glm::vec3 eye = vec(camera.position);
+    const glm::vec3 forward = glm::normalize(vec(camera.target) - eye);
+    const glm::vec3 right = glm::normalize(glm::cross(forward, vec(camera.up)));
+    const glm::vec3 up = glm::cross(right, forward);
+    return {glm::vec4(eye, std::tan(glm::radians(static_cast<float>(camera.fov_deg)) * 0.5f)), glm::vec4(forward, 0.0f),
+            glm::vec4(right, 0.0f), glm::vec4(up, 0.0f)};
+}
 
 std::vector<shaders::TransportParams> make_transport_params(const protocol::SceneDocument& document,
                                                             const passes::GridGeometry& grid,

@@ -9,6 +9,7 @@
 #include "passes/grid_geometry.h"
 #include "passes/transport_params.h"
 #include "protocol/scene_document.h"
+#include "temporal.h"
 #include "transport.h"
 
 namespace refract::scene {
@@ -25,6 +26,7 @@ struct TransportOptions {
     float photon_history = 0.0f;    // RunOptions::photon_history
     uint32_t history_frame = 0;     // RunOptions::history_frame
     uint32_t view_sample = 0;   // progressive refinement: which eye-ray sample per pixel (0: the centre)
+    uint32_t view_jitter = 0;   // RunOptions::view_jitter
     uint32_t bounce_cap = protocol::kMaxBounces;  // most of photons.max_bounces taken (interactive: fewer)
     const passes::EnvironmentLight* environment = nullptr;  // the document's environment (nullptr: lights nothing)
 };
@@ -32,6 +34,10 @@ struct TransportOptions {
 // The frame's parameters, once per light whose photons run (each with its light_* and emit_* fields,
 // photon_flux, photon_info, stepping and direct_light; TransportParams::light_set.y numbers them), in the
 // order of document.lights; the first also serves the viewing pass. Never empty.
+// The viewing pass's pinhole camera from the document's: the eye and tan(fov / 2), and the orthonormal
+// forward, right and up its rays are built from.
+shaders::TemporalCamera pinhole_camera(const protocol::Camera& camera);
+
 std::vector<shaders::TransportParams> make_transport_params(const protocol::SceneDocument& document,
                                                             const passes::GridGeometry& grid,
                                                             const TransportOptions& options);

@@ -38,6 +38,8 @@ public:
 
     uint32_t width() const { return width_; }
     uint32_t height() const { return height_; }
+    // The frame's linear radiance (vec4 per pixel; w the inverse depth its light comes from).
+    const vk::Buffer& hdr() const { return hdr_; }
     std::vector<glm::vec4> read_hdr() const;
     std::vector<uint32_t> read_ldr() const;
 
