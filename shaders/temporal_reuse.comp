@@ -5,9 +5,9 @@
 // successive frames sample different points. Each history pixel takes the sample that falls inside it,
 // if one does, as a box filter's new sample, else a little of the samples' bilinear estimate; and what
 // it showed before, reprojected through the camera's motion by the depth its light comes from, where
-// that depth agrees (else the surface was hidden before: disocclusion), clamped to the range of the
-// samples around it when anything moved (neighbourhood clamping). Nothing moving, the history is the
-// running mean of its samples, as a still frame's refinement is.
+// that depth agrees (else the surface was hidden before: disocclusion), clipped to the statistics of the
+// samples around it when anything moved (temporal_neighbourhood.comp). Nothing moving, the history is
+// the running mean of its samples, as a still frame's refinement is.
 #include "temporal.h"
 #include "tone_map.glsl"
 layout(local_size_x = TEMPORAL_GROUP_SIZE, local_size_y = TEMPORAL_GROUP_SIZE) in;
@@ -19,6 +19,7 @@ layout(std430, binding = TEMPORAL_BINDING_DEPTH_IN) readonly buffer DepthIn { fl
 layout(std430, binding = TEMPORAL_BINDING_HISTORY_OUT) writeonly buffer HistoryOut { vec4 history_out[]; };
 layout(std430, binding = TEMPORAL_BINDING_DEPTH_OUT) writeonly buffer DepthOut { float depth_out[]; };
 layout(std430, binding = TEMPORAL_BINDING_LDR) writeonly buffer Ldr { uint ldr[]; };
+layout(std430, binding = TEMPORAL_BINDING_NEIGHBOURHOOD) readonly buffer Neighbourhood { vec4 neighbourhood[]; };
 
 // The ray through point q (pixels) of a width x height image, as the viewing pass makes it.
 vec3 ray_through(TemporalCamera camera, vec2 q, vec2 size) {
@@ -34,10 +35,10 @@ bool image_point(TemporalCamera camera, vec3 v, vec2 size, out vec2 q) {
     return z > 1e-6;
 }
 
-vec4 sample_at(ivec2 s) {
+uint sample_index(ivec2 s) {
     ivec2 size = ivec2(params.sizes.zw);
     s = clamp(s, ivec2(0), size - 1);
-    return samples[s.y * size.x + s.x];
+    return uint(s.y * size.x + s.x);
 }
 
 // Whether a history pixel's inverse depth agrees with the one expected there: a tenth of the depth.
@@ -59,19 +60,24 @@ void main() {
     vec2 q;
     image_point(params.now, d, sample_size, q);
     ivec2 nearest = clamp(ivec2(floor(q - jitter)), ivec2(0), ivec2(params.sizes.zw) - 1);
-    vec4 sampled = sample_at(nearest);
+    vec4 sampled = samples[sample_index(nearest)];
     // The nearest sample's offset from this pixel's centre, in history pixels: inside its box, it is this
     // pixel's own (each sample falls in exactly one box).
     vec2 offset = (q - (vec2(nearest) + 0.5 + jitter)) * (history_size.y / sample_size.y);
     bool own = all(greaterThan(offset, vec2(-0.5))) && all(lessThanEqual(offset, vec2(0.5)));
-    vec3 current = sampled.rgb;
-    if (!own) {
-        vec2 at = q - jitter - 0.5;
-        ivec2 base = ivec2(floor(at));
-        vec2 f = at - vec2(base);
-        current = mix(mix(sample_at(base).rgb, sample_at(base + ivec2(1, 0)).rgb, f.x),
-                      mix(sample_at(base + ivec2(0, 1)).rgb, sample_at(base + ivec2(1, 1)).rgb, f.x), f.y);
+    // The samples' bilinear estimate here, and their neighbourhood's statistics.
+    vec2 at = q - jitter - 0.5;
+    ivec2 base = ivec2(floor(at));
+    vec2 f = at - vec2(base);
+    vec3 estimate = vec3(0.0), mean = vec3(0.0), deviation = vec3(0.0);
+    for (int k = 0; k < 4; ++k) {
+        uint i = sample_index(base + ivec2(k & 1, k >> 1));
+        float w = ((k & 1) == 1 ? f.x : 1.0 - f.x) * ((k >> 1) == 1 ? f.y : 1.0 - f.y);
+        estimate += w * samples[i].rgb;
+        mean += w * neighbourhood[2u * i].rgb;
+        deviation += w * neighbourhood[2u * i + 1u].rgb;
     }
+    vec3 current = own ? sampled.rgb : estimate;
     float weight = own ? params.blend.x : params.blend.y;
     float inverse_depth = sampled.w;
 
@@ -114,14 +120,9 @@ void main() {
         }
     }
     if (moved && history.w > 0.0) {
-        // The history's colour within the range of the samples around it, which follow what is there now.
-        vec3 least = vec3(1e30), most = vec3(-1e30);
-        for (int k = 0; k < 9; ++k) {
-            vec3 c = sample_at(nearest + ivec2(k % 3 - 1, k / 3 - 1)).rgb;
-            least = min(least, c);
-            most = max(most, c);
-        }
-        history.rgb = clamp(history.rgb, least, most);
+        // The history's colour within what the samples around it say is there now.
+        vec3 reach = TEMPORAL_CLIP_DEVIATIONS * deviation;
+        history.rgb = clamp(history.rgb, mean - reach, mean + reach);
     }
     float count = min(history.w, params.blend.z);
     vec3 radiance = count > 0.0 ? mix(history.rgb, current, weight / (count + weight)) : current;

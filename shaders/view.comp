@@ -186,8 +186,9 @@ void shade(uvec2 pixel) {
     vec3 pixel_radiance = vec3(0.0);
     // The inverse depth the pixel's light comes from, for temporal reuse (temporal_reuse.comp): each
     // run's gathered light and the floor's or sky's weigh 1 / their distance from the eye, as parallax
-    // goes; the sky's is 0.
-    float light_weight = 0.0, weighted_inverse_depth = 0.0;
+    // goes; the sky's is 0. Light that comes through or off the object takes the depth of the first
+    // place the eye ray bends (its surface): what is seen through glass moves with the glass.
+    float light_weight = 0.0, weighted_inverse_depth = 0.0, surface_inverse_depth = -1.0;
     // One march and one floor_radiance call site for all paths: lavapipe runs every call (and its fetches)
     // for every pixel.
     for (uint path = 0u; path < kPaths; ++path) {
@@ -240,6 +241,8 @@ void shade(uvec2 pixel) {
             vec3 kappa = extinction_at(coverage_as(params.flags.y, coverage), object) * h;
             bool scatters = max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0;
             uint level = octree_level(ray);
+            if (level == 0u && surface_inverse_depth < 0.0)
+                surface_inverse_depth = 1.0 / max(length(to_world(ray.p) - params.camera_position.xyz), 1e-6);
             float to_exit = grid_interval(ray.p, ray.d).y;
             float to_floor = (floor_on && ray.d.y < 0.0) ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
             float to_end = min(to_exit, to_floor);
@@ -296,7 +299,8 @@ void shade(uvec2 pixel) {
                 vec3 gathered = radiance_sum - gathered_before;
                 float share = (gathered.r + gathered.g + gathered.b) * (1.0 / 3.0);
                 light_weight += share;
-                weighted_inverse_depth += share / max(length(to_world(ray.p + (0.5 * run) * ray.d) - params.camera_position.xyz), 1e-6);
+                weighted_inverse_depth += share * (surface_inverse_depth >= 0.0 ? surface_inverse_depth
+                    : 1.0 / max(length(to_world(ray.p + (0.5 * run) * ray.d) - params.camera_position.xyz), 1e-6));
             } else {
                 transmittance *= exp(-kappa * run);
                 ++steps;
@@ -366,7 +370,8 @@ void shade(uvec2 pixel) {
             pixel_radiance += seen;
             float share = (seen.r + seen.g + seen.b) * (1.0 / 3.0);
             light_weight += share;
-            if (sees_floor) weighted_inverse_depth += share / max(floor_distance, 1e-6);
+            weighted_inverse_depth += share * (surface_inverse_depth >= 0.0 ? surface_inverse_depth
+                                               : sees_floor ? 1.0 / max(floor_distance, 1e-6) : 0.0);
         }
     }
     atomicAdd(stats.view_steps, march_steps);

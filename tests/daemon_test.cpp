@@ -1056,7 +1056,9 @@ TEST(Daemon, WebSocketPushesRefinementLevelsUntilTheCap) {
     for (const json& bad : {json{{"seq", 2}, {"budget_ms", 5}, {"patch", {{"light", {{"intensity", 9.0}}}}}},
                             json{{"seq", 2}, {"budget_ms", "fast"}, {"patch", {{"light", {{"intensity", 9.0}}}}}},
                             json{{"seq", 2}, {"refine", 32}, {"patch", {{"light", {{"intensity", 9.0}}}}}},
-                            json{{"seq", 2}, {"refine", -1}, {"patch", {{"light", {{"intensity", 9.0}}}}}}}) {
+                            json{{"seq", 2}, {"refine", -1}, {"patch", {{"light", {{"intensity", 9.0}}}}}},
+                            json{{"seq", 2}, {"temporal", "yes"}, {"patch", {{"light", {{"intensity", 9.0}}}}}},
+                            json{{"seq", 2}, {"temporal", 1}, {"patch", {{"light", {{"intensity", 9.0}}}}}}}) {
         ws.send(bad);
         auto [is_text, payload] = ws.read();
         ASSERT_TRUE(is_text);

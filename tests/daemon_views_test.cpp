@@ -113,6 +113,31 @@ TEST_F(DaemonViews, EachViewerSeesItsOwnViewAndNoneMakesARevision) {
     expect_no_validation_errors(daemon);
 }
 
+// A session that asks for temporal reuse (`"temporal": true`) gets its interactive frames at its view's
+// full size, however small a frame the budget traces; without it they come at the budget's size.
+TEST_F(DaemonViews, TemporalReuseSendsPreviewsAtTheViewersSize) {
+    const std::string id = create_scene(client, "temporal");
+    WsClient ws(daemon.ws_port(), ws_path(id));
+    ws.send({{"seq", 1}, {"refine", 0}, {"quality", "still"}, {"view", {{"width", 160}, {"height", 96}, {"camera", kCameraLeft}}}});
+    EXPECT_EQ(png_size(ws.read_frame().second), (std::pair{160u, 96u}));
+    json camera = kCameraLeft;
+    camera["position"][0] = -2.4;
+    // A budget no frame of this size meets: the budget's size is smaller than the view.
+    ws.send({{"seq", 2}, {"quality", "interactive"}, {"budget_ms", 10}, {"view", {{"width", 160}, {"height", 96}, {"camera", camera}}}});
+    const auto budgeted = png_size(ws.read_frame().second);
+    EXPECT_LT(budgeted.first, 160u);
+    camera["position"][0] = -2.3;
+    ws.send({{"seq", 3}, {"quality", "interactive"}, {"temporal", true}, {"view", {{"width", 160}, {"height", 96}, {"camera", camera}}}});
+    auto [header, png] = ws.read_frame();
+    EXPECT_EQ(header["seq"], 3);
+    EXPECT_EQ(png_size(png), (std::pair{160u, 96u}));
+    // The setting holds for the session: the next preview too.
+    camera["position"][0] = -2.2;
+    ws.send({{"seq", 4}, {"quality", "interactive"}, {"view", {{"width", 160}, {"height", 96}, {"camera", camera}}}});
+    EXPECT_EQ(png_size(ws.read_frame().second), (std::pair{160u, 96u}));
+    expect_no_validation_errors(daemon);
+}
+
 // Views of one scene share its photons and radiance grid: a light edit seen by three viewers with
 // three views traces photons once (asserted by the photon pass's runs in /metrics), and so do their
 // three still frames after it.

@@ -708,7 +708,7 @@ InteractiveSettings settle(FrameBudget& budget, const SceneDocument& doc, const 
     for (int frame = 0; frame < 30; ++frame) {
         used = budget.choose(doc, photons_rerun || !resident, true, resident ? &*resident : nullptr, budget_ms);
         const double photons = photons_rerun || !resident ? device.photons_ms(used) : 0.0;
-        budget.observe(doc, used, photons, device.rest_ms(used));
+        budget.observe(doc, used, photons, 0.0, device.rest_ms(used));
         resident = used;
     }
     return used;
@@ -776,7 +776,7 @@ TEST(FrameBudget, AFastDeviceGetsTheFullDocumentAndAHopelessOneTheFloor) {
 TEST(FrameBudget, KeepsTheResidentSettingsWhereChangingThemWouldRerunAPass) {
     SceneDocument doc;
     FrameBudget budget;
-    budget.observe(doc, {256, 256, doc.photons.count / 4}, 0.0, 400.0);  // too slow: shrink
+    budget.observe(doc, {256, 256, doc.photons.count / 4}, 0.0, 0.0, 400.0);  // too slow: shrink
     const InteractiveSettings resident{256, 256, 12345};
     const InteractiveSettings camera = budget.choose(doc, false, true, &resident, 100.0);
     EXPECT_EQ(camera.photons, 12345u);  // a camera drag must not retrace photons
@@ -784,6 +784,23 @@ TEST(FrameBudget, KeepsTheResidentSettingsWhereChangingThemWouldRerunAPass) {
     const InteractiveSettings exposure = budget.choose(doc, false, false, &resident, 100.0);
     EXPECT_EQ(exposure.width, 256u);  // an exposure edit must not retrace eye rays
     EXPECT_EQ(exposure.photons, 12345u);
+}
+
+// Temporal reuse costs what the viewer's full size costs, however small the frame traced: a fixed part,
+// taken off the budget before the image is sized, so that it does not read as a cost per pixel.
+TEST(FrameBudget, TheViewersFixedCostComesOffTheBudgetBeforeTheImageIsSized) {
+    SceneDocument doc;
+    doc.image.width = 512;
+    doc.image.height = 512;
+    const InteractiveSettings used{256, 256, doc.photons.count / 4};
+    FrameBudget alone, with_viewer;
+    alone.observe(doc, used, 0.0, 0.0, 40.0);        // 40 ms for a quarter of the pixels: 160 ms for all
+    with_viewer.observe(doc, used, 0.0, 40.0, 40.0);  // the same, and 40 ms at the viewer's size
+    const InteractiveSettings a = alone.choose(doc, false, true, &used, 100.0);
+    const InteractiveSettings b = with_viewer.choose(doc, false, true, &used, 100.0);
+    // 80 ms of passes (the headroom) against 160: sqrt(1/2) of the side; 40 of them left: sqrt(1/4).
+    EXPECT_EQ(a.width, 362u);
+    EXPECT_EQ(b.width, 256u);
 }
 
 }  // namespace

@@ -210,11 +210,12 @@ public:
     }
 
 private:
-    // The settings a message may set for the session from then on (budget_ms, refine, view).
+    // The settings a message may set for the session from then on (budget_ms, refine, view, temporal).
     struct Settings {
         double budget_ms = scene::kDefaultBudgetMs;
         uint32_t refine_to = scene::kMaxRefinementLevel;
         protocol::View view;
+        bool temporal = false;
     };
 
     // An animation played into this viewer (protocol/animation.h): its frames are rendered from the
@@ -390,7 +391,7 @@ private:
             }
         }
         // Session settings: checked whole before anything (the patch included) is applied.
-        Settings settings{budget_ms_, refine_to_, view_};
+        Settings settings{budget_ms_, refine_to_, view_, temporal_};
         double& budget_ms = settings.budget_ms;
         uint32_t& refine_to = settings.refine_to;
         if (message.contains("budget_ms")) {
@@ -409,6 +410,14 @@ private:
                                            std::to_string(scene::kMaxRefinementLevel) + "]");
             }
             refine_to = static_cast<uint32_t>(r.get<uint64_t>());
+        }
+        if (message.contains("temporal")) {
+            const json& t = message["temporal"];
+            if (!t.is_boolean()) {
+                service_.metrics().record_ws_message(true);
+                return send_error(seq, "temporal must be true or false", "/temporal");
+            }
+            settings.temporal = t.get<bool>();
         }
         if (message.contains("view")) {
             // The viewer's own image size and camera: refused whole, with a pointer into the message.
@@ -456,6 +465,7 @@ private:
         budget_ms_ = settings.budget_ms;
         refine_to_ = settings.refine_to;
         view_ = settings.view;
+        temporal_ = settings.temporal;
         // Any message ends the animation playing (latest wins); `stop` asks for nothing more.
         if (play_) stop_play(seq);
         if (stop) return;
@@ -607,7 +617,7 @@ private:
             }
             request.playback = std::to_string(play_->id);
             played = PlayedFrame{play_->id, index, play_->frames, time};
-        } else if (request.options.quality == scene::Quality::interactive) {
+        } else if (temporal_ && request.options.quality == scene::Quality::interactive) {
             // The session's drags reuse what it was shown (render/temporal_history.h); a played frame is
             // another scene state each time, with nothing to reuse.
             request.options.history = history_key_;
@@ -793,6 +803,10 @@ private:
     // The document of the session's last frame as its view showed it (none while playing).
     std::optional<protocol::SceneDocument> last_seen_;
     uint32_t refine_to_ = scene::kMaxRefinementLevel;      // the last refinement level pushed
+    // Interactive frames at the viewer's size by temporal reuse (render/temporal_history.h) rather than at
+    // the budget's size: off by default, as on two CPU cores its fixed cost outweighs what it reuses
+    // (docs/interactive.md).
+    bool temporal_ = false;
     // Set by a message that arrives while a refinement level renders: the level gives way to it.
     std::shared_ptr<std::atomic<bool>> newer_message_ = std::make_shared<std::atomic<bool>>(false);
     std::optional<Play> play_;  // the animation playing, if any

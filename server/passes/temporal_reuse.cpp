@@ -13,6 +13,7 @@ constexpr vk::BindingLayout kLayout[] = {
     {TEMPORAL_BINDING_HISTORY_OUT, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TEMPORAL_BINDING_DEPTH_OUT, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TEMPORAL_BINDING_LDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TEMPORAL_BINDING_NEIGHBOURHOOD, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 }  // namespace
 
@@ -28,7 +29,8 @@ void TemporalReusePass::record(vk::CommandRecorder& recorder, const Buffers& buf
         vk::Binding::storage_buffer(TEMPORAL_BINDING_DEPTH_IN, buffers.depth_in),
         vk::Binding::storage_buffer(TEMPORAL_BINDING_HISTORY_OUT, buffers.history_out),
         vk::Binding::storage_buffer(TEMPORAL_BINDING_DEPTH_OUT, buffers.depth_out),
-        vk::Binding::storage_buffer(TEMPORAL_BINDING_LDR, buffers.ldr)};
+        vk::Binding::storage_buffer(TEMPORAL_BINDING_LDR, buffers.ldr),
+        vk::Binding::storage_buffer(TEMPORAL_BINDING_NEIGHBOURHOOD, buffers.neighbourhood)};
     pipeline_.dispatch(recorder.get(), bindings, nullptr, 0, vk::group_count(width, TEMPORAL_GROUP_SIZE),
                        vk::group_count(height, TEMPORAL_GROUP_SIZE));
 }

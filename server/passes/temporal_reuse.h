@@ -20,6 +20,7 @@ public:
         const vk::Buffer& history_out;  // the history made of both, and its inverse depths
         const vk::Buffer& depth_out;
         const vk::Buffer& ldr;          // the history tone-mapped
+        const vk::Buffer& neighbourhood;  // the samples' statistics (TemporalNeighbourhoodPass)
     };
     // Over width x height history pixels (TemporalParams::sizes.xy).
     void record(vk::CommandRecorder& recorder, const Buffers& buffers, uint32_t width, uint32_t height) const;

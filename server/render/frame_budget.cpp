@@ -37,7 +37,9 @@ double corrected(double estimate, double measured_ms, double share) {
 
 InteractiveSettings FrameBudget::choose(const protocol::SceneDocument& document, bool photons_rerun, bool view_rerun,
                                         const InteractiveSettings* resident, double budget_ms) const {
-    const double target = budget_ms * kHeadroom;
+    // What the viewer's size costs comes first; the passes share what is left, and never less than a
+    // quarter of the budget.
+    const double target = std::max(budget_ms * kHeadroom - viewer_ms_, budget_ms * kHeadroom * 0.25);
     InteractiveSettings settings;
     double photon_ms = 0.0;  // what this frame's photon pass is expected to take
     if (resident && !photons_rerun) {
@@ -65,7 +67,8 @@ InteractiveSettings FrameBudget::choose(const protocol::SceneDocument& document,
 }
 
 void FrameBudget::observe(const protocol::SceneDocument& document, const InteractiveSettings& used, double photon_ms,
-                          double rest_ms) {
+                          double viewer_ms, double rest_ms) {
+    viewer_ms_ = viewer_ms > 0.0 ? corrected(viewer_ms_, viewer_ms, 1.0) : 0.0;
     if (photon_ms > 0.0 && used.photons > 0 && document.photons.count > 0)
         photon_ms_ = corrected(photon_ms_, photon_ms, static_cast<double>(used.photons) / document.photons.count);
     if (rest_ms > 0.0 && used.width > 0 && used.height > 0) {

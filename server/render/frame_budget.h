@@ -47,9 +47,11 @@ public:
                                const InteractiveSettings* resident, double budget_ms) const;
 
     // Feeds back what a frame rendered with `used` cost: milliseconds in the photon pass (0 when it did
-    // not run) and everything else (view, tone map, read-back, encode).
+    // not run), what the viewer's full size costs whatever size was traced (`viewer_ms`: temporal reuse
+    // and the encode of its frame, render/temporal_history.h; 0 without), and everything else (view,
+    // tone map, read-back, encode).
     void observe(const protocol::SceneDocument& document, const InteractiveSettings& used, double photon_ms,
-                 double rest_ms);
+                 double viewer_ms, double rest_ms);
 
 private:
     // What a frame would cost at the document's own image size and photon count, as the last frames
@@ -57,6 +59,7 @@ private:
     // of a light drag after a camera drag (or the other way round) is sized for the passes it runs.
     double image_ms_ = 0.0;   // everything but the photon pass
     double photon_ms_ = 0.0;  // the photon pass
+    double viewer_ms_ = 0.0;  // the frame's fixed part at the viewer's size, taken off the budget first
 };
 
 }  // namespace refract::scene

@@ -8,6 +8,7 @@
 #include "passes/photon_trace.h"
 #include "passes/radiance_resolve.h"
 #include "passes/radiance_spread.h"
+#include "passes/temporal_neighbourhood.h"
 #include "passes/temporal_reuse.h"
 #include "passes/tone_map.h"
 #include "passes/view.h"
@@ -29,6 +30,7 @@ struct PassKit {
     passes::LitPyramidPass lit_pyramid;
     passes::ViewPass view;
     passes::ToneMapPass tone_map;
+    passes::TemporalNeighbourhoodPass temporal_neighbourhood;
     passes::TemporalReusePass temporal_reuse;
     vk::UniqueSampler linear_sampler;
 };

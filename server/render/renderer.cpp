@@ -75,6 +75,15 @@ double volume_ms(const FrameResult& frame) {
     return ms;
 }
 
+// The milliseconds of an interactive frame spent at the viewer's size whatever size it traced: temporal
+// reuse and the encode of its full-size frame.
+double viewer_ms(const FrameResult& frame) {
+    double ms = 0.0;
+    for (const auto& t : frame.timings)
+        if (t.name == "temporal" || t.name == "encode") ms += t.host_ms;
+    return ms;
+}
+
 // The timings of a frame that ran refinement steps: one entry per pass, summed over the steps.
 void add_timing(std::vector<PassTiming>& timings, const std::string& name, double gpu_ms) {
     for (auto& t : timings)
@@ -583,7 +592,9 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     if (quality == Quality::still) ++resident.stills;
     if (quality == Quality::interactive) {
         const double photons = photon_ms(frame);
-        resident.budget.observe(requested, plan.settings, photons, ms_since(start) - paused_ms - photons - volume_ms(frame));
+        const double viewer = temporal ? viewer_ms(frame) : 0.0;
+        resident.budget.observe(requested, plan.settings, photons, viewer,
+                                ms_since(start) - paused_ms - photons - volume_ms(frame) - viewer);
     }
     std::lock_guard relock(impl_->mutex);
     impl_->evict_least_recent(scene_id);
@@ -677,7 +688,7 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
                 resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get());
             // What these photons cost sizes the first frame that traces photons (a light drag's): a camera
             // drag's frames shade from the resident grid and measure none.
-            if (pass == kPhotons) resident.budget.observe(document, settings, stats.gpu_ms.front().second, 0.0);
+            if (pass == kPhotons) resident.budget.observe(document, settings, stats.gpu_ms.front().second, 0.0, 0.0);
         }
     } catch (...) {
         evict(scene_id);  // partially built state is not trusted

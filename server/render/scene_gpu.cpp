@@ -20,6 +20,7 @@ PassKit::PassKit(vk::Context& ctx)
       lit_pyramid(ctx),
       view(ctx),
       tone_map(ctx),
+      temporal_neighbourhood(ctx),
       temporal_reuse(ctx),
       linear_sampler(vk::make_linear_sampler(ctx)) {}
 

@@ -36,7 +36,8 @@ TemporalHistory::TemporalHistory(PassKit& kit)
               "temporal params") {}
 
 int64_t TemporalHistory::bytes() const {
-    return int64_t{width_} * height_ * int64_t{2 * sizeof(glm::vec4) + 2 * sizeof(float) + sizeof(uint32_t)};
+    return int64_t{width_} * height_ * int64_t{2 * sizeof(glm::vec4) + 2 * sizeof(float) + sizeof(uint32_t)} +
+           static_cast<int64_t>(neighbourhood_.size());
 }
 
 void TemporalHistory::resize(uint32_t width, uint32_t height) {
@@ -57,9 +58,16 @@ void TemporalHistory::run(const vk::Buffer& samples, const shaders::TemporalPara
     recorder_.begin();
     recorder_.update(params_, 0, &params, sizeof params);
     recorder_.transfer_to_compute_barrier();
+    const uint64_t sample_count = uint64_t{params.sizes.z} * params.sizes.w;
+    if (neighbourhood_.size() < sample_count * 2 * sizeof(glm::vec4))
+        neighbourhood_ = vk::Buffer(kit_.context, sample_count * 2 * sizeof(glm::vec4), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                    vk::MemoryUse::device, "history neighbourhood");
+    kit_.temporal_neighbourhood.record(recorder_, params_, samples, neighbourhood_, params.sizes.z, params.sizes.w);
+    recorder_.compute_barrier();
     const uint32_t next = 1 - current_;
     kit_.temporal_reuse.record(recorder_,
-                               {params_, samples, radiance_[current_], depth_[current_], radiance_[next], depth_[next], ldr_},
+                               {params_, samples, radiance_[current_], depth_[current_], radiance_[next], depth_[next], ldr_,
+                                neighbourhood_},
                                width_, height_);
     recorder_.to_host_barrier();
     recorder_.submit_and_wait();
@@ -94,7 +102,9 @@ void TemporalHistory::add(const vk::Buffer& samples, uint32_t width, uint32_t he
     // A history pixel no sample falls in takes the samples' estimate at about the share of pixels one
     // falls in, so it follows a change within a cycle of offsets and is not held to the blurred estimate.
     const float side = static_cast<float>(shown.image.height) / static_cast<float>(height);
-    const float estimate = std::clamp(1.0f / (side * side), 1.0f / static_cast<float>(kJitterCycle), 1.0f);
+    // While anything moves, at least a quarter: the history is the reprojection of a moving picture, and
+    // the estimate keeps it from trailing.
+    const float estimate = std::clamp(1.0f / (side * side), moved ? 1.0f : 1.0f / static_cast<float>(kJitterCycle), 1.0f);
     const float sample = view_ran || !kept ? 1.0f : 0.0f;
     p.blend = glm::vec4(sample, sample * estimate, moved ? kMovingHistorySamples : kStillHistorySamples,
                         moved ? 1.0f : 0.0f);

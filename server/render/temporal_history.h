@@ -18,7 +18,7 @@ namespace refract::scene {
 
 // The samples a history pixel counts at most: while anything moves, so that it follows within a few
 // frames; while nothing does, as many as a still frame's refinement takes (kMaxViewSamples).
-inline constexpr float kMovingHistorySamples = 8.0f;
+inline constexpr float kMovingHistorySamples = 4.0f;
 inline constexpr float kStillHistorySamples = 16.0f;
 // What a still frame counts for when it starts a history: as much as a moving history holds.
 inline constexpr float kSeedSamples = kMovingHistorySamples;
@@ -63,6 +63,7 @@ private:
     vk::Buffer params_;
     vk::Buffer radiance_[2], depth_[2];  // ping-pong: the frame reads one and writes the other
     vk::Buffer ldr_;
+    vk::Buffer neighbourhood_;  // the samples' statistics, grown to the largest sample frame seen
     uint32_t current_ = 0;  // which of the pair holds the history
     uint32_t width_ = 0, height_ = 0;
     uint32_t frames_ = 0;  // frames taken in since the history started over

@@ -14,6 +14,13 @@
 #define TEMPORAL_BINDING_HISTORY_OUT 4
 #define TEMPORAL_BINDING_DEPTH_OUT 5
 #define TEMPORAL_BINDING_LDR 6          // uint per history pixel: tone-mapped sRGB RGBA8
+// Two vec4 per sample: the mean and the standard deviation of the radiance of its 3x3 neighbourhood
+// (temporal_neighbourhood.comp), which bound what the history may hold where anything moved.
+#define TEMPORAL_BINDING_NEIGHBOURHOOD 7
+// The history is clipped to the neighbourhood's mean +- this many standard deviations (variance
+// clipping: a box that follows the samples smoothly, where a min-max box of the nearest sample's
+// neighbourhood would be constant over each sample's footprint and show it as blocks).
+#define TEMPORAL_CLIP_DEVIATIONS 1.25
 
 REFRACT_SHADERS_BEGIN
 

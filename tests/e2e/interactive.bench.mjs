@@ -19,7 +19,9 @@
 //     the request's wall time.
 // Frames are observed on the page's WebSocket (header, then PNG), which works for any client
 // version; the client's window.refract hooks, where present, add when a frame was drawn.
-// $REFRACT_CHROMIUM overrides /usr/bin/chromium; $REFRACT_BENCH_LOG keeps the daemon's log there.
+// $REFRACT_CHROMIUM overrides /usr/bin/chromium; $REFRACT_BENCH_LOG keeps the daemon's log there;
+// $REFRACT_BENCH_SHOTS names a folder for a screenshot halfway through each drag (LABEL-WHAT-mid-drag.png);
+// $REFRACT_BENCH_QUERY is appended to the client's URL (temporal=1: previews by temporal reuse).
 
 import fs from 'node:fs';
 import os from 'node:os';
@@ -40,6 +42,8 @@ if (!refractdArg) {
 const REFRACTD = path.resolve(refractdArg);
 const WEB_ROOT = path.resolve(webRootArg || path.join(REPO, 'web-client'));
 const LABEL = labelArg || REFRACTD;
+const SHOTS = process.env.REFRACT_BENCH_SHOTS || '';
+const QUERY = process.env.REFRACT_BENCH_QUERY || '';  // appended to the client's URL, e.g. temporal=1
 const CHROMIUM = process.env.REFRACT_CHROMIUM || '/usr/bin/chromium';
 const DRAG_MS = 3000;
 const MOVE_EVERY_MS = 16;           // pointer moves while dragging: about one per display frame
@@ -224,10 +228,15 @@ async function drag(page, sceneId, size, what, refined = false) {
   await page.mouse.down();
   const start = Date.now();
   let moves = 0;
+  let shot = !SHOTS;
   while (Date.now() - start < DRAG_MS) {
     const phase = ((Date.now() - start) / 1500) * 2 * Math.PI;
     await page.mouse.move(cx + amp * Math.sin(phase), cy + 0.3 * amp * Math.sin(2 * phase));
     moves++;
+    if (!shot && Date.now() - start > DRAG_MS / 2) {
+      shot = true;
+      await page.screenshot({ path: path.join(SHOTS, `${LABEL}-${what}-mid-drag.png`) });
+    }
     await sleep(MOVE_EVERY_MS);
   }
   const end = Date.now();
@@ -377,7 +386,7 @@ async function main() {
 
   // 1. Navigation to the first frame and the first full-resolution still.
   const navStart = Date.now();
-  await page.goto(`${base}/`);
+  await page.goto(`${base}/${QUERY ? `?${QUERY}` : ''}`);
   const hooked = await page.evaluate(() => typeof window.refract === 'object' && window.refract !== null);
   if (hooked) await recordDraws(page);
   await waitUntil(() => frames.length > 0, SETTLE_TIMEOUT_MS, 'the first frame');

@@ -35,6 +35,7 @@ let watchdog = null;
 let frameMeta = null;          // text header of the frame whose PNG comes next
 let lastFrame = null;          // { revision, quality }
 let viewUpdateQueued = false;
+const TEMPORAL = params.get('temporal') === '1';
 let restoreBudget = false;     // the last play set the session's budget_ms: the next request sets it back
 
 // The panel and the light marker show the document as it is now; `force` also overwrites the values the
@@ -144,6 +145,9 @@ function pump() {
   state.viewSent = viewNow;
   if (restoreBudget) message.budget_ms = DRAG_BUDGET_MS;
   restoreBudget = false;
+  // ?temporal=1: previews at the view's full size by temporal reuse (docs/interactive.md), asked with
+  // every message so that a reconnected session asks too.
+  if (TEMPORAL) message.temporal = true;
   ws.send(JSON.stringify(message));
   // errorsBefore: an error shown after this request was sent is newer than its edit and must outlive it.
   // selection: what the outliner had chosen before the edits sent; a rejected Add or Rename goes back to it.
