@@ -276,7 +276,7 @@ void shade(uvec2 pixel) {
                 // a lit-pyramid lookup on every step cost more (~10% of a camera edit in the default
                 // scene) than the unlit steps it saved in a narrow beam. Leaves that start unlit are
                 // crossed in pyramid cells. The medium's density at a view step's midpoint stands for the
-                // step (medium.fade): a view step is about a voxel, a tenth of a fade or less.
+                // step (medium.fade): a view step is a voxel or two, a seventh of the default fade or less.
                 while (t < run) {
                     float len = min(gather_step, run - t);
                     vec3 x = ray.p + (t + 0.5 * len) * ray.d;
