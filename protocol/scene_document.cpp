@@ -88,6 +88,7 @@ constexpr Range kPhaseG{-0.99, 0.99, false, false, "a number in [-0.99, 0.99]"};
 constexpr Range kSmoothing{0.0, 4.0, false, false, "a number in [0, 4]"};
 constexpr Range kEpsilon{0.0, 1.0, true, false, "a number in (0, 1]"};
 constexpr Range kMargin{0.0, kCoordMax, false, false, "a number in [0, 1e4]"};
+constexpr Range kFade{0.0, kCoordMax, false, false, "a number in [0, 1e4] (metres)"};
 constexpr Range kAlbedo{0.0, 1.0, false, false, "a number in [0, 1]"};
 constexpr Range kChecker{0.0, kCoordMax, true, false, "a number in (0, 1e4]"};
 
@@ -509,11 +510,12 @@ private:
 
     void read_medium(const json& root, Medium& m) const {
         const std::string base = "/medium";
-        const json* j = section(root, "", "medium", {"ior", "extinction", "scattering", "phase"});
+        const json* j = section(root, "", "medium", {"ior", "extinction", "scattering", "phase", "fade"});
         if (j == nullptr) return;
         m.ior = number(*j, base, "ior", m.ior, kIor);
         coefficients(*j, base, m.extinction, m.scattering);
         m.phase = phase(*j, base, m.phase);
+        m.fade = number(*j, base, "fade", m.fade, kFade);
     }
 
     void read_volume(const json& root, Volume& v) const {
@@ -780,7 +782,8 @@ json to_json(const SceneDocument& d) {
          {{"ior", d.medium.ior},
           {"extinction", vec(d.medium.extinction)},
           {"scattering", vec(d.medium.scattering)},
-          {"phase", phase_json(d.medium.phase)}}},
+          {"phase", phase_json(d.medium.phase)},
+          {"fade", d.medium.fade}}},
         {"volume", std::move(volume)},
         {"photons", {{"count", d.photons.count}, {"seed", d.photons.seed}, {"max_bounces", d.photons.max_bounces}}},
         {"floor",

@@ -98,6 +98,9 @@ struct Medium {
     Vec3 extinction{0.2, 0.2, 0.2};
     Vec3 scattering{0.2, 0.2, 0.2};
     Phase phase{PhaseModel::henyey_greenstein, 0.3};
+    // Metres over which the medium's density falls smoothly to 0 at the grid's faces, so that the fog's
+    // box shows no edge; 0: homogeneous up to the faces.
+    double fade = 0.3;
 
     bool operator==(const Medium&) const = default;
 };

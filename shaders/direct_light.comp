@@ -93,10 +93,12 @@ bool direct_reaches(vec3 x, out float along, out vec3 d) {
 }
 
 // The direct light's fluence rate (rgb, W/m^2) at voxel point p, `along` voxels down its ray along d: the
-// light's intensity over r^2 (or its irradiance), through the medium from the grid's face.
+// light's intensity over r^2 (or its irradiance), through the medium from the grid's face (its optical
+// depth by the medium's density, as photons take it).
 vec3 direct_fluence(vec3 p, float along, vec3 d) {
     float h = voxel_size();
-    float in_medium = (along - grid_interval(p - d * along, d).x) * h;  // metres
+    float in_grid = along - grid_interval(p - d * along, d).x;
+    float in_medium = medium_depth(p - d * in_grid, d, in_grid) * h;  // metres at full density
     vec3 light = params.models.z == LIGHT_DIRECTIONAL ? params.light_power.rgb : params.light_power.rgb / (along * along * h * h);
     return light * exp(-params.medium_extinction.rgb * in_medium);
 }

@@ -339,9 +339,13 @@ void main() {
             bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
             float to_floor = hits_floor ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
             float len = min(ds, min(to_exit, to_floor));
+            // The medium's density over the step (medium.fade): its integral, exact however long the step
+            // (the direct span is crossed in one), so photons thin out as the direct light does.
+            float density = len > 0.0 ? medium_depth(ray.p, ray.d, len) / len : 1.0;
+            kappa = thinned(kappa, params.medium_extinction.rgb * h, coverage, density);
             if (kRandomWalks) {
                 // Absorption stays in the weight; scattering ends the step where the walk says.
-                kappa -= walk_free_path(walk, coverage_as(params.flags.z, coverage), object, h, len);
+                kappa -= walk_free_path(walk, coverage_as(params.flags.z, coverage), object, h, density, len);
                 if (walk.collides) { ds = len; to_exit = 1e30; to_floor = 1e30; }
             }
             unbent = unbent && all(equal(ray.field.yzw, vec3(0.0)));

@@ -236,9 +236,10 @@ void shade(uvec2 pixel) {
             if (into_leaf == 0.0) leaf_start = ray;
             float coverage = coverage_for(max(params.flags.y, params.flags.z), ray);
             float scatter_coverage = coverage_as(params.flags.z, coverage);
+            float extinction_coverage = coverage_as(params.flags.y, coverage);
             uint object = object_at(ray);
             vec3 sigma_s = scattering_at(scatter_coverage, object) * h;
-            vec3 kappa = extinction_at(coverage_as(params.flags.y, coverage), object) * h;
+            vec3 kappa = extinction_at(extinction_coverage, object) * h;
             bool scatters = max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0;
             uint level = octree_level(ray);
             if (level == 0u && surface_inverse_depth < 0.0)
@@ -283,14 +284,18 @@ void shade(uvec2 pixel) {
                 // A run that enters unlit fog inside its leaf gathers zeros there rather than stopping:
                 // a lit-pyramid lookup on every step cost more (~10% of a camera edit in the default
                 // scene) than the unlit steps it saved in a narrow beam. Leaves that start unlit are
-                // crossed in pyramid cells.
+                // crossed in pyramid cells. The medium's density at a view step's midpoint stands for the
+                // step (medium.fade): a view step is a voxel or two, a seventh of the default fade or less.
                 while (t < run) {
                     float len = min(gather_step, run - t);
-                    bool whole = len == gather_step;
-                    vec3 attenuation = whole ? step_attenuation : exp(-kappa * len);
-                    vec3 path_length = whole ? step_path : transmitted_path(kappa, len, attenuation);
-                    radiance_sum += transmittance * sigma_s * path_length *
-                                    in_scattered(ray.p + (t + 0.5 * len) * ray.d, ray.d, model, g);
+                    vec3 x = ray.p + (t + 0.5 * len) * ray.d;
+                    float density = medium_density(x);
+                    bool whole = len == gather_step && density == 1.0;
+                    vec3 kappa_here = thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density);
+                    vec3 attenuation = whole ? step_attenuation : exp(-kappa_here * len);
+                    vec3 path_length = whole ? step_path : transmitted_path(kappa_here, len, attenuation);
+                    vec3 sigma_here = thinned(sigma_s, params.medium_scattering.rgb * h, scatter_coverage, density);
+                    radiance_sum += transmittance * sigma_here * path_length * in_scattered(x, ray.d, model, g);
                     transmittance *= attenuation;
                     t += len;
                     ++steps;
@@ -302,7 +307,8 @@ void shade(uvec2 pixel) {
                 weighted_inverse_depth += share * (surface_inverse_depth >= 0.0 ? surface_inverse_depth
                     : 1.0 / max(length(to_world(ray.p + (0.5 * run) * ray.d) - params.camera_position.xyz), 1e-6));
             } else {
-                transmittance *= exp(-kappa * run);
+                float density = run > 0.0 ? medium_depth(ray.p, ray.d, run) / run : 1.0;
+                transmittance *= exp(-thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density) * run);
                 ++steps;
             }
             if (run >= to_end) {

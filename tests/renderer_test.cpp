@@ -75,6 +75,7 @@ TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
         {"light", {{"light", {{"position", {-2, 3, 1}}}}}, kPhotons | kView | kToneMap},
         {"photon count", {{"photons", {{"count", 2048}}}}, kPhotons | kView | kToneMap},
         {"extinction", {{"object", {{"extinction", {0.5, 0.5, 0.5}}}}}, kPhotons | kView | kToneMap},
+        {"medium fade", {{"medium", {{"fade", 0.1}}}}, kPhotons | kView | kToneMap},
         {"floor height", {{"floor", {{"height", -1.2}}}}, kPhotons | kView | kToneMap},
         {"octree epsilon", {{"volume", {{"octree_epsilon", 0.01}}}}, kOctree | kPhotons | kView | kToneMap},
         {"dispersion", {{"object", {{"abbe", 30}}}}, kOctree | kPhotons | kView | kToneMap},

@@ -51,11 +51,12 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
         stale |= kAllPasses;
     if (before.medium.ior != after.medium.ior) stale |= kIndexField | kOctree | kPhotons | kView | kToneMap;
     if (before.volume.octree_epsilon != after.volume.octree_epsilon) stale |= kOctree | kPhotons | kView | kToneMap;
-    // What photons see: the light, their number, extinction (Beer-Lambert), whether the boundary reflects
-    // (and through what film) and where the floor stops them;
+    // What photons see: the light, their number, extinction (Beer-Lambert) and the medium's fade, whether
+    // the boundary reflects (and through what film) and where the floor stops them;
     // and whether they deposit at all (only where something scatters).
     if (!(before.lights == after.lights) || !(before.photons == after.photons) || materials ||
-        before.medium.extinction != after.medium.extinction || before.floor.enabled != after.floor.enabled ||
+        before.medium.extinction != after.medium.extinction || before.medium.fade != after.medium.fade ||
+        before.floor.enabled != after.floor.enabled ||
         before.floor.height != after.floor.height || scene::any_scattering(before) != scene::any_scattering(after))
         stale |= kPhotons | kView | kToneMap;
     // Photons that scatter (random walks) see scattering and phase functions too.

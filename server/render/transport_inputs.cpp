@@ -230,6 +230,21 @@ namespace {
 
 // The floor, and where its caustic map lies: where the grid's shadow under any light (and the grid
 // itself) falls.
+// The medium's fade (TransportParams::medium_fade): at most a quarter of the grid's shortest side, so that
+// its middle keeps the full density, and none for a medium that neither scatters nor absorbs (where the
+// density changes nothing, and the octree's leaves need not be cut). The bottom face does not fade
+// where the floor, which hides what lies below it, is inside the grid.
+void set_medium_fade(shaders::TransportParams& p, const protocol::SceneDocument& document,
+                     const passes::GridGeometry& grid) {
+    const auto& medium = document.medium;
+    const bool clear = medium.extinction == protocol::Vec3{0.0, 0.0, 0.0} && medium.scattering == protocol::Vec3{0.0, 0.0, 0.0};
+    const double shortest = static_cast<double>(std::min({grid.dims.x, grid.dims.y, grid.dims.z}));
+    const double fade = clear ? 0.0 : std::min(medium.fade / static_cast<double>(grid.voxel_size), 0.25 * shortest);
+    const bool floor_hides_bottom = document.floor.enabled && document.floor.height >= static_cast<double>(grid.origin.y);
+    p.medium_fade = glm::vec4(static_cast<float>(fade), floor_hides_bottom ? -1e30f : 0.0f,
+                              fade > 0.0 ? static_cast<float>(1.0 / fade) : 0.0f, 0.0f);
+}
+
 void set_floor(shaders::TransportParams& p, const protocol::Floor& floor, const passes::GridGeometry& grid,
                const std::vector<shaders::LightParams>& lights) {
     const glm::vec3 centre = 0.5f * (grid.origin + grid.max_corner());
@@ -426,6 +441,7 @@ std::vector<shaders::TransportParams> make_transport_params(const protocol::Scen
 
     set_floor(p, document.floor, grid, lights);
     set_camera(p, document, options);
+    set_medium_fade(p, document, grid);
     // How passes find coverage for each coefficient, and whether photons need to deposit at all. n is
     // linear in coverage only in the field of one uniform object.
     const bool uniform_index = document.objects.size() == 1 && object.index_field == protocol::IndexFieldKind::uniform &&

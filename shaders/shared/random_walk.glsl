@@ -24,16 +24,23 @@ struct Walk {
     bool collides;     // the step being taken ends at a scattering event
     float coverage;    // the coverage of that step's coefficients
     uint object;       // and the object whose they are (object_at)
+    float density;     // and the medium's density over it (medium_density)
 };
 
 // A walk before its first free path: `xi` uniform in [0, 1).
-Walk start_walk(float xi) { return Walk(-log(1.0 - xi), 0u, false, 0.0, 0u); }
+Walk start_walk(float xi) { return Walk(-log(1.0 - xi), 0u, false, 0.0, 0u, 1.0); }
 
-// Spends the optical depth of a step of length `len` (voxels of side h) at coverage c of object o, and returns the
-// coefficient sigma it was sampled against (per voxel; 0 once the photon has used its bounces): the
-// photon crosses the whole step, or `len` is shortened to where it scatters (w.collides).
-float walk_free_path(inout Walk w, float c, uint o, float h, inout float len) {
-    vec3 s = scattering_at(c, o);
+// The scattering coefficients (per metre) at coverage c of object o where the medium's density is `density`.
+vec3 walk_scattering(float c, uint o, float density) {
+    return thinned(scattering_at(c, o), params.medium_scattering.rgb, c, density);
+}
+
+// Spends the optical depth of a step of length `len` (voxels of side h) at coverage c of object o and the
+// medium's mean density `density` over the step, and returns the coefficient sigma it was sampled against
+// (per voxel; 0 once the photon has used its bounces): the photon crosses the whole step, or `len` is
+// shortened to where it scatters (w.collides).
+float walk_free_path(inout Walk w, float c, uint o, float h, float density, inout float len) {
+    vec3 s = walk_scattering(c, o, density);
     float sigma = w.bounces < params.models.w ? (s.r + s.g + s.b) * (1.0 / 3.0) * h : 0.0;
     float depth = sigma * len;
     w.collides = depth > w.depth_left;
@@ -41,6 +48,7 @@ float walk_free_path(inout Walk w, float c, uint o, float h, inout float len) {
         len = w.depth_left / sigma;
         w.coverage = c;
         w.object = o;
+        w.density = density;
     } else {
         w.depth_left -= depth;
     }
@@ -87,7 +95,7 @@ vec3 turn(vec3 d, float mu, float phi) {
 vec3 scatter(inout Walk w, vec3 d, vec3 xi, out vec3 weight_factor) {
     uint model = phase_model_at(w.coverage, w.object);
     float g = phase_g_at(w.coverage, w.object);
-    vec3 s = scattering_at(w.coverage, w.object);
+    vec3 s = walk_scattering(w.coverage, w.object, w.density);
     weight_factor = s * (3.0 / (s.r + s.g + s.b));
     w.bounces += 1u;
     w.depth_left = -log(1.0 - xi.z);

@@ -294,6 +294,10 @@ struct TransportParams {
     uvec4 atlas_dims;         // xyz: the atlas's voxels (the index field's and coverage image's size); w: unused
     uvec4 lit_grid;           // xyz: the scene's own voxels (the lattice's, GridGeometry::light_factor to one),
                               // in which the lit pyramid's blocks are LIT_BLOCK a side; w: that factor
+    vec4 medium_fade;         // the medium's density (medium_density): x: the width (voxels) over which it falls
+                              // to 0 at the grid's faces, 0: none; y: where the lowest face that fades lies
+                              // (voxels: 0, or -1e30 where the floor hides the bottom face); z: 1 / x (0
+                              // without a fade); w: unused
     LightParams lights[TRANSPORT_MAX_LIGHTS];
 };
 
@@ -397,7 +401,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == (46 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == (47 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
 static_assert(sizeof(refract::shaders::Material) == 80);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);

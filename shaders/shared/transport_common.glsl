@@ -98,6 +98,66 @@ vec3 scattering_at(float c, uint o) {
     return mix(params.medium_scattering.rgb, kMaterials ? material_of(o).scattering.rgb : params.object_scattering.rgb, c);
 }
 
+// The medium's density at voxel point p (medium.fade): 1 inside the grid, falling to 0 at its faces by a
+// smoothstep of the distance to the nearest face that fades, so that lit fog shows no hard-edged box.
+// Exactly 1 everywhere without a fade. It scales only the medium's share of the coefficients (thinned).
+float medium_density(vec3 p) {
+    vec3 nearest = min(p - vec3(0.0, params.medium_fade.y, 0.0), grid_dims() - p);
+    float u = clamp(min(nearest.x, min(nearest.y, nearest.z)) * params.medium_fade.z, 0.0, 1.0);
+    return params.medium_fade.x > 0.0 ? u * u * (3.0 - 2.0 * u) : 1.0;
+}
+
+// The integral of the smoothstep of clamp(v, 0, 1) over v from 0 to u: the density's antiderivative along
+// a face's distance, in units of the fade.
+float fade_integral(float u) {
+    float v = clamp(u, 0.0, 1.0);
+    return v * v * v * (1.0 - 0.5 * v) + max(u - 1.0, 0.0);
+}
+
+// The integral of medium_density along the straight segment p + t d, t in [0, len] (voxels), exactly, for
+// steps whose coefficients must hold however long they are (the photons' steps, among them the direct
+// span crossed in one; the direct light from the grid's face). Along a line each face's distance is
+// affine in t, and the density is the smoothstep of the least of them, so the segment is cut where the
+// nearest face changes (at most five times) and each piece integrates in closed form (fade_integral).
+// Exactly len without a fade.
+float medium_depth(vec3 p, vec3 d, float len) {
+    // The dense box is convex: a segment that starts and ends in it lies in it.
+    if (medium_density(p) == 1.0 && medium_density(p + len * d) == 1.0) return len;
+    float fade = params.medium_fade.x;
+    vec3 lo = vec3(0.0, params.medium_fade.y, 0.0), hi = grid_dims();
+    float depth = 0.0, t = 0.0;
+    for (uint piece = 0u; piece < 8u && t < len; ++piece) {
+        // The distances to the low and high faces, which change along the segment at rates d and -d.
+        vec3 q = p + t * d;
+        vec3 below = q - lo, above = hi - q;
+        // The nearest face just past t: of the faces at the least distance (within rounding, 1e-3
+        // voxels: a piece ends where two meet), the one that shrinks fastest.
+        float least = min(min(below.x, min(below.y, below.z)), min(above.x, min(above.y, above.z)));
+        vec3 rate_below = mix(vec3(1e30), d, lessThanEqual(below, vec3(least + 1e-3)));
+        vec3 rate_above = mix(vec3(1e30), -d, lessThanEqual(above, vec3(least + 1e-3)));
+        float rate = min(min(rate_below.x, min(rate_below.y, rate_below.z)), min(rate_above.x, min(rate_above.y, rate_above.z)));
+        // Where another face becomes the nearer: it closes in on the nearest's distance.
+        vec3 meet_below = (below - least) / (rate - d), meet_above = (above - least) / (rate + d);
+        meet_below = mix(vec3(1e30), meet_below, greaterThan(rate - d, vec3(0.0)));
+        meet_above = mix(vec3(1e30), meet_above, greaterThan(rate + d, vec3(0.0)));
+        meet_below = mix(vec3(1e30), meet_below, greaterThan(meet_below, vec3(0.0)));
+        meet_above = mix(vec3(1e30), meet_above, greaterThan(meet_above, vec3(0.0)));
+        float run = min(len - t, min(min(meet_below.x, min(meet_below.y, meet_below.z)),
+                                     min(meet_above.x, min(meet_above.y, meet_above.z))));
+        float u0 = least / fade, u1 = (least + rate * run) / fade;
+        depth += abs(rate) > 1e-6 ? (fade_integral(u1) - fade_integral(u0)) * fade / rate
+                                  : medium_density(q + 0.5 * run * d) * run;
+        t += run;
+    }
+    return params.medium_fade.x > 0.0 ? depth : len;
+}
+
+// A coefficient (per length, per channel) at coverage c where the medium's density is `density`: the
+// medium's share, `medium` in the same units, thinned by it. The coefficient itself where density is 1.
+vec3 thinned(vec3 coefficient, vec3 medium, float c, float density) {
+    return max(coefficient - (1.0 - density) * (1.0 - c) * medium, vec3(0.0));
+}
+
 // The phase function (model, g) where scattering takes the coverage c of object o: the object's over
 // 0.5, the medium's below.
 uint phase_model_at(float c, uint o) {

@@ -81,6 +81,7 @@ const SECTIONS = [
     id: 'medium', title: 'Fog', controls: [
       { kind: 'fog', label: 'Fog density (per m)', min: 0, max: 1.5, step: 0.01 },
       { kind: 'range', ptr: '/medium/phase/g', label: 'Fog anisotropy g', min: -0.95, max: 0.95, step: 0.01 },
+      { kind: 'range', ptr: '/medium/fade', label: 'Fog fade at the box\'s faces (m)', min: 0, max: 1, step: 0.01 },
       { kind: 'range', ptr: '/photons/max_bounces', label: 'Scattering bounces (0 = single scattering; previews take at most 4)',
         min: 0, max: 64, step: 1 },
       { kind: 'checkbox', ptr: '/floor/enabled', label: 'Floor' },
