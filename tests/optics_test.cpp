@@ -761,7 +761,8 @@ TEST_F(EnergyTest, ExtinctionFollowsBeerLambert) {
     for (const auto& [kappa, abbe] : cases) {
         const json k = {kappa.r, kappa.g, kappa.b};
         const json patch = {{"light", {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", E}}},
-                            {"medium", {{"ior", 1.0}, {"extinction", k}, {"scattering", k}}},
+                            // A medium dense up to the grid's faces (no fade): Beer-Lambert from the top face on.
+                            {"medium", {{"ior", 1.0}, {"extinction", k}, {"scattering", k}, {"fade", 0.0}}},
                             {"object", {{"ior", 1.0}, {"abbe", abbe}, {"extinction", k}, {"scattering", k}}},
                             {"floor", {{"enabled", true}, {"height", -1.5}}},
                             {"image", {{"width", 8}, {"height", 8}}},
