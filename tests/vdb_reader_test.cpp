@@ -97,6 +97,8 @@ TEST(VdbReader, RefusesEveryTruncationOfAValidFile) {
         EXPECT_TRUE(why.find("not an OpenVDB file") != std::string::npos ||
                     why.find("not a readable OpenVDB file") != std::string::npos)
             << length << " of " << file.size() << " bytes: " << why;
+        // A size read past the end was never taken for an allocation's.
+        EXPECT_EQ(why.find("bad_alloc"), std::string::npos) << length << " bytes: " << why;
     }
 }
 

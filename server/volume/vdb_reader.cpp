@@ -97,8 +97,13 @@ openvdb::GridPtrVecPtr read_grids(std::string_view bytes) {
     openvdb::initialize();
     try {
         std::istringstream in(std::string(bytes), std::ios::binary);
+        // A read past the end throws at once: OpenVDB does not check its reads, and would otherwise take
+        // the uninitialised size after a truncation as a string or buffer length to allocate.
+        in.exceptions(std::ios::failbit | std::ios::badbit);
         openvdb::io::Stream stream(in, /*delayLoad=*/false);
         return stream.getGrids();
+    } catch (const std::ios_base::failure&) {
+        throw VolumeError("not a readable OpenVDB file: it ends before its grids do (truncated?)");
     } catch (const openvdb::LookupError& e) {
         throw VolumeError(std::string("a grid of a type OpenVDB does not know (only the standard 5-4-3 tree is "
                                       "read): ") + e.what());
