@@ -82,6 +82,8 @@ TEST(DaemonVolumesTest, HostileVolumesAreRefusedWithTheReasonAndStoreNothing) {
         {density_with_value_vdb(-1.0f), "grid 'density' holds a negative value"},
         {far_apart_vdb(1'000'000), "spans 1000001 x 1000001 x 1000001 voxels, more than the daemon's limit"},
         {deep_tree_vdb(), "5-4-3"},
+        {metadata_bomb_vdb(), "(4294967295 bytes declared"},
+        {as_stream_vdb(true), "without offsets to their ends"},
     };
     for (const auto& [bytes, reason] : hostile) {
         for (const char* name : {"smoke", "fresh"}) {

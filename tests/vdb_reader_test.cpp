@@ -90,15 +90,30 @@ TEST(VdbReader, RefusesTooManyGrids) {
     EXPECT_NE(why.find("holds 2 grids, more than the limit of 1"), std::string::npos) << why;
 }
 
+TEST(VdbReader, ReadsASingleGridStreamAndRefusesSeveralWithoutOffsets) {
+    EXPECT_EQ(inspect_vdb(test::as_stream_vdb(false), {}).grids.size(), 1u);
+    const std::string why = refusal(test::as_stream_vdb(true));
+    EXPECT_NE(why.find("2 grids without offsets to their ends"), std::string::npos) << why;
+}
+
+// OpenVDB would allocate and fill the declared 4 GiB before reading the 4 bytes present.
+TEST(VdbReader, RefusesAMetadataLengthBeyondTheFile) {
+    const std::string why = refusal(test::metadata_bomb_vdb());
+    EXPECT_NE(why.find("it ends inside a metadata value of grid 'density' (4294967295 bytes declared"),
+              std::string::npos) << why;
+}
+
+// A file with offsets is cut inside what they bound; a stream without them inside the tree OpenVDB reads.
 TEST(VdbReader, RefusesEveryTruncationOfAValidFile) {
-    const std::string file = density_sphere_vdb(6, true);
-    for (size_t length = 0; length < file.size(); length += std::max<size_t>(1, file.size() / 97)) {
-        const std::string why = refusal(file.substr(0, length));
-        EXPECT_TRUE(why.find("not an OpenVDB file") != std::string::npos ||
-                    why.find("not a readable OpenVDB file") != std::string::npos)
-            << length << " of " << file.size() << " bytes: " << why;
-        // A size read past the end was never taken for an allocation's.
-        EXPECT_EQ(why.find("bad_alloc"), std::string::npos) << length << " bytes: " << why;
+    for (const std::string& file : {density_sphere_vdb(6, true), test::as_stream_vdb(false)}) {
+        for (size_t length = 0; length < file.size(); length += std::max<size_t>(1, file.size() / 97)) {
+            const std::string why = refusal(file.substr(0, length));
+            EXPECT_TRUE(why.find("not an OpenVDB file") != std::string::npos ||
+                        why.find("not a readable OpenVDB file") != std::string::npos)
+                << length << " of " << file.size() << " bytes: " << why;
+            // A size read past the end was never taken for an allocation's.
+            EXPECT_EQ(why.find("bad_alloc"), std::string::npos) << length << " bytes: " << why;
+        }
     }
 }
 

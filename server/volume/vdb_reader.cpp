@@ -1,5 +1,7 @@
 #include "volume/vdb_reader.h"
 
+#include "volume/vdb_layout.h"
+
 #include <openvdb/openvdb.h>
 #include <openvdb/io/Stream.h>
 
@@ -81,7 +83,10 @@ void check_float_grid(const openvdb::FloatGrid& grid, const std::string& what, c
     summary.usable = true;
 }
 
-openvdb::GridPtrVecPtr read_grids(std::string_view bytes) {
+// The oldest format version read: OpenVDB 3.0's, the first with per-grid compression flags.
+constexpr uint32_t kOldestVersion = 222;
+
+openvdb::GridPtrVec read_grids(std::string_view bytes, uint32_t max_grids) {
     if (bytes.substr(0, kNanoVdbMagic.size()) == kNanoVdbMagic)
         throw VolumeError("a NanoVDB (.nvdb) file; only OpenVDB (.vdb) files are read (convert it with "
                           "nanovdb_convert, or upload the .vdb it came from)");
@@ -91,17 +96,23 @@ openvdb::GridPtrVecPtr read_grids(std::string_view bytes) {
     uint32_t version = 0;
     if (bytes.size() >= sizeof kVdbMagic + sizeof version)
         std::memcpy(&version, bytes.data() + sizeof kVdbMagic, sizeof version);
-    if (version > openvdb::OPENVDB_FILE_VERSION)
+    if (version > openvdb::OPENVDB_FILE_VERSION || version < kOldestVersion)
         throw VolumeError("not a readable OpenVDB file: its format version " + std::to_string(version) +
-                          " is newer than this build reads (" + std::to_string(openvdb::OPENVDB_FILE_VERSION) + ")");
+                          " is outside what this build reads (" + std::to_string(kOldestVersion) + " to " +
+                          std::to_string(openvdb::OPENVDB_FILE_VERSION) + ")");
+    const std::vector<std::string> streams = split_grids(bytes, max_grids);
     openvdb::initialize();
     try {
-        std::istringstream in(std::string(bytes), std::ios::binary);
-        // A read past the end throws at once: OpenVDB does not check its reads, and would otherwise take
-        // the uninitialised size after a truncation as a string or buffer length to allocate.
-        in.exceptions(std::ios::failbit | std::ios::badbit);
-        openvdb::io::Stream stream(in, /*delayLoad=*/false);
-        return stream.getGrids();
+        openvdb::GridPtrVec grids;
+        for (const std::string& one_grid : streams) {
+            std::istringstream in(one_grid, std::ios::binary);
+            // A read past the end throws at once: OpenVDB does not check its reads, and would otherwise
+            // take the uninitialised size after a truncation as a length to allocate.
+            in.exceptions(std::ios::failbit | std::ios::badbit);
+            openvdb::io::Stream stream(in, /*delayLoad=*/false);
+            for (const openvdb::GridBase::Ptr& grid : *stream.getGrids()) grids.push_back(grid);
+        }
+        return grids;
     } catch (const std::ios_base::failure&) {
         throw VolumeError("not a readable OpenVDB file: it ends before its grids do (truncated?)");
     } catch (const openvdb::LookupError& e) {
@@ -120,19 +131,15 @@ VolumeLimits limits_for_resolution(uint32_t max_resolution) {
 }
 
 VolumeReport inspect_vdb(std::string_view bytes, const VolumeLimits& limits) {
-    const openvdb::GridPtrVecPtr grids = read_grids(bytes);
-    if (!grids || grids->empty()) throw VolumeError("the file holds no grids");
-    if (grids->size() > limits.max_grids)
-        throw VolumeError("the file holds " + std::to_string(grids->size()) + " grids, more than the limit of " +
-                          std::to_string(limits.max_grids));
+    const openvdb::GridPtrVec grids = read_grids(bytes, limits.max_grids);
     VolumeReport report;
-    for (size_t i = 0; i < grids->size(); ++i) {
-        const openvdb::GridBase& grid = *(*grids)[i];
+    for (size_t i = 0; i < grids.size(); ++i) {
+        const openvdb::GridBase& grid = *grids[i];
         GridSummary summary;
         summary.name = grid.getName();
         summary.type = grid.valueType();
         const std::string what = grid_name(grid, i);
-        if (const auto floats = openvdb::GridBase::constGrid<openvdb::FloatGrid>((*grids)[i]))
+        if (const auto floats = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grids[i]))
             check_float_grid(*floats, what, limits, summary);
         else if (summary.type == "float")
             throw VolumeError("grid " + what + " is a float grid with the tree " + grid.type() +

@@ -48,8 +48,9 @@ struct VolumeReport {
     bool operator==(const VolumeReport&) const = default;
 };
 
-// Reads an OpenVDB file from `bytes` and checks it: a VDB stream (NanoVDB, truncated or other bytes are
-// refused with the reason), at most max_grids grids, at least one usable float grid, each float grid with
+// Reads an OpenVDB file from `bytes` and checks it: a VDB file of format 222 to 224 (NanoVDB, truncated
+// or other bytes are refused with the reason) whose declared lengths fit (vdb_layout.h), at most
+// max_grids grids, at least one usable float grid, each float grid with
 // OpenVDB's standard 5-4-3 tree, a linear transform with a finite positive voxel size, an active bounding
 // box within max_box_voxels and finite non-negative values (active and background). Grids of other
 // value types are listed as unusable. Throws VolumeError naming the grid at fault.

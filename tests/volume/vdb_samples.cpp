@@ -1,17 +1,37 @@
 #include "volume/vdb_samples.h"
 
 #include <openvdb/openvdb.h>
+#include <openvdb/io/File.h>
 #include <openvdb/io/Stream.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <sstream>
 
 namespace refract::test {
 
 namespace {
 
+// As a DCC writes it: through io::File, which records each grid's offsets.
 std::string write(const openvdb::GridPtrVec& grids) {
+    const std::filesystem::path path = std::filesystem::temp_directory_path() /
+                                       ("refract_vdb_" + std::to_string(::getpid()) + ".vdb");
+    openvdb::io::File file(path.string());
+    file.write(grids);
+    file.close();
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream bytes;
+    bytes << in.rdbuf();
+    std::filesystem::remove(path);
+    return bytes.str();
+}
+
+// Without offsets: io::Stream writes each grid where the previous one's tree ends.
+std::string write_stream(const openvdb::GridPtrVec& grids) {
     std::ostringstream out(std::ios::binary);
     openvdb::io::Stream(out).write(grids);
     return out.str();
@@ -45,6 +65,30 @@ std::string density_sphere_vdb(int radius, bool with_velocity) {
         grids.push_back(velocity);
     }
     return write(grids);
+}
+
+std::string as_stream_vdb(bool with_velocity) {
+    auto grid = density_grid();
+    grid->tree().setValue(openvdb::Coord(1, 2, 3), 0.5f);
+    openvdb::GridPtrVec grids{grid};
+    if (with_velocity) {
+        auto velocity = openvdb::Vec3SGrid::create();
+        velocity->setName("vel");
+        grids.push_back(velocity);
+    }
+    return write_stream(grids);
+}
+
+std::string metadata_bomb_vdb() {
+    auto grid = density_grid();
+    grid->tree().setValue(openvdb::Coord(0, 0, 0), 1.0f);
+    grid->insertMeta("comment", openvdb::StringMetadata("BOMB"));
+    std::string bytes = write({grid});
+    // The string's value is written as its length (4) and "BOMB"; the length becomes 2^32 - 1.
+    const size_t at = bytes.find("BOMB");
+    const uint32_t declared = 0xffffffffu;
+    std::memcpy(&bytes[at - sizeof declared], &declared, sizeof declared);
+    return bytes;
 }
 
 std::string vector_only_vdb() {

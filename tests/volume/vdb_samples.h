@@ -1,4 +1,5 @@
-// OpenVDB files written by OpenVDB itself, for the volume tests (no VDB sample files ship with Debian).
+// OpenVDB files written by OpenVDB itself, for the volume tests (no VDB sample files ship with Debian),
+// through io::File as DCCs write them unless said otherwise.
 #pragma once
 
 #include <cstddef>
@@ -9,6 +10,11 @@ namespace refract::test {
 // A density sphere of `radius` voxels (1 at the centre, falling linearly to 0 at the edge), voxel size
 // 0.1, as the bytes of a .vdb file, with a vec3s grid "vel" beside it when `with_velocity`.
 std::string density_sphere_vdb(int radius, bool with_velocity = false);
+// A float grid "density" written by io::Stream (no grid offsets), with an empty vec3s grid "vel" after
+// it when `with_velocity`.
+std::string as_stream_vdb(bool with_velocity);
+// A float grid whose string metadata "comment" declares 2^32 - 1 bytes, of which 4 are present.
+std::string metadata_bomb_vdb();
 // A file holding only a vec3s grid named "vel".
 std::string vector_only_vdb();
 // A float grid "density" of a few voxels, one of them `bad` (NaN, infinite or negative).
