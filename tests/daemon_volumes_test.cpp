@@ -3,8 +3,8 @@
 // of the name untouched and the daemon alive.
 #include <gtest/gtest.h>
 
-#include <nlohmann/json.hpp>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 #include <utility>
@@ -66,7 +66,8 @@ TEST(DaemonVolumesTest, HostileVolumesAreRefusedWithTheReasonAndStoreNothing) {
     TempDir dir;
     Daemon daemon(dir.path() / "data");
     auto client = daemon.client();
-    ASSERT_EQ(client.Put("/api/volumes/smoke", density_sphere_vdb(4), "application/octet-stream")->status, 201);
+    ASSERT_EQ(client.Put("/api/volumes/smoke", density_sphere_vdb(4), "application/octet-stream")->status,
+              201);
     const json before = volumes(client);
 
     std::mt19937 random(39);
@@ -78,7 +79,8 @@ TEST(DaemonVolumesTest, HostileVolumesAreRefusedWithTheReasonAndStoreNothing) {
         {noise, "not an OpenVDB file"},
         {"NanoVDB0" + noise, "NanoVDB (.nvdb)"},
         {vector_only_vdb(), "no usable float grid in the file: 'vel'"},
-        {density_with_value_vdb(std::numeric_limits<float>::quiet_NaN()), "grid 'density' holds a non-finite value"},
+        {density_with_value_vdb(std::numeric_limits<float>::quiet_NaN()),
+         "grid 'density' holds a non-finite value"},
         {density_with_value_vdb(-1.0f), "grid 'density' holds a negative value"},
         {far_apart_vdb(1'000'000), "spans 1000001 x 1000001 x 1000001 voxels, more than the daemon's limit"},
         {deep_tree_vdb(), "5-4-3"},

@@ -1,5 +1,7 @@
 // Volume assets: OpenVDB files written by OpenVDB in the test, read back and summarised, and every
 // hostile file refused with its reason.
+#include "volume/vdb_reader.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -7,7 +9,6 @@
 #include <random>
 #include <string>
 
-#include "volume/vdb_reader.h"
 #include "volume/vdb_samples.h"
 
 namespace refract::volume {
@@ -74,10 +75,13 @@ TEST(VdbReader, RefusesNonFiniteAndNegativeValuesNamingTheGrid) {
 TEST(VdbReader, RefusesAHugeActiveBoundingBox) {
     // Two voxels make a box of 1e6^3 voxels, which overflows 64 bits if multiplied as integers.
     const std::string why = refusal(test::far_apart_vdb(1'000'000));
-    EXPECT_NE(why.find("active bounding box of grid 'density' spans 1000001 x 1000001 x 1000001"), std::string::npos) << why;
+    EXPECT_NE(why.find("active bounding box of grid 'density' spans 1000001 x 1000001 x 1000001"),
+              std::string::npos)
+        << why;
     // The limit is the daemon's: the same box of 9^3 passes 729 and fails 728.
     EXPECT_NO_THROW(inspect_vdb(test::far_apart_vdb(8), {.max_box_voxels = 729}));
-    EXPECT_NE(refusal(test::far_apart_vdb(8), {.max_box_voxels = 728}).find("limit of 728"), std::string::npos);
+    EXPECT_NE(refusal(test::far_apart_vdb(8), {.max_box_voxels = 728}).find("limit of 728"),
+              std::string::npos);
 }
 
 TEST(VdbReader, RefusesATreeDeeperThanOpenVdbs) {
@@ -100,7 +104,8 @@ TEST(VdbReader, ReadsASingleGridStreamAndRefusesSeveralWithoutOffsets) {
 TEST(VdbReader, RefusesAMetadataLengthBeyondTheFile) {
     const std::string why = refusal(test::metadata_bomb_vdb());
     EXPECT_NE(why.find("it ends inside a metadata value of grid 'density' (4294967295 bytes declared"),
-              std::string::npos) << why;
+              std::string::npos)
+        << why;
 }
 
 // A file with offsets is cut inside what they bound; a stream without them inside the tree OpenVDB reads.

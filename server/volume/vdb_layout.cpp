@@ -20,8 +20,8 @@ public:
     std::string_view take(uint64_t length, const std::string& what) {
         const size_t left = bytes_.size() - pos_;
         if (length > left)
-            throw VolumeError("not a readable OpenVDB file: it ends inside " + what + " (" + std::to_string(length) +
-                              " bytes declared, " + std::to_string(left) + " left)");
+            throw VolumeError("not a readable OpenVDB file: it ends inside " + what + " (" +
+                              std::to_string(length) + " bytes declared, " + std::to_string(left) + " left)");
         const std::string_view taken = bytes_.substr(pos_, static_cast<size_t>(length));
         pos_ += static_cast<size_t>(length);
         return taken;
@@ -66,7 +66,8 @@ std::vector<std::string> split_grids(std::string_view bytes, uint32_t max_grids)
     std::vector<std::string> streams;
     for (int32_t i = 0; i < count; ++i) {
         const size_t descriptor_begin = at.pos();
-        const std::string what = "grid '" + std::string(at.string("the name of grid #" + std::to_string(i))) + "'";
+        const std::string what =
+            "grid '" + std::string(at.string("the name of grid #" + std::to_string(i))) + "'";
         at.string("the type of " + what);
         if (!at.string("the instance parent of " + what).empty())
             throw VolumeError(what + " is an instance of another grid; instanced grids are not read");
@@ -78,14 +79,16 @@ std::vector<std::string> split_grids(std::string_view bytes, uint32_t max_grids)
         if (end_pos != 0) {
             if (grid_pos < static_cast<int64_t>(at.pos()) || end_pos < grid_pos ||
                 end_pos > static_cast<int64_t>(bytes.size()))
-                throw VolumeError("not a readable OpenVDB file: the offsets of " + what + " lie outside it");
+                throw VolumeError("not a readable OpenVDB file: the offsets of " + what +
+                                  " lie outside it (truncated?)");
             begin = static_cast<size_t>(grid_pos);
             end = static_cast<size_t>(end_pos);
         } else if (count > 1) {
             // Written as a stream: a grid ends where its tree does, found only by reading the tree.
-            throw VolumeError("the file holds " + std::to_string(count) +
-                              " grids without offsets to their ends (written as a stream): only a single-grid "
-                              "stream can be checked before it is read; write it as a file");
+            throw VolumeError(
+                "the file holds " + std::to_string(count) +
+                " grids without offsets to their ends (written as a stream): only a single-grid "
+                "stream can be checked before it is read; write it as a file");
         }
         // What OpenVDB reads of the grid before its tree: compression flags, metadata, the transform's type.
         Cursor grid(bytes.substr(0, end), begin);

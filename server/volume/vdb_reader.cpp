@@ -1,14 +1,14 @@
 #include "volume/vdb_reader.h"
 
-#include "volume/vdb_layout.h"
-
-#include <openvdb/openvdb.h>
 #include <openvdb/io/Stream.h>
+#include <openvdb/openvdb.h>
 
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <sstream>
+
+#include "volume/vdb_layout.h"
 
 namespace refract::volume {
 
@@ -31,7 +31,8 @@ void check_float_grid(const openvdb::FloatGrid& grid, const std::string& what, c
                       GridSummary& summary) {
     const openvdb::math::Transform& transform = grid.transform();
     if (!transform.isLinear())
-        throw VolumeError("grid " + what + " has a non-linear (frustum) transform; only linear ones are read");
+        throw VolumeError("grid " + what +
+                          " has a non-linear (frustum) transform; only linear ones are read");
     const openvdb::Vec3d voxel = transform.voxelSize();
     for (int axis = 0; axis < 3; ++axis)
         if (!std::isfinite(voxel[axis]) || voxel[axis] <= 0)
@@ -47,16 +48,19 @@ void check_float_grid(const openvdb::FloatGrid& grid, const std::string& what, c
     const openvdb::Coord dim = box.dim();
     const double box_voxels = double(dim.x()) * double(dim.y()) * double(dim.z());
     if (box_voxels > double(limits.max_box_voxels))
-        throw VolumeError("the active bounding box of grid " + what + " spans " + std::to_string(dim.x()) + " x " +
-                          std::to_string(dim.y()) + " x " + std::to_string(dim.z()) +
-                          " voxels, more than the daemon's limit of " + std::to_string(limits.max_box_voxels));
+        throw VolumeError("the active bounding box of grid " + what + " spans " + std::to_string(dim.x()) +
+                          " x " + std::to_string(dim.y()) + " x " + std::to_string(dim.z()) +
+                          " voxels, more than the daemon's limit of " +
+                          std::to_string(limits.max_box_voxels));
 
     // Negative or non-finite values would make extinction negative or poison every estimate through it.
     const auto check_value = [&](float value, const char* where) {
         if (!std::isfinite(value))
-            throw VolumeError("grid " + what + " holds a non-finite value (" + std::to_string(value) + ") " + where);
+            throw VolumeError("grid " + what + " holds a non-finite value (" + std::to_string(value) + ") " +
+                              where);
         if (value < 0)
-            throw VolumeError("grid " + what + " holds a negative value (" + std::to_string(value) + ") " + where);
+            throw VolumeError("grid " + what + " holds a negative value (" + std::to_string(value) + ") " +
+                              where);
     };
     check_value(grid.background(), "as its background");
     for (auto value = grid.cbeginValueOn(); value; ++value) check_value(*value, "in an active voxel");
@@ -88,8 +92,9 @@ constexpr uint32_t kOldestVersion = 222;
 
 openvdb::GridPtrVec read_grids(std::string_view bytes, uint32_t max_grids) {
     if (bytes.substr(0, kNanoVdbMagic.size()) == kNanoVdbMagic)
-        throw VolumeError("a NanoVDB (.nvdb) file; only OpenVDB (.vdb) files are read (convert it with "
-                          "nanovdb_convert, or upload the .vdb it came from)");
+        throw VolumeError(
+            "a NanoVDB (.nvdb) file; only OpenVDB (.vdb) files are read (convert it with "
+            "nanovdb_convert, or upload the .vdb it came from)");
     if (bytes.size() < sizeof kVdbMagic || std::memcmp(bytes.data(), kVdbMagic, sizeof kVdbMagic) != 0)
         throw VolumeError("not an OpenVDB file (it does not start with the VDB magic number)");
     // OpenVDB only warns about a format version it cannot read, and then reads no grids.
@@ -116,8 +121,10 @@ openvdb::GridPtrVec read_grids(std::string_view bytes, uint32_t max_grids) {
     } catch (const std::ios_base::failure&) {
         throw VolumeError("not a readable OpenVDB file: it ends before its grids do (truncated?)");
     } catch (const openvdb::LookupError& e) {
-        throw VolumeError(std::string("a grid of a type OpenVDB does not know (only the standard 5-4-3 tree is "
-                                      "read): ") + e.what());
+        throw VolumeError(
+            std::string("a grid of a type OpenVDB does not know (only the standard 5-4-3 tree is "
+                        "read): ") +
+            e.what());
     } catch (const std::exception& e) {
         throw VolumeError(std::string("not a readable OpenVDB file (truncated or damaged?): ") + e.what());
     }

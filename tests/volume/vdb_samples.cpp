@@ -1,8 +1,8 @@
 #include "volume/vdb_samples.h"
 
-#include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
 #include <openvdb/io/Stream.h>
+#include <openvdb/openvdb.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -18,8 +18,8 @@ namespace {
 
 // As a DCC writes it: through io::File, which records each grid's offsets.
 std::string write(const openvdb::GridPtrVec& grids) {
-    const std::filesystem::path path = std::filesystem::temp_directory_path() /
-                                       ("refract_vdb_" + std::to_string(::getpid()) + ".vdb");
+    const std::filesystem::path path =
+        std::filesystem::temp_directory_path() / ("refract_vdb_" + std::to_string(::getpid()) + ".vdb");
     openvdb::io::File file(path.string());
     file.write(grids);
     file.close();
