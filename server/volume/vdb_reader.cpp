@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <sstream>
 
 #include "volume/vdb_layout.h"
@@ -69,10 +70,8 @@ void check_float_grid(const openvdb::FloatGrid& grid, const std::string& what, c
     summary.index_min = {box.min().x(), box.min().y(), box.min().z()};
     summary.index_max = {box.max().x(), box.max().y(), box.max().z()};
     // The world box holds the index box's eight corners (voxel centres at integer coordinates).
-    for (int axis = 0; axis < 3; ++axis) {
-        summary.world_min[static_cast<size_t>(axis)] = INFINITY;
-        summary.world_max[static_cast<size_t>(axis)] = -INFINITY;
-    }
+    summary.world_min.fill(std::numeric_limits<double>::infinity());
+    summary.world_max.fill(-std::numeric_limits<double>::infinity());
     for (int corner = 0; corner < 8; ++corner) {
         const openvdb::Vec3d index((corner & 1) ? box.max().x() : box.min().x(),
                                    (corner & 2) ? box.max().y() : box.min().y(),
