@@ -13,8 +13,7 @@
 
 namespace refract::scene {
 
-// Volumes are kept as uploaded and never decoded here until something renders them.
-enum class AssetKind { mesh, grid, environment, volume };
+enum class AssetKind { mesh, grid, environment };
 
 class AssetCache {
 public:
