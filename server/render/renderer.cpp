@@ -355,7 +355,6 @@ struct Renderer::Impl {
     bool run_steps(ResidentScene& resident, const FramePlan& plan, const WorldMeshes& worlds,
                    const ResolvedAssets& resolved, const RunOptions& frame_options,
                    const std::function<bool()>& give_way, FrameResult& frame);
-    // The frame's levels and its PNG.
     // The frame's levels and its PNG: an interactive frame with a viewer's `temporal` history is taken into
     // it and sent at the viewer's size (`requested`'s).
     void finish_frame(ResidentScene& resident, const FramePlan& plan, const RunOptions& frame_options,

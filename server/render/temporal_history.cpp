@@ -99,12 +99,12 @@ void TemporalHistory::add(const vk::Buffer& samples, uint32_t width, uint32_t he
     const bool moved = camera_moved || (kept && document_.lights != shown.lights);
     if (kept) p.before = pinhole_camera(document_.camera);
     p.state = glm::uvec4(kept ? 1u : 0u, camera_moved ? 1u : 0u, 0u, 0u);
-    // A history pixel no sample falls in takes the samples' estimate at about the share of pixels one
-    // falls in, so it follows a change within a cycle of offsets and is not held to the blurred estimate.
+    // A history pixel no sample falls in takes the samples' estimate as a whole sample while anything
+    // moves (the history is the reprojection of a moving picture, and the estimate keeps it from
+    // trailing); while nothing does, at about the share of pixels a sample falls in, so that it follows a
+    // change within a cycle of offsets and is not held to the blurred estimate.
     const float side = static_cast<float>(shown.image.height) / static_cast<float>(height);
-    // While anything moves, at least a quarter: the history is the reprojection of a moving picture, and
-    // the estimate keeps it from trailing.
-    const float estimate = std::clamp(1.0f / (side * side), moved ? 1.0f : 1.0f / static_cast<float>(kJitterCycle), 1.0f);
+    const float estimate = moved ? 1.0f : std::clamp(1.0f / (side * side), 1.0f / static_cast<float>(kJitterCycle), 1.0f);
     const float sample = view_ran || !kept ? 1.0f : 0.0f;
     p.blend = glm::vec4(sample, sample * estimate, moved ? kMovingHistorySamples : kStillHistorySamples,
                         moved ? 1.0f : 0.0f);

@@ -228,8 +228,6 @@ shaders::Material material_for(const protocol::Object& object, const protocol::M
 
 namespace {
 
-// The floor, and where its caustic map lies: where the grid's shadow under any light (and the grid
-// itself) falls.
 // The medium's fade (TransportParams::medium_fade): at most a quarter of the grid's shortest side, so that
 // its middle keeps the full density, and none for a medium that neither scatters nor absorbs (where the
 // density changes nothing, and the octree's leaves need not be cut). The bottom face does not fade
@@ -245,6 +243,8 @@ void set_medium_fade(shaders::TransportParams& p, const protocol::SceneDocument&
                               fade > 0.0 ? static_cast<float>(1.0 / fade) : 0.0f, 0.0f);
 }
 
+// The floor, and where its caustic map lies: where the grid's shadow under any light (and the grid
+// itself) falls.
 void set_floor(shaders::TransportParams& p, const protocol::Floor& floor, const passes::GridGeometry& grid,
                const std::vector<shaders::LightParams>& lights) {
     const glm::vec3 centre = 0.5f * (grid.origin + grid.max_corner());
