@@ -7,7 +7,7 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
 # REFRACT_RUNTIME_ONLY=1: only what the built binaries need to run (the container image's final stage).
-runtime=(libvulkan1 mesa-vulkan-drivers libpng16-16 libpq5 libopenexr-3-1-30 libtinygltf2d libcpp-httplib0.11 curl ca-certificates)
+runtime=(libvulkan1 mesa-vulkan-drivers libpng16-16 libpq5 libopenexr-3-1-30 libtinygltf2d libcpp-httplib0.11 libopenvdb10.0 curl ca-certificates)
 
 packages=(
   build-essential cmake pkg-config git ca-certificates curl
@@ -18,6 +18,7 @@ packages=(
   libpq-dev  # the shared PostgreSQL store (refractd --store postgresql://...); no server needed to build
   libstb-dev libopenexr-dev  # environment maps: Radiance .hdr (stb_image, header only) and OpenEXR
   libtinygltf-dev  # glTF 2.0 scenes in and out (server/gltf)
+  libopenvdb-dev  # volume assets: OpenVDB files (server/volume), also written by the tests
   assimp-testmodels
   clang lld libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer (libclang_rt.fuzzer) and lld's --gc-sections
 )

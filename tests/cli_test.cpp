@@ -197,6 +197,9 @@ const BadLine kBadLines[] = {
      "refract: --scene: not with --daemon"},
     // animate
     {"KeyframesNotGiven", {"animate", kScene, "-o", "frames"}, "refract: animate needs KEYFRAMES.json"},
+    {"VolumeNameInvalid",
+     {"render", kScene, "-o", "x.png", "--volume", "a b=" + kScene},
+     "refract: --volume: the name in 'a b=" + kScene + "' must match [A-Za-z0-9_.-]{1,64}"},
     {"KeyframesIsADirectory",
      {"animate", kScene, kExamples, "-o", "frames"},
      "refract: KEYFRAMES.json '" + kExamples + "' is a directory"},
@@ -334,6 +337,18 @@ TEST(Cli, RenderRefusesAnUnusableGltfBeforeTheDevice) {
     const Outcome run = run_refract({"render", file.string(), "-o", (fs::temp_directory_path() / "x.exr").string()});
     EXPECT_EQ(run.status, 1);
     EXPECT_NE(run.err.find(file.string() + ": /buffers/0/uri: external URI 'mesh.bin' refused"), std::string::npos) << run.err;
+    EXPECT_EQ(run.err.find("VK_ERROR_"), std::string::npos) << run.err;
+    fs::remove(file);
+}
+
+// A --volume file is checked as refractd checks an upload, before a device starts (exit 1, naming the file).
+TEST(Cli, RenderRefusesAnUnusableVolumeBeforeTheDevice) {
+    const fs::path file = fs::temp_directory_path() / ("refract_cli_" + std::to_string(::getpid()) + ".vdb");
+    std::ofstream(file) << "not a volume at all";
+    const Outcome run = run_refract(
+        {"render", "-", "-o", (fs::temp_directory_path() / "x.exr").string(), "--volume", "smoke=" + file.string()});
+    EXPECT_EQ(run.status, 1);
+    EXPECT_NE(run.err.find(file.string() + ": not an OpenVDB file"), std::string::npos) << run.err;
     EXPECT_EQ(run.err.find("VK_ERROR_"), std::string::npos) << run.err;
     fs::remove(file);
 }

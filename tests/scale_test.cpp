@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "daemon/harness.h"
+#include "volume/vdb_samples.h"
 #include "daemon/ws_client.h"
 
 extern char** environ;
@@ -206,7 +207,7 @@ TEST(ScaleOutStart, ASchemaOfANewerVersionIsRefused) {
     auto [status, output] =
         run_refractd({"--store", url, "--port", std::to_string(free_port())}, std::chrono::seconds(30));
     EXPECT_EQ(status, 1) << output;
-    EXPECT_NE(output.find("schema is version 99, newer than this refractd's 2; refusing to start"), std::string::npos)
+    EXPECT_NE(output.find("schema is version 99, newer than this refractd's 3; refusing to start"), std::string::npos)
         << output;
 }
 
@@ -389,6 +390,30 @@ TEST_F(ScaleOut, UploadsDeletedThroughOneReplicaAreGoneForAll) {
     ASSERT_TRUE(renamed);
     ASSERT_EQ(renamed->status, 200) << renamed->body;
     EXPECT_EQ(r1.Get("/api/scenes/user/frame.png")->status, 422);
+}
+
+TEST_F(ScaleOut, VolumesUploadedToOneReplicaAreListedAndDeletedOnAll) {
+    auto r1 = client_for(replicas_[0]->port());
+    auto r2 = client_for(replicas_[1]->port());
+    auto r3 = client_for(replicas_[2]->port());
+    auto uploaded = r1.Put("/api/volumes/smoke", density_sphere_vdb(4, true), "application/octet-stream");
+    ASSERT_TRUE(uploaded);
+    ASSERT_EQ(uploaded->status, 201) << uploaded->body;
+    auto refused = r2.Put("/api/volumes/smoke", density_with_value_vdb(-1.0f), "application/octet-stream");
+    ASSERT_TRUE(refused);
+    EXPECT_EQ(refused->status, 400) << refused->body;
+    EXPECT_NE(refused->body.find("grid 'density' holds a negative value"), std::string::npos) << refused->body;
+    // The refused upload left the first one as it was, for every replica.
+    const json listed = json::parse(r3.Get("/api/volumes")->body)["volumes"];
+    ASSERT_EQ(listed.size(), 1u) << listed;
+    EXPECT_EQ(listed[0], json::parse(uploaded->body));
+    auto deleted = r2.Delete("/api/volumes/smoke");
+    ASSERT_TRUE(deleted);
+    EXPECT_EQ(deleted->status, 204) << deleted->body;
+    for (auto* replica : {&r1, &r2, &r3}) {
+        EXPECT_TRUE(json::parse(replica->Get("/api/volumes")->body)["volumes"].empty());
+        EXPECT_EQ(replica->Delete("/api/volumes/smoke")->status, 404);
+    }
 }
 
 TEST_F(ScaleOut, ConnectionsCutMidEditNeitherLoseNorInventAnEdit) {

@@ -8,6 +8,8 @@
 #include <functional>
 #include <sstream>
 
+#include "protocol/scene_document.h"
+
 namespace refract::cli {
 namespace {
 
@@ -36,6 +38,8 @@ Commands:
 Options for every command:
   --mesh NAME=FILE.obj                    make FILE.obj available to the scene as "upload:NAME"
   --environment NAME=FILE                 make FILE (.hdr or .exr) available as environment image NAME
+  --volume NAME=FILE.vdb                  check FILE.vdb as refractd checks a volume upload (no document
+                                          field names volumes yet)
   --device NAME                           use the device whose name contains NAME (also REFRACT_DEVICE)
 SCENE.json may be - for the default scene {}.
 )";
@@ -128,6 +132,13 @@ std::vector<Option> with_common_options(std::vector<Option> options) {
                        "make FILE (.hdr or .exr) available to the scene as environment image NAME",
                        [](Arguments& a, const std::string& flag, const std::string& spec) {
                            a.environments.push_back(named_file(flag, spec, "NAME=FILE"));
+                       }});
+    options.push_back({"--volume", "", "NAME=FILE.vdb",
+                       "check FILE.vdb as refractd checks a volume upload (no document field names volumes yet)",
+                       [](Arguments& a, const std::string& flag, const std::string& spec) {
+                           a.volumes.push_back(named_file(flag, spec, "NAME=FILE.vdb"));
+                           if (!protocol::valid_name(a.volumes.back().first))
+                               throw UsageError(flag + ": the name in '" + spec + "' must match [A-Za-z0-9_.-]{1,64}");
                        }});
     options.push_back({"--device", "", "NAME",
                        "use the device whose name contains NAME (also REFRACT_DEVICE)",

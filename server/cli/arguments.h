@@ -14,6 +14,7 @@ struct Arguments {
     std::vector<std::string> positional;
     std::vector<std::pair<std::string, std::string>> meshes;               // --mesh NAME=FILE.obj
     std::vector<std::pair<std::string, std::string>> environments;         // --environment NAME=FILE
+    std::vector<std::pair<std::string, std::string>> volumes;              // --volume NAME=FILE.vdb
     std::string out, hdr, stats, device, scene_file, suite, daemon, only;  // only: --case prefix
     bool json = false;
     bool interactive = false;  // --quality interactive

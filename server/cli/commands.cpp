@@ -25,6 +25,7 @@
 #include "render/renderer.h"
 #include "render/scene_gpu.h"
 #include "vk/context.h"
+#include "volume/vdb_reader.h"
 
 namespace refract::cli {
 namespace {
@@ -88,6 +89,18 @@ Loaded load(const Arguments& args) {
         load_gltf(scene, loaded);
     else
         loaded.document = protocol::parse_scene(scene == "-" ? json::object() : read_json_file(scene));
+    // Checked and dropped: the document has no field that names a volume yet.
+    for (const auto& named_volume : args.volumes) {
+        const std::string& file = named_volume.second;
+        std::ifstream in(file, std::ios::binary);
+        std::ostringstream bytes;
+        bytes << in.rdbuf();
+        try {
+            volume::inspect_vdb(bytes.str(), volume::limits_for_resolution(protocol::Limits{}.max_resolution));
+        } catch (const volume::VolumeError& e) {
+            throw std::runtime_error(file + ": " + e.what());
+        }
+    }
     for (const auto& [name, file] : args.environments) {
         std::ifstream in(file, std::ios::binary);
         std::ostringstream bytes;

@@ -18,6 +18,7 @@
 #include "http/static_files.h"
 #include "image/exr.h"
 #include "render/invalidation.h"
+#include "volume/vdb_reader.h"
 
 namespace refract::http {
 
@@ -192,7 +193,7 @@ struct ApiServer::Impl {
         route_authorized("GET", R"(/api/scenes/([^/]+)/frame\.png)", &Impl::get_frame);
         route_authorized("GET", R"(/api/scenes/([^/]+)/frame\.exr)", &Impl::get_frame_exr);
         route_authorized("POST", R"(/api/scenes/([^/]+)/frame\.png)", &Impl::edit_and_get_frame);
-        // Uploads: a scene's imported index grid, meshes, environment maps.
+        // Uploads: a scene's imported index grid, meshes, environment maps, volumes.
         route_authorized("PUT", R"(/api/scenes/([^/]+)/index-field)", &Impl::put_index_field);
         route_authorized("DELETE", R"(/api/scenes/([^/]+)/index-field)", &Impl::delete_index_field);
         route_authorized("GET", "/api/meshes", &Impl::list_meshes);
@@ -202,6 +203,9 @@ struct ApiServer::Impl {
         route_authorized("GET", R"(/api/environments/([^/]+))", &Impl::get_environment);
         route_authorized("PUT", R"(/api/environments/([^/]+))", &Impl::put_environment);
         route_authorized("DELETE", R"(/api/environments/([^/]+))", &Impl::delete_environment);
+        route_authorized("GET", "/api/volumes", &Impl::list_volumes);
+        route_authorized("PUT", R"(/api/volumes/([^/]+))", &Impl::put_volume);
+        route_authorized("DELETE", R"(/api/volumes/([^/]+))", &Impl::delete_volume);
         // Example scenes (logic in http/examples.cpp).
         route_authorized("GET", "/api/examples", &Impl::list_examples);
         route_authorized("GET", R"(/api/examples/([^/]+))", &Impl::get_example);
@@ -531,7 +535,7 @@ struct ApiServer::Impl {
     }
 
     // ---------------------------------------------------------------------------------------------------
-    // Uploads: a scene's imported index grid, meshes, environment maps
+    // Uploads: a scene's imported index grid, meshes, environment maps, volumes
 
     // The grid's sides and bounds in the query, its values (little-endian float32, x fastest) the body.
     void put_index_field(const Request& req, Response& res) {
@@ -685,6 +689,37 @@ struct ApiServer::Impl {
         remove_asset(
             res, [&] { return service.store().remove_environment(name); },
             "no uploaded environment named '" + name + "'");
+    }
+
+    void list_volumes(const Request&, Response& res) {
+        json list = json::array();
+        for (const auto& entry : service.store().list_volumes()) {
+            json item = volume::to_json(entry.report);
+            item["name"] = entry.name;
+            list.push_back(item);
+        }
+        send_json(res, 200, {{"volumes", list}});
+    }
+
+    // No frame changes: nothing renders volumes yet, so no cached frame is forgotten.
+    void put_volume(const Request& req, Response& res) {
+        std::string name = req.matches[1];
+        try {
+            scene::VolumeEntry entry = service.store().put_volume(name, req.body);
+            json answer = volume::to_json(entry.report);
+            answer["name"] = entry.name;
+            send_json(res, 201, answer);
+        } catch (const volume::VolumeError& e) {
+            send_error(res, 400, std::string("unusable volume: ") + e.what());
+        } catch (const scene::StoreError& e) {
+            send_store_error(res, e);
+        }
+    }
+
+    void delete_volume(const Request& req, Response& res) {
+        const std::string name = req.matches[1];
+        remove_asset(
+            res, [&] { return service.store().remove_volume(name); }, "no uploaded volume named '" + name + "'");
     }
 
     // Answers a DELETE of an asset: 204 when `remove` deleted it, 404 with `unknown` when there was none,

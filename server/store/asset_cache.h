@@ -13,7 +13,8 @@
 
 namespace refract::scene {
 
-enum class AssetKind { mesh, grid, environment };
+// Volumes are kept as uploaded and never decoded here until something renders them.
+enum class AssetKind { mesh, grid, environment, volume };
 
 class AssetCache {
 public:

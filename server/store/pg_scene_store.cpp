@@ -30,9 +30,9 @@ std::string text_of(uint64_t number) {
 }
 
 // Announcements of deleted assets, sent by the deleting transaction (the tables' triggers announce
-// uploads only): "deleted-mesh NAME", "deleted-environment NAME", "deleted-grid SCENE".
+// uploads only): "deleted-mesh NAME", "deleted-environment NAME", "deleted-grid SCENE", "deleted-volume NAME".
 constexpr std::string_view kDeletedMesh = "deleted-mesh", kDeletedEnvironment = "deleted-environment",
-                           kDeletedGrid = "deleted-grid";
+                           kDeletedGrid = "deleted-grid", kDeletedVolume = "deleted-volume";
 
 // A payload of refract_notify() (pg_schema.cpp) or of a deletion as an event, and whether it deletes an
 // asset; nullopt for one this build does not know.
@@ -49,6 +49,7 @@ std::optional<std::pair<StoreEvent, bool>> parse_notification(std::string_view p
     if (kind == kDeletedMesh) return event(StoreEvent::Kind::mesh, true);
     if (kind == kDeletedEnvironment) return event(StoreEvent::Kind::environment, true);
     if (kind == kDeletedGrid) return event(StoreEvent::Kind::grid, true);
+    if (kind == kDeletedVolume) return event(StoreEvent::Kind::volume, true);
     const size_t split = rest.find(' ');
     uint64_t revision = 0;
     if (kind != "revision" || split == std::string_view::npos ||
@@ -58,9 +59,10 @@ std::optional<std::pair<StoreEvent, bool>> parse_notification(std::string_view p
 }
 
 AssetKind asset_kind(StoreEvent::Kind kind) {
-    return kind == StoreEvent::Kind::mesh ? AssetKind::mesh
-           : kind == StoreEvent::Kind::grid ? AssetKind::grid
-                                            : AssetKind::environment;
+    return kind == StoreEvent::Kind::mesh     ? AssetKind::mesh
+           : kind == StoreEvent::Kind::grid   ? AssetKind::grid
+           : kind == StoreEvent::Kind::volume ? AssetKind::volume
+                                              : AssetKind::environment;
 }
 
 }  // namespace
@@ -358,6 +360,31 @@ bool PgSceneStore::remove_environment(const std::string& name) {
     if (!valid_mesh_name(name) || image::built_in_environment(name)) return false;
     return remove_asset(AssetKind::environment, {"environments", "name", "data", "environment"}, name,
                         "environment '" + name + "'", std::string(kDeletedEnvironment));
+}
+
+VolumeEntry PgSceneStore::put_volume(const std::string& name, const std::string& bytes) {
+    VolumeEntry entry{name, inspect_volume_upload(name, bytes, limits_)};
+    pg::Pool::Lease connection = pool_.acquire();
+    connection->exec(
+        "INSERT INTO volumes (name, data, report) VALUES ($1, $2, $3::jsonb) ON CONFLICT (name) DO UPDATE "
+        "SET data = EXCLUDED.data, report = EXCLUDED.report, version = volumes.version + 1",
+        {{name}, {bytes, true}, {volume::to_json(entry.report).dump()}}, "storing volume '" + name + "'");
+    return entry;
+}
+
+std::vector<VolumeEntry> PgSceneStore::list_volumes() const {
+    pg::Pool::Lease connection = pool_.acquire();
+    pg::Result rows = connection->exec("SELECT name, report::text FROM volumes ORDER BY name", {}, "listing volumes");
+    std::vector<VolumeEntry> all;
+    for (int i = 0; i < rows.rows(); ++i)
+        all.push_back({rows.text(i, 0), volume::volume_report_from_json(nlohmann::json::parse(rows.text(i, 1)))});
+    return all;
+}
+
+bool PgSceneStore::remove_volume(const std::string& name) {
+    if (!valid_mesh_name(name)) return false;
+    return remove_asset(AssetKind::volume, {"volumes", "name", "data", "volume"}, name, "volume '" + name + "'",
+                        std::string(kDeletedVolume));
 }
 
 EditResult PgSceneStore::put_index_grid(const std::string& scene_id, IndexGrid grid) {

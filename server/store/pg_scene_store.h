@@ -1,4 +1,4 @@
-// The shared scene store: scene documents, revisions, meshes and index grids in PostgreSQL, so that any
+// The shared scene store: scene documents, revisions, uploaded assets and index grids in PostgreSQL, so that any
 // number of refractd replicas serve the same scenes. The database enforces the revision rules (see
 // pg_schema.cpp); an edit is acknowledged only once its transaction has committed. Nothing is cached
 // but decoded assets (within a budget of host memory), keyed by their stored version, so a replica always answers with the
@@ -41,6 +41,9 @@ public:
     std::vector<EnvironmentEntry> list_stored_environments() const override;
     std::shared_ptr<const image::EnvironmentMap> stored_environment(const std::string& name) const override;
     bool remove_environment(const std::string& name) override;
+    VolumeEntry put_volume(const std::string& name, const std::string& bytes) override;
+    std::vector<VolumeEntry> list_volumes() const override;
+    bool remove_volume(const std::string& name) override;
     EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) override;
     std::shared_ptr<const IndexGrid> grid(const std::string& name) const override;
     bool remove_index_grid(const std::string& scene_id) override;

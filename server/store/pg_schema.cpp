@@ -91,6 +91,17 @@ BEGIN
 END $$;
 CREATE TRIGGER environments_notify AFTER INSERT OR UPDATE ON environments
     FOR EACH ROW EXECUTE FUNCTION refract_notify();
+)sql",
+// Version 3. Uploaded volumes (OpenVDB files) as uploaded, with the report GET /api/volumes lists. Their
+// uploads are not announced: nothing renders volumes yet.
+R"sql(
+CREATE TABLE volumes (
+    name text PRIMARY KEY CONSTRAINT volume_name_format
+        CHECK (name ~ '^[A-Za-z0-9_.-]{1,64}$' AND name NOT IN ('.', '..')),
+    data bytea NOT NULL,
+    report jsonb NOT NULL,
+    version bigint NOT NULL DEFAULT 1
+);
 )sql"};
 
 }  // namespace

@@ -95,7 +95,7 @@ SceneStore::SceneStore(fs::path data_dir, protocol::Limits limits, mesh::MeshLim
                        uint64_t max_host_memory)
     : data_dir_(std::move(data_dir)), limits_(limits), mesh_limits_(mesh_limits), cache_(max_host_memory) {
     std::error_code ec;
-    for (const char* sub : {"scenes", "meshes", "grids", "environments"}) {
+    for (const char* sub : {"scenes", "meshes", "grids", "environments", "volumes"}) {
         fs::create_directories(data_dir_ / sub, ec);
         if (ec)
             throw StoreError(StoreFailure::broken,
@@ -149,9 +149,12 @@ fs::path SceneStore::grid_path(const std::string& name) const {
 fs::path SceneStore::environment_path(const std::string& name) const {
     return data_dir_ / "environments" / (name + ".env");
 }
+fs::path SceneStore::volume_path(const std::string& name) const {
+    return data_dir_ / "volumes" / (name + ".vdb");
+}
 
 void SceneStore::load_scenes() {
-    for (const char* sub : {"scenes", "meshes", "grids", "environments"}) {
+    for (const char* sub : {"scenes", "meshes", "grids", "environments", "volumes"}) {
         for (const auto& item : fs::directory_iterator(data_dir_ / sub)) {
             // A temp file is a write that never reached its rename: the previous version stands.
             if (is_temp_file(item.path())) {
@@ -503,6 +506,38 @@ std::shared_ptr<const image::EnvironmentMap> SceneStore::stored_environment(cons
     if (!valid_mesh_name(name)) return nullptr;
     return load<image::EnvironmentMap>(AssetKind::environment, name, environment_path(name), "environment",
                                        [](const std::string& bytes) { return image::decode_environment(bytes); });
+}
+
+VolumeEntry SceneStore::put_volume(const std::string& name, const std::string& bytes) {
+    VolumeEntry entry{name, inspect_volume_upload(name, bytes, limits_)};
+    const std::string report = volume::to_json(entry.report).dump();
+    {
+        // The file goes first: a report is listed only beside its file, so a crash between the two lists
+        // the new file with the previous report until the next upload.
+        std::lock_guard lock(asset_mutex_);
+        write_file_atomically(volume_path(name), bytes.data(), bytes.size());
+        fs::path report_path = data_dir_ / "volumes" / (name + ".json");
+        write_file_atomically(report_path, report.data(), report.size());
+    }
+    return entry;
+}
+
+std::vector<VolumeEntry> SceneStore::list_volumes() const {
+    std::lock_guard lock(asset_mutex_);
+    std::vector<VolumeEntry> all;
+    for (const auto& [name, report] : stored_reports("volumes", ".vdb")) {
+        try {
+            all.push_back({name, volume::volume_report_from_json(report)});
+        } catch (const std::exception& e) {
+            std::cerr << "refractd: skipping unreadable volume report of " << name << ": " << e.what() << "\n";
+        }
+    }
+    return all;
+}
+
+bool SceneStore::remove_volume(const std::string& name) {
+    return valid_mesh_name(name) &&
+           remove_upload(AssetKind::volume, name, volume_path(name), "volume '" + name + "'", StoreEvent::Kind::volume);
 }
 
 EditResult SceneStore::put_index_grid(const std::string& scene_id, IndexGrid grid) {

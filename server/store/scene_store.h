@@ -1,5 +1,5 @@
 // The embedded scene store, the daemon's default: every scene document with its revision, the uploaded
-// meshes and the imported index grids, each persisted under the data directory before an edit is
+// meshes, environments and volumes and the imported index grids, each persisted under the data directory before an edit is
 // acknowledged. One daemon per data directory (it is locked).
 #pragma once
 
@@ -59,6 +59,11 @@ public:
     std::shared_ptr<const image::EnvironmentMap> stored_environment(const std::string& name) const override;
     bool remove_environment(const std::string& name) override;
 
+    // Checks and stores a volume upload as it came (NAME.vdb, its report in NAME.json beside it).
+    VolumeEntry put_volume(const std::string& name, const std::string& bytes) override;
+    std::vector<VolumeEntry> list_volumes() const override;
+    bool remove_volume(const std::string& name) override;
+
     // Stores `grid` under the scene's id and points the scene at it (a new revision). Throws StoreError.
     EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) override;
     // The grid stored for scene `name`; nullptr when unknown, RenderError when it cannot be read.
@@ -90,6 +95,7 @@ private:
     std::filesystem::path mesh_path(const std::string& name) const;
     std::filesystem::path grid_path(const std::string& name) const;
     std::filesystem::path environment_path(const std::string& name) const;
+    std::filesystem::path volume_path(const std::string& name) const;
     bool has_environment(const std::string& name) const;  // uploaded under `name` (not decoded)
     // The reports (NAME.json) under <data dir>/`kind` whose stored file (NAME + `ending`) exists, by name;
     // unreadable ones are skipped with a line on stderr. The caller holds asset_mutex_.

@@ -97,6 +97,13 @@ void check_unused(const std::vector<SceneSnapshot>& scenes, AssetKind kind, cons
                      std::move(users));
 }
 
+volume::VolumeReport inspect_volume_upload(const std::string& name, const std::string& bytes,
+                                           const protocol::Limits& limits) {
+    if (!valid_mesh_name(name))
+        throw StoreError(StoreFailure::invalid, "volume name must match [A-Za-z0-9_.-]{1,64}");
+    return volume::inspect_vdb(bytes, volume::limits_for_resolution(limits.max_resolution));
+}
+
 uint64_t host_bytes(const mesh::Mesh& mesh) {
     return sizeof mesh + mesh.positions.capacity() * sizeof(glm::vec3) + mesh.triangles.capacity() * sizeof(glm::uvec3);
 }

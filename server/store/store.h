@@ -21,6 +21,7 @@
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
 #include "store/asset_cache.h"
+#include "volume/vdb_reader.h"
 
 namespace refract::scene {
 
@@ -104,6 +105,12 @@ struct EnvironmentEntry {
     bool built_in = false;
 };
 
+// An uploaded volume (an OpenVDB file, kept as uploaded), as GET /api/volumes lists it.
+struct VolumeEntry {
+    std::string name;
+    volume::VolumeReport report;
+};
+
 
 // Throws protocol::ValidationError at /environment/image when `document` names an environment that is
 // neither built in nor `stored(name)`: a store's create and patch call it before anything is written.
@@ -130,6 +137,12 @@ std::shared_ptr<const mesh::Mesh> parse_mesh_upload(const std::string& name, con
 std::shared_ptr<const image::EnvironmentMap> decode_environment_upload(const std::string& name, const std::string& bytes,
                                                                        const AssetCache& cache);
 
+// A volume upload checked before it is kept: a valid name, then the whole file (volume::inspect_vdb)
+// under the limits of `limits`' max_resolution.
+// Throws StoreError(invalid) or volume::VolumeError.
+volume::VolumeReport inspect_volume_upload(const std::string& name, const std::string& bytes,
+                                           const protocol::Limits& limits);
+
 // Validation of an imported index grid, in the words a user needs; throws StoreError(invalid).
 void validate_index_grid(const IndexGrid& grid);
 
@@ -151,13 +164,14 @@ std::string random_hex_id();
 
 // What a store announces once it is committed (by this process or, for a shared store, by any replica):
 // a new revision of a scene, a scene's deletion, a new version or the deletion of an uploaded mesh or
-// environment (which changes frames without a new revision), the deletion of an imported grid; or that
+// environment (which changes frames without a new revision), the deletion of an imported grid or of an
+// uploaded volume (nothing renders volumes yet, so their uploads are not announced); or that
 // announcements may have been lost (a shared store's listener reconnected), so whatever was cached may
 // be stale.
 struct StoreEvent {
-    enum class Kind { revision, deleted, mesh, environment, grid, missed };
+    enum class Kind { revision, deleted, mesh, environment, grid, volume, missed };
     Kind kind = Kind::revision;
-    std::string name;       // the scene's id, or the mesh's or environment's name, or the grid's scene id
+    std::string name;       // the scene's id, the mesh's, environment's or volume's name, or the grid's scene id
     uint64_t revision = 0;  // Kind::revision only
 };
 using StoreListener = std::function<void(const StoreEvent&)>;
@@ -223,6 +237,13 @@ public:
     std::vector<EnvironmentEntry> list_environments() const;
     // The environment named `name`, built in or uploaded; nullptr when unknown.
     std::shared_ptr<const image::EnvironmentMap> environment(const std::string& name) const;
+
+    // Checks and stores a volume upload (.vdb bytes) as it came, replacing one of the same name; what was
+    // refused is never stored. Throws volume::VolumeError, StoreError(invalid) for a bad name.
+    virtual VolumeEntry put_volume(const std::string& name, const std::string& bytes) = 0;
+    virtual std::vector<VolumeEntry> list_volumes() const = 0;
+    // Deletes the uploaded volume `name` for good; false when none is stored.
+    virtual bool remove_volume(const std::string& name) = 0;
 
     // Stores `grid` under the scene's id and points the scene at it (a new revision). Throws StoreError.
     virtual EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) = 0;

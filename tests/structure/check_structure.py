@@ -18,7 +18,7 @@ from pathlib import Path
 # strangers to each other. "shaders" is shaders/shared, the struct layouts a shader and its host share.
 LAYERS = [
     ["protocol", "shaders"],
-    ["vk", "mesh", "image"],
+    ["vk", "mesh", "image", "volume"],
     ["assets", "gltf"],
     ["passes"],
     ["render", "store"],

@@ -1,0 +1,298 @@
+#include "volume/vdb_reader.h"
+
+#include <openvdb/io/Stream.h>
+#include <openvdb/openvdb.h>
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <sstream>
+#include <system_error>
+
+#include "volume/vdb_layout.h"
+
+namespace refract::volume {
+
+namespace {
+
+// The first bytes of a file: OpenVDB's magic number (an int64, little-endian) and NanoVDB's.
+constexpr unsigned char kVdbMagic[8] = {0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0};
+constexpr std::string_view kNanoVdbMagic = "NanoVDB";
+
+std::string quoted(const std::string& name) {
+    return "'" + name + "'";
+}
+
+std::string grid_name(const openvdb::GridBase& grid, size_t index) {
+    return grid.getName().empty() ? "#" + std::to_string(index) + " (unnamed)" : quoted(grid.getName());
+}
+
+// Checks one float grid and fills in its summary; throws VolumeError naming it.
+void check_float_grid(const openvdb::FloatGrid& grid, const std::string& what, const VolumeLimits& limits,
+                      GridSummary& summary) {
+    const openvdb::math::Transform& transform = grid.transform();
+    if (!transform.isLinear())
+        throw VolumeError("grid " + what +
+                          " has a non-linear (frustum) transform; only linear ones are read");
+    const openvdb::Vec3d voxel = transform.voxelSize();
+    for (int axis = 0; axis < 3; ++axis)
+        if (!std::isfinite(voxel[axis]) || voxel[axis] <= 0)
+            throw VolumeError("grid " + what + " has a voxel size that is not finite and positive");
+    summary.voxel_size = {voxel[0], voxel[1], voxel[2]};
+
+    const openvdb::CoordBBox box = grid.evalActiveVoxelBoundingBox();
+    if (box.empty()) {
+        summary.unusable_reason = "no active voxels";
+        return;
+    }
+    // The dimensions multiplied in double: two voxels at opposite ends of the index range overflow 64 bits.
+    const openvdb::Coord dim = box.dim();
+    const double box_voxels = double(dim.x()) * double(dim.y()) * double(dim.z());
+    if (box_voxels > double(limits.max_box_voxels))
+        throw VolumeError("the active bounding box of grid " + what + " spans " + std::to_string(dim.x()) +
+                          " x " + std::to_string(dim.y()) + " x " + std::to_string(dim.z()) +
+                          " voxels, more than the daemon's limit of " +
+                          std::to_string(limits.max_box_voxels));
+
+    // Negative or non-finite values would make extinction negative or poison every estimate through it.
+    const auto check_value = [&](float value, const char* where) {
+        if (!std::isfinite(value))
+            throw VolumeError("grid " + what + " holds a non-finite value (" + std::to_string(value) + ") " +
+                              where);
+        if (value < 0)
+            throw VolumeError("grid " + what + " holds a negative value (" + std::to_string(value) + ") " +
+                              where);
+    };
+    check_value(grid.background(), "as its background");
+    for (auto value = grid.cbeginValueOn(); value; ++value) check_value(*value, "in an active voxel");
+
+    summary.active_voxels = grid.activeVoxelCount();
+    summary.index_min = {box.min().x(), box.min().y(), box.min().z()};
+    summary.index_max = {box.max().x(), box.max().y(), box.max().z()};
+    // The world box holds the index box's eight corners (voxel centres at integer coordinates).
+    summary.world_min.fill(std::numeric_limits<double>::infinity());
+    summary.world_max.fill(-std::numeric_limits<double>::infinity());
+    for (int corner = 0; corner < 8; ++corner) {
+        const openvdb::Vec3d index((corner & 1) ? box.max().x() : box.min().x(),
+                                   (corner & 2) ? box.max().y() : box.min().y(),
+                                   (corner & 4) ? box.max().z() : box.min().z());
+        const openvdb::Vec3d world = transform.indexToWorld(index);
+        for (int axis = 0; axis < 3; ++axis) {
+            const auto a = static_cast<size_t>(axis);
+            summary.world_min[a] = std::min(summary.world_min[a], world[axis]);
+            summary.world_max[a] = std::max(summary.world_max[a], world[axis]);
+        }
+    }
+    summary.usable = true;
+}
+
+// The oldest format version read: OpenVDB 3.0's, the first with per-grid compression flags.
+constexpr uint32_t kOldestVersion = 222;
+
+openvdb::GridPtrVec read_grids(std::string_view bytes, uint32_t max_grids) {
+    if (bytes.substr(0, kNanoVdbMagic.size()) == kNanoVdbMagic)
+        throw VolumeError(
+            "a NanoVDB (.nvdb) file; only OpenVDB (.vdb) files are read (convert it with "
+            "nanovdb_convert, or upload the .vdb it came from)");
+    if (bytes.size() < sizeof kVdbMagic || std::memcmp(bytes.data(), kVdbMagic, sizeof kVdbMagic) != 0)
+        throw VolumeError("not an OpenVDB file (it does not start with the VDB magic number)");
+    // OpenVDB only warns about a format version it cannot read, and then reads no grids.
+    uint32_t version = 0;
+    if (bytes.size() >= sizeof kVdbMagic + sizeof version)
+        std::memcpy(&version, bytes.data() + sizeof kVdbMagic, sizeof version);
+    if (version > openvdb::OPENVDB_FILE_VERSION || version < kOldestVersion)
+        throw VolumeError("not a readable OpenVDB file: its format version " + std::to_string(version) +
+                          " is outside what this build reads (" + std::to_string(kOldestVersion) + " to " +
+                          std::to_string(openvdb::OPENVDB_FILE_VERSION) + ")");
+    const std::vector<std::string> streams = split_grids(bytes, max_grids);
+    openvdb::initialize();
+    try {
+        openvdb::GridPtrVec grids;
+        for (const std::string& one_grid : streams) {
+            std::istringstream in(one_grid, std::ios::binary);
+            // A read past the end throws at once: OpenVDB does not check its reads, and would otherwise
+            // take the uninitialised size after a truncation as a length to allocate.
+            in.exceptions(std::ios::failbit | std::ios::badbit);
+            openvdb::io::Stream stream(in, /*delayLoad=*/false);
+            for (const openvdb::GridBase::Ptr& grid : *stream.getGrids()) grids.push_back(grid);
+        }
+        return grids;
+    } catch (const std::ios_base::failure&) {
+        throw VolumeError("not a readable OpenVDB file: it ends before its grids do (truncated?)");
+    } catch (const openvdb::LookupError& e) {
+        throw VolumeError(
+            std::string("a grid of a type OpenVDB does not know (only the standard 5-4-3 tree is "
+                        "read): ") +
+            e.what());
+    } catch (const std::exception& e) {
+        throw VolumeError(std::string("not a readable OpenVDB file (truncated or damaged?): ") + e.what());
+    }
+}
+
+}  // namespace
+
+VolumeLimits limits_for_resolution(uint32_t max_resolution) {
+    const uint64_t side = max_resolution;
+    return {.max_box_voxels = side * side * side};
+}
+
+namespace {
+
+// The check itself, in this process.
+VolumeReport inspect_here(std::string_view bytes, const VolumeLimits& limits) {
+    const openvdb::GridPtrVec grids = read_grids(bytes, limits.max_grids);
+    VolumeReport report;
+    for (size_t i = 0; i < grids.size(); ++i) {
+        const openvdb::GridBase& grid = *grids[i];
+        GridSummary summary;
+        summary.name = grid.getName();
+        summary.type = grid.valueType();
+        const std::string what = grid_name(grid, i);
+        if (const auto floats = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grids[i]))
+            check_float_grid(*floats, what, limits, summary);
+        else if (summary.type == "float")
+            throw VolumeError("grid " + what + " is a float grid with the tree " + grid.type() +
+                              "; only OpenVDB's standard 5-4-3 tree (Tree_float_5_4_3) is read");
+        else
+            summary.unusable_reason = "a " + summary.type + " grid; only float grids are read";
+        report.grids.push_back(std::move(summary));
+    }
+    bool any_usable = false;
+    for (const GridSummary& grid : report.grids) any_usable = any_usable || grid.usable;
+    if (!any_usable) {
+        std::string found;
+        for (const GridSummary& grid : report.grids)
+            found += (found.empty() ? "" : ", ") + quoted(grid.name) + " (" + grid.unusable_reason + ")";
+        throw VolumeError("no usable float grid in the file: " + found);
+    }
+    return report;
+}
+
+// How long a file's check may take in its child process before it is killed and the file refused.
+constexpr auto kCheckTimeLimit = std::chrono::seconds(30);
+
+void write_all(int fd, const std::string& data) {
+    for (size_t done = 0; done < data.size();) {
+        const ssize_t n = ::write(fd, data.data() + done, data.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) return;
+        done += static_cast<size_t>(n);
+    }
+}
+
+// Reads the child's answer until it closes its end, within the time limit; false when it ran out.
+bool read_answer(int fd, std::string& answer) {
+    const auto deadline = std::chrono::steady_clock::now() + kCheckTimeLimit;
+    char buffer[65536];
+    for (;;) {
+        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+        if (left.count() <= 0) return false;
+        pollfd readable{fd, POLLIN, 0};
+        const int ready = ::poll(&readable, 1, static_cast<int>(left.count()));
+        if (ready < 0 && errno == EINTR) continue;
+        if (ready <= 0) return false;
+        const ssize_t n = ::read(fd, buffer, sizeof buffer);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) return true;
+        answer.append(buffer, static_cast<size_t>(n));
+    }
+}
+
+}  // namespace
+
+// OpenVDB does not free the nodes of a tree whose topology ends early, reads a whole tree before its
+// box can be checked, and was never meant for hostile bytes: the file is checked in a child process,
+// whose memory (and any crash) goes with it, within a time limit. Only the parent's threads exist
+// before the fork and none of them runs OpenVDB, so the child holds none of its locks.
+VolumeReport inspect_vdb(std::string_view bytes, const VolumeLimits& limits) {
+    int pipe_fds[2];
+    if (::pipe2(pipe_fds, O_CLOEXEC) != 0)
+        throw std::system_error(errno, std::generic_category(), "checking a volume: pipe");
+    const pid_t child = ::fork();
+    if (child < 0) {
+        const int error = errno;
+        ::close(pipe_fds[0]);
+        ::close(pipe_fds[1]);
+        throw std::system_error(error, std::generic_category(), "checking a volume: fork");
+    }
+    if (child == 0) {
+        ::close(pipe_fds[0]);
+        std::string answer;
+        try {
+            answer = "R" + to_json(inspect_here(bytes, limits)).dump();
+        } catch (const VolumeError& e) {
+            answer = std::string("E") + e.what();
+        } catch (const std::exception& e) {
+            answer = std::string("F") + e.what();
+        }
+        write_all(pipe_fds[1], answer);
+        ::_exit(0);  // no destructors, atexit handlers or leak checks of the parent's state
+    }
+    ::close(pipe_fds[1]);
+    std::string answer;
+    const bool answered = read_answer(pipe_fds[0], answer);
+    ::close(pipe_fds[0]);
+    if (!answered) ::kill(child, SIGKILL);
+    int status = 0;
+    while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (!answered)
+        throw VolumeError("not checked within " + std::to_string(kCheckTimeLimit.count()) + " s (refused)");
+    if (answer.empty())
+        throw VolumeError(WIFSIGNALED(status) ? "OpenVDB crashed reading it (signal " + std::to_string(WTERMSIG(status)) + ")"
+                                              : "its check ended without an answer");
+    const std::string message = answer.substr(1);
+    if (answer[0] == 'R') return volume_report_from_json(nlohmann::json::parse(message));
+    if (answer[0] == 'E') throw VolumeError(message);
+    throw std::runtime_error("checking a volume: " + message);
+}
+
+nlohmann::json to_json(const VolumeReport& report) {
+    nlohmann::json grids = nlohmann::json::array();
+    for (const GridSummary& g : report.grids) {
+        nlohmann::json j = {{"name", g.name}, {"type", g.type}, {"usable", g.usable}};
+        if (!g.usable) {
+            j["unusable_reason"] = g.unusable_reason;
+        } else {
+            j["active_voxels"] = g.active_voxels;
+            j["index_bounds"] = {{"min", g.index_min}, {"max", g.index_max}};
+            j["world_bounds"] = {{"min", g.world_min}, {"max", g.world_max}};
+            j["voxel_size"] = g.voxel_size;
+        }
+        grids.push_back(std::move(j));
+    }
+    return {{"grids", grids}};
+}
+
+VolumeReport volume_report_from_json(const nlohmann::json& j) {
+    VolumeReport report;
+    for (const nlohmann::json& g : j.at("grids")) {
+        GridSummary summary;
+        summary.name = g.at("name").get<std::string>();
+        summary.type = g.at("type").get<std::string>();
+        summary.usable = g.at("usable").get<bool>();
+        if (!summary.usable) {
+            summary.unusable_reason = g.at("unusable_reason").get<std::string>();
+        } else {
+            summary.active_voxels = g.at("active_voxels").get<uint64_t>();
+            g.at("index_bounds").at("min").get_to(summary.index_min);
+            g.at("index_bounds").at("max").get_to(summary.index_max);
+            g.at("world_bounds").at("min").get_to(summary.world_min);
+            g.at("world_bounds").at("max").get_to(summary.world_max);
+            g.at("voxel_size").get_to(summary.voxel_size);
+        }
+        report.grids.push_back(std::move(summary));
+    }
+    return report;
+}
+
+}  // namespace refract::volume

@@ -1,0 +1,63 @@
+// Volume assets (smoke, clouds, fire) as OpenVDB files: read from the uploaded bytes, checked whole, and
+// summarised per grid. Nothing here renders; a volume's grids are named by the document later.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace refract::volume {
+
+// Why a volume file was refused, in words a user can act on.
+class VolumeError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+// What one file may hold.
+struct VolumeLimits {
+    uint64_t max_box_voxels = uint64_t{512} * 512 * 512;
+    uint32_t max_grids = 64;
+};
+
+// The limits under a daemon's --max-resolution: no grid's active bounding box may hold more voxels than
+// the densest field it renders (max_resolution cubed).
+VolumeLimits limits_for_resolution(uint32_t max_resolution);
+
+// One grid of a file, as GET /api/volumes lists it.
+struct GridSummary {
+    std::string name;
+    std::string type;             // OpenVDB's value type name: "float", "vec3s", ...
+    bool usable = false;          // a float grid (OpenVDB's 5-4-3 tree) with active voxels
+    std::string unusable_reason;  // why not, when !usable
+    uint64_t active_voxels = 0;   // active voxels, tiles counted by the voxels they cover
+    std::array<int32_t, 3> index_min{}, index_max{};  // active bounding box, inclusive, in index space
+    std::array<double, 3> world_min{}, world_max{};   // the same box's corners through the grid's transform
+    std::array<double, 3> voxel_size{};
+
+    bool operator==(const GridSummary&) const = default;
+};
+
+struct VolumeReport {
+    std::vector<GridSummary> grids;  // in file order
+
+    bool operator==(const VolumeReport&) const = default;
+};
+
+// Reads an OpenVDB file from `bytes` and checks it: a VDB file of format 222 to 224 (NanoVDB, truncated
+// or other bytes are refused with the reason) whose declared lengths fit (vdb_layout.h), at most
+// max_grids grids, at least one usable float grid, each float grid with
+// OpenVDB's standard 5-4-3 tree, a linear transform with a finite positive voxel size, an active bounding
+// box within max_box_voxels and finite non-negative values (active and background). Grids of other
+// value types are listed as unusable. Throws VolumeError naming the grid at fault.
+VolumeReport inspect_vdb(std::string_view bytes, const VolumeLimits& limits);
+
+// A report as JSON (the API's and the stores' form) and back.
+nlohmann::json to_json(const VolumeReport& report);
+VolumeReport volume_report_from_json(const nlohmann::json& j);
+
+}  // namespace refract::volume

@@ -1,0 +1,129 @@
+#include "volume/vdb_samples.h"
+
+#include <openvdb/io/File.h>
+#include <openvdb/io/Stream.h>
+#include <openvdb/openvdb.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace refract::test {
+
+namespace {
+
+// As a DCC writes it: through io::File, which records each grid's offsets.
+std::string write(const openvdb::GridPtrVec& grids) {
+    const std::filesystem::path path =
+        std::filesystem::temp_directory_path() / ("refract_vdb_" + std::to_string(::getpid()) + ".vdb");
+    openvdb::io::File file(path.string());
+    file.write(grids);
+    file.close();
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream bytes;
+    bytes << in.rdbuf();
+    std::filesystem::remove(path);
+    return bytes.str();
+}
+
+// Without offsets: io::Stream writes each grid where the previous one's tree ends.
+std::string write_stream(const openvdb::GridPtrVec& grids) {
+    std::ostringstream out(std::ios::binary);
+    openvdb::io::Stream(out).write(grids);
+    return out.str();
+}
+
+openvdb::FloatGrid::Ptr density_grid() {
+    openvdb::initialize();
+    auto grid = openvdb::FloatGrid::create(0.0f);
+    grid->setName("density");
+    grid->setGridClass(openvdb::GRID_FOG_VOLUME);
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
+    return grid;
+}
+
+}  // namespace
+
+std::string density_sphere_vdb(int radius, bool with_velocity) {
+    auto grid = density_grid();
+    auto access = grid->getAccessor();
+    for (int x = -radius; x <= radius; ++x)
+        for (int y = -radius; y <= radius; ++y)
+            for (int z = -radius; z <= radius; ++z) {
+                const double r = std::sqrt(double(x * x + y * y + z * z)) / radius;
+                if (r < 1) access.setValue(openvdb::Coord(x, y, z), float(1 - r));
+            }
+    openvdb::GridPtrVec grids{grid};
+    if (with_velocity) {
+        auto velocity = openvdb::Vec3SGrid::create();
+        velocity->setName("vel");
+        velocity->tree().setValue(openvdb::Coord(0, 0, 0), openvdb::Vec3s(0, 1, 0));
+        grids.push_back(velocity);
+    }
+    return write(grids);
+}
+
+std::string as_stream_vdb(bool with_velocity) {
+    auto grid = density_grid();
+    grid->tree().setValue(openvdb::Coord(1, 2, 3), 0.5f);
+    openvdb::GridPtrVec grids{grid};
+    if (with_velocity) {
+        auto velocity = openvdb::Vec3SGrid::create();
+        velocity->setName("vel");
+        grids.push_back(velocity);
+    }
+    return write_stream(grids);
+}
+
+std::string metadata_bomb_vdb() {
+    auto grid = density_grid();
+    grid->tree().setValue(openvdb::Coord(0, 0, 0), 1.0f);
+    grid->insertMeta("comment", openvdb::StringMetadata("BOMB"));
+    std::string bytes = write({grid});
+    // The string's value is written as its length (4) and "BOMB"; the length becomes 2^32 - 1.
+    const size_t at = bytes.find("BOMB");
+    const uint32_t declared = 0xffffffffu;
+    std::memcpy(&bytes[at - sizeof declared], &declared, sizeof declared);
+    return bytes;
+}
+
+std::string vector_only_vdb() {
+    openvdb::initialize();
+    auto velocity = openvdb::Vec3SGrid::create();
+    velocity->setName("vel");
+    velocity->tree().setValue(openvdb::Coord(1, 2, 3), openvdb::Vec3s(0, 1, 0));
+    return write({velocity});
+}
+
+std::string density_with_value_vdb(float bad) {
+    auto grid = density_grid();
+    for (int x = 0; x < 4; ++x) grid->tree().setValue(openvdb::Coord(x, 0, 0), 0.5f);
+    grid->tree().setValue(openvdb::Coord(2, 1, 0), bad);
+    return write({grid});
+}
+
+std::string far_apart_vdb(int apart) {
+    auto grid = density_grid();
+    grid->tree().setValue(openvdb::Coord(0, 0, 0), 1.0f);
+    grid->tree().setValue(openvdb::Coord(apart, apart, apart), 1.0f);
+    return write({grid});
+}
+
+std::string deep_tree_vdb() {
+    using DeepTree = openvdb::tree::Tree5<float, 6, 5, 4, 3>::Type;
+    using DeepGrid = openvdb::Grid<DeepTree>;
+    openvdb::initialize();
+    if (!DeepGrid::isRegistered()) DeepGrid::registerGrid();
+    auto grid = DeepGrid::create(0.0f);
+    grid->setName("density");
+    grid->tree().setValue(openvdb::Coord(0, 0, 0), 1.0f);
+    std::string bytes = write({grid});
+    DeepGrid::unregisterGrid();
+    return bytes;
+}
+
+}  // namespace refract::test

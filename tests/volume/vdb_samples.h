@@ -1,0 +1,27 @@
+// OpenVDB files written by OpenVDB itself, for the volume tests (no VDB sample files ship with Debian),
+// through io::File as DCCs write them unless said otherwise.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+namespace refract::test {
+
+// A density sphere of `radius` voxels (1 at the centre, falling linearly to 0 at the edge), voxel size
+// 0.1, as the bytes of a .vdb file, with a vec3s grid "vel" beside it when `with_velocity`.
+std::string density_sphere_vdb(int radius, bool with_velocity = false);
+// A float grid "density" written by io::Stream (no grid offsets), with an empty vec3s grid "vel" after
+// it when `with_velocity`.
+std::string as_stream_vdb(bool with_velocity);
+// A float grid whose string metadata "comment" declares 2^32 - 1 bytes, of which 4 are present.
+std::string metadata_bomb_vdb();
+// A file holding only a vec3s grid named "vel".
+std::string vector_only_vdb();
+// A float grid "density" of a few voxels, one of them `bad` (NaN, infinite or negative).
+std::string density_with_value_vdb(float bad);
+// A float grid "density" with two active voxels `apart` voxels apart on each axis.
+std::string far_apart_vdb(int apart);
+// A float grid with a 6-5-4-3 tree (deeper than OpenVDB's standard), registered only while writing.
+std::string deep_tree_vdb();
+
+}  // namespace refract::test
