@@ -22,7 +22,8 @@
 #     keeps them, as layer cache).
 #  5. Checked from the image itself, without running it (podman image inspect + podman image mount):
 #     the configured user is refract, uid 10001 in the image's /etc/passwd, not root; the entrypoint and
-#     the HEALTHCHECK are the ones docker/Dockerfile declares; /usr/local/bin/refractd and refract exist
+#     the HEALTHCHECK are the ones docker/Dockerfile declares; /usr/local/bin/refractd, refract-vdb-check
+#     (the daemon's volume check) and refract exist
 #     and every shared library they need resolves inside the image (`chroot <rootfs> ldd`, fails on "not
 #     found"); lavapipe's ICD json is there and names a library that is there and resolves too; the
 #     browser client and every example are there; no compiler or cmake made it into the final stage.
@@ -230,7 +231,7 @@ resolves() {  # every shared library $1 (a path inside the image) needs is found
   fi
   echo "$1: $(grep -c '=>' <<<"$deps") shared libraries, all inside the image"
 }
-for bin in /usr/local/bin/refractd /usr/local/bin/refract; do
+for bin in /usr/local/bin/refractd /usr/local/bin/refract-vdb-check /usr/local/bin/refract; do
   if [ ! -x "$root$bin" ]; then bad "$bin is missing or not executable in the image"
   elif resolves "$bin"; then ok "$bin is there and every shared library it needs resolves inside the image"
   fi

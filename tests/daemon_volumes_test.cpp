@@ -6,6 +6,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <cstdio>
+#include <cstdlib>
 #include <chrono>
 #include <thread>
 #include <random>
@@ -110,10 +111,30 @@ TEST(DaemonVolumesTest, HostileVolumesAreRefusedWithTheReasonAndStoreNothing) {
     EXPECT_EQ(client.Delete("/api/volumes/fresh")->status, 404);
 }
 
-// A refused file costs the daemon no memory: each upload is checked in a child process. Checked in this
+// Without its check program the daemon keeps running and stores nothing: the installation's fault, 503.
+TEST(DaemonVolumesTest, WithoutItsCheckProgramAnUploadIsUnavailableAndStoresNothing) {
+    TempDir dir;
+    ::setenv("REFRACT_VDB_CHECK", "/nonexistent/refract-vdb-check", 1);
+    Daemon daemon(dir.path() / "data");
+    ::unsetenv("REFRACT_VDB_CHECK");
+    auto client = daemon.client();
+    auto put = client.Put("/api/volumes/smoke", density_sphere_vdb(4), "application/octet-stream");
+    ASSERT_TRUE(put);
+    EXPECT_EQ(put->status, 503) << put->body;
+    EXPECT_NE(put->body.find("cannot start /nonexistent/refract-vdb-check"), std::string::npos) << put->body;
+    EXPECT_TRUE(volumes(client).empty());
+    ASSERT_TRUE(daemon.running());
+}
+
+// A refused file costs the daemon no memory: each upload is checked by a program of its own. Checked in this
 // process, OpenVDB kept the nodes of a tree whose topology ends early (a single-grid stream cut inside
 // it): about 200 KB each, 8 MB for these 40; the bound is half of that.
 TEST(DaemonVolumesTest, RefusedUploadsLeaveTheDaemonsMemoryWhereItWas) {
+#if defined(__SANITIZE_ADDRESS__)
+    // AddressSanitizer keeps freed memory in quarantine, which grew this daemon's RSS by 2-3 MB over
+    // these uploads whatever OpenVDB did: resident memory measures nothing there.
+    GTEST_SKIP() << "resident memory is measured without AddressSanitizer";
+#endif
     TempDir dir;
     Daemon daemon(dir.path() / "data");
     auto client = daemon.client();

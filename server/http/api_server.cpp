@@ -18,7 +18,7 @@
 #include "http/static_files.h"
 #include "image/exr.h"
 #include "render/invalidation.h"
-#include "volume/vdb_reader.h"
+#include "volume/vdb_check.h"
 
 namespace refract::http {
 
@@ -711,6 +711,8 @@ struct ApiServer::Impl {
             send_json(res, 201, answer);
         } catch (const volume::VolumeError& e) {
             send_error(res, 400, std::string("unusable volume: ") + e.what());
+        } catch (const volume::CheckUnavailable& e) {
+            send_error(res, 503, e.what());
         } catch (const scene::StoreError& e) {
             send_store_error(res, e);
         }

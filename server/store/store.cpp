@@ -6,6 +6,8 @@
 #include <random>
 #include <sstream>
 
+#include "volume/vdb_check.h"
+
 namespace refract::scene {
 
 namespace {
@@ -101,7 +103,7 @@ volume::VolumeReport inspect_volume_upload(const std::string& name, const std::s
                                            const protocol::Limits& limits) {
     if (!valid_mesh_name(name))
         throw StoreError(StoreFailure::invalid, "volume name must match [A-Za-z0-9_.-]{1,64}");
-    return volume::inspect_vdb(bytes, volume::limits_for_resolution(limits.max_resolution));
+    return volume::inspect_vdb_apart(bytes, volume::limits_for_resolution(limits.max_resolution));
 }
 
 uint64_t host_bytes(const mesh::Mesh& mesh) {

@@ -137,9 +137,9 @@ std::shared_ptr<const mesh::Mesh> parse_mesh_upload(const std::string& name, con
 std::shared_ptr<const image::EnvironmentMap> decode_environment_upload(const std::string& name, const std::string& bytes,
                                                                        const AssetCache& cache);
 
-// A volume upload checked before it is kept: a valid name, then the whole file (volume::inspect_vdb)
-// under the limits of `limits`' max_resolution.
-// Throws StoreError(invalid) or volume::VolumeError.
+// A volume upload checked before it is kept: a valid name, then the whole file in a process of its own
+// (volume::inspect_vdb_apart) under the limits of `limits`' max_resolution.
+// Throws StoreError(invalid), volume::VolumeError or volume::CheckUnavailable.
 volume::VolumeReport inspect_volume_upload(const std::string& name, const std::string& bytes,
                                            const protocol::Limits& limits);
 

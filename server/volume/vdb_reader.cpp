@@ -3,20 +3,11 @@
 #include <openvdb/io/Stream.h>
 #include <openvdb/openvdb.h>
 
-#include <fcntl.h>
-#include <poll.h>
-#include <signal.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <cerrno>
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
 #include <sstream>
-#include <system_error>
 
 #include "volume/vdb_layout.h"
 
@@ -145,10 +136,7 @@ VolumeLimits limits_for_resolution(uint32_t max_resolution) {
     return {.max_box_voxels = side * side * side};
 }
 
-namespace {
-
-// The check itself, in this process.
-VolumeReport inspect_here(std::string_view bytes, const VolumeLimits& limits) {
+VolumeReport inspect_vdb(std::string_view bytes, const VolumeLimits& limits) {
     const openvdb::GridPtrVec grids = read_grids(bytes, limits.max_grids);
     VolumeReport report;
     for (size_t i = 0; i < grids.size(); ++i) {
@@ -177,84 +165,6 @@ VolumeReport inspect_here(std::string_view bytes, const VolumeLimits& limits) {
     return report;
 }
 
-// How long a file's check may take in its child process before it is killed and the file refused.
-constexpr auto kCheckTimeLimit = std::chrono::seconds(30);
-
-void write_all(int fd, const std::string& data) {
-    for (size_t done = 0; done < data.size();) {
-        const ssize_t n = ::write(fd, data.data() + done, data.size() - done);
-        if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) return;
-        done += static_cast<size_t>(n);
-    }
-}
-
-// Reads the child's answer until it closes its end, within the time limit; false when it ran out.
-bool read_answer(int fd, std::string& answer) {
-    const auto deadline = std::chrono::steady_clock::now() + kCheckTimeLimit;
-    char buffer[65536];
-    for (;;) {
-        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-        if (left.count() <= 0) return false;
-        pollfd readable{fd, POLLIN, 0};
-        const int ready = ::poll(&readable, 1, static_cast<int>(left.count()));
-        if (ready < 0 && errno == EINTR) continue;
-        if (ready <= 0) return false;
-        const ssize_t n = ::read(fd, buffer, sizeof buffer);
-        if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) return true;
-        answer.append(buffer, static_cast<size_t>(n));
-    }
-}
-
-}  // namespace
-
-// OpenVDB does not free the nodes of a tree whose topology ends early, reads a whole tree before its
-// box can be checked, and was never meant for hostile bytes: the file is checked in a child process,
-// whose memory (and any crash) goes with it, within a time limit. Only the parent's threads exist
-// before the fork and none of them runs OpenVDB, so the child holds none of its locks.
-VolumeReport inspect_vdb(std::string_view bytes, const VolumeLimits& limits) {
-    int pipe_fds[2];
-    if (::pipe2(pipe_fds, O_CLOEXEC) != 0)
-        throw std::system_error(errno, std::generic_category(), "checking a volume: pipe");
-    const pid_t child = ::fork();
-    if (child < 0) {
-        const int error = errno;
-        ::close(pipe_fds[0]);
-        ::close(pipe_fds[1]);
-        throw std::system_error(error, std::generic_category(), "checking a volume: fork");
-    }
-    if (child == 0) {
-        ::close(pipe_fds[0]);
-        std::string answer;
-        try {
-            answer = "R" + to_json(inspect_here(bytes, limits)).dump();
-        } catch (const VolumeError& e) {
-            answer = std::string("E") + e.what();
-        } catch (const std::exception& e) {
-            answer = std::string("F") + e.what();
-        }
-        write_all(pipe_fds[1], answer);
-        ::_exit(0);  // no destructors, atexit handlers or leak checks of the parent's state
-    }
-    ::close(pipe_fds[1]);
-    std::string answer;
-    const bool answered = read_answer(pipe_fds[0], answer);
-    ::close(pipe_fds[0]);
-    if (!answered) ::kill(child, SIGKILL);
-    int status = 0;
-    while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
-    }
-    if (!answered)
-        throw VolumeError("not checked within " + std::to_string(kCheckTimeLimit.count()) + " s (refused)");
-    if (answer.empty())
-        throw VolumeError(WIFSIGNALED(status) ? "OpenVDB crashed reading it (signal " + std::to_string(WTERMSIG(status)) + ")"
-                                              : "its check ended without an answer");
-    const std::string message = answer.substr(1);
-    if (answer[0] == 'R') return volume_report_from_json(nlohmann::json::parse(message));
-    if (answer[0] == 'E') throw VolumeError(message);
-    throw std::runtime_error("checking a volume: " + message);
-}
 
 nlohmann::json to_json(const VolumeReport& report) {
     nlohmann::json grids = nlohmann::json::array();

@@ -54,6 +54,8 @@ struct VolumeReport {
 // OpenVDB's standard 5-4-3 tree, a linear transform with a finite positive voxel size, an active bounding
 // box within max_box_voxels and finite non-negative values (active and background). Grids of other
 // value types are listed as unusable. Throws VolumeError naming the grid at fault.
+// It runs in the calling process, whose memory keeps what OpenVDB does not free of a refused file (the
+// nodes of a tree whose topology ends early): a long-lived process checks uploads apart (vdb_check.h).
 VolumeReport inspect_vdb(std::string_view bytes, const VolumeLimits& limits);
 
 // A report as JSON (the API's and the stores' form) and back.
