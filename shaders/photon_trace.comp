@@ -133,10 +133,10 @@ uint deposit_phase;
 // radiance-grid voxels), attenuated by exp(-kappa t), to the radiance grid: the track-length estimator
 // of fluence. Exact by default: every voxel the segment crosses takes its crossing length (3D DDA),
 // attenuated at the crossing's middle where the segment absorbs noticeably, else at the segment's.
-// Sampled deposits (kSampledDeposits, interactive frames) cut the segment into pieces of at most one
-// voxel and give each piece's whole length to the voxel of one point drawn in it: unbiased, since the
-// point is uniform in its piece, and cheaper, with one deposit per voxel of path where the DDA makes
-// |d|_1 (up to 1.7) crossings and does more work for each.
+// Sampled deposits (kSampledDeposits: every frame refractd renders, still or interactive) cut the
+// segment into pieces of at most one voxel and give each piece's whole length to the voxel of one point
+// drawn in it: unbiased, since the point is uniform in its piece, and cheaper, with one deposit per voxel
+// of path where the DDA makes |d|_1 (up to 1.7) crossings and does more work for each.
 void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa, bool photon_unbent) {
     float scale = params.stepping.z;
     bool absorbs = max(kappa.r, max(kappa.g, kappa.b)) * len > 0.02;

@@ -282,16 +282,12 @@ TEST_F(FresnelViewTest, ReflectedPathsAtACoarserStepStayWithinThePhotonNoise) {
         gpu.run(scene::kAllPasses, d, worlds(d), nullptr, options);
         return gpu.read_hdr();
     };
-    auto difference = [](const std::vector<glm::vec4>& a, const std::vector<glm::vec4>& b) {
-        double sum = 0.0;
-        for (size_t i = 0; i < a.size(); ++i) sum += glm::length(glm::dvec3(a[i]) - glm::dvec3(b[i]));
-        return sum;
-    };
     auto reseeded = doc;
     reseeded.photons.seed = doc.photons.seed + 1;
     const auto coarse = frame(doc, FRESNEL_REFLECTED_VIEW_STEP);
-    const double step_difference = difference(coarse, frame(doc, 1.0f));
-    const double seed_difference = difference(coarse, frame(reseeded, FRESNEL_REFLECTED_VIEW_STEP));
+    const double step_difference = testing::frame_difference(coarse, frame(doc, 1.0f));
+    const double seed_difference =
+        testing::frame_difference(coarse, frame(reseeded, FRESNEL_REFLECTED_VIEW_STEP));
     std::printf("[ info ] reflected paths at %.0fx the view step: frames differ by %.3e, two seeds by %.3e\n",
                 double{FRESNEL_REFLECTED_VIEW_STEP}, step_difference, seed_difference);
     EXPECT_GT(step_difference, 0.0) << "the reflected paths' step must be the one the frame takes";

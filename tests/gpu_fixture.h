@@ -6,6 +6,7 @@
 
 #include <memory>
 #include <stdexcept>
+#include <vector>
 
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
@@ -46,5 +47,13 @@ private:
     static inline std::unique_ptr<scene::PassKit> kit_;
     size_t errors_before_ = 0;
 };
+
+// How far apart two frames' pixels are: the sum of their rgb differences' lengths. A change that must stay
+// within the photon noise is held against what two photon seeds' frames differ by.
+inline double frame_difference(const std::vector<glm::vec4>& a, const std::vector<glm::vec4>& b) {
+    double sum = 0.0;
+    for (size_t i = 0; i < a.size(); ++i) sum += glm::length(glm::dvec3(a[i]) - glm::dvec3(b[i]));
+    return sum;
+}
 
 }  // namespace refract::testing

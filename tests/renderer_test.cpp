@@ -278,7 +278,6 @@ TEST_F(RendererTest, ACameraDragAfterAStillFrameShadesFromItsRadianceGrid) {
     // The interactive view (two-voxel fog steps, adaptive pixels) over a still frame's photons.
     RunOptions over_still_grid = run_options_for(Quality::interactive);
     over_still_grid.radiance_factor = 1;
-    over_still_grid.sampled_deposits = false;
     over_still_grid.adaptive_density = false;
     over_still_grid.bounce_cap = protocol::kMaxBounces;
     const auto reference_doc =

@@ -60,7 +60,8 @@ struct RunOptions {
     uint32_t radiance_factor = 1; // scene voxels (passes::GridGeometry::light_factor lattice voxels each) per
                                   // radiance-grid voxel per axis; interactive: 3
     bool sampled_deposits = false; // photons deposit once per radiance voxel of path, not exactly per
-                                   // voxel crossed (photon_trace.comp); interactive
+                                   // voxel crossed (photon_trace.comp); every frame run_options_for makes
+                                   // (the exact estimator is the physics tests' reference)
     bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
     // Each radiance voxel's light spread over a box sized by the photons behind it (radiance_spread.comp):
     // smooth where photons are few; interactive.
