@@ -1,5 +1,7 @@
 #include "passes/transport_pipeline.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -7,6 +9,20 @@
 #include "transport.h"
 
 namespace refract::passes {
+
+uint32_t PartPacer::next(uint32_t largest) const {
+    if (items_per_ms_ <= 0.0) return largest;
+    const double items = std::max(1.0, std::floor(items_per_ms_ * kPartMs / granule_)) * granule_;
+    return static_cast<uint32_t>(std::min(items, static_cast<double>(largest)));
+}
+
+bool PartPacer::between(const BetweenParts& between, uint32_t items) {
+    if (between()) return true;
+    const auto now = std::chrono::steady_clock::now();
+    items_per_ms_ = items / std::max(std::chrono::duration<double, std::milli>(now - started_).count(), 1e-3);
+    started_ = now;
+    return false;
+}
 
 TransportPipeline::TransportPipeline(vk::Context& context, std::span<const uint32_t> spirv,
                                      std::span<const vk::BindingLayout> layout, uint32_t push_constant_bytes,

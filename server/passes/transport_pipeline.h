@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstddef>
 #include <functional>
 #include <optional>
@@ -28,6 +29,35 @@ constexpr uint32_t kViewPart = 2 * kWorkPart;
 // pass records the next part into recorder.get()). True: the run stops there, and the pass records
 // nothing more. Empty: no parts.
 using BetweenParts = std::function<bool()>;
+
+// About how long a part of a split dispatch takes at most: what waiting work (a viewer's next edit, a
+// newly loaded scene's preview) waits for. Parts of kWorkPart photons take about this long in the default
+// scene on two cores; where a work item costs far more (photons that scatter up to 32 times in dense fog:
+// 1.5 s a part of kWorkPart), parts shrink to it.
+constexpr double kPartMs = 100.0;
+
+// Sizes the parts of a pass's split dispatches by time, from the rate its parts ran at before (kept by
+// the stage that records the pass, for one scene): a part has the items that rate gives kPartMs, in
+// multiples of `granule` (a workgroup's items), at most the pass's own largest part. Work items come from
+// a queue in order (take_from_queue), so how a dispatch is parted never changes what it computes, only
+// when waiting work may come between.
+class PartPacer {
+public:
+    explicit PartPacer(uint32_t granule) : granule_(granule) {}
+    // A dispatch's first part begins to be recorded.
+    void begin() { started_ = std::chrono::steady_clock::now(); }
+    // The items of the next part: `largest` until a part was timed.
+    uint32_t next(uint32_t largest) const;
+    // Runs `between` after a part of `items` (it submits that part and waits for it) and takes the part's
+    // rate from the time since it began to be recorded. Time `between` spends on other work (another
+    // scene's frame) counts too, which only makes the next part smaller. True: the run stops.
+    bool between(const BetweenParts& between, uint32_t items);
+
+private:
+    uint32_t granule_;
+    double items_per_ms_ = 0.0;  // of the last part timed; 0 before any
+    std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
+};
 
 struct TransportVariant {
     uint32_t channels = CHANNELS_RGB;  // how the colour channels travel (TRANSPORT_CONSTANT_CHANNELS)

@@ -17,13 +17,16 @@ constexpr double kMinBudgetMs = 10.0;
 constexpr double kMaxBudgetMs = 10000.0;
 // While an object is dragged the lattice has half the voxels per axis (InteractiveSettings).
 constexpr uint32_t kDragLatticeDivisor = 2;
+// The first frame of other objects (a scene loaded or imported, every object built at once), a quarter.
+constexpr uint32_t kLoadLatticeDivisor = 4;
 
 // What an interactive frame renders, against the document's own still frame.
 struct InteractiveSettings {
     uint32_t width = 0, height = 0;  // image size
     uint32_t photons = 0;            // photon count
     // The lattice's voxels per axis divided by this: 2 while an object moves (its volume rebuilt every
-    // frame at an eighth of the voxels), else 1, the document's own lattice.
+    // frame at an eighth of the voxels), 4 from a frame of other objects until a still frame, else 1, the
+    // document's own lattice.
     uint32_t lattice_divisor = 1;
 };
 

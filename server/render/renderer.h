@@ -78,8 +78,8 @@ struct FrameOptions {
     // of its photon and view dispatches (RunOptions::give_way), and stops (Outcome::superseded) if it says so: the
     // render queue sets it for every frame (it renders other scenes' frames there, and stops a frame
     // nobody waits for), and a refinement level gives way to its viewer's next edit, which then waits for
-    // one part (passes::kWorkPart photons or kViewPart pixels), not a whole frame. The step's refinement
-    // state is then dropped, so levels stay the same bytes however reached.
+    // one part (at most passes::kWorkPart photons or kViewPart pixels, about passes::kPartMs), not a whole
+    // frame. The step's refinement state is then dropped, so levels stay the same bytes however reached.
     std::function<bool()> give_way;
     // Still frames: when above `level`, the frame may hold any level up to this one, and holds the highest
     // that the resident state already gives for no more work than `level` (the batches its radiance grid

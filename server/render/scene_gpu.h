@@ -83,10 +83,11 @@ struct RunOptions {
     float photon_history = 0.0f;
     uint32_t history_frame = 0;
     // Set (the render queue sets it for every frame): the photon and view dispatches then run in parts of
-    // about passes::kWorkPart photons or kViewPart pixels, a submission each, and this is asked after
-    // each; when it says to stop, the run stops there (RunStats::gave_way), and what its photon and view passes hold is
-    // partial: built() leaves out the pass it stopped in and those asked for after it (the renderer
-    // keeps the refinement level before the step only where its view is left whole).
+    // at most passes::kWorkPart photons or kViewPart pixels (about passes::kPartMs each: passes::PartPacer),
+    // a submission each, and this is asked after each; when it says to stop, the run stops there
+    // (RunStats::gave_way), and what its photon and view passes hold is partial: built() leaves out the
+    // pass it stopped in and those asked for after it (the renderer keeps the refinement level before the
+    // step only where its view is left whole).
     std::function<bool()> give_way;
 };
 

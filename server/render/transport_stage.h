@@ -80,6 +80,7 @@ private:
     bool adaptive_density_ = false;  // whether the grid holds their light spread (RunOptions)
     uint32_t bounces_ = 0;           // how often they could scatter (photon_bounces)
     uint32_t photon_batches_ = 0;    // how many batches its running mean holds (with kPhotons built)
+    passes::PartPacer photon_parts_{TRANSPORT_GROUP_SIZE};  // the photon pass's parts, sized by its last rate
     uint32_t channels_ = CHANNELS_RGB;
     passes::TransportVariant variant_;
     std::vector<shaders::TransportParams> light_params_{shaders::TransportParams{}};

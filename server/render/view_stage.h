@@ -47,6 +47,7 @@ private:
     PassKit& kit_;
     uint32_t width_ = 0, height_ = 0;
     vk::Buffer hdr_, ldr_, refine_;
+    passes::PartPacer parts_{1};  // the viewing pass's parts, in rows of tiles, sized by its last rate
 };
 
 }  // namespace refract::scene
