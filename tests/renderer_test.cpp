@@ -412,14 +412,15 @@ TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
     EXPECT_EQ(over_grid.refinement.photon_batches, kMaxPhotonBatches);
 
     // Level 2's chances to give way, in order: between the parts of its photons (the direct light, the
-    // trace's parts), after their resolve, and before its view (whose one part ends the level).
+    // trace's parts), after their resolve, and before its view (whose one part ends the level). Its
+    // parts are the largest (not paced by time), so every run has the same chances.
     const SceneDocument doc = small({{"photons", {{"count", 3 * passes::kWorkPart}}}});
     const auto camera = protocol::apply_merge_patch(doc, {{"camera", {{"position", {1, 1, 4}}}}});
     int chances = 0;
     {
         Renderer counting(*context);
         counting.render("a", doc, no_assets);
-        counting.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, [&] { return ++chances, false; }});
+        counting.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, [&] { return ++chances, false; }, false});
     }
     ASSERT_GE(chances, 4);
     Renderer fresh(*context), undisturbed(*context);
@@ -431,7 +432,7 @@ TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
         Renderer renderer(*context);
         renderer.render("a", doc, no_assets);
         int asked = 0;
-        EXPECT_EQ(renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, [&] { return ++asked == at; }}).outcome,
+        EXPECT_EQ(renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 2, [&] { return ++asked == at; }, false}).outcome,
               FrameResult::Outcome::superseded);
         const FrameResult dragged = renderer.render("a", camera, no_assets, {Quality::interactive});
         EXPECT_EQ(pass_names(dragged.rerun), pass_names(resolved ? kPhotons | kView | kToneMap : kView | kToneMap));
@@ -451,7 +452,8 @@ TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
 // A frame stopped at any of its parts (the render queue stops one nobody waits for any more) leaves the
 // scene's state consistent: rendered again, it is the undisturbed frame's bytes. Its chances, in order:
 // after the voxelize, index-field and octree passes, between the photons' parts, after their resolve,
-// and before the view; for one object and for two in a field atlas.
+// and before the view; for one object and for two in a field atlas. Parts the largest (not paced by
+// time), so every run has the same chances.
 TEST_F(RendererTest, AFrameStoppedAtAnyPartIsWholeWhenRenderedAgain) {
     const json two = {{"objects", {{"a", {{"position", {-1.2, 0, 0}}, {"scale", 0.4}}},
                                    {"b", {{"position", {1.2, 0, 0}}, {"scale", 0.4}}}}}};
@@ -463,14 +465,14 @@ TEST_F(RendererTest, AFrameStoppedAtAnyPartIsWholeWhenRenderedAgain) {
         int chances = 0;
         {
             Renderer counting(*context);
-            counting.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 1, [&] { return ++chances, false; }});
+            counting.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 1, [&] { return ++chances, false; }, false});
         }
         ASSERT_GE(chances, 4);
         for (int at = 1; at <= chances; ++at) {
             SCOPED_TRACE(::testing::Message() << "stopped at chance " << at << " of " << chances);
             Renderer renderer(*context);
             int asked = 0;
-            EXPECT_EQ(renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 1, [&] { return ++asked == at; }}).outcome,
+            EXPECT_EQ(renderer.render("a", doc, no_assets, {Quality::still, kDefaultBudgetMs, 1, [&] { return ++asked == at; }, false}).outcome,
               FrameResult::Outcome::superseded);
             EXPECT_EQ(renderer.render("a", doc, no_assets).png, whole.png);
         }

@@ -11,7 +11,7 @@
 namespace refract::passes {
 
 uint32_t PartPacer::next(uint32_t largest) const {
-    if (items_per_ms_ <= 0.0) return largest;
+    if (!paced_ || items_per_ms_ <= 0.0) return largest;
     const double items = std::max(1.0, std::floor(items_per_ms_ * kPartMs / granule_)) * granule_;
     return static_cast<uint32_t>(std::min(items, static_cast<double>(largest)));
 }

@@ -44,6 +44,12 @@ constexpr double kPartMs = 100.0;
 class PartPacer {
 public:
     explicit PartPacer(uint32_t granule) : granule_(granule) {}
+    // Whether parts are sized by time (true, the default) or are each the largest: the same parts on
+    // every run, whatever the machine's load. Returns this pacer.
+    PartPacer& paced(bool on) {
+        paced_ = on;
+        return *this;
+    }
     // A dispatch's first part begins to be recorded.
     void begin() { started_ = std::chrono::steady_clock::now(); }
     // The items of the next part: `largest` until a part was timed.
@@ -55,6 +61,7 @@ public:
 
 private:
     uint32_t granule_;
+    bool paced_ = true;
     double items_per_ms_ = 0.0;  // of the last part timed; 0 before any
     std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
 };

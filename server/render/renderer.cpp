@@ -570,6 +570,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     // quality made it: the first frame of a camera drag after a still frame runs no photons. Photons
     // that run go into the interactive grid.
     RunOptions frame_options = run_options_for(quality);
+    frame_options.paced_parts = options.paced_parts;
     // On the coarse lattice of an object drag, radiance voxels of about the size the other interactive
     // frames have (in the scene's units).
     const uint32_t divisor = plan.settings.lattice_divisor;

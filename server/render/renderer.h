@@ -81,6 +81,9 @@ struct FrameOptions {
     // one part (at most passes::kWorkPart photons or kViewPart pixels, about passes::kPartMs), not a whole
     // frame. The step's refinement state is then dropped, so levels stay the same bytes however reached.
     std::function<bool()> give_way;
+    // Parts sized by time (passes::PartPacer, about kPartMs); false: every part the largest, so the parts
+    // and the chances to give way between them are the same on every run (a test that counts them).
+    bool paced_parts = true;
     // Still frames: when above `level`, the frame may hold any level up to this one, and holds the highest
     // that the resident state already gives for no more work than `level` (the batches its radiance grid
     // holds, or the refined frame an exposure edit re-tones). The still after a camera drag then shows

@@ -89,6 +89,7 @@ struct RunOptions {
     // pass it stopped in and those asked for after it (the renderer keeps the refinement level before the
     // step only where its view is left whole).
     std::function<bool()> give_way;
+    bool paced_parts = true;  // FrameOptions::paced_parts
 };
 
 // Device memory a scene holds (bytes), for budgets before allocating: its lattice `grid`, the field's

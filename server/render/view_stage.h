@@ -33,7 +33,8 @@ public:
     // Puts a parked image back as the frame's, with the other buffers of its size.
     void restore(ParkedFrame parked);
     // Records the view and tone map when stale; false when the run stopped at a part.
-    bool record(FrameRecording& recording, PassSet stale, bool adaptive, const VolumeStage& volume,
+    // `paced`: parts sized by time (RunOptions::paced_parts).
+    bool record(FrameRecording& recording, PassSet stale, bool adaptive, bool paced, const VolumeStage& volume,
                 const TransportStage& transport);
 
     uint32_t width() const { return width_; }
