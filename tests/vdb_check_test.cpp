@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
+
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -88,6 +91,15 @@ TEST(VdbCheck, ACrashIsTheFilesRefusalAndAnythingElseTheInstallationsFault) {
               std::string::npos);
     EXPECT_NE(error_of<CheckUnavailable>("x", script("chatty", "echo hello")).find("in a form not its own"),
               std::string::npos);
+}
+
+TEST(VdbCheck, TheProgramRefusesArgumentsItDoesNotTake) {
+    for (const char* arguments : {"", " 100", " 100 8 9", " -1 8", " 100 x", " 100 4294967296", " --export 100 8"}) {
+        const std::string command = kChecker.string() + arguments + " < /dev/null > /dev/null 2>&1";
+        const int status = std::system(command.c_str());
+        ASSERT_TRUE(WIFEXITED(status)) << arguments;
+        EXPECT_EQ(WEXITSTATUS(status), 2) << arguments;
+    }
 }
 
 TEST(VdbCheck, TheProgramIsFoundBesideTheRunningOneUnlessNamed) {

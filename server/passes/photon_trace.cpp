@@ -101,7 +101,7 @@ void clear_for_next_light(vk::CommandRecorder& recorder, const PhotonAccumulator
 
 bool PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
                              const PhotonAccumulators& accum, uint32_t photon_count, bool sampled_deposits,
-                             bool random_walks, const BetweenParts& between, PartPacer* pacer) const {
+                             bool random_walks, const BetweenParts& between, PartPacer& pacer) const {
     const TransportPipeline& walks = sampled_deposits ? sampled_walks_ : exact_walks_;
     const vk::ComputePipeline& pipeline = (random_walks ? walks : sampled_deposits ? sampled_ : exact_)(in.variant);
     const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
@@ -109,12 +109,12 @@ bool PhotonTracePass::record(vk::CommandRecorder& recorder, const TransportInput
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_PHOTON_EXITS, accum.exits),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP, accum.light_map)};
     // Photons take their indices from a queue in order, so parts of the dispatch trace consecutive ranges.
-    if (between) pacer->begin();
-    uint32_t part = between ? pacer->next(kWorkPart) : photon_count;
+    if (between) pacer.begin();
+    uint32_t part = between ? pacer.next(kWorkPart) : photon_count;
     for (uint32_t first = 0; first < photon_count; first += part) {
         if (first > 0) {
-            if (pacer->between(between, part)) return false;
-            part = pacer->next(kWorkPart);
+            if (pacer.between(between, part)) return false;
+            part = pacer.next(kWorkPart);
         }
         const auto groups = vk::linear_groups(std::min(part, photon_count - first), TRANSPORT_GROUP_SIZE);
         pipeline.dispatch(recorder.get(), transport_bindings(in, own), nullptr, 0, groups.x, groups.y);

@@ -44,11 +44,11 @@ public:
     // path per channel where it first meets a gradient of n); `sampled_deposits`: one deposit per radiance
     // voxel of path instead of one per voxel crossed (PHOTON_CONSTANT_SAMPLED_DEPOSITS); `random_walks`:
     // photons scatter, up to the frame's bounces (PHOTON_CONSTANT_RANDOM_WALKS). With `between`, in parts
-    // of at most kWorkPart photons sized by `pacer` (not null then), `between` running after each part but
+    // of at most kWorkPart photons sized by `pacer`, `between` running after each part but
     // the last. False when `between` stopped the run: part of the photons are traced.
     bool record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const PhotonAccumulators& accum,
                 uint32_t photon_count, bool sampled_deposits, bool random_walks,
-                const BetweenParts& between = {}, PartPacer* pacer = nullptr) const;
+                const BetweenParts& between, PartPacer& pacer) const;
 
 private:
     TransportPipeline exact_, sampled_, exact_walks_, sampled_walks_;

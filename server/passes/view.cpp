@@ -28,7 +28,7 @@ ViewPass::ViewPass(vk::Context& context)
 bool ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, const vk::Image3D& radiance,
                       const vk::Image3D& flux, const vk::Image3D& floor_map, const ViewOutputs& out,
                       uint32_t width, uint32_t height, bool adaptive, const BetweenParts& between,
-                      PartPacer* pacer) const {
+                      PartPacer& pacer) const {
     // Only the view's counters restart (steps and its two pixel queues, adjacent): the photon pass's
     // counters belong to the last photon run.
     static_assert(offsetof(shaders::PhotonStats, queue_taken) + 4 * QUEUE_VIEW_PIXELS ==
@@ -57,12 +57,12 @@ bool ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
         // Pixels come from a queue in order (take_from_queue): parts of the group rows trace consecutive ones.
         const uint32_t columns = vk::group_count(width, VIEW_GROUP_SIZE), rows = vk::group_count(height, VIEW_GROUP_SIZE);
         const uint32_t largest = std::max(1u, kViewPart / (columns * VIEW_GROUP_SIZE * VIEW_GROUP_SIZE));
-        if (between) pacer->begin();
-        uint32_t part = between ? pacer->next(largest) : rows;
+        if (between) pacer.begin();
+        uint32_t part = between ? pacer.next(largest) : rows;
         for (uint32_t first = 0; first < rows; first += part) {
             if (first > 0) {
-                if (pacer->between(between, part)) return false;
-                part = pacer->next(largest);
+                if (pacer.between(between, part)) return false;
+                part = pacer.next(largest);
             }
             view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_ALL}, columns,
                           std::min(part, rows - first));

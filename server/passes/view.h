@@ -19,13 +19,13 @@ public:
     explicit ViewPass(vk::Context& context);
     // `adaptive`: trace the pixels with even x and y, then only those others whose traced neighbours
     // differ on screen; interpolate the rest (interactive frames; transport.h, VIEW_PIXELS_*). With
-    // `between` (not adaptive), in parts of at most about kViewPart pixels sized by `pacer` (not null
-    // then), `between` running between parts. False when `between` stopped the run: part of the pixels
+    // `between` (not adaptive), in parts of at most about kViewPart pixels sized by `pacer`,
+    // `between` running between parts. False when `between` stopped the run: part of the pixels
     // are traced.
     bool record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const vk::Image3D& radiance,
                 const vk::Image3D& flux, const vk::Image3D& floor_map, const ViewOutputs& outputs,
-                uint32_t width, uint32_t height, bool adaptive, const BetweenParts& between = {},
-                PartPacer* pacer = nullptr) const;
+                uint32_t width, uint32_t height, bool adaptive, const BetweenParts& between,
+                PartPacer& pacer) const;
 
 private:
     vk::Context& context_;

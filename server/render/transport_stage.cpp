@@ -181,7 +181,7 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
         }
         if (!kit_.photon_trace.record(recorder, light_inputs, *accum_, light.photon_info.x, options.sampled_deposits,
                                       bounces_ > 0, recording.between_parts(kPhotons),
-                                      &photon_parts_.paced(options.paced_parts)))
+                                      photon_parts_.paced(options.paced_parts)))
             return false;
         recorder.compute_barrier();
         const bool spread = raw_flux_.get() != VK_NULL_HANDLE;

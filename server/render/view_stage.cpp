@@ -50,7 +50,7 @@ bool ViewStage::record(FrameRecording& recording, PassSet stale, bool adaptive, 
         const passes::PhotonAccumulators& accum = transport.accumulators();
         if (!kit_.view.record(recorder, transport.view_inputs(volume), transport.radiance(), transport.flux(),
                               transport.floor_map(), {hdr_, accum.stats, accum.lit_blocks, refine_}, width_, height_,
-                              adaptive, recording.between_parts(kView), &parts_.paced(paced)))
+                              adaptive, recording.between_parts(kView), parts_.paced(paced)))
             return false;
         recorder.compute_barrier();
         recording.end();
