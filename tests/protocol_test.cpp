@@ -162,6 +162,7 @@ TEST(SceneDocument, ToJsonEmitsEveryField) {
          {"mesh", "position", "rotation_deg", "scale", "resolution", "index_field", "ior", "maxwell_n0", "abbe",
           "fresnel", "film", "extinction", "scattering", "phase", "grid"}},
         {"/medium", {"ior", "extinction", "scattering", "phase", "fade"}},
+        {"/volumes", {}},  // none by default
         {"/volume", {"resolution", "smoothing", "octree_epsilon", "margin"}},
         {"/photons", {"count", "seed", "max_bounces"}},
         {"/floor", {"enabled", "height", "albedo", "checker", "checker_size"}},

@@ -63,6 +63,8 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     const bool walks = before.photons.max_bounces > 0 || after.photons.max_bounces > 0;
     if (walks && (scattering || before.medium.scattering != after.medium.scattering || !(before.medium.phase == after.medium.phase)))
         stale |= kPhotons | kView | kToneMap;
+    // Volumes add to the medium photons cross (their field is resampled; the lattice stays).
+    if (!(before.volumes == after.volumes)) stale |= kPhotons | kView | kToneMap;
     // An environment that lights the scene (before or after the edit) sends photons: any change of it
     // reruns them.
     if (!(before.environment == after.environment) &&

@@ -108,6 +108,7 @@ struct ResolvedAssets {
     std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;  // each object's, by name
     std::shared_ptr<const IndexGrid> grid;
     std::shared_ptr<const image::EnvironmentMap> environment;
+    Densities densities;  // each volume's grid, by the member's name
 };
 
 ResolvedAssets resolve(const protocol::SceneDocument& document, const Assets& assets) {
@@ -127,6 +128,11 @@ ResolvedAssets resolve(const protocol::SceneDocument& document, const Assets& as
         resolved.environment = assets.environment ? assets.environment(document.environment.image) : nullptr;
         if (!resolved.environment)
             throw RenderError("environment '" + document.environment.image + "' is not a built-in or an uploaded one");
+    }
+    for (const auto& [name, member] : document.volumes) {
+        auto density = assets.density ? assets.density(member.asset, member.grid) : nullptr;
+        if (!density) throw RenderError("volume '" + member.asset + "' of /volumes/" + name + " is not an uploaded one");
+        resolved.densities.emplace(name, std::move(density));
     }
     return resolved;
 }
@@ -154,7 +160,7 @@ int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes&
         field_atlas_for(g, boxes, grid || document.objects.size() < 2, std::numeric_limits<uint32_t>::max()).dims.count();
     return estimate_scene_bytes(g, field_voxels, object_voxels, g.coarsened(g.light_factor).count(), document.image.width,
                                 document.image.height) +
-           estimate_environment_bytes(environment);
+           estimate_environment_bytes(environment) + static_cast<int64_t>(medium_field_bytes(g, !document.volumes.empty()));
 }
 
 // Still frames of other views of the scene kept for their refinement (ViewStage::ParkedFrame): a few
@@ -190,6 +196,7 @@ struct ResidentScene {
     std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;  // each object's, by name
     std::shared_ptr<const IndexGrid> grid;
     std::shared_ptr<const image::EnvironmentMap> environment;
+    Densities densities;
     uint64_t last_used = 0;
     uint32_t level = 0;  // refinement level of the resident still frame (0: the frame is interactive or partial)
     uint32_t lattice_divisor = 1;  // the interactive lattice's (InteractiveSettings), 1 after a still frame
@@ -280,6 +287,8 @@ PassSet stale_against(const ResidentScene* held, const protocol::SceneDocument& 
     if (held->meshes != resolved.meshes || held->grid != resolved.grid) stale |= kAllPasses;
     // A re-uploaded image lights the scene anew.
     if (held->environment != resolved.environment) stale |= kPhotons | kView | kToneMap;
+    // A re-uploaded volume changes the medium the photons cross.
+    if (held->densities != resolved.densities) stale |= kPhotons | kView | kToneMap;
     return held->gpu->passes_for(stale);
 }
 
@@ -487,7 +496,8 @@ bool Renderer::Impl::run_steps(ResidentScene& resident, const FramePlan& plan, c
         // Each step runs in parts and gives way between them when the caller says other work waits.
         run_options.give_way = give_way;
         const RunStats stats =
-            resident.gpu->run(passes, plan.document, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+            resident.gpu->run(passes, plan.document, worlds, resolved.grid.get(), run_options, resolved.environment.get(),
+                              resolved.densities);
         if (stats.gave_way) {
             // What the GPU holds now: this document, with part of a step the frame does not hold; a step
             // that gave way before its view leaves the frame of the level before it.
@@ -513,6 +523,7 @@ void Renderer::Impl::keep(ResidentScene& resident, const protocol::SceneDocument
     resident.meshes = resolved.meshes;
     resident.grid = resolved.grid;
     resident.environment = resolved.environment;
+    resident.densities = resolved.densities;
     resident.level = level;
 }
 
@@ -702,7 +713,8 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
             RunOptions run_options = run_options_for(Quality::interactive);
             run_options.limit = pass;
             const RunStats stats =
-                resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+                resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get(),
+                              resolved.densities);
             // What these photons cost sizes the first frame that traces photons (a light drag's): a camera
             // drag's frames shade from the resident grid and measure none.
             if (pass == kPhotons) resident.budget.observe(document, settings, stats.gpu_ms.front().second, 0.0, 0.0);
@@ -715,6 +727,7 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
     resident.meshes = resolved.meshes;
     resident.grid = resolved.grid;
     resident.environment = resolved.environment;
+    resident.densities = resolved.densities;
     resident.level = 0;  // no frame: render() runs the view and tone map (and what the stop left)
     return true;
 }

@@ -18,6 +18,8 @@ layout(binding = TRANSPORT_BINDING_INDEX_FIELD) uniform sampler3D index_field;
 layout(binding = TRANSPORT_BINDING_COVERAGE) uniform sampler3D coverage_field;
 layout(std430, binding = TRANSPORT_BINDING_LEVELS) readonly buffer Levels { uint levels[]; };
 layout(std430, binding = TRANSPORT_BINDING_STATS) buffer Stats { PhotonStats stats; };
+layout(binding = TRANSPORT_BINDING_MEDIUM_EXTINCTION) uniform sampler3D medium_extinction_field;
+layout(binding = TRANSPORT_BINDING_MEDIUM_SCATTERING) uniform sampler3D medium_scattering_field;
 
 // The index of the work item (pixel, photon) this invocation takes from `queue` (QUEUE_*), a subgroup's
 // worth at a time in the order subgroups run, rather than by invocation ID. lavapipe hands each CPU
@@ -157,6 +159,19 @@ float medium_depth(vec3 p, vec3 d, float len) {
 vec3 thinned(vec3 coefficient, vec3 medium, float c, float density) {
     return max(coefficient - (1.0 - density) * (1.0 - c) * medium, vec3(0.0));
 }
+
+// The volumes' extinction and scattering (per metre) at voxel point p, added to the medium's and the
+// objects' where they lie (kMediumField only; 0 without). Scattering's w: the volumes' phase g times
+// their channels' mean scattering.
+vec3 field_extinction(vec3 p) {
+    return kMediumField ? textureLod(medium_extinction_field, p * params.medium_field.xyz, 0.0).rgb : vec3(0.0);
+}
+vec4 field_scattering(vec3 p) {
+    return kMediumField ? textureLod(medium_scattering_field, p * params.medium_field.xyz, 0.0) : vec4(0.0);
+}
+// A step of `ds` voxels cut to the medium field's voxel, over which its coefficients are taken at the
+// step's midpoint (exact per-step Beer-Lambert for what the trilinear field holds, to the midpoint rule).
+float field_step(float ds) { return kMediumField ? min(ds, params.medium_field.w) : ds; }
 
 // The phase function (model, g) where scattering takes the coverage c of object o: the object's over
 // 0.5, the medium's below.
