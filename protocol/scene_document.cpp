@@ -560,6 +560,10 @@ private:
         v.density_scale = number(volume, base, "density_scale", v.density_scale, kDensityScale);
         coefficients(volume, base, v.extinction, v.scattering);
         v.phase = phase(volume, base, v.phase);
+        // The medium field keeps one g per voxel (the volumes' scattering-weighted mean), which Schlick's
+        // k would not mix with.
+        if (v.phase.model == PhaseModel::schlick)
+            fail(child(child(base, "phase"), "model"), "must be \"isotropic\" or \"henyey-greenstein\" for a volume");
     }
 
     void read_volume(const json& root, Volume& v) const {

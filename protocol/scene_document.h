@@ -176,7 +176,7 @@ struct DensityVolume {
     double density_scale = 1.0;
     Vec3 extinction{1.0, 1.0, 1.0};  // per metre per unit density
     Vec3 scattering{1.0, 1.0, 1.0};  // per metre per unit density, each channel <= extinction
-    Phase phase{PhaseModel::henyey_greenstein, 0.0};
+    Phase phase{PhaseModel::henyey_greenstein, 0.0};  // isotropic or Henyey-Greenstein
 
     bool operator==(const DensityVolume&) const = default;
 };

@@ -111,7 +111,8 @@ void add_volume(MediumField& field, const passes::GridGeometry& lattice, uint32_
     const DensityLookup lookup(grid);
     const glm::dvec3 extinction = vec(member.extinction) * member.density_scale;
     const glm::dvec3 scattering = vec(member.scattering) * member.density_scale;
-    const double g_weight = member.phase.g * (scattering.x + scattering.y + scattering.z) / 3.0;
+    const double g = member.phase.model == protocol::PhaseModel::isotropic ? 0.0 : member.phase.g;
+    const double g_weight = g * (scattering.x + scattering.y + scattering.z) / 3.0;
     for (int z = first.z; z < end.z; ++z)
         for (int y = first.y; y < end.y; ++y)
             for (int x = first.x; x < end.x; ++x) {
@@ -132,6 +133,14 @@ void add_volume(MediumField& field, const passes::GridGeometry& lattice, uint32_
 }
 
 }  // namespace
+
+bool volume_world_box(const protocol::DensityVolume& member, const volume::DensityGrid& grid, glm::dvec3& lo, glm::dvec3& hi) {
+    if (grid.leaves.empty()) return false;
+    const Placement p = place(member, grid);
+    lo = p.world_min;
+    hi = p.world_max;
+    return true;
+}
 
 uint32_t medium_field_step(const passes::GridGeometry& lattice) {
     uint32_t step = 1;

@@ -36,6 +36,10 @@ struct MediumField {
     std::vector<glm::vec4> extinction, scattering;
 };
 
+// The world box a volume member's grid holds (its leaves' voxels, through its transform and the
+// member's); false for a grid without voxels.
+bool volume_world_box(const protocol::DensityVolume& member, const volume::DensityGrid& grid, glm::dvec3& lo, glm::dvec3& hi);
+
 // The volumes' coefficients at each field voxel: every volume's density (its grid's value, trilinear
 // between voxel centres, 0 outside its active voxels, times density_scale) times its extinction and
 // scattering, summed over the volumes. A field voxel takes the mean of up to 4^3 samples, as many as

@@ -147,8 +147,8 @@ WorldMeshes worlds_of(const protocol::SceneDocument& document, const ResolvedAss
 // Device memory the scene `document` holds once rendered, estimated on the lattice it asks for before
 // anything is allocated (the objects' boxes in it, or the imported grid's own lattice).
 int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes& worlds, const IndexGrid* grid,
-                     const image::EnvironmentMap* environment) {
-    const passes::GridGeometry g = grid ? passes::GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : scene::grid_for(document, worlds);
+                     const image::EnvironmentMap* environment, const Densities& densities) {
+    const passes::GridGeometry g = grid ? passes::GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : scene::grid_for(document, worlds, densities);
     uint64_t object_voxels = 0;
     std::map<std::string, passes::ObjectBox> boxes;
     if (grid) object_voxels = g.dims.count();
@@ -287,8 +287,8 @@ PassSet stale_against(const ResidentScene* held, const protocol::SceneDocument& 
     if (held->meshes != resolved.meshes || held->grid != resolved.grid) stale |= kAllPasses;
     // A re-uploaded image lights the scene anew.
     if (held->environment != resolved.environment) stale |= kPhotons | kView | kToneMap;
-    // A re-uploaded volume changes the medium the photons cross.
-    if (held->densities != resolved.densities) stale |= kPhotons | kView | kToneMap;
+    // A re-uploaded volume changes the medium the photons cross, and without bounds the lattice around it.
+    if (held->densities != resolved.densities) stale |= next.volume.bounds ? kPhotons | kView | kToneMap : kAllPasses;
     return held->gpu->passes_for(stale);
 }
 
@@ -455,7 +455,7 @@ bool Renderer::Impl::make_room(const std::string& scene_id, const ResidentScene*
     };
     auto it = scenes.find(scene_id);
     const int64_t replaced = it != scenes.end() ? held_by(it->second) : 0;
-    const int64_t need = rebuild ? needed_bytes(plan.document, worlds, resolved.grid.get(), resolved.environment.get())
+    const int64_t need = rebuild ? needed_bytes(plan.document, worlds, resolved.grid.get(), resolved.environment.get(), resolved.densities)
                                  : replaced - estimate_environment_bytes(held->environment.get()) +
                                        estimate_environment_bytes(resolved.environment.get());
     // This scene's old state is released before the new one is made. Make room by dropping least
@@ -696,7 +696,7 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
     if (impl_->scenes.size() >= std::max<size_t>(impl_->options.max_resident_scenes, 1)) return false;
     const int64_t budget = impl_->options.device_memory_budget;
     if (budget > 0 &&
-        impl_->context.allocated_bytes() + needed_bytes(document, worlds, resolved.grid.get(), resolved.environment.get()) > budget)
+        impl_->context.allocated_bytes() + needed_bytes(document, worlds, resolved.grid.get(), resolved.environment.get(), resolved.densities) > budget)
         return false;
     ResidentScene& resident = impl_->scenes[scene_id];
     resident.gpu = std::make_unique<SceneGpu>(impl_->kit);

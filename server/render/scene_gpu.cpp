@@ -54,10 +54,10 @@ SceneGpu::SceneGpu(PassKit& kit)
 
 passes::GridGeometry SceneGpu::lattice_for(PassSet stale, const protocol::SceneDocument& document,
                                            const WorldMeshes& worlds, const FrameInputs::Volume& volume,
-                                           const IndexGrid* grid_asset) const {
+                                           const IndexGrid* grid_asset, const Densities& densities) const {
     // Only a rebuilt volume can move the grid: otherwise keep the resident one.
     if (!(stale & kVoxelize) && (built_ & kVoxelize)) return grid_;
-    if (!volume.imported) return grid_for(document, worlds);
+    if (!volume.imported) return grid_for(document, worlds, densities);
     if (!grid_asset) throw RenderError("the scene's index field grid is not loaded");
     passes::GridGeometry grid = grid_;
     const auto& b = grid_asset->bounds;
@@ -77,7 +77,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
                        const image::EnvironmentMap* environment, const Densities& densities) {
     // The document turned into the stages' inputs; nothing past this block reads it.
     const FrameInputs::Volume volume_in = volume_inputs(document);
-    const passes::GridGeometry grid = lattice_for(stale, document, worlds, volume_in, grid_asset);
+    const passes::GridGeometry grid = lattice_for(stale, document, worlds, volume_in, grid_asset, densities);
     // Anything never built, or built for another grid, runs whatever it needs.
     if (!(grid == grid_) || !volume_.has_field()) {
         volume_.clear();

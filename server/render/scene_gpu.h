@@ -179,7 +179,8 @@ private:
     // The lattice the run builds on: the resident one, unless the volume is rebuilt (then fitted to the
     // document's objects, or the imported grid's).
     passes::GridGeometry lattice_for(PassSet stale, const protocol::SceneDocument& document, const WorldMeshes& worlds,
-                                     const FrameInputs::Volume& volume, const IndexGrid* grid_asset) const;
+                                     const FrameInputs::Volume& volume, const IndexGrid* grid_asset,
+                                     const Densities& densities) const;
     // What the run holds when it stopped in `pass`: the passes before it built, it and those asked for
     // after it not (`keep_mean`: a photon pass stopped before touching the running mean keeps it).
     void gave_way(Pass pass, PassSet stale, PassSet asked, bool keep_mean);
