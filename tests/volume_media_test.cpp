@@ -79,6 +79,8 @@ TEST_F(VolumeMediaTest, EyeRaysThroughALinearRampSeeExpOfItsIntegral) {
     for (uint32_t y : {7u, 8u})
         for (uint32_t x : {7u, 8u}) {
             const glm::vec4 pixel = hdr[y * 16 + x];
+            std::printf("optical depth through the ramp, pixel (%u, %u): eye ray %.4f, exact %.4f (tolerance %.4f)\n", x, y,
+                        -std::log(static_cast<double>(pixel.g)), kRampExtinction * kRampDepth, depth_tolerance(gpu));
             for (int c = 0; c < 3; ++c) {
                 const double depth = -std::log(static_cast<double>(pixel[c]));
                 EXPECT_NEAR(depth, kRampExtinction * kRampDepth, depth_tolerance(gpu)) << x << ", " << y << " channel " << c;

@@ -172,7 +172,8 @@ std::string random_hex_id();
 // What a store announces once it is committed (by this process or, for a shared store, by any replica):
 // a new revision of a scene, a scene's deletion, a new version or the deletion of an uploaded mesh or
 // environment (which changes frames without a new revision), the deletion of an imported grid or of an
-// uploaded volume (nothing renders volumes yet, so their uploads are not announced); or that
+// uploaded volume (its upload is not announced yet: other replicas keep the frames they cached of
+// scenes that name it); or that
 // announcements may have been lost (a shared store's listener reconnected), so whatever was cached may
 // be stale.
 struct StoreEvent {
