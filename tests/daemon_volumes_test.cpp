@@ -148,6 +148,8 @@ TEST(DaemonVolumesTest, AScenesVolumeRendersAndIsRefusedWhenTheStoreLacksIt) {
     ASSERT_TRUE(smoky && plain);
     EXPECT_EQ(png_size(smoky->body), (std::pair{64u, 64u}));
     EXPECT_NE(smoky->body, plain->body) << "the volume changed nothing in the frame";
+    // Interactive frames (a coarser radiance grid, the density spread, a size of the budget's) render it too.
+    EXPECT_TRUE(get_frame(client, "smoky", "?quality=interactive"));
 
     // An edit naming what the store lacks changes nothing.
     const json before = get_json(client, "/api/scenes/smoky");

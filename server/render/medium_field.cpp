@@ -105,9 +105,11 @@ void add_volume(MediumField& field, const passes::GridGeometry& lattice, uint32_
     const double side = static_cast<double>(lattice.voxel_size) * step;  // a field voxel, metres
     const glm::dvec3 origin(lattice.origin);
     const glm::ivec3 dims(static_cast<int>(field.dims.x), static_cast<int>(field.dims.y), static_cast<int>(field.dims.z));
-    const glm::ivec3 first = glm::clamp(glm::ivec3(glm::floor((p.world_min - origin) / side)), glm::ivec3(0), dims);
-    const glm::ivec3 end = glm::clamp(glm::ivec3(glm::floor((p.world_max - origin) / side)) + 1, glm::ivec3(0), dims);
-    const int samples = std::clamp(static_cast<int>(std::ceil(side / p.voxel)), 1, 4);
+    // Clamped as doubles: a box kilometres away is no integer.
+    const glm::dvec3 top(dims);
+    const glm::ivec3 first(glm::clamp(glm::floor((p.world_min - origin) / side), glm::dvec3(0.0), top));
+    const glm::ivec3 end(glm::clamp(glm::floor((p.world_max - origin) / side) + 1.0, glm::dvec3(0.0), top));
+    const int samples = static_cast<int>(std::clamp(std::ceil(side / p.voxel), 1.0, 2.0));
     const DensityLookup lookup(grid);
     const glm::dvec3 extinction = vec(member.extinction) * member.density_scale;
     const glm::dvec3 scattering = vec(member.scattering) * member.density_scale;

@@ -42,8 +42,9 @@ bool volume_world_box(const protocol::DensityVolume& member, const volume::Densi
 
 // The volumes' coefficients at each field voxel: every volume's density (its grid's value, trilinear
 // between voxel centres, 0 outside its active voxels, times density_scale) times its extinction and
-// scattering, summed over the volumes. A field voxel takes the mean of up to 4^3 samples, as many as
-// the grid's voxels across it, so a fine grid is averaged rather than aliased. One voxel of zeros
+// scattering, summed over the volumes. A field voxel takes the mean of 1 or 2^3 samples (2^3 where the
+// grid's voxel is smaller than the field's), so a fine grid is averaged more than point-sampled (a grid
+// much finer than the field is still partly aliased). One voxel of zeros
 // without volumes. Throws RenderError for a member whose density is missing from `densities`.
 MediumField resample_volumes(const passes::GridGeometry& lattice,
                              const std::map<std::string, protocol::DensityVolume>& volumes, const Densities& densities);
