@@ -334,7 +334,7 @@ void main() {
             if (in_direct) ds = direct_to - along;
             else if (along < direct_from && direct_from < direct_to) ds = min(ds, max(direct_from - along, 1e-3));
             jumped = in_direct;
-            ds = field_step(ds);
+            ds = field_step(ray.p, ray.d, ds);
             // Stop at the floor or the grid's far side within this step.
             float to_exit = grid_interval(ray.p, ray.d).y;
             bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;

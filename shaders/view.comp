@@ -261,7 +261,7 @@ void shade(uvec2 pixel) {
             // beam's sharp edge and where a grazing ray enters the glass, changing a pixel by 7% at once.
             float unlit = unlit_cell(ray.p);
             float shell_step = shell_step_for(ray, params.stepping.x);
-            float leaf_run = field_step(level == 0u ? shell_step : safe_step(level, ray.p, ray.d, shell_step));
+            float leaf_run = field_step(ray.p, ray.d, level == 0u ? shell_step : safe_step(level, ray.p, ray.d, shell_step));
             bool in_unlit = scatters && level != 0u && unlit > 0.0;
             float skip = 0.0;
             if (in_unlit) {

@@ -154,6 +154,38 @@ uint64_t medium_field_bytes(const passes::GridGeometry& lattice, bool volumes) {
     return volumes ? lattice.coarsened(medium_field_step(lattice)).count() * 2 * sizeof(glm::vec4) : 0;
 }
 
+namespace {
+
+// Each voxel's extinction w: the most extinction (any channel) over its block of kMediumFieldBlock^3
+// field voxels and the voxels around the block, which a trilinear fetch in it reaches: 0 where the
+// field is 0 throughout the block.
+void mark_blocks(MediumField& field) {
+    const glm::ivec3 dims(static_cast<int>(field.dims.x), static_cast<int>(field.dims.y), static_cast<int>(field.dims.z));
+    auto at = [&](glm::ivec3 v) {
+        return (static_cast<size_t>(v.z) * field.dims.y + static_cast<size_t>(v.y)) * field.dims.x + static_cast<size_t>(v.x);
+    };
+    const int side = static_cast<int>(kMediumFieldBlock);
+    for (int bz = 0; bz < dims.z; bz += side)
+        for (int by = 0; by < dims.y; by += side)
+            for (int bx = 0; bx < dims.x; bx += side) {
+                const glm::ivec3 block(bx, by, bz);
+                const glm::ivec3 lo = glm::max(block - 1, glm::ivec3(0)), hi = glm::min(block + side + 1, dims);
+                float most = 0.0f;
+                for (int z = lo.z; z < hi.z; ++z)
+                    for (int y = lo.y; y < hi.y; ++y)
+                        for (int x = lo.x; x < hi.x; ++x) {
+                            const glm::vec4& e = field.extinction[at({x, y, z})];
+                            most = std::max({most, e.r, e.g, e.b});
+                        }
+                const glm::ivec3 end = glm::min(block + side, dims);
+                for (int z = bz; z < end.z; ++z)
+                    for (int y = by; y < end.y; ++y)
+                        for (int x = bx; x < end.x; ++x) field.extinction[at({x, y, z})].w = most;
+            }
+}
+
+}  // namespace
+
 MediumField resample_volumes(const passes::GridGeometry& lattice,
                              const std::map<std::string, protocol::DensityVolume>& volumes, const Densities& densities) {
     MediumField field;
@@ -166,6 +198,7 @@ MediumField resample_volumes(const passes::GridGeometry& lattice,
             throw RenderError("volume '" + member.asset + "' of /volumes/" + name + " is not loaded");
         add_volume(field, lattice, medium_field_step(lattice), member, *it->second);
     }
+    mark_blocks(field);
     return field;
 }
 

@@ -13,6 +13,7 @@
 
 #include "passes/grid_geometry.h"
 #include "protocol/scene_document.h"
+#include "transport.h"
 #include "volume/density_export.h"
 
 namespace refract::scene {
@@ -22,6 +23,8 @@ using Densities = std::map<std::string, std::shared_ptr<const volume::DensityGri
 
 // The most voxels a medium field holds: 2^21, 64 MiB in its two rgba32f images.
 inline constexpr uint64_t kMaxMediumFieldVoxels = uint64_t{1} << 21;
+// The side (field voxels) of the blocks whose empty ones rays cross in one step (transport.h).
+inline constexpr uint32_t kMediumFieldBlock = MEDIUM_FIELD_BLOCK;
 
 // The side of a medium field voxel in lattice voxels: the fewest that keep the field within
 // kMaxMediumFieldVoxels. Rays and photons step at most this far through it.
@@ -31,8 +34,10 @@ uint64_t medium_field_bytes(const passes::GridGeometry& lattice, bool volumes);
 
 struct MediumField {
     vk::Extent3 dims{1, 1, 1};
-    // Per field voxel, x fastest: rgb extinction per metre; rgb scattering per metre and, in w, the phase
-    // g times the channels' mean scattering (so that overlapping volumes' g mix by their scattering).
+    // Per field voxel, x fastest: rgb extinction per metre and, in w, the most extinction its block
+    // (MEDIUM_FIELD_BLOCK^3 field voxels) and the voxels around it hold (0: a ray crosses the block in one
+    // step); rgb scattering per metre and, in w, the phase g times the channels' mean scattering (so that
+    // overlapping volumes' g mix by their scattering).
     std::vector<glm::vec4> extinction, scattering;
 };
 

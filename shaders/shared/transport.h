@@ -87,9 +87,13 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_RAW_FLOOR_MAP 26  // rgba16f, as TRANSPORT_BINDING_FLOOR_MAP
 // The medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): the scene's volumes resampled on a coarse copy of the
 // lattice (render/medium_field.h), trilinearly filtered; a texel of zeros where a scene has none.
-#define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27  // sampler3D rgba32f: rgb extinction per metre; a: unused
+#define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27  // sampler3D rgba32f: rgb extinction per metre; a: the most
+                                                // extinction about the voxel's block (below), 0: empty
 #define TRANSPORT_BINDING_MEDIUM_SCATTERING 28  // sampler3D rgba32f: rgb scattering per metre; a: the phase
                                                 // g of each volume there times its channels' mean scattering
+// Rays cross a block of MEDIUM_FIELD_BLOCK^3 field voxels where the field is 0 (and around it, as far as a
+// trilinear fetch reaches) in one step, and elsewhere step a field voxel at most.
+#define MEDIUM_FIELD_BLOCK 8
 // A voxel whose photon tracks (in voxel lengths of photons of the reference flux) number fewer than
 // SPREAD_TRACKS spreads its light evenly over the smallest box of (2r + 1)^3 voxels that would hold that
 // many at its density, r at most SPREAD_VOXEL_RADIUS: about a quarter relative noise where photons are
@@ -173,7 +177,8 @@ struct LightParams {
 #define TRANSPORT_CONSTANT_FIELD_ATLAS 5
 // Specialization constant of the same passes: the scene holds volumes (protocol::DensityVolume), whose
 // coefficients the medium field adds to the medium's where they lie. Rays and photons then step at most
-// a field voxel (TransportParams::medium_field.w) and take each step's coefficients at its midpoint, and
+// a field voxel (TransportParams::medium_field.w) where the field's block holds anything
+// (MEDIUM_FIELD_BLOCK), to the block's end where not, and take each step's coefficients at its midpoint, and
 // the direct light is left to the photons (its closed form knows only the homogeneous medium). Off for
 // a scene without volumes, which runs the shaders it ran before volumes existed.
 #define TRANSPORT_CONSTANT_MEDIUM_FIELD 6

@@ -169,9 +169,6 @@ vec3 field_extinction(vec3 p) {
 vec4 field_scattering(vec3 p) {
     return kMediumField ? textureLod(medium_scattering_field, p * params.medium_field.xyz, 0.0) : vec4(0.0);
 }
-// A step of `ds` voxels cut to the medium field's voxel, over which its coefficients are taken at the
-// step's midpoint (exact per-step Beer-Lambert for what the trilinear field holds, to the midpoint rule).
-float field_step(float ds) { return kMediumField ? min(ds, params.medium_field.w) : ds; }
 
 // The phase function (model, g) where scattering takes the coverage c of object o: the object's over
 // 0.5, the medium's below.
@@ -225,6 +222,18 @@ float cell_exit(vec3 p, vec3 d, float size) {
     vec3 t = mix((lo - p) / d, (hi - p) / d, greaterThan(d, vec3(0.0)));
     t = mix(t, vec3(1e30), equal(d, vec3(0.0)));
     return max(min(t.x, min(t.y, t.z)), 0.0);
+}
+
+// A step of `ds` voxels from p along d cut to the medium field's voxel, over which its coefficients are
+// taken at the step's midpoint (exact per-step Beer-Lambert for what the trilinear field holds, to the
+// midpoint rule); where the field's block is empty, cut to the block's end instead (just past it).
+float field_step(vec3 p, vec3 d, float ds) {
+    if (!kMediumField) return ds;
+    float side = params.medium_field.w;
+    vec3 f = p / side;  // field voxels
+    ivec3 voxel = ivec3(clamp(f, vec3(0.0), vec3(textureSize(medium_extinction_field, 0)) - 1.0));
+    if (texelFetch(medium_extinction_field, voxel, 0).a > 0.0) return min(ds, side);
+    return min(ds, cell_exit(f, d, float(MEDIUM_FIELD_BLOCK)) * side + params.stepping.y);
 }
 
 // Ray-box slab test in voxel space: returns (t_enter, t_exit); t_enter > t_exit means a miss.
