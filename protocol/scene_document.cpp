@@ -84,6 +84,7 @@ constexpr const char* kAbbeRule = "must be 0 (no dispersion) or a number in [5, 
 constexpr Range kAbbe{0.0, 1000.0, false, false, kAbbeRule};
 constexpr Range kFilmThickness{0.0, 5000.0, false, false, "a number in [0, 5000] (nm)"};
 constexpr Range kCoefficient{0.0, 1e3, false, false, "a number in [0, 1000] (per metre)"};
+constexpr Range kDensityScale{0.0, 1e3, false, false, "a number in [0, 1000]"};
 constexpr Range kPhaseG{-0.99, 0.99, false, false, "a number in [-0.99, 0.99]"};
 constexpr Range kSmoothing{0.0, 4.0, false, false, "a number in [0, 4]"};
 constexpr Range kEpsilon{0.0, 1.0, true, false, "a number in (0, 1]"};
@@ -143,8 +144,8 @@ public:
 
     SceneDocument document(const json& root) {
         SceneDocument d;
-        check_object(root, "", {"camera", "image", "lights", "objects", "light", "object", "medium", "volume",
-                                "photons", "floor", "environment"},
+        check_object(root, "", {"camera", "image", "lights", "objects", "light", "object", "medium", "volumes",
+                                "volume", "photons", "floor", "environment"},
                      "must be a JSON object");
         read_camera(root, d.camera);
         read_image(root, d.image);
@@ -152,6 +153,7 @@ public:
         d.objects = collection<Object>(root, "objects", "object", kMaxObjects, &Reader::read_object);
         check_objects_together(d.objects);
         read_medium(root, d.medium);
+        d.volumes = density_volumes(root);
         read_volume(root, d.volume);
         read_photons(root, d.photons);
         read_floor(root, d.floor);
@@ -518,6 +520,52 @@ private:
         m.fade = number(*j, base, "fade", m.fade, kFade);
     }
 
+    // /volumes: 0 to kMaxVolumes named members (absent or null: none).
+    std::map<std::string, DensityVolume> density_volumes(const json& root) const {
+        const auto many = root.find("volumes");
+        if (many == root.end() || many->is_null()) return {};
+        const std::string base = "/volumes";
+        if (!many->is_object()) fail(base, "must be a JSON object of named members");
+        if (many->size() > kMaxVolumes)
+            fail(base, "must hold at most " + std::to_string(kMaxVolumes) + " members");
+        std::map<std::string, DensityVolume> members;
+        for (const auto& [name, value] : many->items()) {
+            const std::string pointer = child(base, name);
+            if (!valid_name(name)) fail(pointer, "a name must be 1 to 64 characters of [A-Za-z0-9_.-]");
+            DensityVolume member{};
+            read_density_volume(value, pointer, member);
+            members.emplace(name, std::move(member));
+        }
+        return members;
+    }
+
+    void read_density_volume(const json& volume, const std::string& base, DensityVolume& v) const {
+        check_object(volume, base,
+                     {"asset", "grid", "position", "rotation_deg", "scale", "density_scale", "extinction",
+                      "scattering", "phase"},
+                     "must be a JSON object");
+        static constexpr const char* kAssetRule =
+            "must name an uploaded volume: 1..64 characters of [A-Za-z0-9_.-]";
+        const std::string* asset = string_member(volume, base, "asset", kAssetRule);
+        if (asset == nullptr || !valid_name(*asset)) fail(child(base, "asset"), kAssetRule);
+        v.asset = *asset;
+        static constexpr const char* kGridRule = "must name a float grid of the volume: 1..64 characters";
+        if (const std::string* grid = string_member(volume, base, "grid", kGridRule)) {
+            if (grid->empty() || grid->size() > kMaxNameLength) fail(child(base, "grid"), kGridRule);
+            v.grid = *grid;
+        }
+        v.position = vec3(volume, base, "position", v.position, kCoord);
+        v.rotation_deg = vec3(volume, base, "rotation_deg", v.rotation_deg, kCoord);
+        v.scale = number(volume, base, "scale", v.scale, kScale);
+        v.density_scale = number(volume, base, "density_scale", v.density_scale, kDensityScale);
+        coefficients(volume, base, v.extinction, v.scattering);
+        v.phase = phase(volume, base, v.phase);
+        // The medium field keeps one g per voxel (the volumes' scattering-weighted mean), which Schlick's
+        // k would not mix with.
+        if (v.phase.model == PhaseModel::schlick)
+            fail(child(child(base, "phase"), "model"), "must be \"isotropic\" or \"henyey-greenstein\" for a volume");
+    }
+
     void read_volume(const json& root, Volume& v) const {
         const std::string base = "/volume";
         const json* j =
@@ -674,6 +722,18 @@ json object_json(const Object& o) {
             {"grid", o.grid}};
 }
 
+json density_volume_json(const DensityVolume& v) {
+    return {{"asset", v.asset},
+            {"grid", v.grid},
+            {"position", vec(v.position)},
+            {"rotation_deg", vec(v.rotation_deg)},
+            {"scale", v.scale},
+            {"density_scale", v.density_scale},
+            {"extinction", vec(v.extinction)},
+            {"scattering", vec(v.scattering)},
+            {"phase", phase_json(v.phase)}};
+}
+
 // A patch in the older form edits the one member of a collection through its singular name: rewritten
 // here to the collection's form, `renamed` maps the member's pointer back to the name the patch used.
 struct OlderForm {
@@ -766,9 +826,10 @@ json to_json(const SceneDocument& d) {
                    {"margin", d.volume.margin}};
     if (d.volume.bounds)
         volume["bounds"] = {{"min", vec(d.volume.bounds->min)}, {"max", vec(d.volume.bounds->max)}};
-    json lights = json::object(), objects = json::object();
+    json lights = json::object(), objects = json::object(), volumes = json::object();
     for (const auto& [key, light] : d.lights) lights[key] = light_json(light);
     for (const auto& [key, object] : d.objects) objects[key] = object_json(object);
+    for (const auto& [key, density] : d.volumes) volumes[key] = density_volume_json(density);
     return {
         {"camera",
          {{"position", vec(d.camera.position)},
@@ -784,6 +845,7 @@ json to_json(const SceneDocument& d) {
           {"scattering", vec(d.medium.scattering)},
           {"phase", phase_json(d.medium.phase)},
           {"fade", d.medium.fade}}},
+        {"volumes", std::move(volumes)},
         {"volume", std::move(volume)},
         {"photons", {{"count", d.photons.count}, {"seed", d.photons.seed}, {"max_bounces", d.photons.max_bounces}}},
         {"floor",

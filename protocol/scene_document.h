@@ -163,9 +163,28 @@ struct Environment {
     bool operator==(const Environment&) const = default;
 };
 
-// How many lights and objects a scene may hold.
+// A heterogeneous medium (smoke, a cloud) from an uploaded OpenVDB volume: one float grid of it, placed
+// in the scene, whose value times density_scale is the density; extinction and scattering are per unit
+// density (per metre at density 1). Where it overlaps the homogeneous medium or another volume, the
+// coefficients add. Emission (issue 39, point 4) is not read yet.
+struct DensityVolume {
+    std::string asset;             // the uploaded volume's name (PUT /api/volumes/NAME)
+    std::string grid = "density";  // the float grid of that file
+    Vec3 position{0.0, 0.0, 0.0};  // the grid's world origin is moved here
+    Vec3 rotation_deg{0.0, 0.0, 0.0};  // XYZ Euler angles, applied X then Y then Z, about that origin
+    double scale = 1.0;                // uniform, about that origin
+    double density_scale = 1.0;
+    Vec3 extinction{1.0, 1.0, 1.0};  // per metre per unit density
+    Vec3 scattering{1.0, 1.0, 1.0};  // per metre per unit density, each channel <= extinction
+    Phase phase{PhaseModel::henyey_greenstein, 0.0};  // isotropic or Henyey-Greenstein
+
+    bool operator==(const DensityVolume&) const = default;
+};
+
+// How many lights, objects and volumes a scene may hold.
 inline constexpr size_t kMaxLights = 8;
 inline constexpr size_t kMaxObjects = 64;
+inline constexpr size_t kMaxVolumes = 8;
 // The fewest voxels an object may ask for along its longest side (Object::resolution, when not 0).
 inline constexpr uint32_t kMinObjectResolution = 16;
 // The fewest voxels the scene's lattice may have along its longest axis (Volume::resolution).
@@ -180,6 +199,8 @@ struct SceneDocument {
     std::map<std::string, Light> lights{{"light", Light{}}};
     std::map<std::string, Object> objects{{"object", Object{}}};
     Medium medium;
+    // Keyed like objects; none by default (the homogeneous medium alone).
+    std::map<std::string, DensityVolume> volumes;
     Volume volume;
     Photons photons;
     Floor floor;

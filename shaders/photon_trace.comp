@@ -334,6 +334,7 @@ void main() {
             if (in_direct) ds = direct_to - along;
             else if (along < direct_from && direct_from < direct_to) ds = min(ds, max(direct_from - along, 1e-3));
             jumped = in_direct;
+            ds = field_step(ray.p, ray.d, ds);
             // Stop at the floor or the grid's far side within this step.
             float to_exit = grid_interval(ray.p, ray.d).y;
             bool hits_floor = floor_on && ray.d.y < 0.0 && ray.p.y + ds * ray.d.y <= floor_y;
@@ -343,9 +344,11 @@ void main() {
             // (the direct span is crossed in one), so photons thin out as the direct light does.
             float density = len > 0.0 ? medium_depth(ray.p, ray.d, len) / len : 1.0;
             kappa = thinned(kappa, params.medium_extinction.rgb * h, coverage, density);
+            vec4 field_s = field_scattering(ray.p + (0.5 * len) * ray.d);
+            if (kMediumField) kappa += field_extinction(ray.p + (0.5 * len) * ray.d) * h;
             if (kRandomWalks) {
                 // Absorption stays in the weight; scattering ends the step where the walk says.
-                kappa -= walk_free_path(walk, coverage_as(params.flags.z, coverage), object, h, density, len);
+                kappa -= walk_free_path(walk, coverage_as(params.flags.z, coverage), object, h, density, field_s, len);
                 if (walk.collides) { ds = len; to_exit = 1e30; to_floor = 1e30; }
             }
             unbent = unbent && all(equal(ray.field.yzw, vec3(0.0)));

@@ -240,7 +240,8 @@ void shade(uvec2 pixel) {
             uint object = object_at(ray);
             vec3 sigma_s = scattering_at(scatter_coverage, object) * h;
             vec3 kappa = extinction_at(extinction_coverage, object) * h;
-            bool scatters = max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0;
+            // Volumes may scatter where the medium does not: the march then gathers wherever light is.
+            bool scatters = kMediumField || max(sigma_s.r, max(sigma_s.g, sigma_s.b)) > 0.0;
             uint level = octree_level(ray);
             if (level == 0u && surface_inverse_depth < 0.0)
                 surface_inverse_depth = 1.0 / max(length(to_world(ray.p) - params.camera_position.xyz), 1e-6);
@@ -260,7 +261,7 @@ void shade(uvec2 pixel) {
             // beam's sharp edge and where a grazing ray enters the glass, changing a pixel by 7% at once.
             float unlit = unlit_cell(ray.p);
             float shell_step = shell_step_for(ray, params.stepping.x);
-            float leaf_run = level == 0u ? shell_step : safe_step(level, ray.p, ray.d, shell_step);
+            float leaf_run = field_step(ray.p, ray.d, level == 0u ? shell_step : safe_step(level, ray.p, ray.d, shell_step));
             bool in_unlit = scatters && level != 0u && unlit > 0.0;
             float skip = 0.0;
             if (in_unlit) {
@@ -290,12 +291,20 @@ void shade(uvec2 pixel) {
                     float len = min(gather_step, run - t);
                     vec3 x = ray.p + (t + 0.5 * len) * ray.d;
                     float density = medium_density(x);
-                    bool whole = len == gather_step && density == 1.0;
+                    bool whole = !kMediumField && len == gather_step && density == 1.0;
                     vec3 kappa_here = thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density);
+                    vec4 field_s = field_scattering(x);
+                    if (kMediumField) kappa_here += field_extinction(x) * h;
                     vec3 attenuation = whole ? step_attenuation : exp(-kappa_here * len);
                     vec3 path_length = whole ? step_path : transmitted_path(kappa_here, len, attenuation);
                     vec3 sigma_here = thinned(sigma_s, params.medium_scattering.rgb * h, scatter_coverage, density);
                     radiance_sum += transmittance * sigma_here * path_length * in_scattered(x, ray.d, model, g);
+                    if (kMediumField) {
+                        // The volumes' share, by their own (Henyey-Greenstein) phase function.
+                        float field_mean = (field_s.r + field_s.g + field_s.b) * (1.0 / 3.0);
+                        float field_g = field_mean > 0.0 ? clamp(field_s.a / field_mean, -0.99, 0.99) : 0.0;
+                        radiance_sum += transmittance * field_s.rgb * h * path_length * in_scattered(x, ray.d, PHASE_HG_ID, field_g);
+                    }
                     transmittance *= attenuation;
                     t += len;
                     ++steps;
@@ -308,7 +317,9 @@ void shade(uvec2 pixel) {
                     : 1.0 / max(length(to_world(ray.p + (0.5 * run) * ray.d) - params.camera_position.xyz), 1e-6));
             } else {
                 float density = run > 0.0 ? medium_depth(ray.p, ray.d, run) / run : 1.0;
-                transmittance *= exp(-thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density) * run);
+                vec3 kappa_run = thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density);
+                if (kMediumField) kappa_run += field_extinction(ray.p + (0.5 * run) * ray.d) * h;
+                transmittance *= exp(-kappa_run * run);
                 ++steps;
             }
             if (run >= to_end) {

@@ -111,6 +111,63 @@ TEST(DaemonVolumesTest, HostileVolumesAreRefusedWithTheReasonAndStoreNothing) {
     EXPECT_EQ(client.Delete("/api/volumes/fresh")->status, 404);
 }
 
+// A scene names an uploaded volume's grid (issue 39, point 2): what the store lacks is refused with the
+// pointer of the member at fault and nothing stored; the frame renders the volume; a volume in use is
+// not deleted until no scene names it.
+TEST(DaemonVolumesTest, AScenesVolumeRendersAndIsRefusedWhenTheStoreLacksIt) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    ASSERT_EQ(client.Put("/api/volumes/smoke", density_sphere_vdb(8, true), "application/octet-stream")->status, 201);
+
+    json document = kSmallScene;
+    document["photons"]["count"] = 16384;
+    document["light"] = {{"type", "directional"}, {"direction", {0, -1, 0}}, {"intensity", 3}};
+    document["volumes"] = {{"puff", {{"asset", "smoke"}, {"extinction", {6, 6, 6}}, {"scattering", {5, 5, 5}}}}};
+    const std::vector<std::pair<json, std::string>> refused = {
+        {{{"puff", {{"asset", "cloud"}}}}, "/volumes/puff/asset"},
+        {{{"puff", {{"asset", "smoke"}, {"grid", "vel"}}}}, "/volumes/puff/grid"},
+        {{{"puff", {{"asset", "smoke"}, {"grid", "temperature"}}}}, "/volumes/puff/grid"},
+    };
+    for (const auto& [volumes_section, pointer] : refused) {
+        json bad = document;
+        bad["volumes"] = volumes_section;
+        auto created = client.Post("/api/scenes?id=bad", bad.dump(), "application/json");
+        ASSERT_TRUE(created);
+        EXPECT_EQ(created->status, 422) << created->body;
+        EXPECT_EQ(json::parse(created->body)["pointer"], pointer) << created->body;
+    }
+    EXPECT_EQ(client.Get("/api/scenes/bad")->status, 404);
+
+    create_scene(client, "smoky", document);
+    json clear = document;
+    clear.erase("volumes");
+    create_scene(client, "clear", clear);
+    auto smoky = get_frame(client, "smoky");
+    auto plain = get_frame(client, "clear");
+    ASSERT_TRUE(smoky && plain);
+    EXPECT_EQ(png_size(smoky->body), (std::pair{64u, 64u}));
+    EXPECT_NE(smoky->body, plain->body) << "the volume changed nothing in the frame";
+    // Interactive frames (a coarser radiance grid, the density spread, a size of the budget's) render it too.
+    EXPECT_TRUE(get_frame(client, "smoky", "?quality=interactive"));
+
+    // An edit naming what the store lacks changes nothing.
+    const json before = get_json(client, "/api/scenes/smoky");
+    auto bad_edit = patch(client, "smoky", {{"volumes", {{"puff", {{"grid", "vel"}}}}}});
+    ASSERT_TRUE(bad_edit);
+    EXPECT_EQ(bad_edit->status, 422) << bad_edit->body;
+    EXPECT_EQ(json::parse(bad_edit->body)["pointer"], "/volumes/puff/grid");
+    EXPECT_EQ(get_json(client, "/api/scenes/smoky"), before);
+
+    auto in_use = client.Delete("/api/volumes/smoke");
+    ASSERT_TRUE(in_use);
+    EXPECT_EQ(in_use->status, 409) << in_use->body;
+    EXPECT_EQ(json::parse(in_use->body)["scenes"], json::array({"smoky"}));
+    ASSERT_EQ(patch(client, "smoky", {{"volumes", {{"puff", nullptr}}}})->status, 200);
+    EXPECT_EQ(client.Delete("/api/volumes/smoke")->status, 204);
+    ASSERT_TRUE(daemon.running());
+}
+
 // Without its check program the daemon keeps running and stores nothing: the installation's fault, 503.
 TEST(DaemonVolumesTest, WithoutItsCheckProgramAnUploadIsUnavailableAndStoresNothing) {
     TempDir dir;

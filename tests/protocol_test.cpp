@@ -162,6 +162,7 @@ TEST(SceneDocument, ToJsonEmitsEveryField) {
          {"mesh", "position", "rotation_deg", "scale", "resolution", "index_field", "ior", "maxwell_n0", "abbe",
           "fresnel", "film", "extinction", "scattering", "phase", "grid"}},
         {"/medium", {"ior", "extinction", "scattering", "phase", "fade"}},
+        {"/volumes", {}},  // none by default
         {"/volume", {"resolution", "smoothing", "octree_epsilon", "margin"}},
         {"/photons", {"count", "seed", "max_bounces"}},
         {"/floor", {"enabled", "height", "albedo", "checker", "checker_size"}},
@@ -303,6 +304,76 @@ TEST(ObjectResolution, HostileValuesAreRejectedAtItsPointer) {
     } catch (const ValidationError& e) {
         EXPECT_EQ(e.rule(), "must be 0 (the scene's voxel) or an integer in [16, 512]");
     }
+}
+
+TEST(Volumes, NoneByDefaultAndEveryFieldRoundTrips) {
+    EXPECT_TRUE(parse_scene(json::object()).volumes.empty());
+    EXPECT_TRUE(parse_scene(json{{"volumes", nullptr}}).volumes.empty());
+    const SceneDocument d = parse_scene(json::parse(R"({"volumes": {"smoke": {"asset": "plume"},
+        "cloud": {"asset": "cumulus", "grid": "density fine", "position": [1, 2, 3], "rotation_deg": [0, 90, 0],
+                  "scale": 0.5, "density_scale": 3, "extinction": [1, 2, 3], "scattering": [0.5, 1, 1.5],
+                  "phase": {"model": "isotropic"}}}})"));
+    ASSERT_EQ(d.volumes.size(), 2u);
+    const DensityVolume& smoke = d.volumes.at("smoke");
+    EXPECT_EQ(smoke.asset, "plume");
+    EXPECT_EQ(smoke.grid, "density");
+    EXPECT_EQ(smoke.scale, 1.0);
+    EXPECT_EQ(smoke.density_scale, 1.0);
+    EXPECT_EQ(smoke.extinction, (Vec3{1, 1, 1}));
+    EXPECT_EQ(smoke.phase, (Phase{PhaseModel::henyey_greenstein, 0.0}));
+    EXPECT_EQ(d.volumes.at("cloud").grid, "density fine");  // grid names are OpenVDB's: any characters
+    EXPECT_EQ(parse_scene(to_json(d)), d);
+    EXPECT_EQ(parse_scene(json::parse(to_json(d).dump())), d);
+    // A merge patch edits one member by its key, adds one, and removes one with null.
+    const SceneDocument edited = apply_merge_patch(
+        d, json::parse(R"({"volumes": {"smoke": {"density_scale": 2}, "cloud": null, "puff": {"asset": "plume"}}})"));
+    ASSERT_EQ(edited.volumes.size(), 2u);
+    EXPECT_EQ(edited.volumes.at("smoke").density_scale, 2.0);
+    EXPECT_EQ(edited.volumes.at("smoke").asset, "plume");
+    EXPECT_TRUE(edited.volumes.contains("puff"));
+    EXPECT_TRUE(apply_merge_patch(d, json{{"volumes", nullptr}}).volumes.empty());
+}
+
+TEST(Volumes, HostileMembersAreRejectedAtTheirPointer) {
+    json nine = json::object();
+    for (int i = 0; i < 9; ++i) nine["v" + std::to_string(i)] = {{"asset", "a"}};
+    const std::vector<std::pair<json, std::string>> cases = {
+        {json::array(), "/volumes"},
+        {"smoke", "/volumes"},
+        {nine, "/volumes"},
+        {{{"bad/name", {{"asset", "a"}}}}, "/volumes/bad~1name"},
+        {{{"v", json::array()}}, "/volumes/v"},
+        {{{"v", json::object()}}, "/volumes/v/asset"},
+        {{{"v", {{"asset", ""}}}}, "/volumes/v/asset"},
+        {{{"v", {{"asset", "../etc"}}}}, "/volumes/v/asset"},
+        {{{"v", {{"asset", 7}}}}, "/volumes/v/asset"},
+        {{{"v", {{"asset", "a"}, {"grid", ""}}}}, "/volumes/v/grid"},
+        {{{"v", {{"asset", "a"}, {"grid", std::string(65, 'g')}}}}, "/volumes/v/grid"},
+        {{{"v", {{"asset", "a"}, {"emission", 1}}}}, "/volumes/v/emission"},
+        {{{"v", {{"asset", "a"}, {"scale", 0}}}}, "/volumes/v/scale"},
+        {{{"v", {{"asset", "a"}, {"density_scale", -1}}}}, "/volumes/v/density_scale"},
+        {{{"v", {{"asset", "a"}, {"density_scale", 1e9}}}}, "/volumes/v/density_scale"},
+        {{{"v", {{"asset", "a"}, {"position", {0, 1e5, 0}}}}}, "/volumes/v/position/1"},
+        {{{"v", {{"asset", "a"}, {"extinction", {1, -1, 1}}}}}, "/volumes/v/extinction/1"},
+        {{{"v", {{"asset", "a"}, {"scattering", {2, 1, 1}}}}}, "/volumes/v/scattering/0"},
+        {{{"v", {{"asset", "a"}, {"phase", {{"g", 1}}}}}}, "/volumes/v/phase/g"},
+        {{{"v", {{"asset", "a"}, {"phase", {{"model", "schlick"}}}}}}, "/volumes/v/phase/model"},
+    };
+    const SceneDocument current = parse_scene(json::parse(R"({"volumes": {"v": {"asset": "a"}}})"));
+    for (const auto& [volumes, pointer] : cases) {
+        SCOPED_TRACE(volumes.dump());
+        EXPECT_EQ(rejected_pointer([&] { (void)parse_scene(json{{"volumes", volumes}}); }), pointer);
+    }
+    // As edits, which change nothing.
+    EXPECT_EQ(rejected_pointer([&] {
+                  (void)apply_merge_patch(current, json::parse(R"({"volumes": {"v": {"asset": null}}})"));
+              }),
+              "/volumes/v/asset");
+    EXPECT_EQ(rejected_pointer([&] {
+                  (void)apply_merge_patch(current, json::parse(R"({"volumes": {"v": {"scattering": [5, 5, 5]}}})"));
+              }),
+              "/volumes/v/scattering/0");
+    EXPECT_EQ(current.volumes.at("v").asset, "a");
 }
 
 TEST(ObjectResolution, FollowsTheResolutionLimit) {

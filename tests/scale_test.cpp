@@ -407,6 +407,21 @@ TEST_F(ScaleOut, VolumesUploadedToOneReplicaAreListedAndDeletedOnAll) {
     const json listed = json::parse(r3.Get("/api/volumes")->body)["volumes"];
     ASSERT_EQ(listed.size(), 1u) << listed;
     EXPECT_EQ(listed[0], json::parse(uploaded->body));
+    // A scene names it through another replica, renders it on a third, and keeps it from deletion; one that
+    // names a volume none holds is refused at its pointer.
+    json scene = {{"image", {{"width", 32}, {"height", 32}}}, {"volume", {{"resolution", 32}}},
+                  {"photons", {{"count", 4096}}}, {"volumes", {{"puff", {{"asset", "smoke"}}}}}};
+    ASSERT_EQ(r2.Post("/api/scenes?id=smoky", scene.dump(), "application/json")->status, 201);
+    scene["volumes"]["puff"]["asset"] = "cloud";
+    auto unknown = r3.Post("/api/scenes?id=cloudy", scene.dump(), "application/json");
+    ASSERT_TRUE(unknown);
+    EXPECT_EQ(unknown->status, 422) << unknown->body;
+    EXPECT_EQ(json::parse(unknown->body)["pointer"], "/volumes/puff/asset");
+    auto frame = r3.Get("/api/scenes/smoky/frame.png");
+    ASSERT_TRUE(frame);
+    EXPECT_EQ(frame->status, 200) << frame->body;
+    EXPECT_EQ(r1.Delete("/api/volumes/smoke")->status, 409);
+    ASSERT_EQ(r1.Patch("/api/scenes/smoky", R"({"volumes": null})", "application/merge-patch+json")->status, 200);
     auto deleted = r2.Delete("/api/volumes/smoke");
     ASSERT_TRUE(deleted);
     EXPECT_EQ(deleted->status, 204) << deleted->body;

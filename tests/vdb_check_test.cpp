@@ -94,7 +94,8 @@ TEST(VdbCheck, ACrashIsTheFilesRefusalAndAnythingElseTheInstallationsFault) {
 }
 
 TEST(VdbCheck, TheProgramRefusesArgumentsItDoesNotTake) {
-    for (const char* arguments : {"", " 100", " 100 8 9", " -1 8", " 100 x", " 100 4294967296", " --export 100 8"}) {
+    for (const char* arguments : {"", " 100", " 100 8 9", " -1 8", " 100 x", " 100 4294967296", " --export 100 8",
+                                  " 100 8 density x", " 100 8 density 1 2"}) {
         const std::string command = kChecker.string() + arguments + " < /dev/null > /dev/null 2>&1";
         const int status = std::system(command.c_str());
         ASSERT_TRUE(WIFEXITED(status)) << arguments;

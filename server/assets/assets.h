@@ -7,6 +7,7 @@
 #include <string>
 
 #include "assets/index_grid.h"
+#include "volume/density_export.h"
 
 namespace refract::mesh {
 struct Mesh;
@@ -23,6 +24,8 @@ struct Assets {
     std::function<std::shared_ptr<const mesh::Mesh>(const std::string& name)> mesh;
     std::function<std::shared_ptr<const IndexGrid>(const std::string& name)> grid;
     std::function<std::shared_ptr<const image::EnvironmentMap>(const std::string& name)> environment;
+    // The float grid `grid` of the uploaded volume `name`, exported apart (volume/vdb_check.h).
+    std::function<std::shared_ptr<const volume::DensityGrid>(const std::string& name, const std::string& grid)> density;
 };
 
 }  // namespace refract::scene

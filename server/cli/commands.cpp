@@ -36,6 +36,7 @@ struct Loaded {
     protocol::SceneDocument document;
     std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;
     std::map<std::string, std::shared_ptr<const image::EnvironmentMap>> environments;
+    std::map<std::string, std::pair<std::string, std::string>> volumes;  // --volume NAME: its file and bytes
 };
 
 json read_json_file(const std::string& path) {
@@ -89,9 +90,8 @@ Loaded load(const Arguments& args) {
         load_gltf(scene, loaded);
     else
         loaded.document = protocol::parse_scene(scene == "-" ? json::object() : read_json_file(scene));
-    // Checked and dropped: the document has no field that names a volume yet.
-    for (const auto& named_volume : args.volumes) {
-        const std::string& file = named_volume.second;
+    // Checked whole, as refractd checks an upload; the scene's volumes name them.
+    for (const auto& [name, file] : args.volumes) {
         std::ifstream in(file, std::ios::binary);
         std::ostringstream bytes;
         bytes << in.rdbuf();
@@ -100,6 +100,7 @@ Loaded load(const Arguments& args) {
         } catch (const volume::VolumeError& e) {
             throw std::runtime_error(file + ": " + e.what());
         }
+        loaded.volumes[name] = {file, bytes.str()};
     }
     for (const auto& [name, file] : args.environments) {
         std::ifstream in(file, std::ios::binary);
@@ -128,6 +129,24 @@ std::shared_ptr<const image::EnvironmentMap> environment_of(const Loaded& loaded
     if (!map) throw std::runtime_error("the scene names environment " + environment.image + ": pass --environment " +
                                        environment.image + "=FILE");
     return map;
+}
+
+// The grid of each of the scene's volumes, from the files --volume gave (exported in this process: the
+// CLI reads the user's own files, as it checks them).
+scene::Densities densities_of(const Loaded& loaded) {
+    scene::Densities densities;
+    for (const auto& [key, member] : loaded.document.volumes) {
+        const auto it = loaded.volumes.find(member.asset);
+        if (it == loaded.volumes.end())
+            throw std::runtime_error("the scene names volume " + member.asset + ": pass --volume " + member.asset + "=FILE.vdb");
+        try {
+            densities[key] = std::make_shared<const volume::DensityGrid>(volume::export_density(
+                it->second.second, member.grid, volume::limits_for_resolution(protocol::Limits{}.max_resolution)));
+        } catch (const volume::VolumeError& e) {
+            throw std::runtime_error(it->second.first + ": " + e.what());
+        }
+    }
+    return densities;
 }
 
 // The objects' meshes in world space, resolved as the renderer resolves them.
@@ -253,7 +272,7 @@ int trace_command(const Arguments& args) {
     scene::RunOptions options;
     options.limit = scene::kAllPasses & ~scene::kView;
     const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_meshes(loaded), nullptr, options,
-                               environment_of(loaded).get());
+                               environment_of(loaded).get(), densities_of(loaded));
     write_index_slices(dir, gpu);
     const auto radiance = gpu.read_radiance();
     std::vector<float> fluence(radiance.size());
@@ -294,7 +313,7 @@ int render_command(const Arguments& args) {
     const auto host_start = std::chrono::steady_clock::now();
     const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_meshes(loaded), nullptr,
                                scene::run_options_for(args.interactive ? scene::Quality::interactive : scene::Quality::still),
-                               environment_of(loaded).get());
+                               environment_of(loaded).get(), densities_of(loaded));
     const auto encode_start = std::chrono::steady_clock::now();
     write_frame(args.out, gpu, loaded.document);
     const auto end = std::chrono::steady_clock::now();

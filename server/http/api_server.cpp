@@ -701,11 +701,13 @@ struct ApiServer::Impl {
         send_json(res, 200, {{"volumes", list}});
     }
 
-    // No frame changes: nothing renders volumes yet, so no cached frame is forgotten.
+    // A re-upload changes the frames of the scenes whose volumes name it: cached frames are forgotten, as
+    // after a mesh upload.
     void put_volume(const Request& req, Response& res) {
         std::string name = req.matches[1];
         try {
             scene::VolumeEntry entry = service.store().put_volume(name, req.body);
+            service.queue().forget_cached_frames();
             json answer = volume::to_json(entry.report);
             answer["name"] = entry.name;
             send_json(res, 201, answer);

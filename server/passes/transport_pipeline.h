@@ -73,15 +73,18 @@ struct TransportVariant {
     bool film = false;                 // ... through a thin film (TRANSPORT_CONSTANT_FILM; with fresnel only)
     bool materials = false;            // several objects, a material each (TRANSPORT_CONSTANT_MATERIALS)
     bool field_atlas = false;          // their field in a field atlas (TRANSPORT_CONSTANT_FIELD_ATLAS; with materials)
+    bool medium_field = false;         // volumes add to the medium (TRANSPORT_CONSTANT_MEDIUM_FIELD)
 };
 
-// What every transport pass reads first: the frame's parameters, the index field, its coverage and the
-// octree's levels, at the same bindings in each (TRANSPORT_BINDING_*).
+// What every transport pass reads first: the frame's parameters, the index field, its coverage, the
+// octree's levels and the medium field, at the same bindings in each (TRANSPORT_BINDING_*).
 struct TransportInputs {
     const vk::Buffer& params;
     const vk::Image3D& index_field;
     const vk::Image3D& coverage;
     const vk::Buffer& levels;
+    const vk::Image3D& medium_extinction;
+    const vk::Image3D& medium_scattering;
     VkSampler sampler;
     TransportVariant variant;
 };
@@ -91,6 +94,8 @@ inline constexpr vk::BindingLayout kTransportInputLayout[] = {
     {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_MEDIUM_EXTINCTION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_MEDIUM_SCATTERING, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
 };
 constexpr size_t kTransportInputCount = std::size(kTransportInputLayout);
 
@@ -110,12 +115,14 @@ std::array<vk::Binding, kTransportInputCount + N> transport_bindings(const Trans
         vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, in.params),
         vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
         vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
-        vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels)};
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
+        vk::Binding::sampled_image(TRANSPORT_BINDING_MEDIUM_EXTINCTION, in.medium_extinction, in.sampler),
+        vk::Binding::sampled_image(TRANSPORT_BINDING_MEDIUM_SCATTERING, in.medium_scattering, in.sampler)};
     for (size_t i = 0; i < N; ++i) bindings[kTransportInputCount + i] = own[i];
     return bindings;
 }
 
-// Each variant is compiled the first time a frame needs it: most scenes use one or two of the 54, and
+// Each variant is compiled the first time a frame needs it: most scenes use one or two of the 108, and
 // every pipeline created costs a driver compile (LLVM, on lavapipe). Not thread-safe (one thread records).
 class TransportPipeline {
 public:
@@ -128,7 +135,8 @@ public:
 
 private:
     // CHANNELS_* x coverage fetch x (none, Fresnel, film) x (one object, several, several in a field atlas)
-    static constexpr size_t kVariants = 3 * 2 * 3 * 3;
+    // x medium field
+    static constexpr size_t kVariants = 3 * 2 * 3 * 3 * 2;
 
     vk::Context& context_;
     std::span<const uint32_t> spirv_;

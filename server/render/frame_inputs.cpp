@@ -65,6 +65,7 @@ FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document,
     in.lights = make_transport_params(document, grid, transport);
     if (document.objects.size() > 1)
         for (const auto& [name, object] : document.objects) in.materials.push_back(material_for(object, document.medium, grid));
+    in.volumes = document.volumes;
     return in;
 }
 

@@ -2,6 +2,7 @@
 // stages and passes never see the document.
 #pragma once
 
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -36,6 +37,8 @@ struct FrameInputs {
         // view and tone map too. Device addresses are the stages' to fill.
         std::vector<shaders::TransportParams> lights;
         std::vector<shaders::Material> materials;  // several objects: by object number; empty for one
+        // The volumes (TRANSPORT_CONSTANT_MEDIUM_FIELD when any), resampled by the stage into the medium field.
+        std::map<std::string, protocol::DensityVolume> volumes;
     };
     // View, tone map.
     struct View {

@@ -19,6 +19,22 @@ std::string pass_names(PassSet passes) {
     return out;
 }
 
+namespace {
+
+// Whether the volumes lie elsewhere: one added or removed, or another grid or transform.
+bool volumes_placed_apart(const protocol::SceneDocument& before, const protocol::SceneDocument& after) {
+    if (before.volumes.size() != after.volumes.size()) return true;
+    for (auto a = before.volumes.begin(), b = after.volumes.begin(); a != before.volumes.end(); ++a, ++b) {
+        const protocol::DensityVolume &x = a->second, &y = b->second;
+        if (a->first != b->first || x.asset != y.asset || x.grid != y.grid || x.position != y.position ||
+            x.rotation_deg != y.rotation_deg || x.scale != y.scale)
+            return true;
+    }
+    return false;
+}
+
+}  // namespace
+
 PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol::SceneDocument& after) {
     PassSet stale = 0;
     // Objects pair up by name; one added or removed changes the lattice and the field.
@@ -63,6 +79,10 @@ PassSet passes_invalidated(const protocol::SceneDocument& before, const protocol
     const bool walks = before.photons.max_bounces > 0 || after.photons.max_bounces > 0;
     if (walks && (scattering || before.medium.scattering != after.medium.scattering || !(before.medium.phase == after.medium.phase)))
         stale |= kPhotons | kView | kToneMap;
+    // Volumes add to the medium photons cross (their field is resampled); without bounds the lattice
+    // holds them, so one that moves, or another grid, may move it: everything.
+    if (!(before.volumes == after.volumes)) stale |= kPhotons | kView | kToneMap;
+    if (!after.volume.bounds && volumes_placed_apart(before, after)) stale |= kAllPasses;
     // An environment that lights the scene (before or after the edit) sends photons: any change of it
     // reruns them.
     if (!(before.environment == after.environment) &&

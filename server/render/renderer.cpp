@@ -108,6 +108,7 @@ struct ResolvedAssets {
     std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;  // each object's, by name
     std::shared_ptr<const IndexGrid> grid;
     std::shared_ptr<const image::EnvironmentMap> environment;
+    Densities densities;  // each volume's grid, by the member's name
 };
 
 ResolvedAssets resolve(const protocol::SceneDocument& document, const Assets& assets) {
@@ -128,6 +129,11 @@ ResolvedAssets resolve(const protocol::SceneDocument& document, const Assets& as
         if (!resolved.environment)
             throw RenderError("environment '" + document.environment.image + "' is not a built-in or an uploaded one");
     }
+    for (const auto& [name, member] : document.volumes) {
+        auto density = assets.density ? assets.density(member.asset, member.grid) : nullptr;
+        if (!density) throw RenderError("volume '" + member.asset + "' of /volumes/" + name + " is not an uploaded one");
+        resolved.densities.emplace(name, std::move(density));
+    }
     return resolved;
 }
 
@@ -141,8 +147,8 @@ WorldMeshes worlds_of(const protocol::SceneDocument& document, const ResolvedAss
 // Device memory the scene `document` holds once rendered, estimated on the lattice it asks for before
 // anything is allocated (the objects' boxes in it, or the imported grid's own lattice).
 int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes& worlds, const IndexGrid* grid,
-                     const image::EnvironmentMap* environment) {
-    const passes::GridGeometry g = grid ? passes::GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : scene::grid_for(document, worlds);
+                     const image::EnvironmentMap* environment, const Densities& densities) {
+    const passes::GridGeometry g = grid ? passes::GridGeometry{{}, 1.0f, {grid->nx, grid->ny, grid->nz}} : scene::grid_for(document, worlds, densities);
     uint64_t object_voxels = 0;
     std::map<std::string, passes::ObjectBox> boxes;
     if (grid) object_voxels = g.dims.count();
@@ -154,7 +160,7 @@ int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes&
         field_atlas_for(g, boxes, grid || document.objects.size() < 2, std::numeric_limits<uint32_t>::max()).dims.count();
     return estimate_scene_bytes(g, field_voxels, object_voxels, g.coarsened(g.light_factor).count(), document.image.width,
                                 document.image.height) +
-           estimate_environment_bytes(environment);
+           estimate_environment_bytes(environment) + static_cast<int64_t>(medium_field_bytes(g, !document.volumes.empty()));
 }
 
 // Still frames of other views of the scene kept for their refinement (ViewStage::ParkedFrame): a few
@@ -190,6 +196,7 @@ struct ResidentScene {
     std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;  // each object's, by name
     std::shared_ptr<const IndexGrid> grid;
     std::shared_ptr<const image::EnvironmentMap> environment;
+    Densities densities;
     uint64_t last_used = 0;
     uint32_t level = 0;  // refinement level of the resident still frame (0: the frame is interactive or partial)
     uint32_t lattice_divisor = 1;  // the interactive lattice's (InteractiveSettings), 1 after a still frame
@@ -280,6 +287,8 @@ PassSet stale_against(const ResidentScene* held, const protocol::SceneDocument& 
     if (held->meshes != resolved.meshes || held->grid != resolved.grid) stale |= kAllPasses;
     // A re-uploaded image lights the scene anew.
     if (held->environment != resolved.environment) stale |= kPhotons | kView | kToneMap;
+    // A re-uploaded volume changes the medium the photons cross, and without bounds the lattice around it.
+    if (held->densities != resolved.densities) stale |= next.volume.bounds ? kPhotons | kView | kToneMap : kAllPasses;
     return held->gpu->passes_for(stale);
 }
 
@@ -446,7 +455,7 @@ bool Renderer::Impl::make_room(const std::string& scene_id, const ResidentScene*
     };
     auto it = scenes.find(scene_id);
     const int64_t replaced = it != scenes.end() ? held_by(it->second) : 0;
-    const int64_t need = rebuild ? needed_bytes(plan.document, worlds, resolved.grid.get(), resolved.environment.get())
+    const int64_t need = rebuild ? needed_bytes(plan.document, worlds, resolved.grid.get(), resolved.environment.get(), resolved.densities)
                                  : replaced - estimate_environment_bytes(held->environment.get()) +
                                        estimate_environment_bytes(resolved.environment.get());
     // This scene's old state is released before the new one is made. Make room by dropping least
@@ -487,7 +496,8 @@ bool Renderer::Impl::run_steps(ResidentScene& resident, const FramePlan& plan, c
         // Each step runs in parts and gives way between them when the caller says other work waits.
         run_options.give_way = give_way;
         const RunStats stats =
-            resident.gpu->run(passes, plan.document, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+            resident.gpu->run(passes, plan.document, worlds, resolved.grid.get(), run_options, resolved.environment.get(),
+                              resolved.densities);
         if (stats.gave_way) {
             // What the GPU holds now: this document, with part of a step the frame does not hold; a step
             // that gave way before its view leaves the frame of the level before it.
@@ -513,6 +523,7 @@ void Renderer::Impl::keep(ResidentScene& resident, const protocol::SceneDocument
     resident.meshes = resolved.meshes;
     resident.grid = resolved.grid;
     resident.environment = resolved.environment;
+    resident.densities = resolved.densities;
     resident.level = level;
 }
 
@@ -685,7 +696,7 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
     if (impl_->scenes.size() >= std::max<size_t>(impl_->options.max_resident_scenes, 1)) return false;
     const int64_t budget = impl_->options.device_memory_budget;
     if (budget > 0 &&
-        impl_->context.allocated_bytes() + needed_bytes(document, worlds, resolved.grid.get(), resolved.environment.get()) > budget)
+        impl_->context.allocated_bytes() + needed_bytes(document, worlds, resolved.grid.get(), resolved.environment.get(), resolved.densities) > budget)
         return false;
     ResidentScene& resident = impl_->scenes[scene_id];
     resident.gpu = std::make_unique<SceneGpu>(impl_->kit);
@@ -702,7 +713,8 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
             RunOptions run_options = run_options_for(Quality::interactive);
             run_options.limit = pass;
             const RunStats stats =
-                resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get());
+                resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get(),
+                              resolved.densities);
             // What these photons cost sizes the first frame that traces photons (a light drag's): a camera
             // drag's frames shade from the resident grid and measure none.
             if (pass == kPhotons) resident.budget.observe(document, settings, stats.gpu_ms.front().second, 0.0, 0.0);
@@ -715,6 +727,7 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
     resident.meshes = resolved.meshes;
     resident.grid = resolved.grid;
     resident.environment = resolved.environment;
+    resident.densities = resolved.densities;
     resident.level = 0;  // no frame: render() runs the view and tone map (and what the stop left)
     return true;
 }

@@ -54,10 +54,10 @@ SceneGpu::SceneGpu(PassKit& kit)
 
 passes::GridGeometry SceneGpu::lattice_for(PassSet stale, const protocol::SceneDocument& document,
                                            const WorldMeshes& worlds, const FrameInputs::Volume& volume,
-                                           const IndexGrid* grid_asset) const {
+                                           const IndexGrid* grid_asset, const Densities& densities) const {
     // Only a rebuilt volume can move the grid: otherwise keep the resident one.
     if (!(stale & kVoxelize) && (built_ & kVoxelize)) return grid_;
-    if (!volume.imported) return grid_for(document, worlds);
+    if (!volume.imported) return grid_for(document, worlds, densities);
     if (!grid_asset) throw RenderError("the scene's index field grid is not loaded");
     passes::GridGeometry grid = grid_;
     const auto& b = grid_asset->bounds;
@@ -74,10 +74,10 @@ void SceneGpu::gave_way(Pass pass, PassSet stale, PassSet asked, bool keep_mean)
 
 RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, const WorldMeshes& worlds,
                        const IndexGrid* grid_asset, const RunOptions& options,
-                       const image::EnvironmentMap* environment) {
+                       const image::EnvironmentMap* environment, const Densities& densities) {
     // The document turned into the stages' inputs; nothing past this block reads it.
     const FrameInputs::Volume volume_in = volume_inputs(document);
-    const passes::GridGeometry grid = lattice_for(stale, document, worlds, volume_in, grid_asset);
+    const passes::GridGeometry grid = lattice_for(stale, document, worlds, volume_in, grid_asset, densities);
     // Anything never built, or built for another grid, runs whatever it needs.
     if (!(grid == grid_) || !volume_.has_field()) {
         volume_.clear();
@@ -102,7 +102,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     if (volume_.lay_out(grid_, volume_in, worlds, stale, built_)) built_ &= ~(kIndexField | kOctree);
     const image::EnvironmentMap* image = document.environment.type == protocol::EnvironmentKind::image ? environment : nullptr;
     transport_.prepare_environment(environment_source(document, image));
-    transport_.prepare(transport_inputs(document, grid_, transport_.environment(), options), stale, options, grid_, volume_);
+    transport_.prepare(transport_inputs(document, grid_, transport_.environment(), options), stale, options, grid_, volume_,
+                       densities);
 
     // One submission for every stale pass (with give_way: one per volume pass and per part of the photons
     // and view, so that the run can stop after any); each pass is bracketed by timestamps.

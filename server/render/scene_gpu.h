@@ -114,11 +114,12 @@ public:
     // index grid for index_field == grid; `environment` the map an image environment names: a changed
     // map must come as a new pointer (the resident copy is kept while the pointer and the document's
     // environment stay). The document is turned into each stage's inputs (FrameInputs) at the top; the
-    // stages record into one recording, in parts when the run may give way. Throws vk::Error on device
-    // failures.
+    // stages record into one recording, in parts when the run may give way. `densities` holds the grid of
+    // each of the document's volumes (a changed grid must come as a new pointer). Throws vk::Error on
+    // device failures, RenderError for a volume without its grid.
     RunStats run(PassSet stale, const protocol::SceneDocument& document, const WorldMeshes& worlds,
                  const IndexGrid* grid_asset, const RunOptions& options = {},
-                 const image::EnvironmentMap* environment = nullptr);
+                 const image::EnvironmentMap* environment = nullptr, const Densities& densities = {});
 
     const passes::GridGeometry& grid() const { return grid_; }
     const FieldAtlas& field_atlas() const { return volume_.atlas(); }
@@ -178,7 +179,8 @@ private:
     // The lattice the run builds on: the resident one, unless the volume is rebuilt (then fitted to the
     // document's objects, or the imported grid's).
     passes::GridGeometry lattice_for(PassSet stale, const protocol::SceneDocument& document, const WorldMeshes& worlds,
-                                     const FrameInputs::Volume& volume, const IndexGrid* grid_asset) const;
+                                     const FrameInputs::Volume& volume, const IndexGrid* grid_asset,
+                                     const Densities& densities) const;
     // What the run holds when it stopped in `pass`: the passes before it built, it and those asked for
     // after it not (`keep_mean`: a photon pass stopped before touching the running mean keeps it).
     void gave_way(Pass pass, PassSet stale, PassSet asked, bool keep_mean);

@@ -7,7 +7,8 @@ namespace refract::scene {
 
 namespace {
 // The scene's own grid, at volume.resolution over its box.
-passes::GridGeometry scene_grid(const protocol::SceneDocument& document, const std::map<std::string, mesh::Mesh>& worlds) {
+passes::GridGeometry scene_grid(const protocol::SceneDocument& document, const std::map<std::string, mesh::Mesh>& worlds,
+                                const Densities& densities) {
     const auto& volume = document.volume;
     if (volume.bounds) {
         const auto& b = *volume.bounds;
@@ -20,6 +21,13 @@ passes::GridGeometry scene_grid(const protocol::SceneDocument& document, const s
             lo = glm::min(lo, p);
             hi = glm::max(hi, p);
         }
+    for (const auto& [name, member] : document.volumes) {
+        const auto grid = densities.find(name);
+        glm::dvec3 box_lo, box_hi;
+        if (grid == densities.end() || !grid->second || !volume_world_box(member, *grid->second, box_lo, box_hi)) continue;
+        lo = glm::min(lo, glm::vec3(box_lo));
+        hi = glm::max(hi, glm::vec3(box_hi));
+    }
     const float margin = static_cast<float>(volume.margin);
     return passes::fit_grid(lo - margin, hi + margin, volume.resolution);
 }
@@ -40,8 +48,9 @@ double own_extent(const protocol::Object& object, const mesh::Mesh& world) {
 }
 }  // namespace
 
-passes::GridGeometry grid_for(const protocol::SceneDocument& document, const std::map<std::string, mesh::Mesh>& worlds) {
-    passes::GridGeometry grid = scene_grid(document, worlds);
+passes::GridGeometry grid_for(const protocol::SceneDocument& document, const std::map<std::string, mesh::Mesh>& worlds,
+                              const Densities& densities) {
+    passes::GridGeometry grid = scene_grid(document, worlds, densities);
     uint32_t factor = 1;
     for (const auto& [name, object] : document.objects) {
         const auto world = worlds.find(name);

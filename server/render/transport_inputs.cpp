@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "phase.h"
+#include "render/medium_field.h"
 
 namespace refract::scene {
 
@@ -50,7 +51,9 @@ uint32_t transport_channels(const protocol::SceneDocument& document) {
     auto grey = [](const auto& rgb) { return rgb[0] == rgb[1] && rgb[1] == rgb[2]; };
     const bool objects_grey = std::all_of(document.objects.begin(), document.objects.end(),
                                           [&](const auto& named) { return grey(named.second.extinction); });
-    return grey(document.medium.extinction) && objects_grey && !film_reflects(document) &&
+    const bool volumes_grey = std::all_of(document.volumes.begin(), document.volumes.end(),
+                                          [&](const auto& named) { return grey(named.second.extinction); });
+    return grey(document.medium.extinction) && objects_grey && volumes_grey && !film_reflects(document) &&
                    lights_share_colour(document) && !environment_lights(document)
                ? CHANNELS_GREY
                : CHANNELS_RGB;
@@ -119,6 +122,10 @@ bool any_scattering(const protocol::SceneDocument& document) {
     for (const auto& [name, object] : document.objects) {
         const auto& o = object.scattering;
         most = std::max({most, o[0], o[1], o[2]});
+    }
+    for (const auto& [name, density] : document.volumes) {
+        const auto& v = density.scattering;
+        most = std::max(most, std::max({v[0], v[1], v[2]}) * density.density_scale);
     }
     return most > 0.0;
 }
@@ -398,7 +405,7 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
                                ? 0.0f
                                : (UNBENT_MIN_DISTANCE + 1.0f) * static_cast<float>(options.radiance_factor);
         q.direct_light = glm::vec4(static_cast<float>(passes::light_map_texels(grid, std::max(photons, 1u))), near, 0.0f,
-                                   options.direct_light && scatters && photons > 0 ? 1.0f : 0.0f);
+                                   options.direct_light && scatters && photons > 0 && document.volumes.empty() ? 1.0f : 0.0f);
         per_light.push_back(q);
     }
     return per_light;
@@ -442,6 +449,13 @@ std::vector<shaders::TransportParams> make_transport_params(const protocol::Scen
     set_floor(p, document.floor, grid, lights);
     set_camera(p, document, options);
     set_medium_fade(p, document, grid);
+    if (!document.volumes.empty()) {
+        const uint32_t step = medium_field_step(grid);
+        const vk::Extent3 field = grid.coarsened(step);
+        p.medium_field = glm::vec4(1.0f / glm::vec3(static_cast<float>(field.x * step), static_cast<float>(field.y * step),
+                                                    static_cast<float>(field.z * step)),
+                                   static_cast<float>(step));
+    }
     // How passes find coverage for each coefficient, and whether photons need to deposit at all. n is
     // linear in coverage only in the field of one uniform object.
     const bool uniform_index = document.objects.size() == 1 && object.index_field == protocol::IndexFieldKind::uniform &&

@@ -109,8 +109,33 @@ void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t phot
     }
 }
 
+void TransportStage::prepare_medium_field(const FrameInputs::Transport& in, const passes::GridGeometry& lattice,
+                                          const Densities& densities) {
+    uploaded_field_.reset();  // the run that copied it has ended
+    // Without volumes the field is one texel of zeros whatever the lattice, so the passes always bind it.
+    FieldSource source{in.volumes.empty() ? passes::GridGeometry{} : lattice, in.volumes, {}};
+    for (const auto& [name, member] : in.volumes) {
+        const auto it = densities.find(name);
+        if (it != densities.end()) source.densities.emplace(name, it->second);
+    }
+    if (field_source_ == source) return;
+    const MediumField field = resample_volumes(lattice, in.volumes, densities);
+    const uint64_t bytes = field.dims.count() * sizeof(glm::vec4);
+    medium_extinction_ = {};
+    medium_scattering_ = {};
+    medium_extinction_ = vk::Image3D(kit_.context, field.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "medium field extinction");
+    medium_scattering_ = vk::Image3D(kit_.context, field.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "medium field scattering");
+    field_upload_.emplace(
+        vk::Buffer(kit_.context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::upload, "medium field extinction upload"),
+        vk::Buffer(kit_.context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::upload, "medium field scattering upload"));
+    field_upload_->first.write(field.extinction.data(), bytes);
+    field_upload_->second.write(field.scattering.data(), bytes);
+    field_source_ = std::move(source);
+}
+
 void TransportStage::prepare(const FrameInputs::Transport& in, PassSet stale, const RunOptions& options,
-                             const passes::GridGeometry& lattice, const VolumeStage& volume) {
+                             const passes::GridGeometry& lattice, const VolumeStage& volume, const Densities& densities) {
+    prepare_medium_field(in, lattice, densities);
     light_params_ = in.lights;
     // Several objects: their materials, by the object numbers the index field holds per voxel.
     const bool several = !in.materials.empty();
@@ -141,12 +166,12 @@ void TransportStage::prepare(const FrameInputs::Transport& in, PassSet stale, co
     }
     const shaders::TransportParams& first = light_params_.front();
     variant_ = {channels_, first.flags.y == COVERAGE_FETCH || first.flags.z == COVERAGE_FETCH, in.fresnel, in.film,
-                several, !atlas.dense};
+                several, !atlas.dense, !in.volumes.empty()};
 }
 
 passes::TransportInputs TransportStage::inputs_for(const vk::Buffer& params, const VolumeStage& volume) const {
     return passes::TransportInputs{params,           volume.index_field(), volume.coverage_image(), volume.levels(),
-                                   kit_.linear_sampler.get(), variant_};
+                                   medium_extinction_, medium_scattering_, kit_.linear_sampler.get(), variant_};
 }
 
 passes::TransportInputs TransportStage::view_inputs(const VolumeStage& volume) const {
@@ -156,6 +181,16 @@ passes::TransportInputs TransportStage::view_inputs(const VolumeStage& volume) c
 bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet built, const RunOptions& options,
                             const passes::GridGeometry& lattice, const VolumeStage& volume, bool& resolved) {
     vk::CommandRecorder& recorder = recording.recorder();
+    if (field_upload_) {
+        // A new medium field: its images into the layout the passes sample, filled before any pass reads.
+        recorder.init_image(medium_extinction_);
+        recorder.init_image(medium_scattering_);
+        recorder.copy(field_upload_->first, medium_extinction_);
+        recorder.copy(field_upload_->second, medium_scattering_);
+        recorder.transfer_to_compute_barrier();
+        uploaded_field_ = std::move(field_upload_);
+        field_upload_.reset();
+    }
     if (stale & kPhotons && !(built & kPhotons)) {
         for (const vk::Image3D* image : {&radiance_, &flux_, &floor_map_, &raw_radiance_, &raw_flux_, &raw_floor_map_})
             if (image->get()) recorder.init_image(*image);

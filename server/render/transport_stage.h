@@ -14,6 +14,7 @@
 #include "passes/transport_pipeline.h"
 #include "render/frame_inputs.h"
 #include "render/frame_recording.h"
+#include "render/medium_field.h"
 #include "render/pass_kit.h"
 #include "render/volume_stage.h"
 
@@ -40,10 +41,11 @@ public:
     // lights nothing, so the passes always address a buffer. Throws RenderError for an image not given.
     void prepare_environment(const passes::EnvironmentSource& source);
     const passes::EnvironmentLight& environment() const { return environment_light_; }
-    // The frame's parameters (with the device addresses they name), the materials, and the photon images
-    // when the photons are stale.
+    // The frame's parameters (with the device addresses they name), the materials, the photon images
+    // when the photons are stale, and the medium field when the volumes, their `densities` or the lattice
+    // changed (uploaded by the next record).
     void prepare(const FrameInputs::Transport& in, PassSet stale, const RunOptions& options,
-                 const passes::GridGeometry& lattice, const VolumeStage& volume);
+                 const passes::GridGeometry& lattice, const VolumeStage& volume, const Densities& densities);
     // Records the photon passes when stale; false when the run stopped at a part. `resolved` is set once
     // a light's photons replaced the radiance grid's running mean.
     bool record(FrameRecording& recording, PassSet stale, PassSet built, const RunOptions& options,
@@ -73,6 +75,8 @@ private:
     void allocate(const passes::GridGeometry& lattice, uint32_t photon_exit_count, bool record_exits,
                   uint32_t radiance_factor, uint32_t channels, bool adaptive_density);
     passes::TransportInputs inputs_for(const vk::Buffer& params, const VolumeStage& volume) const;
+    void prepare_medium_field(const FrameInputs::Transport& in, const passes::GridGeometry& lattice,
+                              const Densities& densities);
 
     PassKit& kit_;
     uint32_t floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
@@ -93,6 +97,18 @@ private:
     passes::EnvironmentLight environment_light_;
     vk::Buffer environment_map_;
     std::optional<passes::EnvironmentSource> environment_source_;  // what the map was made of
+    // The medium field (medium_field.h): its images, what they were made of, and the staging buffers
+    // of an upload the next record makes.
+    struct FieldSource {
+        passes::GridGeometry lattice;
+        std::map<std::string, protocol::DensityVolume> volumes;
+        Densities densities;
+        bool operator==(const FieldSource&) const = default;
+    };
+    vk::Image3D medium_extinction_, medium_scattering_;
+    std::optional<FieldSource> field_source_;
+    std::optional<std::pair<vk::Buffer, vk::Buffer>> field_upload_;
+    std::optional<std::pair<vk::Buffer, vk::Buffer>> uploaded_field_;  // recorded: kept until the next run
 };
 
 }  // namespace refract::scene

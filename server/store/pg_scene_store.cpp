@@ -7,6 +7,7 @@
 
 #include "store/index_grid_file.h"
 #include "store/pg_schema.h"
+#include "volume/vdb_check.h"
 
 namespace refract::scene {
 
@@ -102,6 +103,7 @@ SceneSnapshot PgSceneStore::create(const std::string& id, const nlohmann::json& 
     std::string text = dump(parsed);
     pg::Pool::Lease connection = pool_.acquire();
     check_environment(parsed, [&](const std::string& name) { return has_environment(*connection, name); });
+    check_volumes(parsed, [&](const std::string& name) { return volume_report(*connection, name); });
     for (;;) {
         std::string chosen = id.empty() ? random_hex_id() : id;
         pg::Result inserted = connection->exec(
@@ -169,6 +171,9 @@ EditResult PgSceneStore::patch(const std::string& id, const nlohmann::json& merg
         if (!(result.after.document.environment == current->document.environment))
             check_environment(result.after.document,
                               [&](const std::string& name) { return has_environment(*connection, name); });
+        if (!(result.after.document.volumes == current->document.volumes))
+            check_volumes(result.after.document,
+                          [&](const std::string& name) { return volume_report(*connection, name); });
         result.after.revision = next_revision(current->revision);
         // Optimistic concurrency: the update takes only if nobody committed since the read. Zero rows
         // means another replica won: with If-Match that is the client's 412, without it we edit the
@@ -385,6 +390,44 @@ bool PgSceneStore::remove_volume(const std::string& name) {
     if (!valid_mesh_name(name)) return false;
     return remove_asset(AssetKind::volume, {"volumes", "name", "data", "volume"}, name, "volume '" + name + "'",
                         std::string(kDeletedVolume));
+}
+
+std::optional<volume::VolumeReport> PgSceneStore::volume_report(pg::Connection& connection,
+                                                                const std::string& name) const {
+    pg::Result row = connection.exec("SELECT report::text FROM volumes WHERE name = $1", {{name}},
+                                     "looking up volume '" + name + "'");
+    if (row.rows() == 0) return std::nullopt;
+    return volume::volume_report_from_json(nlohmann::json::parse(row.text(0, 0)));
+}
+
+std::optional<volume::VolumeReport> PgSceneStore::volume_report(const std::string& name) const {
+    if (!valid_mesh_name(name)) return std::nullopt;
+    pg::Pool::Lease connection = pool_.acquire();
+    return volume_report(*connection, name);
+}
+
+std::shared_ptr<const volume::DensityGrid> PgSceneStore::density(const std::string& name, const std::string& grid) const {
+    if (!valid_mesh_name(name)) return nullptr;
+    pg::Pool::Lease connection = pool_.acquire();
+    pg::Result version = connection->exec("SELECT version FROM volumes WHERE name = $1", {{name}},
+                                          "looking up volume '" + name + "'");
+    if (version.rows() == 0) return nullptr;
+    // One cache entry per grid, under the volume's version, as load_asset keeps one per asset.
+    const std::string key = name + "/" + grid;
+    const uint64_t stored_version = version.number(0, 0);
+    if (auto cached = cache_.find<volume::DensityGrid>(AssetKind::volume, key, stored_version)) return cached;
+    pg::Result row = connection->exec("SELECT data FROM volumes WHERE name = $1", {{name}},
+                                      "reading volume '" + name + "'", true);
+    if (row.rows() == 0) return nullptr;
+    std::shared_ptr<const volume::DensityGrid> exported;
+    try {
+        exported = std::make_shared<const volume::DensityGrid>(
+            volume::export_density_apart(row.bytes(0, 0), grid, volume::limits_for_resolution(limits_.max_resolution)));
+    } catch (const std::exception& e) {
+        throw RenderError("stored volume '" + name + "' grid '" + grid + "' cannot be read: " + e.what());
+    }
+    const uint64_t size = host_bytes(*exported);
+    return cache_.insert(AssetKind::volume, key, stored_version, std::move(exported), size);
 }
 
 EditResult PgSceneStore::put_index_grid(const std::string& scene_id, IndexGrid grid) {

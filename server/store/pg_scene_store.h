@@ -44,6 +44,8 @@ public:
     VolumeEntry put_volume(const std::string& name, const std::string& bytes) override;
     std::vector<VolumeEntry> list_volumes() const override;
     bool remove_volume(const std::string& name) override;
+    std::optional<volume::VolumeReport> volume_report(const std::string& name) const override;
+    std::shared_ptr<const volume::DensityGrid> density(const std::string& name, const std::string& grid) const override;
     EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) override;
     std::shared_ptr<const IndexGrid> grid(const std::string& name) const override;
     bool remove_index_grid(const std::string& scene_id) override;
@@ -64,6 +66,8 @@ private:
     // Whether an environment is stored under `name`, asked on a connection the caller already holds (a
     // second lease from the pool while holding one could wait for ever under load).
     bool has_environment(pg::Connection& connection, const std::string& name) const;
+    // The report of the volume `name`, on a connection the caller already holds; nullopt when none.
+    std::optional<volume::VolumeReport> volume_report(pg::Connection& connection, const std::string& name) const;
 
     mutable pg::Pool pool_;
     protocol::Limits limits_;

@@ -93,7 +93,7 @@ CREATE TRIGGER environments_notify AFTER INSERT OR UPDATE ON environments
     FOR EACH ROW EXECUTE FUNCTION refract_notify();
 )sql",
 // Version 3. Uploaded volumes (OpenVDB files) as uploaded, with the report GET /api/volumes lists. Their
-// uploads are not announced: nothing renders volumes yet.
+// uploads are not announced (yet): other replicas keep the frames they cached of scenes that name them.
 R"sql(
 CREATE TABLE volumes (
     name text PRIMARY KEY CONSTRAINT volume_name_format

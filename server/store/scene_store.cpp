@@ -1,5 +1,6 @@
 #include "store/scene_store.h"
 #include "store/index_grid_file.h"
+#include "volume/vdb_check.h"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -236,6 +237,7 @@ SceneSnapshot SceneStore::create(const std::string& id, const nlohmann::json& do
     auto entry = std::make_shared<Entry>();
     entry->current.document = protocol::parse_scene(document, limits_);
     check_environment(entry->current.document, [this](const std::string& name) { return has_environment(name); });
+    check_volumes(entry->current.document, [this](const std::string& name) { return volume_report(name); });
     entry->current.revision = 1;
 
     std::lock_guard lock(mutex_);
@@ -321,6 +323,8 @@ EditResult SceneStore::apply(const std::shared_ptr<Entry>& entry, const nlohmann
     if (!result.changed) return result;
     if (!(result.after.document.environment == current.document.environment))
         check_environment(result.after.document, [this](const std::string& name) { return has_environment(name); });
+    if (!(result.after.document.volumes == current.document.volumes))
+        check_volumes(result.after.document, [this](const std::string& name) { return volume_report(name); });
     result.after.revision = next_revision(current.revision);
     persist_scene(result.after);
     std::lock_guard lock(mutex_);
@@ -518,8 +522,45 @@ VolumeEntry SceneStore::put_volume(const std::string& name, const std::string& b
         write_file_atomically(volume_path(name), bytes.data(), bytes.size());
         fs::path report_path = data_dir_ / "volumes" / (name + ".json");
         write_file_atomically(report_path, report.data(), report.size());
+        next_version(AssetKind::volume, name);
     }
     return entry;
+}
+
+std::optional<volume::VolumeReport> SceneStore::volume_report(const std::string& name) const {
+    if (!valid_mesh_name(name)) return std::nullopt;
+    std::lock_guard lock(asset_mutex_);
+    if (!fs::exists(volume_path(name))) return std::nullopt;
+    try {
+        return volume::volume_report_from_json(
+            nlohmann::json::parse(read_text_file(data_dir_ / "volumes" / (name + ".json"))));
+    } catch (const std::exception& e) {
+        std::cerr << "refractd: unreadable volume report of " << name << ": " << e.what() << "\n";
+        return std::nullopt;
+    }
+}
+
+std::shared_ptr<const volume::DensityGrid> SceneStore::density(const std::string& name, const std::string& grid) const {
+    if (!valid_mesh_name(name)) return nullptr;
+    // One cache entry per grid, under the volume's version: a re-upload or deletion misses them all.
+    const std::string key = name + "/" + grid;
+    uint64_t version = 0;
+    std::string bytes;
+    {
+        std::lock_guard lock(asset_mutex_);
+        version = version_of(AssetKind::volume, name);
+        if (auto cached = cache_.find<volume::DensityGrid>(AssetKind::volume, key, version)) return cached;
+        if (!fs::exists(volume_path(name))) return nullptr;
+        bytes = read_text_file(volume_path(name));
+    }
+    try {
+        auto exported = std::make_shared<const volume::DensityGrid>(
+            volume::export_density_apart(bytes, grid, volume::limits_for_resolution(limits_.max_resolution)));
+        const uint64_t size = host_bytes(*exported);
+        return cache_.insert(AssetKind::volume, key, version, std::move(exported), size);
+    } catch (const std::exception& e) {
+        throw RenderError("stored volume '" + name + "' grid '" + grid + "' cannot be read: " + e.what());
+    }
 }
 
 std::vector<VolumeEntry> SceneStore::list_volumes() const {

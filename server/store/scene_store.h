@@ -63,6 +63,8 @@ public:
     VolumeEntry put_volume(const std::string& name, const std::string& bytes) override;
     std::vector<VolumeEntry> list_volumes() const override;
     bool remove_volume(const std::string& name) override;
+    std::optional<volume::VolumeReport> volume_report(const std::string& name) const override;
+    std::shared_ptr<const volume::DensityGrid> density(const std::string& name, const std::string& grid) const override;
 
     // Stores `grid` under the scene's id and points the scene at it (a new revision). Throws StoreError.
     EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) override;

@@ -84,6 +84,8 @@ void check_unused(const std::vector<SceneSnapshot>& scenes, AssetKind kind, cons
         const protocol::SceneDocument& document = scene.document;
         bool uses = kind == AssetKind::environment && document.environment.type == protocol::EnvironmentKind::image &&
                     document.environment.image == name;
+        for (const auto& [volume_name, density] : document.volumes)
+            uses = uses || (kind == AssetKind::volume && density.asset == name);
         for (const auto& [object_name, object] : document.objects) {
             uses = uses || (kind == AssetKind::mesh && object.mesh == "upload:" + name) ||
                    (kind == AssetKind::grid && object.index_field == protocol::IndexFieldKind::grid && object.grid == name);
@@ -116,6 +118,10 @@ uint64_t host_bytes(const IndexGrid& grid) {
 
 uint64_t host_bytes(const image::EnvironmentMap& map) {
     return sizeof map + map.rgb.capacity() * sizeof(float);
+}
+
+uint64_t host_bytes(const volume::DensityGrid& grid) {
+    return sizeof grid + grid.leaves.capacity() * sizeof(volume::DensityLeaf);
 }
 
 bool valid_scene_id(const std::string& id) {
@@ -210,11 +216,33 @@ void check_environment(const protocol::SceneDocument& document,
                                                               "\" (GET /api/environments lists them)");
 }
 
+void check_volumes(const protocol::SceneDocument& document,
+                   const std::function<std::optional<volume::VolumeReport>(const std::string& name)>& stored) {
+    for (const auto& [key, density] : document.volumes) {
+        const std::string base = "/volumes/" + key;  // keys are valid names: nothing to escape
+        const std::optional<volume::VolumeReport> report = stored(density.asset);
+        if (!report)
+            throw protocol::ValidationError(base + "/asset", "no volume named \"" + density.asset +
+                                                                 "\" (GET /api/volumes lists them)");
+        std::string usable;
+        bool found = false;
+        for (const volume::GridSummary& grid : report->grids) {
+            found = found || (grid.usable && grid.name == density.grid);
+            if (grid.usable) usable += (usable.empty() ? "\"" : ", \"") + grid.name + "\"";
+        }
+        if (!found)
+            throw protocol::ValidationError(base + "/grid", "volume \"" + density.asset +
+                                                                "\" has no usable float grid \"" + density.grid +
+                                                                "\" (its usable grids: " + usable + ")");
+    }
+}
+
 Assets Store::assets() const {
     Assets assets;
     assets.mesh = [this](const std::string& name) { return mesh(name); };
     assets.grid = [this](const std::string& name) { return grid(name); };
     assets.environment = [this](const std::string& name) { return environment(name); };
+    assets.density = [this](const std::string& name, const std::string& grid) { return density(name, grid); };
     return assets;
 }
 

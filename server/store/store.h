@@ -118,6 +118,12 @@ struct VolumeEntry {
 void check_environment(const protocol::SceneDocument& document,
                        const std::function<bool(const std::string& name)>& stored);
 
+// Throws protocol::ValidationError at /volumes/NAME/asset when a member of `document`'s volumes names a
+// volume `stored` does not know (nullopt), or at /volumes/NAME/grid when that volume has no usable float
+// grid of the name: a store's create and patch call it before anything is written.
+void check_volumes(const protocol::SceneDocument& document,
+                   const std::function<std::optional<volume::VolumeReport>(const std::string& name)>& stored);
+
 // The ids of the scenes among `scenes` whose documents name the uploaded asset `name` (a mesh as
 // "upload:NAME", an environment image, an imported grid), sorted; throws AssetInUse, with `what` ("mesh
 // 'x'"), when there are any.
@@ -128,6 +134,7 @@ void check_unused(const std::vector<SceneSnapshot>& scenes, AssetKind kind, cons
 uint64_t host_bytes(const mesh::Mesh& mesh);
 uint64_t host_bytes(const IndexGrid& grid);
 uint64_t host_bytes(const image::EnvironmentMap& map);
+uint64_t host_bytes(const volume::DensityGrid& grid);
 
 // An upload as both stores take it in, checked before it is kept: a valid name, within the decoded-asset
 // budget (`cache`'s check_fits; an environment map on its header, before it is decoded), an environment
@@ -165,7 +172,8 @@ std::string random_hex_id();
 // What a store announces once it is committed (by this process or, for a shared store, by any replica):
 // a new revision of a scene, a scene's deletion, a new version or the deletion of an uploaded mesh or
 // environment (which changes frames without a new revision), the deletion of an imported grid or of an
-// uploaded volume (nothing renders volumes yet, so their uploads are not announced); or that
+// uploaded volume (its upload is not announced yet: other replicas keep the frames they cached of
+// scenes that name it); or that
 // announcements may have been lost (a shared store's listener reconnected), so whatever was cached may
 // be stale.
 struct StoreEvent {
@@ -242,8 +250,14 @@ public:
     // refused is never stored. Throws volume::VolumeError, StoreError(invalid) for a bad name.
     virtual VolumeEntry put_volume(const std::string& name, const std::string& bytes) = 0;
     virtual std::vector<VolumeEntry> list_volumes() const = 0;
-    // Deletes the uploaded volume `name` for good; false when none is stored.
+    // Deletes the uploaded volume `name` for good; false when none is stored. Throws AssetInUse while any
+    // scene's document names it.
     virtual bool remove_volume(const std::string& name) = 0;
+    // The report of the uploaded volume `name`; nullopt when none is stored.
+    virtual std::optional<volume::VolumeReport> volume_report(const std::string& name) const = 0;
+    // The float grid `grid` of the uploaded volume `name` (volume::export_density_apart), cached with the
+    // decoded assets; nullptr when no volume is stored under `name`, RenderError when it cannot be read.
+    virtual std::shared_ptr<const volume::DensityGrid> density(const std::string& name, const std::string& grid) const = 0;
 
     // Stores `grid` under the scene's id and points the scene at it (a new revision). Throws StoreError.
     virtual EditResult put_index_grid(const std::string& scene_id, IndexGrid grid) = 0;

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <nlohmann/json.hpp>
+#include <vector>
 
 extern char** environ;
 
@@ -19,9 +20,10 @@ namespace refract::volume {
 
 namespace {
 
-// An answer is one letter and its text: R and the report's JSON, E and the reason the file was refused,
-// F and what went wrong in the check itself (OpenVDB out of memory, say).
-constexpr char kReport = 'R', kRefused = 'E', kFailed = 'F';
+// An answer is one letter and its text: R and the report's JSON, D and a grid's export
+// (density_export.h), E and the reason the file was refused, F and what went wrong in the check itself
+// (OpenVDB out of memory, say).
+constexpr char kReport = 'R', kDensity = 'D', kRefused = 'E', kFailed = 'F';
 
 class Descriptor {
 public:
@@ -52,8 +54,9 @@ void write_all(int fd, std::string_view data) {
     }
 }
 
-// Reads the child's answer until it closes its end; false when `deadline` came first.
-bool read_answer(int fd, std::string& answer, std::chrono::steady_clock::time_point deadline) {
+// Reads the child's answer until it closes its end or `most` bytes came (the caller then stops the
+// child, and refuses an answer cut short as not its form); false when `deadline` came first.
+bool read_answer(int fd, std::string& answer, std::chrono::steady_clock::time_point deadline, size_t most) {
     char buffer[65536];
     for (;;) {
         const auto left =
@@ -67,21 +70,24 @@ bool read_answer(int fd, std::string& answer, std::chrono::steady_clock::time_po
         const ssize_t n = ::read(fd, buffer, sizeof buffer);
         if (n < 0 && errno == EINTR) continue;
         if (n <= 0) return true;
-        answer.append(buffer, static_cast<size_t>(n));
+        answer.append(buffer, std::min(static_cast<size_t>(n), most - answer.size()));
+        if (answer.size() == most) return true;
     }
 }
 
-// Starts `program` with `input` as its standard input and `output` as its standard output.
-pid_t start_check(const std::filesystem::path& program, const VolumeLimits& limits, int input, int output) {
-    std::string path = program.string(), box = std::to_string(limits.max_box_voxels),
-                grids = std::to_string(limits.max_grids);
-    char* argv[] = {path.data(), box.data(), grids.data(), nullptr};
+// Starts `program` with `arguments` after its name, `input` as its standard input and `output` as its
+// standard output.
+pid_t start_check(const std::filesystem::path& program, std::vector<std::string> arguments, int input, int output) {
+    std::string path = program.string();
+    std::vector<char*> argv{path.data()};
+    for (std::string& argument : arguments) argv.push_back(argument.data());
+    argv.push_back(nullptr);
     posix_spawn_file_actions_t actions;
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_adddup2(&actions, input, STDIN_FILENO);
     posix_spawn_file_actions_adddup2(&actions, output, STDOUT_FILENO);
     pid_t child = -1;
-    const int error = ::posix_spawn(&child, path.c_str(), &actions, nullptr, argv, environ);
+    const int error = ::posix_spawn(&child, path.c_str(), &actions, nullptr, argv.data(), environ);
     posix_spawn_file_actions_destroy(&actions);
     if (error != 0) throw CheckUnavailable(failure("cannot start " + path, error));
     return child;
@@ -97,8 +103,12 @@ std::filesystem::path check_program() {
     return self.parent_path() / "refract-vdb-check";
 }
 
-VolumeReport inspect_vdb_apart(std::string_view bytes, const VolumeLimits& limits,
-                               const std::filesystem::path& program, std::chrono::seconds time_limit) {
+namespace {
+
+// The checker's answer for `bytes` with `arguments`, at most `most` bytes; throws VolumeError or
+// CheckUnavailable when there is none.
+std::string run_check(std::string_view bytes, std::vector<std::string> arguments, size_t most,
+                      const std::filesystem::path& program, std::chrono::seconds time_limit) {
     // The file reaches the child from memory, written whole before it starts, so neither side ever
     // waits for the other to empty a pipe.
     Descriptor input(::memfd_create("refract-volume-upload", MFD_CLOEXEC));
@@ -109,12 +119,12 @@ VolumeReport inspect_vdb_apart(std::string_view bytes, const VolumeLimits& limit
     if (::pipe2(pipe_fds, O_CLOEXEC) != 0) throw CheckUnavailable(failure("pipe", errno));
     Descriptor answer_in(pipe_fds[0]), answer_out(pipe_fds[1]);
 
-    const pid_t child = start_check(program, limits, input.get(), answer_out.get());
+    const pid_t child = start_check(program, std::move(arguments), input.get(), answer_out.get());
     answer_out.reset();
     input.reset();
     std::string answer;
-    const bool answered = read_answer(answer_in.get(), answer, std::chrono::steady_clock::now() + time_limit);
-    if (!answered) ::kill(child, SIGKILL);
+    const bool answered = read_answer(answer_in.get(), answer, std::chrono::steady_clock::now() + time_limit, most);
+    if (!answered || answer.size() == most) ::kill(child, SIGKILL);
     int status = 0;
     while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
     }
@@ -126,12 +136,52 @@ VolumeReport inspect_vdb_apart(std::string_view bytes, const VolumeLimits& limit
         throw CheckUnavailable("volume checks: " + program.string() + " ended without an answer (exit status " +
                                std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + ")");
     }
-    const std::string text = answer.substr(1);
-    switch (answer[0]) {
-    case kReport: return volume_report_from_json(nlohmann::json::parse(text));
-    case kRefused: throw VolumeError(text);
-    case kFailed: throw VolumeError("its check failed: " + text);
-    default: throw CheckUnavailable("volume checks: " + program.string() + " answered in a form not its own");
+    if (answer[0] == kRefused) throw VolumeError(answer.substr(1));
+    if (answer[0] == kFailed) throw VolumeError("its check failed: " + answer.substr(1));
+    return answer;
+}
+
+[[noreturn]] void not_its_form(const std::filesystem::path& program) {
+    throw CheckUnavailable("volume checks: " + program.string() + " answered in a form not its own");
+}
+
+}  // namespace
+
+VolumeReport inspect_vdb_apart(std::string_view bytes, const VolumeLimits& limits,
+                               const std::filesystem::path& program, std::chrono::seconds time_limit) {
+    // A report lists at most max_grids grids of a few hundred bytes each.
+    const size_t most = 4096 + size_t{limits.max_grids} * 1024;
+    const std::string answer = run_check(
+        bytes, {std::to_string(limits.max_box_voxels), std::to_string(limits.max_grids)}, most, program, time_limit);
+    if (answer[0] != kReport) not_its_form(program);
+    try {
+        return volume_report_from_json(nlohmann::json::parse(answer.substr(1)));
+    } catch (const nlohmann::json::exception&) {
+        not_its_form(program);
+    }
+}
+
+DensityGrid export_density_apart(std::string_view bytes, const std::string& grid, const VolumeLimits& limits,
+                                 uint64_t max_leaves, const std::filesystem::path& program,
+                                 std::chrono::seconds time_limit) {
+    // One byte past the largest export it may send: an answer cut there is refused for its size.
+    const size_t most = 1 + kDensityHeaderBytes + static_cast<size_t>(max_leaves) * kDensityLeafBytes + 1;
+    const std::string answer = run_check(bytes,
+                                         {std::to_string(limits.max_box_voxels), std::to_string(limits.max_grids), grid,
+                                          std::to_string(max_leaves)},
+                                         most, program, time_limit);
+    if (answer[0] != kDensity) not_its_form(program);
+    return decode_density(std::string_view(answer).substr(1), max_leaves);
+}
+
+std::string export_answer(std::string_view bytes, const std::string& grid, const VolumeLimits& limits,
+                          uint64_t max_leaves) {
+    try {
+        return kDensity + encode_density(export_density(bytes, grid, limits, max_leaves));
+    } catch (const VolumeError& e) {
+        return kRefused + std::string(e.what());
+    } catch (const std::exception& e) {
+        return kFailed + std::string(e.what());
     }
 }
 

@@ -33,8 +33,20 @@ VolumeReport inspect_vdb_apart(std::string_view bytes, const VolumeLimits& limit
                                const std::filesystem::path& program = check_program(),
                                std::chrono::seconds time_limit = std::chrono::seconds(30));
 
+// The float grid `grid` of the file in `bytes` (export_density) exported by `program` within
+// `time_limit` and read back with decode_density, every length checked: the answer of a child whose
+// OpenVDB a hostile file may have subverted is trusted no more than the file. Throws as
+// inspect_vdb_apart does.
+DensityGrid export_density_apart(std::string_view bytes, const std::string& grid, const VolumeLimits& limits,
+                                 uint64_t max_leaves = kMaxDensityLeaves,
+                                 const std::filesystem::path& program = check_program(),
+                                 std::chrono::seconds time_limit = std::chrono::seconds(30));
+
 // The checker's side: its answer for `bytes`, a report or the reason it was refused, in the form
 // inspect_vdb_apart reads.
 std::string check_answer(std::string_view bytes, const VolumeLimits& limits);
+// The exporter's side: the grid's export or the reason it was refused, in the form export_density_apart reads.
+std::string export_answer(std::string_view bytes, const std::string& grid, const VolumeLimits& limits,
+                          uint64_t max_leaves);
 
 }  // namespace refract::volume

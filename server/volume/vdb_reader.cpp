@@ -164,7 +164,44 @@ VolumeReport inspect_vdb(std::string_view bytes, const VolumeLimits& limits) {
     }
     return report;
 }
-
+DensityGrid export_density(std::string_view bytes, const std::string& grid_name, const VolumeLimits& limits,
+                           uint64_t max_leaves) {
+    const openvdb::GridPtrVec grids = read_grids(bytes, limits.max_grids);
+    for (size_t i = 0; i < grids.size(); ++i) {
+        if (grids[i]->getName() != grid_name) continue;
+        const auto floats = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grids[i]);
+        if (!floats) continue;
+        GridSummary summary;
+        check_float_grid(*floats, grid_name, limits, summary);
+        if (!summary.usable) throw VolumeError("grid " + quoted(grid_name) + " has " + summary.unusable_reason);
+        // Tiles become voxels, so that every active value lies in a leaf; the box check above bounds them.
+        openvdb::FloatGrid::Ptr copy = floats->deepCopy();
+        copy->tree().voxelizeActiveTiles();
+        const openvdb::Index64 leaves = copy->tree().leafCount();
+        if (leaves > max_leaves)
+            throw VolumeError("grid " + quoted(grid_name) + " has " + std::to_string(leaves) +
+                              " leaves of 8^3 voxels, more than the " + std::to_string(max_leaves) + " a scene takes");
+        DensityGrid out;
+        const openvdb::math::Transform& transform = copy->transform();
+        const openvdb::Vec3d origin = transform.indexToWorld(openvdb::Vec3d(0, 0, 0));
+        for (int axis = 0; axis < 3; ++axis) {
+            openvdb::Vec3d unit(0, 0, 0);
+            unit[axis] = 1;
+            const openvdb::Vec3d column = transform.indexToWorld(unit) - origin;
+            for (int row = 0; row < 3; ++row) out.index_to_world[static_cast<size_t>(row * 4 + axis)] = column[row];
+        }
+        for (int row = 0; row < 3; ++row) out.index_to_world[static_cast<size_t>(row * 4 + 3)] = origin[row];
+        out.leaves.reserve(leaves);
+        for (auto leaf = copy->tree().cbeginLeaf(); leaf; ++leaf) {
+            DensityLeaf& kept = out.leaves.emplace_back();
+            kept.origin = {leaf->origin().x(), leaf->origin().y(), leaf->origin().z()};
+            for (openvdb::Index offset = 0; offset < kLeafVoxels; ++offset)
+                kept.values[offset] = leaf->isValueOn(offset) ? leaf->getValue(offset) : 0.0f;
+        }
+        return out;
+    }
+    throw VolumeError("no float grid named " + quoted(grid_name) + " in the file");
+}
 
 nlohmann::json to_json(const VolumeReport& report) {
     nlohmann::json grids = nlohmann::json::array();

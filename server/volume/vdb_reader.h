@@ -10,6 +10,8 @@
 #include <string_view>
 #include <vector>
 
+#include "volume/density_export.h"
+
 namespace refract::volume {
 
 // Why a volume file was refused, in words a user can act on.
@@ -57,6 +59,13 @@ struct VolumeReport {
 // It runs in the calling process, whose memory keeps what OpenVDB does not free of a refused file (the
 // nodes of a tree whose topology ends early): a long-lived process checks uploads apart (vdb_check.h).
 VolumeReport inspect_vdb(std::string_view bytes, const VolumeLimits& limits);
+
+// The float grid `grid` of the file in `bytes`, checked as inspect_vdb checks it, with its active tiles
+// made voxels: at most max_leaves leaves of 8^3. Throws VolumeError (no such float grid, too many
+// leaves, or what inspect_vdb refuses). Runs OpenVDB in the calling process, as inspect_vdb does: the
+// daemon calls export_density_apart (vdb_check.h).
+DensityGrid export_density(std::string_view bytes, const std::string& grid, const VolumeLimits& limits,
+                           uint64_t max_leaves = kMaxDensityLeaves);
 
 // A report as JSON (the API's and the stores' form) and back.
 nlohmann::json to_json(const VolumeReport& report);

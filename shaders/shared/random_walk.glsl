@@ -1,7 +1,8 @@
 // Photon random walks (multiple scattering, photons.max_bounces): where a photon scatters along its
 // curved path, and where it goes then. Needs transport_common.glsl (params) and phase.h.
 //
-// Free paths are sampled by ray marching the optical depth, not by delta tracking: the photon loop
+// Free paths are sampled by ray marching the optical depth, not by delta tracking (volumes too: through
+// them steps are a medium-field voxel at most, their coefficients the step's midpoint's, field_step): the photon loop
 // already integrates extinction step by step (Beer-Lambert with each step's coefficients), and a free
 // path drawn as an optical depth -ln(1 - xi) and spent along those same steps is exact for that
 // piecewise-constant extinction, so a walk sees the very medium a photon of today's single-scattering
@@ -25,22 +26,24 @@ struct Walk {
     float coverage;    // the coverage of that step's coefficients
     uint object;       // and the object whose they are (object_at)
     float density;     // and the medium's density over it (medium_density)
+    vec4 field;        // and the volumes' scattering there (field_scattering; kMediumField)
 };
 
 // A walk before its first free path: `xi` uniform in [0, 1).
-Walk start_walk(float xi) { return Walk(-log(1.0 - xi), 0u, false, 0.0, 0u, 1.0); }
+Walk start_walk(float xi) { return Walk(-log(1.0 - xi), 0u, false, 0.0, 0u, 1.0, vec4(0.0)); }
 
 // The scattering coefficients (per metre) at coverage c of object o where the medium's density is `density`.
 vec3 walk_scattering(float c, uint o, float density) {
     return thinned(scattering_at(c, o), params.medium_scattering.rgb, c, density);
 }
 
-// Spends the optical depth of a step of length `len` (voxels of side h) at coverage c of object o and the
-// medium's mean density `density` over the step, and returns the coefficient sigma it was sampled against
+// Spends the optical depth of a step of length `len` (voxels of side h) at coverage c of object o, the
+// medium's mean density `density` over the step and the volumes' scattering `field` there, and returns the coefficient sigma it was sampled against
 // (per voxel; 0 once the photon has used its bounces): the photon crosses the whole step, or `len` is
 // shortened to where it scatters (w.collides).
-float walk_free_path(inout Walk w, float c, uint o, float h, float density, inout float len) {
+float walk_free_path(inout Walk w, float c, uint o, float h, float density, vec4 field, inout float len) {
     vec3 s = walk_scattering(c, o, density);
+    if (kMediumField) s += field.rgb;
     float sigma = w.bounces < params.models.w ? (s.r + s.g + s.b) * (1.0 / 3.0) * h : 0.0;
     float depth = sigma * len;
     w.collides = depth > w.depth_left;
@@ -49,6 +52,7 @@ float walk_free_path(inout Walk w, float c, uint o, float h, float density, inou
         w.coverage = c;
         w.object = o;
         w.density = density;
+        w.field = field;
     } else {
         w.depth_left -= depth;
     }
@@ -96,6 +100,20 @@ vec3 scatter(inout Walk w, vec3 d, vec3 xi, out vec3 weight_factor) {
     uint model = phase_model_at(w.coverage, w.object);
     float g = phase_g_at(w.coverage, w.object);
     vec3 s = walk_scattering(w.coverage, w.object, w.density);
+    if (kMediumField) {
+        // The volumes scattered with their share of the channels' mean; then by their phase function.
+        // xi.x chooses, and is stretched back to [0, 1) for the direction.
+        float field_mean = (w.field.r + w.field.g + w.field.b) * (1.0 / 3.0);
+        s += w.field.rgb;
+        float share = field_mean / max((s.r + s.g + s.b) * (1.0 / 3.0), 1e-30);
+        if (xi.x < share) {
+            model = PHASE_HG_ID;
+            g = field_mean > 0.0 ? clamp(w.field.a / field_mean, -0.99, 0.99) : 0.0;
+            xi.x /= share;
+        } else {
+            xi.x = (xi.x - share) / max(1.0 - share, 1e-30);
+        }
+    }
     weight_factor = s * (3.0 / (s.r + s.g + s.b));
     w.bounces += 1u;
     w.depth_left = -log(1.0 - xi.z);

@@ -85,6 +85,15 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_RAW_RADIANCE 24  // rgba32f, as TRANSPORT_BINDING_RADIANCE
 #define TRANSPORT_BINDING_RAW_FLUX 25      // rgba32f, as TRANSPORT_BINDING_FLUX
 #define TRANSPORT_BINDING_RAW_FLOOR_MAP 26  // rgba16f, as TRANSPORT_BINDING_FLOOR_MAP
+// The medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): the scene's volumes resampled on a coarse copy of the
+// lattice (render/medium_field.h), trilinearly filtered; a texel of zeros where a scene has none.
+#define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27  // sampler3D rgba32f: rgb extinction per metre; a: the most
+                                                // extinction about the voxel's block (below), 0: empty
+#define TRANSPORT_BINDING_MEDIUM_SCATTERING 28  // sampler3D rgba32f: rgb scattering per metre; a: the phase
+                                                // g of each volume there times its channels' mean scattering
+// Rays cross a block of MEDIUM_FIELD_BLOCK^3 field voxels where the field is 0 (and around it, as far as a
+// trilinear fetch reaches) in one step, and elsewhere step a field voxel at most.
+#define MEDIUM_FIELD_BLOCK 8
 // A voxel whose photon tracks (in voxel lengths of photons of the reference flux) number fewer than
 // SPREAD_TRACKS spreads its light evenly over the smallest box of (2r + 1)^3 voxels that would hold that
 // many at its density, r at most SPREAD_VOXEL_RADIUS: about a quarter relative noise where photons are
@@ -166,7 +175,14 @@ struct LightParams {
 // on lavapipe (docs/perf-log/2026-12-02-memory-that-follows-the-content.md), so a scene takes the atlas only where it saves memory
 // (scene::field_atlas_for).
 #define TRANSPORT_CONSTANT_FIELD_ATLAS 5
-#define TRANSPORT_CONSTANT_COUNT 6  // a pass's own constants are numbered from here
+// Specialization constant of the same passes: the scene holds volumes (protocol::DensityVolume), whose
+// coefficients the medium field adds to the medium's where they lie. Rays and photons then step at most
+// a field voxel (TransportParams::medium_field.w) where the field's block holds anything
+// (MEDIUM_FIELD_BLOCK), to the block's end where not, and take each step's coefficients at its midpoint, and
+// the direct light is left to the photons (its closed form knows only the homogeneous medium). Off for
+// a scene without volumes, which runs the shaders it ran before volumes existed.
+#define TRANSPORT_CONSTANT_MEDIUM_FIELD 6
+#define TRANSPORT_CONSTANT_COUNT 7  // a pass's own constants are numbered from here
 // Specialization constant of the photon pass (after the transport constants): deposits are sampled, one
 // per radiance voxel of path, rather than exact per voxel crossed (photon_trace.comp, deposit).
 #define PHOTON_CONSTANT_SAMPLED_DEPOSITS TRANSPORT_CONSTANT_COUNT
@@ -183,6 +199,7 @@ layout(constant_id = TRANSPORT_CONSTANT_FRESNEL) const bool kFresnel = false;
 layout(constant_id = TRANSPORT_CONSTANT_FILM) const bool kFilm = false;
 layout(constant_id = TRANSPORT_CONSTANT_MATERIALS) const bool kMaterials = false;
 layout(constant_id = TRANSPORT_CONSTANT_FIELD_ATLAS) const bool kFieldAtlas = false;
+layout(constant_id = TRANSPORT_CONSTANT_MEDIUM_FIELD) const bool kMediumField = false;
 #endif
 
 // One object's material, as the table of a scene of several objects holds it (TRANSPORT_CONSTANT_MATERIALS):
@@ -298,6 +315,9 @@ struct TransportParams {
                               // to 0 at the grid's faces, 0: none; y: where the lowest face that fades lies
                               // (voxels: 0, or -1e30 where the floor hides the bottom face); z: 1 / x (0
                               // without a fade); w: unused
+    vec4 medium_field;        // the medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): xyz: 1 / its extent in
+                              // lattice voxels (a lattice point's texture coordinate is p * xyz); w: its
+                              // voxel's side in lattice voxels, the longest step through it
     LightParams lights[TRANSPORT_MAX_LIGHTS];
 };
 
@@ -401,7 +421,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == (47 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == (48 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
 static_assert(sizeof(refract::shaders::Material) == 80);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);

@@ -18,6 +18,8 @@ layout(binding = TRANSPORT_BINDING_INDEX_FIELD) uniform sampler3D index_field;
 layout(binding = TRANSPORT_BINDING_COVERAGE) uniform sampler3D coverage_field;
 layout(std430, binding = TRANSPORT_BINDING_LEVELS) readonly buffer Levels { uint levels[]; };
 layout(std430, binding = TRANSPORT_BINDING_STATS) buffer Stats { PhotonStats stats; };
+layout(binding = TRANSPORT_BINDING_MEDIUM_EXTINCTION) uniform sampler3D medium_extinction_field;
+layout(binding = TRANSPORT_BINDING_MEDIUM_SCATTERING) uniform sampler3D medium_scattering_field;
 
 // The index of the work item (pixel, photon) this invocation takes from `queue` (QUEUE_*), a subgroup's
 // worth at a time in the order subgroups run, rather than by invocation ID. lavapipe hands each CPU
@@ -158,6 +160,16 @@ vec3 thinned(vec3 coefficient, vec3 medium, float c, float density) {
     return max(coefficient - (1.0 - density) * (1.0 - c) * medium, vec3(0.0));
 }
 
+// The volumes' extinction and scattering (per metre) at voxel point p, added to the medium's and the
+// objects' where they lie (kMediumField only; 0 without). Scattering's w: the volumes' phase g times
+// their channels' mean scattering.
+vec3 field_extinction(vec3 p) {
+    return kMediumField ? textureLod(medium_extinction_field, p * params.medium_field.xyz, 0.0).rgb : vec3(0.0);
+}
+vec4 field_scattering(vec3 p) {
+    return kMediumField ? textureLod(medium_scattering_field, p * params.medium_field.xyz, 0.0) : vec4(0.0);
+}
+
 // The phase function (model, g) where scattering takes the coverage c of object o: the object's over
 // 0.5, the medium's below.
 uint phase_model_at(float c, uint o) {
@@ -210,6 +222,18 @@ float cell_exit(vec3 p, vec3 d, float size) {
     vec3 t = mix((lo - p) / d, (hi - p) / d, greaterThan(d, vec3(0.0)));
     t = mix(t, vec3(1e30), equal(d, vec3(0.0)));
     return max(min(t.x, min(t.y, t.z)), 0.0);
+}
+
+// A step of `ds` voxels from p along d cut to the medium field's voxel, over which its coefficients are
+// taken at the step's midpoint (exact per-step Beer-Lambert for what the trilinear field holds, to the
+// midpoint rule); where the field's block is empty, cut to the block's end instead (just past it).
+float field_step(vec3 p, vec3 d, float ds) {
+    if (!kMediumField) return ds;
+    float side = params.medium_field.w;
+    vec3 f = p / side;  // field voxels
+    ivec3 voxel = ivec3(clamp(f, vec3(0.0), vec3(textureSize(medium_extinction_field, 0)) - 1.0));
+    if (texelFetch(medium_extinction_field, voxel, 0).a > 0.0) return min(ds, side);
+    return min(ds, cell_exit(f, d, float(MEDIUM_FIELD_BLOCK)) * side + params.stepping.y);
 }
 
 // Ray-box slab test in voxel space: returns (t_enter, t_exit); t_enter > t_exit means a miss.

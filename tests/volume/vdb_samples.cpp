@@ -67,6 +67,21 @@ std::string density_sphere_vdb(int radius, bool with_velocity) {
     return write(grids);
 }
 
+std::string ramp_box_vdb(const std::array<int, 3>& lo, const std::array<int, 3>& hi, double voxel, float a, float b,
+                         const std::string& name) {
+    auto grid = density_grid();
+    grid->setName(name);
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(voxel));
+    const openvdb::CoordBBox box(openvdb::Coord(lo[0], lo[1], lo[2]), openvdb::Coord(hi[0], hi[1], hi[2]));
+    if (b == 0.0f) {
+        grid->fill(box, a, true);
+    } else {
+        auto access = grid->getAccessor();
+        for (auto ijk = box.begin(); ijk; ++ijk) access.setValue(*ijk, a + b * static_cast<float>((*ijk).x()));
+    }
+    return write({grid});
+}
+
 std::string as_stream_vdb(bool with_velocity) {
     auto grid = density_grid();
     grid->tree().setValue(openvdb::Coord(1, 2, 3), 0.5f);

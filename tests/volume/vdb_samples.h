@@ -2,6 +2,7 @@
 // through io::File as DCCs write them unless said otherwise.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <string>
 
@@ -21,6 +22,11 @@ std::string vector_only_vdb();
 std::string density_with_value_vdb(float bad);
 // A float grid "density" with two active voxels `apart` voxels apart on each axis.
 std::string far_apart_vdb(int apart);
+// A float grid named `name` over the inclusive index box [lo, hi], voxel size `voxel` (index (i, j, k) at
+// world (i, j, k) x voxel), whose value is a + b x i: a linear ramp along x. With b = 0 the box is filled
+// with active tiles where whole nodes fit (as DCCs write constant regions), else voxel by voxel.
+std::string ramp_box_vdb(const std::array<int, 3>& lo, const std::array<int, 3>& hi, double voxel, float a, float b,
+                         const std::string& name = "density");
 // A float grid with a 6-5-4-3 tree (deeper than OpenVDB's standard), registered only while writing.
 std::string deep_tree_vdb();
 
