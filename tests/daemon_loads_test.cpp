@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <chrono>
 #include <string>
+#include <thread>
 
 #include "daemon/api.h"
 #include "daemon/harness.h"
@@ -96,6 +98,36 @@ TEST(DaemonLoads, AMeshUploadedAgainComesAsAPreviewThenAsTheStill) {
     EXPECT_EQ(still["quality"], "still");
     EXPECT_EQ(still["level"], 1);
     EXPECT_EQ(png_size(still_png), (std::pair{64u, 64u}));
+    expect_no_validation_errors(daemon);
+}
+
+// A still frame asked for gives way to the viewer's next message, whose frame answers both (latest wins),
+// and to a load over HTTP, whose preview answers it: neither waits for a still that takes minutes
+// (kHeavyScene; the next frame's wait would otherwise end the read in 60 s).
+TEST(DaemonLoads, AStillAskedForGivesWayToTheNextMessageAndToALoad) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data", {"--max-photons", kHeavyPhotons});
+    auto client = daemon.client();
+    const std::string id = create_scene(client, "heavy", kHeavyScene);
+    WsClient ws(daemon.ws_port(), "/api/scenes/" + id + "/ws");
+    ws.send({{"seq", 1}, {"quality", "interactive"}, {"refine", 0}});
+    EXPECT_EQ(ws.read_frame().first["seq"], 1);  // the volume built: what follows is the still's photons
+
+    ws.send({{"seq", 2}, {"quality", "still"}, {"refine", 0}});
+    std::this_thread::sleep_for(std::chrono::seconds(1));
+    ws.send({{"seq", 3}, {"quality", "interactive"}, {"refine", 0}});
+    auto [next, next_png] = ws.read_frame();
+    EXPECT_EQ(next["seq"], 3) << next;
+    EXPECT_EQ(next["quality"], "interactive");
+
+    ws.send({{"seq", 4}, {"quality", "still"}, {"refine", 0}});
+    std::this_thread::sleep_for(std::chrono::seconds(1));
+    auto loaded = patch(client, id, {{"objects", {{"object", {{"mesh", "cube"}}}}}});
+    ASSERT_TRUE(loaded && loaded->status == 200);
+    auto [preview, preview_png] = ws.read_frame();
+    EXPECT_EQ(preview["seq"], 4) << preview;
+    EXPECT_EQ(preview["revision"], 2);
+    EXPECT_EQ(preview["quality"], "interactive");
     expect_no_validation_errors(daemon);
 }
 

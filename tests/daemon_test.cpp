@@ -2048,12 +2048,6 @@ std::string etag_of(int revision) {
 // What one client can make the daemon hold or do: every row a bound (memory, time, status), the daemon
 // alive and its stored data intact after it.
 
-// A frame far heavier than any other: 2^22 photons scattering up to 1024 times in dense white fog (albedo
-// 1) take minutes on two cores; a part of them (passes::kWorkPart, 2^15) about a second.
-const json kHeavyScene = {{"image", {{"width", 64}, {"height", 64}}},
-                          {"volume", {{"resolution", 32}}},
-                          {"medium", {{"extinction", {50, 50, 50}}, {"scattering", {50, 50, 50}}}},
-                          {"photons", {{"count", 4194304}, {"max_bounces", 1024}}}};
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -2063,7 +2057,7 @@ json light_edit(double intensity) { return {{"light", {{"intensity", intensity}}
 
 TEST(DaemonHostile, AHeavyFrameDelaysOtherScenesByAPartAndStopsWhenNobodyWaits) {
     TempDir dir;
-    Daemon daemon(dir.path() / "data", {"--request-timeout", "3"});
+    Daemon daemon(dir.path() / "data", {"--request-timeout", "3", "--max-photons", kHeavyPhotons});
     auto client = daemon.client();
     create_scene(client, "heavy", kHeavyScene);
     create_scene(client, "light");
@@ -2115,7 +2109,7 @@ TEST(DaemonHostile, AHeavyFrameDelaysOtherScenesByAPartAndStopsWhenNobodyWaits) 
 
 TEST(DaemonHostile, FrameRequestsWhoseClientsLeftAreNeverRendered) {
     TempDir dir;
-    Daemon daemon(dir.path() / "data", {"--request-timeout", "4", "--max-queue", "8"});
+    Daemon daemon(dir.path() / "data", {"--request-timeout", "4", "--max-queue", "8", "--max-photons", kHeavyPhotons});
     auto client = daemon.client();
     create_scene(client, "heavy", kHeavyScene);
     create_scene(client, "light");

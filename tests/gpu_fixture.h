@@ -43,10 +43,24 @@ protected:
     static mesh::Mesh world_mesh(const protocol::SceneDocument& d) { return worlds(d).begin()->second; }
 
 private:
+    friend class GpuTestEnvironment;
     static inline std::unique_ptr<vk::Context> context_;
     static inline std::unique_ptr<scene::PassKit> kit_;
     size_t errors_before_ = 0;
 };
+
+// Releases the shared context when the tests are done, inside main: left to the static destructors, it
+// would outlive NVIDIA's driver, whose own exit handlers run first (every test binary then crashed on
+// exit on an H200, after its tests had passed).
+class GpuTestEnvironment : public ::testing::Environment {
+public:
+    void TearDown() override {
+        GpuTest::kit_.reset();
+        GpuTest::context_.reset();
+    }
+};
+inline ::testing::Environment* const gpu_test_environment =
+    ::testing::AddGlobalTestEnvironment(new GpuTestEnvironment);
 
 // How far apart two frames' pixels are: the sum of their rgb differences' lengths. A change that must stay
 // within the photon noise is held against what two photon seeds' frames differ by.

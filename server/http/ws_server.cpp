@@ -475,7 +475,12 @@ private:
         idle_timer_.cancel();
         newer_message_->store(true);
         wanted_seq_ = seq;
-        wanted_options_ = {quality, budget_ms_, 1};
+        unanswered_seq_ = seq;
+        // A still asked for gives way to this session's next message too (or to an edit of its scene it
+        // must show, scene_changed), whose frame then answers it: loading another scene, or a drag begun
+        // again, waits for one part of it, not all of it.
+        wanted_options_ = quality == scene::Quality::still ? yielding_to_newer_message(1)
+                                                           : scene::FrameOptions{quality, budget_ms_, 1};
         // A still starts this session's refinement: from the level the resident state gives for the work
         // of level 1 (after a camera drag, the batches already in its grid), which the next levels follow.
         wanted_options_.resume_up_to = refine_to_;
@@ -568,6 +573,13 @@ private:
                 }};
     }
 
+    // A still frame a viewer asked for: it gives way to this session's next message only (other work waits
+    // for it, as for any frame asked for).
+    scene::FrameOptions yielding_to_newer_message(uint32_t level) {
+        newer_message_ = std::make_shared<std::atomic<bool>>(false);
+        return {scene::Quality::still, budget_ms_, level, [newer = newer_message_] { return newer->load(); }};
+    }
+
     void submit_frame() {
         if (in_flight_ || !want_frame_ || closing_) return;
         std::optional<scene::SceneSnapshot> snapshot;
@@ -652,9 +664,13 @@ private:
         const scene::Quality quality = options.quality;
         if (outcome.status == scene::FrameOutcome::Status::superseded) {
             // Refinement gave way to a newer request, which is queued; it resumes after that request's frame.
+            // A frame asked for that gave way to a push (scene_changed) is answered by the pushed frame.
+            if (!seq.is_null() && seq == unanswered_seq_ && wanted_seq_.is_null()) wanted_seq_ = seq;
         } else if (outcome.status != scene::FrameOutcome::Status::ok) {
+            if (seq == unanswered_seq_) unanswered_seq_ = nullptr;
             send_error(seq, outcome.error);
         } else {
+            if (seq == unanswered_seq_) unanswered_seq_ = nullptr;
             const scene::FrameResult& frame = *outcome.frame;
             json header = {{"type", "frame"},
                            {"seq", seq},
@@ -795,6 +811,7 @@ private:
     bool in_flight_ = false;
     bool want_frame_ = false;
     json wanted_seq_ = nullptr;
+    json unanswered_seq_ = nullptr;  // the newest message whose frame (or error) has not been sent
     scene::FrameOptions wanted_options_{scene::Quality::interactive};
     // Names this session's temporal history in the renderer: unique for the daemon's life, unlike its address.
     const std::string history_key_ = "session " + std::to_string(next_session_number());

@@ -18,6 +18,15 @@ inline const nlohmann::json kSmallScene = {{"image", {{"width", 64}, {"height", 
                                            {"volume", {{"resolution", 32}}},
                                            {"photons", {{"count", 256}}}};
 
+// A frame far heavier than any other: 2^24 photons (the most --max-photons allows) scattering up to 1024 times in
+// dense white fog (albedo 1) take minutes on two CPU cores and seconds on an H200; a part of them
+// (passes::kWorkPart, 2^15) about a second on the cores.
+inline constexpr const char* kHeavyPhotons = "16777216";  // the daemon's --max-photons for it
+inline const nlohmann::json kHeavyScene = {{"image", {{"width", 64}, {"height", 64}}},
+                                           {"volume", {{"resolution", 32}}},
+                                           {"medium", {{"extinction", {50, 50, 50}}, {"scattering", {50, 50, 50}}}},
+                                           {"photons", {{"count", 1 << 24}, {"max_bounces", 1024}}}};
+
 inline constexpr const char* kMergePatch = "application/merge-patch+json";
 
 inline bool is_png(const std::string& bytes) {

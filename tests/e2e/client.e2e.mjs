@@ -1027,6 +1027,33 @@ async function main() {
     assert(edited.picked === '' && edited.name === null, `still named after an edit: ${JSON.stringify(edited)}`);
   });
 
+  await check('a load does not wait for the still in flight: the still gives way to the new scene', async () => {
+    await waitSettled(page);
+    // A still of minutes: 2^22 photons scattering up to 1024 times in dense white fog.
+    const heavy = await api('PATCH', `/api/scenes/${sceneId}`, {
+      medium: { extinction: [50, 50, 50], scattering: [50, 50, 50] }, photons: { count: 4194304, max_bounces: 1024 },
+    }, 'application/merge-patch+json');
+    assert(heavy.status === 200, `heavy scene: ${heavy.status}`);
+    await sleep(500);
+    await page.click('#still-btn');
+    await waitFor(page, () => window.refract.inflight().includes('still'));
+    await sleep(500);
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await page.selectOption('#ctl-example', 'prism');
+    const [patched] = await Promise.all([
+      page.waitForRequest((r) => r.method() === 'PATCH' && r.url().includes(`/api/scenes/${sceneId}`), { timeout: 30_000 }),
+      page.click('#example-load'),
+    ]);
+    assert(patched, 'the example was never sent');
+    const inflight = await page.evaluate(() => window.refract.inflight());
+    assert(inflight.includes('still'), `the load waited for the still in flight (in flight now: ${inflight})`);
+    await waitSettled(page, rev0);
+    const after = (await sceneOnServer(sceneId)).scene;
+    assert(after.photons.count === QUICK.photons.count && after.medium.extinction[0] !== 50, 'the example did not replace the scene');
+    const meta = await page.evaluate(() => window.refract.lastMeta);
+    assert(meta.revision === (await sceneOnServer(sceneId)).revision, `the frame shown is of revision ${meta.revision}`);
+  });
+
   await check('export and import the scene document (JSON, and glTF); save the frame as PNG', async () => {
     await waitSettled(page);
     const exported = await downloadFrom(page, '#scene-export');

@@ -14,8 +14,8 @@ export class HttpError extends Error {
   }
 }
 
-export async function api(method, path, body, contentType = 'application/json') {
-  const init = { method, headers: {}, cache: 'no-store' };
+export async function api(method, path, body, contentType = 'application/json', headers = {}) {
+  const init = { method, headers: { ...headers }, cache: 'no-store' };
   if (TOKEN) init.headers.Authorization = `Bearer ${TOKEN}`;
   if (body !== undefined) {
     init.body = typeof body === 'string' || body instanceof ArrayBuffer ? body : JSON.stringify(body);
@@ -27,6 +27,20 @@ export async function api(method, path, body, contentType = 'application/json') 
   try { json = text ? JSON.parse(text) : null; } catch { json = { error: text }; }
   if (!res.ok) throw new HttpError(res.status, json);
   return json;
+}
+
+// PATCHes the resource at `path` with the merge patch `patchFor(current)` makes of it as it is now, applied
+// only to that revision (If-Match): edited meanwhile (412), the patch is made again. Answers the PATCH's body.
+export async function patchCurrent(path, patchFor) {
+  for (let attempt = 1; ; attempt++) {
+    const current = await api('GET', path);
+    try {
+      return await api('PATCH', path, patchFor(current), 'application/merge-patch+json',
+        { 'If-Match': `"${current.revision}"` });
+    } catch (e) {
+      if (!(e instanceof HttpError) || e.status !== 412 || attempt >= 3) throw e;
+    }
+  }
 }
 
 let wsPort = null;

@@ -11,7 +11,7 @@
 // Dragging sends "interactive" requests; releasing asks for a "still" (full quality) frame.
 
 import { checkExample, refreshEnvironments, refreshExamples, refreshMeshes } from './catalog.js';
-import { HttpError, api, fetchHealth } from './connection.js';
+import { HttpError, api, fetchHealth, patchCurrent } from './connection.js';
 import { $ } from './dom.js';
 import { clearComplaints, controls, reportError } from './panel.js';
 import * as S from './scene.js';
@@ -80,15 +80,15 @@ export function requestFrame(quality = 'still') {
   pump();
 }
 
-// Whether another request may go now: none is in flight, or only interactive ones, fewer than
-// MAX_IN_FLIGHT of them (see the top). A still frame (a drag's release) goes even past that: at the
-// daemon it takes the place of the preview still queued there (latest wins), so the full-quality frame
-// comes after the preview rendering, not after two.
+// Whether another request may go now: fewer than MAX_IN_FLIGHT are in flight (see the top; a still
+// frame in flight gives way at the daemon to the next request, which answers it too), or a still frame
+// (a drag's release) follows two previews: at the daemon it takes the place of the preview queued there
+// (latest wins), so the full-quality frame comes after the preview rendering, not after two.
 function slotFree() {
   const n = state.inflight.length;
   if (n > 0 && state.previewFirst) return false;
   const previews = state.inflight.every((inf) => inf.quality === 'interactive');
-  return n === 0 || (previews && (n < MAX_IN_FLIGHT || (n === MAX_IN_FLIGHT && state.pendingQuality === 'still')));
+  return n < MAX_IN_FLIGHT || (previews && n === MAX_IN_FLIGHT && state.pendingQuality === 'still');
 }
 
 // The view setting this viewer asks for: its canvas's image size, and its own camera or (null) the scene's.
@@ -222,9 +222,11 @@ function onBinary(blob) {
   } else if (state.pushed) {
     hooks.latencyMs = null;  // nobody here waited for it
   }
-  if (inf) {
-    if (inf.patch && !inf.retry && hooks.errors === inf.errorsBefore) clearComplaints();
-  }
+  if (inf?.patch && !inf.retry && hooks.errors === inf.errorsBefore) clearComplaints();
+  // A frame of the scene before a replacement over HTTP (which does not wait for frames in flight)
+  // answers its requests, but is not shown.
+  const stale = typeof meta.revision === 'number' && meta.revision < (state.confirmedRevision ?? -1);
+  if (stale && !ours && !meta.play) { hooks.staleFrames++; pump(); return; }
   if (typeof meta.revision === 'number') {
     const expected = state.confirmedRevision;
     const consistent = meta.revision === expected ||
@@ -366,9 +368,10 @@ function refreshDocument() {
   }, 300);
 }
 
-const untilIdle = async () => {
+// Until no request in flight matches `busy` (default: any).
+const untilIdle = async (busy = () => true) => {
   const deadline = performance.now() + REQUEST_TIMEOUT_MS;
-  while (state.inflight.length && performance.now() < deadline) await new Promise((r) => setTimeout(r, 30));
+  while (state.inflight.some(busy) && performance.now() < deadline) await new Promise((r) => setTimeout(r, 30));
 };
 
 // Makes the scene the document `getDoc()` gives (a whole document; members it leaves out take their
@@ -380,10 +383,12 @@ export async function replaceScene(getDoc) {
   updateProgress();
   try {
     const doc = await getDoc();
-    await untilIdle();
-    const patch = S.replacementPatch(state.confirmed, doc) || {};
-    const got = await api('PATCH', `/api/scenes/${encodeURIComponent(state.sceneId)}`, patch,
-      'application/merge-patch+json');
+    // Our edits on their way land first; a frame in flight does not hold the load: it gives way at the
+    // daemon to the new scene's revision.
+    await untilIdle((inf) => inf.patch);
+    // Against the scene as the daemon has it now: our copy may lag behind another viewer's edit.
+    const got = await patchCurrent(`/api/scenes/${encodeURIComponent(state.sceneId)}`,
+      (current) => S.replacementPatch(current.scene, doc) || {});
     state.pending = null;
     state.newScene = true;
     state.confirmed = got.scene;
