@@ -12,6 +12,7 @@
 // $REFRACT_E2E_OUT (default build/e2e-screenshots); $REFRACT_CHROMIUM overrides /usr/bin/chromium.
 // Ends with "browser_e2e: N passed, M failed".
 
+import { execFileSync } from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -977,6 +978,50 @@ async function main() {
     }
     await shot(page, '06c-obj-own-units-framed.png');
     await page.uncheck('#mesh-keep-units');
+  });
+
+  await check('a volume uploaded (OpenVDB) is placed in the scene, edited and removed; a bad file is refused', async () => {
+    await waitSettled(page);
+    const writer = process.env.REFRACT_E2E_VDB_WRITER;
+    assert(writer, 'REFRACT_E2E_VDB_WRITER is not set (ctest sets it to the program that writes the test volume)');
+    const vdb = path.join(tmp, 'smoke-ball.vdb');
+    execFileSync(writer, [vdb]);
+    // Not OpenVDB: refused at the control with the file's name, nothing stored, the scene unchanged.
+    const bad = path.join(tmp, 'not-a-volume.vdb');
+    fs.writeFileSync(bad, 'not a volume');
+    const errors0 = await page.evaluate(() => window.refract.errors);
+    await page.setInputFiles('#volume-file', bad);
+    await waitFor(page, (n) => window.refract.errors > n, errors0);
+    const refusal = await page.textContent('#ctl-medium-volume-asset-error');
+    assert(/not-a-volume\.vdb/.test(refusal), `the refusal says "${refusal}"`);
+    assert(!(await api('GET', '/api/volumes')).json.volumes.some((v) => v.name === 'not-a-volume'), 'the bad file was stored');
+    assert(!Object.keys((await sceneOnServer(sceneId)).scene.volumes || {}).length, 'the scene has a volume after a refused upload');
+
+    const rev0 = await page.evaluate(() => window.refract.lastRevision);
+    await page.setInputFiles('#volume-file', vdb);
+    await waitSettled(page, rev0);
+    let scene = (await sceneOnServer(sceneId)).scene;
+    assert(scene.volumes?.volume?.asset === 'smoke-ball', `volumes ${JSON.stringify(scene.volumes)}`);
+    const shown = await page.evaluate(() => ({
+      grid: document.getElementById('ctl-medium-volume-grid').value,
+      status: document.getElementById('volume-status').textContent,
+      hidden: document.getElementById('ctl-medium-volume-density-scale').closest('.field').hidden,
+    }));
+    assert(shown.grid === 'density' && !shown.hidden && /smoke-ball/.test(shown.status), JSON.stringify(shown));
+    const rev1 = await page.evaluate(() => window.refract.lastRevision);
+    await page.fill('#ctl-medium-volume-density-scale-num', '4');
+    await page.press('#ctl-medium-volume-density-scale-num', 'Enter');
+    await waitSettled(page, rev1);
+    scene = (await sceneOnServer(sceneId)).scene;
+    assert(scene.volumes.volume.density_scale === 4, `density_scale ${scene.volumes.volume.density_scale}`);
+    await shot(page, '06v-volume-uploaded.png');
+    const rev2 = await page.evaluate(() => window.refract.lastRevision);
+    await page.click('#medium_volume-remove');
+    await waitSettled(page, rev2);
+    scene = (await sceneOnServer(sceneId)).scene;
+    assert(!Object.keys(scene.volumes || {}).length, `volumes ${JSON.stringify(scene.volumes)}`);
+    assert(await page.evaluate(() => document.getElementById('ctl-medium-volume-grid').closest('.field').hidden),
+      'the volume controls show without a volume');
   });
 
   await check('examples come from the daemon; the name shown clears once the scene is edited', async () => {

@@ -16,6 +16,7 @@ const BUILTIN_BOUNDS = {
   bunny: { min: [-0.96883, -1, -0.56078], max: [0.96883, 1, 0.56078] },
 };
 const meshBounds = {};  // uploaded mesh name -> bounds in its own units
+const volumeGrids = {};  // uploaded volume name -> the names of its usable float grids
 let example = null;     // { name, doc }: the example the scene still is
 
 export function rememberBounds(name, bounds) {
@@ -51,6 +52,28 @@ export async function refreshMeshes() {
     controls.mesh.setMeshes(names);
     controls.mesh.update(panel());
   } catch { /* the built-in meshes still work */ }
+}
+
+// The usable grids of uploaded volume `name`, as listed when last asked.
+export const volumeGridsOf = (name) => volumeGrids[name] || [];
+// The uploaded volume the panel shows: Add places it.
+export const chosenVolumeAsset = () => controls.volumes.select.value || null;
+
+export async function refreshVolumes() {
+  try {
+    const items = (await api('GET', '/api/volumes'))?.volumes || [];
+    for (const v of items) volumeGrids[v.name] = (v.grids || []).filter((g) => g.usable).map((g) => g.name);
+    controls.volumes.setVolumes(items.map((v) => v.name).filter(Boolean).sort());
+    controls.update(panel());
+  } catch { /* volumes already in the scene still render */ }
+}
+
+// Everything the daemon offers besides the scene, asked for at once.
+export function refreshCatalog() {
+  refreshMeshes();
+  refreshEnvironments();
+  refreshExamples();
+  refreshVolumes();
 }
 
 export async function refreshEnvironments() {

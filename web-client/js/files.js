@@ -1,7 +1,10 @@
 // Files in and out: OBJ and HDR/EXR uploads, example scenes and imported documents (JSON or glTF) that
 // replace the scene, the document exported as JSON, keyframes played into the view, and the frame saved as PNG.
 
-import { OBJECT_SIZE, checkExample, environmentPatch, loadedExample, meshPatch, refreshEnvironments, refreshMeshes, rememberBounds } from './catalog.js';
+import {
+  OBJECT_SIZE, checkExample, environmentPatch, loadedExample, meshPatch, refreshEnvironments, refreshMeshes, refreshVolumes,
+  rememberBounds,
+} from './catalog.js';
 import { api } from './connection.js';
 import { complain, controls } from './panel.js';
 import * as S from './scene.js';
@@ -42,6 +45,27 @@ export function uploadEnvironment(file, field) {
     field.setStatus(`Uploaded “${name}” (${info?.width} x ${info?.height}). ${note}`.trim());
     edit(patch, true);
     controls.environment.update(view());
+  });
+}
+
+// Uploads an OpenVDB file as a volume named after it. A scene without volumes gets one of it, where the
+// file puts it; otherwise Add places it.
+export function uploadVolume(file, field) {
+  return upload(file, field, '/volumes', async (name) => {
+    const info = await api('PUT', `/api/volumes/${encodeURIComponent(name)}`, await file.arrayBuffer(),
+      'application/octet-stream');
+    hooks.volumeUploads++;
+    await refreshVolumes();
+    field.select.value = name;
+    const grids = (info?.grids || []).filter((g) => g.usable).map((g) => g.name);
+    const facts = `grids ${grids.join(', ')}`;
+    if (S.memberNames(view(), 'medium_volume').length) {
+      field.setStatus(`Uploaded “${name}” (${facts}); Add places it in the scene.`);
+      return;
+    }
+    field.setStatus(`Uploaded “${name}” (${facts}) and placed it in the scene as “volume”.`);
+    state.selected.medium_volume = 'volume';
+    edit({ volumes: { volume: { asset: name, grid: grids.includes('density') ? 'density' : grids[0] } } }, true);
   });
 }
 

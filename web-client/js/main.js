@@ -1,10 +1,12 @@
 // Refract browser client: shows frames streamed by refractd and edits the scene with merge patches.
 // This file wires the modules together and starts; README.md lists what each module owns.
 
-import { environmentPatch, meshPatch } from './catalog.js';
+import { environmentPatch, meshPatch, volumeGridsOf } from './catalog.js';
 import { connect } from './connection.js';
 import { $ } from './dom.js';
-import { exportScene, importScene, loadExample, playKeyframes, savePng, uploadEnvironment, uploadMesh } from './files.js';
+import {
+  exportScene, importScene, loadExample, playKeyframes, savePng, uploadEnvironment, uploadMesh, uploadVolume,
+} from './files.js';
 import { initView } from './interaction.js';
 import { members } from './outliner.js';
 import { buildPanel } from './panel.js';
@@ -15,7 +17,8 @@ import { stageMessage } from './status.js';
 window.refract = hooks;  // read by the end-to-end test and the benchmark (README: Test hooks)
 
 buildPanel($('controls'), edit, {
-  uploadMesh, uploadEnvironment, meshPatch, environmentPatch, loadExample, importScene, exportScene, playKeyframes, stopPlay, members,
+  uploadMesh, uploadEnvironment, uploadVolume, meshPatch, environmentPatch, volumeGrids: volumeGridsOf, loadExample,
+  importScene, exportScene, playKeyframes, stopPlay, members,
   saveView, setFollow, following: () => state.follow, sceneCamera: () => view().camera,
 });
 initView();

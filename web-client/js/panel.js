@@ -3,7 +3,9 @@
 
 import { $, h } from './dom.js';
 import { CheckboxField, ColorField, FogField, RangeField, RgbField, SelectField, Vec3Field } from './fields.js';
-import { EnvironmentField, ExampleField, MembersField, MeshField, SceneFileField, ViewField } from './pickers.js';
+import {
+  EnvironmentField, ExampleField, MembersField, MeshField, SceneFileField, ViewField, VolumeAssetField, VolumeGridField,
+} from './pickers.js';
 import { panelPointer, parsePointer } from './scene.js';
 import { hooks, panel, state, view } from './state.js';
 import { announce, showGlobalError } from './status.js';
@@ -22,6 +24,9 @@ const LOG10_SLIDER = {
   fromSlider: (r) => Number((10 ** r).toPrecision(3)), toSlider: (v) => Math.log10(Math.max(1e-3, v)),
   numberStep: 'any', format: (v) => String(Number(v.toPrecision(4))),
 };
+
+// Whether the scene has a volume for the panel to edit.
+const HAS_VOLUME = (doc) => typeof doc.medium_volume?.asset === 'string';
 
 // The panel, section by section. A control's `kind` is its field class (KINDS below), `ptr` the pointer
 // it writes; `showIf(doc)` hides it while the document ignores it; `limit` names the /api/health limit
@@ -89,6 +94,27 @@ const SECTIONS = [
     ],
   },
   {
+    id: 'volumes', title: 'Volumes', controls: [
+      { kind: 'volume-asset' },
+      { kind: 'members', member: 'medium_volume', label: 'Volumes in the scene (the panel edits the one chosen)' },
+      { kind: 'volume-grid', showIf: HAS_VOLUME },
+      { kind: 'range', ptr: '/medium_volume/density_scale', label: 'Density scale', min: -2, max: 2, step: 0.01,
+        ...LOG10_SLIDER, showIf: HAS_VOLUME },
+      { kind: 'rgb', ptr: '/medium_volume/extinction', label: 'Extinction (per m at density 1)', min: 0, max: 50,
+        step: 0.1, showIf: HAS_VOLUME },
+      { kind: 'rgb', ptr: '/medium_volume/scattering', label: 'Scattering (per m at density 1; at most the extinction)',
+        min: 0, max: 50, step: 0.1, showIf: HAS_VOLUME },
+      { kind: 'range', ptr: '/medium_volume/phase/g', label: 'Volume anisotropy g', min: -0.95, max: 0.95, step: 0.01,
+        showIf: HAS_VOLUME },
+      { kind: 'vec3', ptr: '/medium_volume/position', label: 'Position (m, of the file’s origin)', step: 0.05,
+        showIf: HAS_VOLUME },
+      { kind: 'range', ptr: '/medium_volume/scale', label: 'Volume scale', min: -3, max: 2, step: 0.01, ...LOG10_SLIDER,
+        showIf: HAS_VOLUME },
+      { kind: 'vec3', ptr: '/medium_volume/rotation_deg', label: 'Volume rotation (°, about x, then y, then z)', step: 5,
+        showIf: HAS_VOLUME },
+    ],
+  },
+  {
     id: 'environment', title: 'Environment', controls: [
       { kind: 'environment' },
       { kind: 'color', ptr: '/environment/color', label: 'Environment colour',
@@ -120,7 +146,7 @@ const SECTIONS = [
 const KINDS = {
   range: RangeField, select: SelectField, checkbox: CheckboxField, color: ColorField, rgb: RgbField,
   fog: FogField, example: ExampleField, mesh: MeshField, file: SceneFileField, vec3: Vec3Field, members: MembersField,
-  environment: EnvironmentField, view: ViewField,
+  environment: EnvironmentField, view: ViewField, 'volume-asset': VolumeAssetField, 'volume-grid': VolumeGridField,
 };
 
 // The panel once built (buildPanel, from main.js before anything else runs).
@@ -150,6 +176,7 @@ export function buildPanel(form, onEdit, actions) {
     environment: fields.find((f) => f instanceof EnvironmentField),
     example: fields.find((f) => f instanceof ExampleField),
     file: fields.find((f) => f instanceof SceneFileField),
+    volumes: fields.find((f) => f instanceof VolumeAssetField),
     outliners: fields.filter((f) => f instanceof MembersField),
     // Shows `doc` in every control, except those holding a rejected value the user has not fixed yet.
     update(doc) {
@@ -238,6 +265,7 @@ export function complain(field, message, pointer, spoken = message) {
 export function clearComplaints() {
   for (const outliner of controls.outliners) outliner.clearError();
   controls.mesh.clearError();
+  controls.volumes.clearError();
   controls.file.clearError();
   controls.file.status.textContent = '';
   $('global-error').hidden = true;

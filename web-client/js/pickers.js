@@ -1,10 +1,10 @@
 // The panel's fields that pick or act rather than hold one value: example scenes, files (scene documents,
-// keyframes), meshes, environments, and the outliners of lights and objects. What they do is in the
+// keyframes), meshes, environments, volume files and grids, and the outliners of lights, objects and volumes. What they do is in the
 // `actions` the panel is built with (see main.js).
 
 import { h } from './dom.js';
 import { Field, isEditing } from './fields.js';
-import { deepEqual, getAt } from './scene.js';
+import { COLLECTIONS, MEMBER_NOUN, MIN_MEMBERS, deepEqual, getAt } from './scene.js';
 
 const BUILTIN_MESHES = [['sphere', 'Sphere'], ['cube', 'Cube'], ['torus', 'Torus'], ['prism', 'Prism'], ['bunny', 'Bunny']];
 
@@ -126,13 +126,14 @@ export class MeshField extends Field {
   }
 }
 
-// The outliner of one collection (lights or objects): which member the panel edits; members can be added,
-// removed (all but the last) and renamed.
+// The outliner of one collection (lights, objects, volumes): which member the panel edits; members can be
+// added, removed (down to the collection's least) and renamed.
 export class MembersField extends Field {
   constructor(spec, emit, actions) {
     const kind = spec.member;
     const id = `ctl-${kind}-member`;
-    super(spec, [`/${kind}s`], spec.label, id);
+    super(spec, [`/${COLLECTIONS[kind]}`], spec.label, id);
+    const noun = MEMBER_NOUN[kind];
     const members = actions.members;
     this.kind = kind;
     this.members = members;
@@ -142,8 +143,8 @@ export class MembersField extends Field {
     this.removeButton = h('button', { type: 'button', id: `${kind}-remove`, text: 'Remove' });
     this.addButton.addEventListener('click', () => members.add(kind));
     this.removeButton.addEventListener('click', () => members.remove(kind));
-    this.name = h('input', { type: 'text', id: `${kind}-name`, 'aria-label': `New name for the chosen ${kind}`, maxlength: 64,
-      title: `New name for the chosen ${kind}`, placeholder: 'New name' });
+    this.name = h('input', { type: 'text', id: `${kind}-name`, 'aria-label': `New name for the chosen ${noun}`, maxlength: 64,
+      title: `New name for the chosen ${noun}`, placeholder: 'New name' });
     this.renameButton = h('button', { type: 'button', id: `${kind}-rename`, text: 'Rename' });
     const rename = () => { this.clearError(); members.rename(kind, this.name.value.trim(), this); };
     this.renameButton.addEventListener('click', rename);
@@ -155,7 +156,7 @@ export class MembersField extends Field {
     h('div', { class: 'row' }, this.name, this.renameButton), this.error);
   }
   update(doc) {
-    const names = Object.keys(doc[`${this.kind}s`] || {}).sort();
+    const names = Object.keys(doc[COLLECTIONS[this.kind]] || {}).sort();
     const chosen = this.members.selected(this.kind);
     if (names.join('/') !== [...this.select.options].map((o) => o.value).join('/')) {
       this.select.replaceChildren(...names.map((n) => h('option', { value: n, text: n })));
@@ -163,7 +164,63 @@ export class MembersField extends Field {
     }
     if (!isEditing(this.select)) this.select.value = chosen ?? '';
     if (!isEditing(this.name)) this.name.value = chosen ?? '';
-    this.removeButton.disabled = names.length < 2;
+    this.removeButton.disabled = names.length <= MIN_MEMBERS[this.kind];
+    this.renameButton.disabled = names.length === 0;
+  }
+}
+
+// Volumes (OpenVDB smoke and clouds): the uploaded files, showing the chosen volume's (with none in the
+// scene, the one Add places; choosing another gives the chosen volume that file), and an upload button.
+export class VolumeAssetField extends Field {
+  constructor(spec, emit, actions) {
+    const id = 'ctl-medium-volume-asset';
+    super(spec, ['/medium_volume/asset'], 'Volume file (OpenVDB: smoke, clouds)', id);
+    this.select = h('select', { id });
+    this.select.addEventListener('change', () => {
+      const asset = this.select.value;
+      if (actions.members.selected('medium_volume') === null) return;
+      emit(this, { medium_volume: { asset, grid: actions.volumeGrids(asset)[0] ?? 'density' } }, true);
+    });
+    const picker = filePicker('volume-file', '.vdb', 'Upload VDB…', (f) => actions.uploadVolume(f, this));
+    this.status = h('p', { class: 'note', id: 'volume-status', 'aria-live': 'polite' });
+    this.describe(this.select, picker.input);
+    this.el.append(this.label, h('div', { class: 'row' }, this.select, picker.input, picker.label), this.status,
+      this.error);
+  }
+  setVolumes(names) {
+    const current = this.select.value;
+    this.select.replaceChildren(...names.map((n) => h('option', { value: n, text: n })));
+    if (names.includes(current)) this.select.value = current;
+  }
+  setStatus(text) { this.status.textContent = text; }
+  update(doc) {
+    const v = doc.medium_volume?.asset;
+    if (typeof v === 'string' && !isEditing(this.select) && [...this.select.options].some((o) => o.value === v)) {
+      this.select.value = v;
+    }
+  }
+}
+
+// The grid of the chosen volume's file that is its density: one of the file's usable float grids.
+export class VolumeGridField extends Field {
+  constructor(spec, emit, actions) {
+    const id = 'ctl-medium-volume-grid';
+    super(spec, ['/medium_volume/grid'], 'Density grid', id);
+    this.gridsOf = actions.volumeGrids;
+    this.select = h('select', { id });
+    this.select.addEventListener('change', () => emit(this, { medium_volume: { grid: this.select.value } }, true));
+    this.describe(this.select);
+    this.el.append(this.label, this.select, this.error);
+  }
+  update(doc, force = false) {
+    const member = doc.medium_volume || {};
+    const want = member.grid ?? 'density';
+    const grids = this.gridsOf(member.asset);
+    const names = grids.includes(want) ? grids : [...grids, want];
+    if (names.join('/') !== [...this.select.options].map((o) => o.value).join('/')) {
+      this.select.replaceChildren(...names.map((n) => h('option', { value: n, text: n })));
+    }
+    if (force || !isEditing(this.select)) this.select.value = want;
   }
 }
 

@@ -313,7 +313,12 @@ export function lampIrradiance(doc) {
   return brightest;
 }
 
-export const COLLECTIONS = { light: 'lights', object: 'objects' };
+// The keyed collections, by the name the panel gives the member it edits (`medium_volume`: the document's
+// `volume` is the lattice's settings).
+export const COLLECTIONS = { light: 'lights', object: 'objects', medium_volume: 'volumes' };
+// What a member of each is called in words, and how few a scene may have.
+export const MEMBER_NOUN = { light: 'light', object: 'object', medium_volume: 'volume' };
+export const MIN_MEMBERS = { light: 1, object: 1, medium_volume: 0 };
 // Fields every member of a collection must share (the daemon refuses objects of differing Abbe numbers:
 // dispersion is one per scene): the panel's edit of one writes them all.
 const SHARED = { object: ['abbe'] };
@@ -371,9 +376,10 @@ export function panelPointer(pointer, doc, selection) {
   return pointer;
 }
 
-// A name for a new member: `base` followed by the first number not taken.
+// A name for a new member: `base`, or else `base` followed by the first number not taken.
 export function freeName(doc, kind, base) {
   const names = new Set(memberNames(doc, kind));
+  if (!names.has(base)) return base;
   for (let i = 2; ; ++i) if (!names.has(`${base}${i}`)) return `${base}${i}`;
 }
 

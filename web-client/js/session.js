@@ -10,7 +10,7 @@
 // frame, or an error, answers it).
 // Dragging sends "interactive" requests; releasing asks for a "still" (full quality) frame.
 
-import { checkExample, refreshEnvironments, refreshExamples, refreshMeshes } from './catalog.js';
+import { checkExample, refreshCatalog } from './catalog.js';
 import { HttpError, api, fetchHealth, patchCurrent } from './connection.js';
 import { $ } from './dom.js';
 import { clearComplaints, controls, reportError } from './panel.js';
@@ -472,9 +472,7 @@ export const link = {
       showDevice(health);
       controls.setLimits(health?.limits || {});
     }), loadScene()]);
-    refreshMeshes();
-    refreshEnvironments();
-    refreshExamples();
+    refreshCatalog();
   },
   opened() {
     frameMeta = null;

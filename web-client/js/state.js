@@ -23,7 +23,7 @@ export const state = {
   frame: null,            // { bitmap, width, height }: the frame shown, kept to redraw on resize
   lastPng: null,          // the PNG of the frame shown, for "Save PNG"
   playing: null,          // { seq, name, at, ended, failed }: keyframes playing into this view (at: the last frame's place)
-  selected: { light: null, object: null },  // the light and object the panel edits (null: the first by name)
+  selected: { light: null, object: null, medium_volume: null },  // the light and object the panel edits (null: the first by name)
   // This viewer's own view (the WebSocket session's `view` setting; never stored): its camera, or, when
   // following, the scene's camera, which its orbit then edits for every follower (presenter mode).
   ownCamera: null,
@@ -102,6 +102,7 @@ export const hooks = {
   lastInteractiveDraw: null,
   dims: 0,             // times the frame shown was dimmed for a pending one
   downloads: 0,
+  volumeUploads: 0,
   playedFrames: 0,     // frames of played animations drawn
   playedSizes: [],     // [width, height] of each played frame drawn
   playing: () => state.playing?.name ?? null,
