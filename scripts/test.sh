@@ -25,8 +25,8 @@ for t in protocol_test mesh_test vk_context_test daemon_test; do
     REFRACT_VALIDATION=1 LP_NUM_THREADS=2 build-asan/tests/$t --gtest_brief=1
 done
 
-echo "== fuzzing (20 s per target; scripts/fuzz.sh with no argument runs 10 minutes each) =="
-bash scripts/fuzz.sh 20
+echo "== fuzzing (10 s per target; scripts/fuzz.sh with no argument runs 10 minutes each) =="
+bash scripts/fuzz.sh 10
 
 echo "== full suite =="
 cd build && ctest --output-on-failure --timeout 600
