@@ -1,7 +1,8 @@
 // Volumes through the transport (issue 39, point 3): OpenVDB grids written here, exported as the daemon
 // exports them, resampled into the medium field and crossed by photons and eye rays. Known answers: the
-// transmittance through a linear ramp of density against exp(-its integral), and a volume of constant
-// density against the homogeneous fog of the same coefficients. REFRACT_VOLUME_PNG_DIR set: each test
+// transmittance through a linear ramp of density against exp(-its integral), a volume of constant
+// density against the homogeneous fog of the same coefficients, and a volume that only scatters in a
+// uniform environment against that environment's radiance (the white furnace). REFRACT_VOLUME_PNG_DIR set: each test
 // writes its frames there to be looked at.
 #include <gtest/gtest.h>
 
@@ -160,6 +161,66 @@ TEST_F(VolumeMediaTest, AConstantDensityVolumeIsTheHomogeneousFogOfItsCoefficien
         std::printf("%u bounces: constant volume against fog %.4g, two seeds of fog %.4g\n", bounces, apart, noise);
         EXPECT_LT(apart, 1.5 * noise);
     }
+}
+
+// The white furnace for media (issue 39): a volume that scatters all it meets (extinction = scattering, a
+// ramp of density 0.1 to 2.5 times 2 per metre, optical depths up to about 4 across it) in a uniform
+// environment of radiance L that lights the scene, with photons' random walks of up to 64 bounces (none
+// reached them here: the frames of 64 and 256 were the same), is in equilibrium: every pixel shows L.
+// Past the volume the backdrop is L to rounding. Through it a pixel is L plus photon noise, which two
+// seeds measure: sigma = RMS(a - b) / sqrt(2). A bias would show as a deviation from L beyond it: the
+// frame's RMS deviation stays within 1.5 sigma (the constant-volume test's allowance), and its mean over
+// the volume's pixels within 4 standard errors of the mean, sigma / sqrt(pixels).
+TEST_F(VolumeMediaTest, ANonAbsorbingVolumeInAUniformEnvironmentIsAWhiteFurnace) {
+    const double L = 0.7;
+    const scene::Densities densities{
+        {"ramp", std::make_shared<const volume::DensityGrid>(
+                     volume::export_density(test::ramp_box_vdb({-6, -6, -6}, {5, 5, 5}, 0.1, 1.3f, 0.2f), "density", {}))}};
+    auto frame = [&](uint32_t seed) {
+        json j = json::parse(R"({
+            "camera": {"position": [0, 0.2, 4], "target": [0, 0, 0], "fov_deg": 30},
+            "image": {"width": 32, "height": 32},
+            "light": {"type": "point", "position": [0, 3, 0], "intensity": 0},
+            "object": {"position": [1.1, 1.1, 1.1], "scale": 0.03, "ior": 1.0, "extinction": [0, 0, 0],
+                       "scattering": [0, 0, 0]},
+            "medium": {"extinction": [0, 0, 0], "scattering": [0, 0, 0], "fade": 0},
+            "volumes": {"ramp": {"asset": "ramp", "extinction": [2, 2, 2], "scattering": [2, 2, 2]}},
+            "volume": {"resolution": 48, "bounds": {"min": [-1.2, -1.2, -1.2], "max": [1.2, 1.2, 1.2]}},
+            "photons": {"count": 524288, "max_bounces": 64},
+            "floor": {"enabled": false},
+            "environment": {"type": "uniform", "color": [1, 1, 1], "intensity": 0.7, "lights": true}})");
+        j["photons"]["seed"] = seed;
+        const protocol::SceneDocument document = protocol::parse_scene(j);
+        scene::SceneGpu gpu(kit());
+        gpu.run(scene::kAllPasses, document, worlds(document), nullptr, scene::run_options_for(scene::Quality::still),
+                nullptr, densities);
+        save(gpu, "white_furnace_seed_" + std::to_string(seed));
+        return gpu.read_hdr();
+    };
+    const auto a = frame(1), b = frame(2);
+    double seed_squares = 0.0, deviation_squares = 0.0, deviation_sum = 0.0, backdrop_worst = 0.0;
+    size_t through = 0;
+    for (size_t i = 0; i < a.size(); ++i) {  // one channel: grey transport, the three are the same
+        const double x = a[i].g, y = b[i].g;
+        if (x == y) {  // no photon noise: the ray missed the volume
+            backdrop_worst = std::max(backdrop_worst, std::abs(x - L));
+            continue;
+        }
+        seed_squares += (x - y) * (x - y);
+        deviation_squares += (x - L) * (x - L);
+        deviation_sum += x - L;
+        ++through;
+    }
+    ASSERT_GT(through, a.size() / 4);  // the volume covers a good part of the frame
+    const double sigma = std::sqrt(seed_squares / static_cast<double>(through) / 2.0);
+    const double rms = std::sqrt(deviation_squares / static_cast<double>(through));
+    const double mean = deviation_sum / static_cast<double>(through);
+    std::printf("white furnace: backdrop off L by %.1e; through the volume (%zu pixels) RMS off L %.4f, "
+                "photon noise %.4f, mean off L %+.5f (standard error %.5f)\n",
+                backdrop_worst, through, rms, sigma, mean, sigma / std::sqrt(static_cast<double>(through)));
+    EXPECT_LT(backdrop_worst, 1e-4 * L);
+    EXPECT_LT(rms, 1.5 * sigma);
+    EXPECT_LT(std::abs(mean), 4.0 * sigma / std::sqrt(static_cast<double>(through)));
 }
 
 }  // namespace
