@@ -54,7 +54,6 @@ export function uploadVolume(file, field) {
   return upload(file, field, '/volumes', async (name) => {
     const info = await api('PUT', `/api/volumes/${encodeURIComponent(name)}`, await file.arrayBuffer(),
       'application/octet-stream');
-    hooks.volumeUploads++;
     await refreshVolumes();
     field.select.value = name;
     const grids = (info?.grids || []).filter((g) => g.usable).map((g) => g.name);

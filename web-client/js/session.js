@@ -226,7 +226,7 @@ function onBinary(blob) {
   // A frame of the scene before a replacement over HTTP (which does not wait for frames in flight)
   // answers its requests, but is not shown.
   const stale = typeof meta.revision === 'number' && meta.revision < (state.confirmedRevision ?? -1);
-  if (stale && !ours && !meta.play) { hooks.staleFrames++; pump(); return; }
+  if (stale && !ours && !meta.play) { pump(); return; }
   if (typeof meta.revision === 'number') {
     const expected = state.confirmedRevision;
     const consistent = meta.revision === expected ||

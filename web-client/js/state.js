@@ -95,14 +95,12 @@ export const hooks = {
   viewers: () => state.viewers,
   otherEdits: 0,       // notices of another viewer's edit received
   pushedFrames: 0,     // frames drawn that were pushed for someone else's edit
-  staleFrames: 0,      // frames not drawn: of the scene as it was before a replacement over HTTP
   lastQuality: null,
   example: null,       // name of the example the scene still is
   lastDraw: null,      // how the last frame was drawn: source and canvas sizes, smoothing
   lastInteractiveDraw: null,
   dims: 0,             // times the frame shown was dimmed for a pending one
   downloads: 0,
-  volumeUploads: 0,
   playedFrames: 0,     // frames of played animations drawn
   playedSizes: [],     // [width, height] of each played frame drawn
   playing: () => state.playing?.name ?? null,
