@@ -15,6 +15,12 @@
 
 namespace refract::protocol {
 
+const std::string& DensityVolume::emission_grid() const {
+    static const std::string none;
+    if (!emission.emits()) return none;
+    return emission.temperature_grid.empty() ? emission.grid : emission.temperature_grid;
+}
+
 namespace {
 
 using nlohmann::json;
@@ -542,7 +548,7 @@ private:
     void read_density_volume(const json& volume, const std::string& base, DensityVolume& v) const {
         check_object(volume, base,
                      {"asset", "grid", "position", "rotation_deg", "scale", "density_scale", "extinction",
-                      "scattering", "phase"},
+                      "scattering", "phase", "emission"},
                      "must be a JSON object");
         static constexpr const char* kAssetRule =
             "must name an uploaded volume: 1..64 characters of [A-Za-z0-9_.-]";
@@ -564,6 +570,29 @@ private:
         // k would not mix with.
         if (v.phase.model == PhaseModel::schlick)
             fail(child(child(base, "phase"), "model"), "must be \"isotropic\" or \"henyey-greenstein\" for a volume");
+        read_volume_emission(volume, base, v.emission);
+    }
+
+    void read_volume_emission(const json& volume, const std::string& base, VolumeEmission& e) const {
+        const json* j = section(volume, base, "emission", {"grid", "temperature_grid", "color", "intensity"});
+        if (j == nullptr) return;
+        const std::string pointer = child(base, "emission");
+        static constexpr const char* kGridRule = "must be \"\" or name a float grid of the volume: 1..64 characters";
+        for (auto [key, target] : {std::pair{"grid", &e.grid}, std::pair{"temperature_grid", &e.temperature_grid}})
+            if (const std::string* grid = string_member(*j, pointer, key, kGridRule)) {
+                if (grid->size() > kMaxNameLength) fail(child(pointer, key), kGridRule);
+                *target = *grid;
+            }
+        e.color = vec3(*j, pointer, "color", e.color, kColor);
+        e.intensity = number(*j, pointer, "intensity", e.intensity, kIntensity);
+        if (!e.emits()) return;
+        if (e.grid.empty() && e.temperature_grid.empty())
+            fail_blaming({{child(pointer, "grid"), "must name the grid that emits when intensity is above 0 (or "
+                                                   "name a temperature_grid)"},
+                          {child(pointer, "intensity"), "above 0 requires a grid or a temperature_grid"}});
+        if (!e.grid.empty() && !e.temperature_grid.empty())
+            fail_blaming({{child(pointer, "grid"), "must be \"\" when a temperature_grid is named (one or the other)"},
+                          {child(pointer, "temperature_grid"), "must be \"\" when a grid is named (one or the other)"}});
     }
 
     void read_volume(const json& root, Volume& v) const {
@@ -731,7 +760,12 @@ json density_volume_json(const DensityVolume& v) {
             {"density_scale", v.density_scale},
             {"extinction", vec(v.extinction)},
             {"scattering", vec(v.scattering)},
-            {"phase", phase_json(v.phase)}};
+            {"phase", phase_json(v.phase)},
+            {"emission",
+             {{"grid", v.emission.grid},
+              {"temperature_grid", v.emission.temperature_grid},
+              {"color", vec(v.emission.color)},
+              {"intensity", v.emission.intensity}}}};
 }
 
 // A patch in the older form edits the one member of a collection through its singular name: rewritten

@@ -167,6 +167,20 @@ struct Environment {
 // in the scene, whose value times density_scale is the density; extinction and scattering are per unit
 // density (per metre at density 1). Where it overlaps the homogeneous medium or another volume, the
 // coefficients add. Emission (issue 39, point 4) is not read yet.
+// Light a volume gives off along every direction alike: emitted radiance per metre of path, `intensity`
+// times either `color` times the value of the float `grid` or, from a grid in kelvin
+// (`temperature_grid`), the blackbody's colour and brightness relative to one at 1500 K. Intensity 0
+// (the default) emits nothing; above 0 exactly one of the two grids is named.
+struct VolumeEmission {
+    std::string grid;              // a float grid of the volume's file ("" for none)
+    std::string temperature_grid;  // a float grid in kelvin ("" for none)
+    Vec3 color{1.0, 1.0, 1.0};     // with `grid`
+    double intensity = 0.0;
+
+    bool emits() const { return intensity > 0.0; }
+    bool operator==(const VolumeEmission&) const = default;
+};
+
 struct DensityVolume {
     std::string asset;             // the uploaded volume's name (PUT /api/volumes/NAME)
     std::string grid = "density";  // the float grid of that file
@@ -177,7 +191,10 @@ struct DensityVolume {
     Vec3 extinction{1.0, 1.0, 1.0};  // per metre per unit density
     Vec3 scattering{1.0, 1.0, 1.0};  // per metre per unit density, each channel <= extinction
     Phase phase{PhaseModel::henyey_greenstein, 0.0};  // isotropic or Henyey-Greenstein
+    VolumeEmission emission;
 
+    // The grid emission reads (its temperature grid or its emission grid); "" where it emits nothing.
+    const std::string& emission_grid() const;
     bool operator==(const DensityVolume&) const = default;
 };
 

@@ -217,11 +217,19 @@ void main() {
     uint i = coherent_order(job, count);
     vec3 origin, direction;
     vec3 weight;  // relative to the reference flux
-    // The last environment.z photons come from the environment (transport.h), the others from the light.
-    uint light_photons = count - params.environment.z;
-    bool from_environment = i >= light_photons;
+    // The last volume_emission.x photons come from the volumes, the environment.z before them from the
+    // environment (transport.h), the others from the light.
+    uint volume_first = count - params.volume_emission.x;
+    uint light_photons = volume_first - params.environment.z;
+    bool from_volume = i >= volume_first;
+    bool from_environment = i >= light_photons && !from_volume;
     vec2 sample_point;
-    if (from_environment) {
+    if (from_volume) {
+        sample_point = stratified(i - volume_first, params.volume_emission.x, params.photon_info.y);
+        uint seed = hash(i ^ hash(params.photon_info.y + 6u));
+        vec3 within = vec3(to_unit(hash(seed + 1u)), to_unit(hash(seed + 2u)), to_unit(hash(seed + 3u)));
+        emit_volume_ray(sample_point.x, within, vec2(sample_point.y, to_unit(hash(seed + 4u))), origin, direction, weight);
+    } else if (from_environment) {
         sample_point = stratified(i - light_photons, params.environment.z, params.photon_info.y);
         vec2 disc = vec2(to_unit(hash(i ^ hash(params.photon_info.y + 3u))), to_unit(hash(i ^ hash(params.photon_info.y + 4u))));
         emit_environment_ray(sample_point, disc, origin, direction, weight);
@@ -248,7 +256,9 @@ void main() {
     p += direction * along;
     if (floor_on && p.y <= floor_y) return;  // entered the grid below the floor
     atomicAdd(stats.photons_entered, 1u);
-    if (floor_on && direction.y < 0.0)
+    // Light and environment photons take away from the floor what reaches it in closed form; nothing
+    // counts a volume's light there but its photons.
+    if (floor_on && direction.y < 0.0 && !from_volume)
         deposit_floor(origin + direction * ((origin.y - params.floor_plane.x) / -direction.y), weight, -1);
 
     Ray ray = start_ray(p, direction);
@@ -260,16 +270,16 @@ void main() {
     float h = voxel_size();
     float radiance_factor = float(params.radiance_grid.w);
     float path_length = 0.0;  // voxels travelled inside the grid
-    // Unbent until the photon meets a gradient of n (transport.h); an environment photon never travels
-    // along the light's direction.
-    bool unbent = !from_environment;
+    // Unbent until the photon meets a gradient of n (transport.h); an environment or volume photon
+    // never travels along the light's direction.
+    bool unbent = !from_environment && !from_volume;
     light_in_radiance_voxels = to_voxel(origin) / radiance_factor;
     near_light_squared = params.models.z == LIGHT_DIRECTIONAL ? 0.0 : UNBENT_MIN_DISTANCE * UNBENT_MIN_DISTANCE;
     // Direct light (transport.h): from `near` to the light map's value the direct-light pass counts this
     // photon's light, so it deposits nothing there, and as the map says its path there is straight
     // through the medium, it crosses that span in one step. Steps before it end where it begins.
     float direct_from = params.direct_light.y;
-    float direct_to = params.direct_light.w > 0.5 && !from_environment ? light_map[light_map_texel(sample_point)] : 0.0;
+    float direct_to = params.direct_light.w > 0.5 && !from_environment && !from_volume ? light_map[light_map_texel(sample_point)] : 0.0;
     bool jumped = false;   // the last step crossed the direct span
     bool after_leaf = true;  // the last step ended on a plane of the lattice (a leaf's, or the grid's face)
     bool overlap = false;  // it landed where n varies or on the object: the map was wrong for this photon

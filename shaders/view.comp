@@ -305,6 +305,7 @@ void shade(uvec2 pixel) {
                         float field_g = field_mean > 0.0 ? clamp(field_s.a / field_mean, -0.99, 0.99) : 0.0;
                         radiance_sum += transmittance * field_s.rgb * h * path_length * in_scattered(x, ray.d, PHASE_HG_ID, field_g);
                     }
+                    if (field_emits()) radiance_sum += transmittance * field_emission(x) * h * path_length;
                     transmittance *= attenuation;
                     t += len;
                     ++steps;
@@ -319,7 +320,19 @@ void shade(uvec2 pixel) {
                 float density = run > 0.0 ? medium_depth(ray.p, ray.d, run) / run : 1.0;
                 vec3 kappa_run = thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density);
                 if (kMediumField) kappa_run += field_extinction(ray.p + (0.5 * run) * ray.d) * h;
-                transmittance *= exp(-kappa_run * run);
+                vec3 attenuation = exp(-kappa_run * run);
+                if (field_emits()) {
+                    // Unlit or not, what the volumes emit along the run reaches the eye (the run is a
+                    // field voxel at most where they do: field_step).
+                    vec3 x = ray.p + (0.5 * run) * ray.d;
+                    vec3 emitted = transmittance * field_emission(x) * h * transmitted_path(kappa_run, run, attenuation);
+                    radiance_sum += emitted;
+                    float share = (emitted.r + emitted.g + emitted.b) * (1.0 / 3.0);
+                    light_weight += share;
+                    weighted_inverse_depth += share * (surface_inverse_depth >= 0.0 ? surface_inverse_depth
+                        : 1.0 / max(length(to_world(x) - params.camera_position.xyz), 1e-6));
+                }
+                transmittance *= attenuation;
                 ++steps;
             }
             if (run >= to_end) {

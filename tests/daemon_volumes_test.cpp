@@ -29,6 +29,15 @@ json volumes(httplib::Client& client) {
     return got ? json::parse(got->body)["volumes"] : json();
 }
 
+// A scene created from `document` is refused 422 at `pointer`, and no scene "bad" is stored.
+void expect_refused(httplib::Client& client, const json& document, const std::string& pointer) {
+    auto created = client.Post("/api/scenes?id=bad", document.dump(), "application/json");
+    ASSERT_TRUE(created);
+    EXPECT_EQ(created->status, 422) << created->body;
+    EXPECT_EQ(json::parse(created->body)["pointer"], pointer) << created->body;
+    EXPECT_EQ(client.Get("/api/scenes/bad")->status, 404);
+}
+
 TEST(DaemonVolumesTest, AVolumeIsListedWithItsGridsKeptAcrossARestartAndDeleted) {
     TempDir dir;
     const auto data = dir.path() / "data";
@@ -132,12 +141,8 @@ TEST(DaemonVolumesTest, AScenesVolumeRendersAndIsRefusedWhenTheStoreLacksIt) {
     for (const auto& [volumes_section, pointer] : refused) {
         json bad = document;
         bad["volumes"] = volumes_section;
-        auto created = client.Post("/api/scenes?id=bad", bad.dump(), "application/json");
-        ASSERT_TRUE(created);
-        EXPECT_EQ(created->status, 422) << created->body;
-        EXPECT_EQ(json::parse(created->body)["pointer"], pointer) << created->body;
+        expect_refused(client, bad, pointer);
     }
-    EXPECT_EQ(client.Get("/api/scenes/bad")->status, 404);
 
     create_scene(client, "smoky", document);
     json clear = document;
@@ -165,6 +170,57 @@ TEST(DaemonVolumesTest, AScenesVolumeRendersAndIsRefusedWhenTheStoreLacksIt) {
     EXPECT_EQ(json::parse(in_use->body)["scenes"], json::array({"smoky"}));
     ASSERT_EQ(patch(client, "smoky", {{"volumes", {{"puff", nullptr}}}})->status, 200);
     EXPECT_EQ(client.Delete("/api/volumes/smoke")->status, 204);
+    ASSERT_TRUE(daemon.running());
+}
+
+// A volume that emits (issue 39, point 4): its emission or temperature grid must be a usable grid of the
+// same upload (refused at the emission's pointer, nothing stored, otherwise); fire lights the frame, in
+// stills and interactive frames, and turning its intensity to 0 puts it out.
+TEST(DaemonVolumesTest, AFlameNamesItsTemperatureGridAndLightsTheFrame) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    ASSERT_EQ(client.Put("/api/volumes/fire", flame_vdb(8, 1800.0f), "application/octet-stream")->status, 201);
+    const json listed = get_json(client, "/api/volumes");
+    ASSERT_EQ(listed.size(), 1u) << listed.dump();
+
+    json document = kSmallScene;
+    document["photons"]["count"] = 16384;
+    document["light"]["intensity"] = 0;
+    document["volumes"] = {{"flame", {{"asset", "fire"}, {"extinction", {2, 2, 2}}, {"scattering", {1, 1, 1}},
+                                      {"emission", {{"temperature_grid", "temperature"}, {"intensity", 2}}}}}};
+    const std::vector<std::pair<json, std::string>> refused = {
+        {{{"temperature_grid", "smoke"}, {"intensity", 2}}, "/volumes/flame/emission/temperature_grid"},
+        {{{"grid", "missing"}, {"intensity", 2}}, "/volumes/flame/emission/grid"},
+        {{{"intensity", 2}}, "/volumes/flame/emission/intensity"},  // what it wrote is blamed
+        {{{"grid", "heat"}, {"temperature_grid", "temperature"}, {"intensity", 2}}, "/volumes/flame/emission/grid"},
+        {{{"grid", "heat"}, {"intensity", -1}}, "/volumes/flame/emission/intensity"},
+    };
+    for (const auto& [emission, pointer] : refused) {
+        json bad = document;
+        bad["volumes"]["flame"]["emission"] = emission;
+        expect_refused(client, bad, pointer);
+    }
+
+    create_scene(client, "burning", document);
+    json dark = document;
+    dark["volumes"]["flame"]["emission"]["intensity"] = 0;
+    create_scene(client, "dark", dark);
+    auto burning = get_frame(client, "burning");
+    auto unlit = get_frame(client, "dark");
+    ASSERT_TRUE(burning && unlit);
+    EXPECT_NE(burning->body, unlit->body) << "the flame changed nothing in the frame";
+    EXPECT_TRUE(get_frame(client, "burning", "?quality=interactive"));
+    // Put out by an edit: the frame is the dark scene's.
+    const json before = get_json(client, "/api/scenes/burning");
+    auto bad_edit = patch(client, "burning", {{"volumes", {{"flame", {{"emission", {{"temperature_grid", "vel"}}}}}}}});
+    ASSERT_TRUE(bad_edit);
+    EXPECT_EQ(bad_edit->status, 422) << bad_edit->body;
+    EXPECT_EQ(get_json(client, "/api/scenes/burning"), before);
+    ASSERT_EQ(patch(client, "burning", {{"volumes", {{"flame", {{"emission", {{"intensity", 0}}}}}}}})->status, 200);
+    auto out = get_frame(client, "burning");
+    ASSERT_TRUE(out);
+    EXPECT_EQ(out->body, unlit->body);
     ASSERT_TRUE(daemon.running());
 }
 

@@ -334,6 +334,33 @@ TEST(Volumes, NoneByDefaultAndEveryFieldRoundTrips) {
     EXPECT_TRUE(apply_merge_patch(d, json{{"volumes", nullptr}}).volumes.empty());
 }
 
+TEST(Volumes, EmissionIsOffByDefaultAndNamesOneGridWhenOn) {
+    const SceneDocument d = parse_scene(json::parse(R"({"volumes": {"smoke": {"asset": "plume"},
+        "fire": {"asset": "flame", "emission": {"temperature_grid": "temperature", "intensity": 3}},
+        "glow": {"asset": "flame", "emission": {"grid": "heat", "color": [1, 0.5, 0.1], "intensity": 0.5}}}})"));
+    const DensityVolume& smoke = d.volumes.at("smoke");
+    EXPECT_FALSE(smoke.emission.emits());
+    EXPECT_EQ(smoke.emission_grid(), "");
+    EXPECT_EQ(smoke.emission.color, (Vec3{1, 1, 1}));
+    EXPECT_EQ(d.volumes.at("fire").emission_grid(), "temperature");
+    EXPECT_EQ(d.volumes.at("glow").emission_grid(), "heat");
+    EXPECT_EQ(d.volumes.at("glow").emission.color, (Vec3{1, 0.5, 0.1}));
+    EXPECT_EQ(parse_scene(json::parse(to_json(d).dump())), d);
+    // A grid may be named while the volume does not emit (intensity 0): it is kept, and read by nothing.
+    const SceneDocument dark = apply_merge_patch(d, json::parse(R"({"volumes": {"glow": {"emission": {"intensity": 0}}}})"));
+    EXPECT_EQ(dark.volumes.at("glow").emission.grid, "heat");
+    EXPECT_EQ(dark.volumes.at("glow").emission_grid(), "");
+    // Switching from one kind to the other in one edit.
+    const SceneDocument switched = apply_merge_patch(
+        d, json::parse(R"({"volumes": {"fire": {"emission": {"temperature_grid": "", "grid": "heat"}}}})"));
+    EXPECT_EQ(switched.volumes.at("fire").emission_grid(), "heat");
+    // The edit that names both is blamed at what it touched.
+    EXPECT_EQ(rejected_pointer([&] {
+                  (void)apply_merge_patch(d, json::parse(R"({"volumes": {"fire": {"emission": {"grid": "heat"}}}})"));
+              }),
+              "/volumes/fire/emission/grid");
+}
+
 TEST(Volumes, HostileMembersAreRejectedAtTheirPointer) {
     json nine = json::object();
     for (int i = 0; i < 9; ++i) nine["v" + std::to_string(i)] = {{"asset", "a"}};
@@ -358,6 +385,17 @@ TEST(Volumes, HostileMembersAreRejectedAtTheirPointer) {
         {{{"v", {{"asset", "a"}, {"scattering", {2, 1, 1}}}}}, "/volumes/v/scattering/0"},
         {{{"v", {{"asset", "a"}, {"phase", {{"g", 1}}}}}}, "/volumes/v/phase/g"},
         {{{"v", {{"asset", "a"}, {"phase", {{"model", "schlick"}}}}}}, "/volumes/v/phase/model"},
+        {{{"v", {{"asset", "a"}, {"emission", {{"intensity", -1}}}}}}, "/volumes/v/emission/intensity"},
+        {{{"v", {{"asset", "a"}, {"emission", {{"intensity", 1e7}, {"grid", "flame"}}}}}}, "/volumes/v/emission/intensity"},
+        {{{"v", {{"asset", "a"}, {"emission", {{"color", {1, -1, 1}}}}}}}, "/volumes/v/emission/color/1"},
+        {{{"v", {{"asset", "a"}, {"emission", {{"grid", 3}}}}}}, "/volumes/v/emission/grid"},
+        {{{"v", {{"asset", "a"}, {"emission", {{"grid", std::string(65, 'g')}}}}}}, "/volumes/v/emission/grid"},
+        {{{"v", {{"asset", "a"}, {"emission", {{"temperature_grid", std::string(65, 't')}}}}}},
+         "/volumes/v/emission/temperature_grid"},
+        {{{"v", {{"asset", "a"}, {"emission", {{"flame", "x"}}}}}}, "/volumes/v/emission/flame"},
+        {{{"v", {{"asset", "a"}, {"emission", {{"intensity", 2}}}}}}, "/volumes/v/emission/intensity"},
+        {{{"v", {{"asset", "a"}, {"emission", {{"intensity", 2}, {"grid", "f"}, {"temperature_grid", "t"}}}}}},
+         "/volumes/v/emission/grid"},
     };
     const SceneDocument current = parse_scene(json::parse(R"({"volumes": {"v": {"asset": "a"}}})"));
     for (const auto& [volumes, pointer] : cases) {

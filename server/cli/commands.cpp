@@ -139,9 +139,13 @@ scene::Densities densities_of(const Loaded& loaded) {
         const auto it = loaded.volumes.find(member.asset);
         if (it == loaded.volumes.end())
             throw std::runtime_error("the scene names volume " + member.asset + ": pass --volume " + member.asset + "=FILE.vdb");
+        auto grid = [&](const std::string& name) {
+            return std::make_shared<const volume::DensityGrid>(volume::export_density(
+                it->second.second, name, volume::limits_for_resolution(protocol::Limits{}.max_resolution)));
+        };
         try {
-            densities[key] = std::make_shared<const volume::DensityGrid>(volume::export_density(
-                it->second.second, member.grid, volume::limits_for_resolution(protocol::Limits{}.max_resolution)));
+            densities[key].density = grid(member.grid);
+            if (member.emission.emits()) densities[key].emission = grid(member.emission_grid());
         } catch (const volume::VolumeError& e) {
             throw std::runtime_error(it->second.first + ": " + e.what());
         }

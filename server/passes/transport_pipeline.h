@@ -85,6 +85,7 @@ struct TransportInputs {
     const vk::Buffer& levels;
     const vk::Image3D& medium_extinction;
     const vk::Image3D& medium_scattering;
+    const vk::Image3D& medium_emission;
     VkSampler sampler;
     TransportVariant variant;
 };
@@ -96,6 +97,7 @@ inline constexpr vk::BindingLayout kTransportInputLayout[] = {
     {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_MEDIUM_EXTINCTION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_MEDIUM_SCATTERING, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_MEDIUM_EMISSION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
 };
 constexpr size_t kTransportInputCount = std::size(kTransportInputLayout);
 
@@ -117,7 +119,8 @@ std::array<vk::Binding, kTransportInputCount + N> transport_bindings(const Trans
         vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
         vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
         vk::Binding::sampled_image(TRANSPORT_BINDING_MEDIUM_EXTINCTION, in.medium_extinction, in.sampler),
-        vk::Binding::sampled_image(TRANSPORT_BINDING_MEDIUM_SCATTERING, in.medium_scattering, in.sampler)};
+        vk::Binding::sampled_image(TRANSPORT_BINDING_MEDIUM_SCATTERING, in.medium_scattering, in.sampler),
+        vk::Binding::sampled_image(TRANSPORT_BINDING_MEDIUM_EMISSION, in.medium_emission, in.sampler)};
     for (size_t i = 0; i < N; ++i) bindings[kTransportInputCount + i] = own[i];
     return bindings;
 }

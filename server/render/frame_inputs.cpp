@@ -44,7 +44,8 @@ FrameInputs::Transport photon_settings(const protocol::SceneDocument& document, 
 }
 
 FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document, const passes::GridGeometry& grid,
-                                        const passes::EnvironmentLight& environment, const RunOptions& options) {
+                                        const passes::EnvironmentLight& environment, const MediumEmission& emitted,
+                                        const RunOptions& options) {
     FrameInputs::Transport in = photon_settings(document, options);
     in.fresnel = fresnel_reflects(document);
     in.film = film_reflects(document);
@@ -62,6 +63,8 @@ FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document,
     transport.view_jitter = options.view_jitter;
     transport.bounce_cap = options.bounce_cap;
     transport.environment = &environment;
+    transport.volume_emission_power = emitted.power;
+    transport.volume_emission_ratio = emitted.channel_ratio;
     in.lights = make_transport_params(document, grid, transport);
     if (document.objects.size() > 1)
         for (const auto& [name, object] : document.objects) in.materials.push_back(material_for(object, document.medium, grid));

@@ -11,6 +11,7 @@
 #include "passes/grid_geometry.h"
 #include "passes/index_field.h"
 #include "protocol/scene_document.h"
+#include "render/medium_field.h"
 #include "transport.h"
 
 namespace refract::scene {
@@ -58,8 +59,10 @@ FrameInputs::Volume volume_inputs(const protocol::SceneDocument& document);
 // serves a run with `options`.
 FrameInputs::Transport photon_settings(const protocol::SceneDocument& document, const RunOptions& options);
 
-// The transport's inputs over the lattice `grid`, lit by `environment` (made of environment_source).
+// The transport's inputs over the lattice `grid`, lit by `environment` (made of environment_source) and
+// by what the volumes emit (the medium field's, made of the document's volumes on `grid`).
 FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document, const passes::GridGeometry& grid,
-                                        const passes::EnvironmentLight& environment, const RunOptions& options);
+                                        const passes::EnvironmentLight& environment, const MediumEmission& emitted,
+                                        const RunOptions& options);
 
 }  // namespace refract::scene

@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <bit>
 #include <limits>
+#include <numbers>
 #include <unordered_map>
 
 #include "assets/render_error.h"
 #include "mesh/mesh.h"
+#include "render/blackbody.h"
 
 namespace refract::scene {
 
@@ -97,11 +100,14 @@ glm::dvec3 vec(const protocol::Vec3& v) {
     return {v[0], v[1], v[2]};
 }
 
-// Adds one volume's coefficients to `field` over the field voxels its box meets.
-void add_volume(MediumField& field, const passes::GridGeometry& lattice, uint32_t step,
-                const protocol::DensityVolume& member, const volume::DensityGrid& grid) {
-    const Placement p = place(member, grid);
+// Calls add(i, mean) for each field voxel i that the member's `grid` reaches where the mean over 1 or
+// 2^3 points in the voxel (2^3 where the grid's voxel is smaller than the field's) of value(the grid's
+// trilinear value there) is not 0.
+template <class Value, class Add>
+void sample_grid(const MediumField& field, const passes::GridGeometry& lattice, uint32_t step,
+                 const protocol::DensityVolume& member, const volume::DensityGrid& grid, Value value, Add add) {
     if (grid.leaves.empty()) return;
+    const Placement p = place(member, grid);
     const double side = static_cast<double>(lattice.voxel_size) * step;  // a field voxel, metres
     const glm::dvec3 origin(lattice.origin);
     const glm::ivec3 dims(static_cast<int>(field.dims.x), static_cast<int>(field.dims.y), static_cast<int>(field.dims.z));
@@ -111,27 +117,67 @@ void add_volume(MediumField& field, const passes::GridGeometry& lattice, uint32_
     const glm::ivec3 end(glm::clamp(glm::floor((p.world_max - origin) / side) + 1.0, glm::dvec3(0.0), top));
     const int samples = static_cast<int>(std::clamp(std::ceil(side / p.voxel), 1.0, 2.0));
     const DensityLookup lookup(grid);
-    const glm::dvec3 extinction = vec(member.extinction) * member.density_scale;
-    const glm::dvec3 scattering = vec(member.scattering) * member.density_scale;
-    const double g = member.phase.model == protocol::PhaseModel::isotropic ? 0.0 : member.phase.g;
-    const double g_weight = g * (scattering.x + scattering.y + scattering.z) / 3.0;
     for (int z = first.z; z < end.z; ++z)
         for (int y = first.y; y < end.y; ++y)
             for (int x = first.x; x < end.x; ++x) {
-                double density = 0.0;
+                glm::dvec3 sum(0.0);
                 for (int s = 0; s < samples * samples * samples; ++s) {
                     const glm::dvec3 sub((s % samples + 0.5) / samples, (s / samples % samples + 0.5) / samples,
                                          (s / samples / samples + 0.5) / samples);
                     const glm::dvec3 world = origin + (glm::dvec3(x, y, z) + sub) * side;
-                    density += lookup.trilinear(p.world_to_index * (world - p.world_origin));
+                    sum += value(lookup.trilinear(p.world_to_index * (world - p.world_origin)));
                 }
-                density /= samples * samples * samples;
-                if (density == 0.0) continue;
-                const size_t i = (static_cast<size_t>(z) * field.dims.y + static_cast<size_t>(y)) * field.dims.x +
-                                 static_cast<size_t>(x);
-                field.extinction[i] += glm::vec4(glm::vec3(extinction * density), 0.0f);
-                field.scattering[i] += glm::vec4(glm::vec3(scattering * density), static_cast<float>(g_weight * density));
+                if (sum == glm::dvec3(0.0)) continue;
+                add((static_cast<size_t>(z) * field.dims.y + static_cast<size_t>(y)) * field.dims.x + static_cast<size_t>(x),
+                    sum / static_cast<double>(samples * samples * samples));
             }
+}
+
+// Adds one volume's coefficients to `field` over the field voxels its box meets.
+void add_volume(MediumField& field, const passes::GridGeometry& lattice, uint32_t step,
+                const protocol::DensityVolume& member, const volume::DensityGrid& grid) {
+    const glm::dvec3 extinction = vec(member.extinction) * member.density_scale;
+    const glm::dvec3 scattering = vec(member.scattering) * member.density_scale;
+    const double g = member.phase.model == protocol::PhaseModel::isotropic ? 0.0 : member.phase.g;
+    const double g_weight = g * (scattering.x + scattering.y + scattering.z) / 3.0;
+    sample_grid(field, lattice, step, member, grid, [](double density) { return glm::dvec3(density); },
+                [&](size_t i, glm::dvec3 mean) {
+                    const double density = mean.x;
+                    field.extinction[i] += glm::vec4(glm::vec3(extinction * density), 0.0f);
+                    field.scattering[i] += glm::vec4(glm::vec3(scattering * density), static_cast<float>(g_weight * density));
+                });
+}
+
+// Adds what one volume emits to `field.emission`: from its temperature grid through blackbody_rgb, or
+// its colour times its emission grid's value.
+void add_emission(MediumField& field, const passes::GridGeometry& lattice, uint32_t step,
+                  const protocol::DensityVolume& member, const volume::DensityGrid& grid) {
+    const bool blackbody = !member.emission.temperature_grid.empty();
+    const glm::dvec3 colour = vec(member.emission.color) * member.emission.intensity;
+    const double intensity = member.emission.intensity;
+    sample_grid(field, lattice, step, member, grid,
+                [&](double value) { return blackbody ? blackbody_rgb(value) * intensity : colour * value; },
+                [&](size_t i, glm::dvec3 mean) { field.emission[i] += glm::vec4(glm::vec3(mean), 0.0f); });
+}
+
+// The emitters' table, the emitted power and the largest channel ratio from field.emission.
+void list_emitters(MediumField& field, const passes::GridGeometry& lattice, uint32_t step) {
+    double sum = 0.0;
+    std::vector<std::pair<uint32_t, double>> voxels;
+    for (size_t i = 0; i < field.emission.size(); ++i) {
+        const glm::vec4& e = field.emission[i];
+        const double mean = (static_cast<double>(e.r) + static_cast<double>(e.g) + static_cast<double>(e.b)) / 3.0;
+        if (!(mean > 0.0)) continue;
+        sum += mean;
+        voxels.emplace_back(static_cast<uint32_t>(i), sum);
+        field.emitted.channel_ratio = std::max(field.emitted.channel_ratio, static_cast<double>(std::max({e.r, e.g, e.b})) / mean);
+    }
+    field.emitters.reserve(voxels.size());
+    for (const auto& [voxel, cumulative] : voxels)
+        field.emitters.emplace_back(voxel, std::bit_cast<uint32_t>(static_cast<float>(cumulative / sum)));
+    if (!field.emitters.empty()) field.emitters.back().y = std::bit_cast<uint32_t>(1.0f);
+    const double side = static_cast<double>(lattice.voxel_size) * step;
+    field.emitted.power = 4.0 * std::numbers::pi * sum * side * side * side;
 }
 
 }  // namespace
@@ -150,8 +196,10 @@ uint32_t medium_field_step(const passes::GridGeometry& lattice) {
     return step;
 }
 
-uint64_t medium_field_bytes(const passes::GridGeometry& lattice, bool volumes) {
-    return volumes ? lattice.coarsened(medium_field_step(lattice)).count() * 2 * sizeof(glm::vec4) : 0;
+uint64_t medium_field_bytes(const passes::GridGeometry& lattice, bool volumes, bool emits) {
+    if (!volumes) return 0;
+    const uint64_t voxels = lattice.coarsened(medium_field_step(lattice)).count();
+    return voxels * 2 * sizeof(glm::vec4) + (emits ? voxels * (sizeof(glm::vec4) + sizeof(glm::uvec2)) : 0);
 }
 
 namespace {
@@ -159,6 +207,10 @@ namespace {
 // Each voxel's extinction w: the most extinction (any channel) over its block of kMediumFieldBlock^3
 // field voxels and the voxels around the block, which a trilinear fetch in it reaches: 0 where the
 // field is 0 throughout the block.
+// The mark of a block that emits but does not extinguish: a trace of extinction (per metre) that no
+// ray notices but that says the block is not empty.
+constexpr float kEmittingBlockMark = 1e-20f;
+
 void mark_blocks(MediumField& field) {
     const glm::ivec3 dims(static_cast<int>(field.dims.x), static_cast<int>(field.dims.y), static_cast<int>(field.dims.z));
     auto at = [&](glm::ivec3 v) {
@@ -176,6 +228,10 @@ void mark_blocks(MediumField& field) {
                         for (int x = lo.x; x < hi.x; ++x) {
                             const glm::vec4& e = field.extinction[at({x, y, z})];
                             most = std::max({most, e.r, e.g, e.b});
+                            // A block that only emits is crossed in field voxels too, as what it
+                            // emits is gathered step by step.
+                            if (!field.emission.empty() && field.emission[at({x, y, z})] != glm::vec4(0.0f))
+                                most = std::max(most, kEmittingBlockMark);
                         }
                 const glm::ivec3 end = glm::min(block + side, dims);
                 for (int z = bz; z < end.z; ++z)
@@ -192,13 +248,22 @@ MediumField resample_volumes(const passes::GridGeometry& lattice,
     if (!volumes.empty()) field.dims = lattice.coarsened(medium_field_step(lattice));
     field.extinction.assign(field.dims.count(), glm::vec4(0.0f));
     field.scattering.assign(field.dims.count(), glm::vec4(0.0f));
+    const uint32_t step = medium_field_step(lattice);
     for (const auto& [name, member] : volumes) {
         const auto it = densities.find(name);
-        if (it == densities.end() || !it->second)
+        if (it == densities.end() || !it->second.density)
             throw RenderError("volume '" + member.asset + "' of /volumes/" + name + " is not loaded");
-        add_volume(field, lattice, medium_field_step(lattice), member, *it->second);
+        add_volume(field, lattice, step, member, *it->second.density);
+        if (!member.emission.emits()) continue;
+        if (!it->second.emission)
+            throw RenderError("grid '" + member.emission_grid() + "' of volume '" + member.asset + "' (/volumes/" + name +
+                              "/emission) is not loaded");
+        if (field.emission.empty()) field.emission.assign(field.dims.count(), glm::vec4(0.0f));
+        add_emission(field, lattice, step, member, *it->second.emission);
     }
     mark_blocks(field);
+    list_emitters(field, lattice, step);
+    if (field.emitters.empty()) field.emission.clear();  // emits nothing after all: one texel of zeros
     return field;
 }
 

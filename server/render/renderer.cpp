@@ -130,9 +130,16 @@ ResolvedAssets resolve(const protocol::SceneDocument& document, const Assets& as
             throw RenderError("environment '" + document.environment.image + "' is not a built-in or an uploaded one");
     }
     for (const auto& [name, member] : document.volumes) {
-        auto density = assets.density ? assets.density(member.asset, member.grid) : nullptr;
-        if (!density) throw RenderError("volume '" + member.asset + "' of /volumes/" + name + " is not an uploaded one");
-        resolved.densities.emplace(name, std::move(density));
+        VolumeGrids grids;
+        grids.density = assets.density ? assets.density(member.asset, member.grid) : nullptr;
+        if (!grids.density) throw RenderError("volume '" + member.asset + "' of /volumes/" + name + " is not an uploaded one");
+        if (member.emission.emits()) {
+            grids.emission = assets.density ? assets.density(member.asset, member.emission_grid()) : nullptr;
+            if (!grids.emission)
+                throw RenderError("grid '" + member.emission_grid() + "' of volume '" + member.asset + "' (/volumes/" + name +
+                                  "/emission) is not in the uploaded one");
+        }
+        resolved.densities.emplace(name, std::move(grids));
     }
     return resolved;
 }
@@ -160,7 +167,9 @@ int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes&
         field_atlas_for(g, boxes, grid || document.objects.size() < 2, std::numeric_limits<uint32_t>::max()).dims.count();
     return estimate_scene_bytes(g, field_voxels, object_voxels, g.coarsened(g.light_factor).count(), document.image.width,
                                 document.image.height) +
-           estimate_environment_bytes(environment) + static_cast<int64_t>(medium_field_bytes(g, !document.volumes.empty()));
+           estimate_environment_bytes(environment) + static_cast<int64_t>(medium_field_bytes(
+               g, !document.volumes.empty(), std::any_of(document.volumes.begin(), document.volumes.end(),
+                                                         [](const auto& named) { return named.second.emission.emits(); })));
 }
 
 // Still frames of other views of the scene kept for their refinement (ViewStage::ParkedFrame): a few

@@ -102,8 +102,9 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     if (volume_.lay_out(grid_, volume_in, worlds, stale, built_)) built_ &= ~(kIndexField | kOctree);
     const image::EnvironmentMap* image = document.environment.type == protocol::EnvironmentKind::image ? environment : nullptr;
     transport_.prepare_environment(environment_source(document, image));
-    transport_.prepare(transport_inputs(document, grid_, transport_.environment(), options), stale, options, grid_, volume_,
-                       densities);
+    transport_.prepare_medium_field(document.volumes, grid_, densities);
+    transport_.prepare(transport_inputs(document, grid_, transport_.environment(), transport_.medium_emission(), options),
+                       stale, options, grid_, volume_);
 
     // One submission for every stale pass (with give_way: one per volume pass and per part of the photons
     // and view, so that the run can stop after any); each pass is bracketed by timestamps.

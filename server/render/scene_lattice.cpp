@@ -22,11 +22,14 @@ passes::GridGeometry scene_grid(const protocol::SceneDocument& document, const s
             hi = glm::max(hi, p);
         }
     for (const auto& [name, member] : document.volumes) {
-        const auto grid = densities.find(name);
-        glm::dvec3 box_lo, box_hi;
-        if (grid == densities.end() || !grid->second || !volume_world_box(member, *grid->second, box_lo, box_hi)) continue;
-        lo = glm::min(lo, glm::vec3(box_lo));
-        hi = glm::max(hi, glm::vec3(box_hi));
+        const auto grids = densities.find(name);
+        if (grids == densities.end()) continue;
+        for (const auto& grid : {grids->second.density, grids->second.emission}) {
+            glm::dvec3 box_lo, box_hi;
+            if (!grid || !volume_world_box(member, *grid, box_lo, box_hi)) continue;
+            lo = glm::min(lo, glm::vec3(box_lo));
+            hi = glm::max(hi, glm::vec3(box_hi));
+        }
     }
     const float margin = static_cast<float>(volume.margin);
     return passes::fit_grid(lo - margin, hi + margin, volume.resolution);

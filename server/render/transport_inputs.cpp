@@ -51,8 +51,10 @@ uint32_t transport_channels(const protocol::SceneDocument& document) {
     auto grey = [](const auto& rgb) { return rgb[0] == rgb[1] && rgb[1] == rgb[2]; };
     const bool objects_grey = std::all_of(document.objects.begin(), document.objects.end(),
                                           [&](const auto& named) { return grey(named.second.extinction); });
-    const bool volumes_grey = std::all_of(document.volumes.begin(), document.volumes.end(),
-                                          [&](const auto& named) { return grey(named.second.extinction); });
+    // An emitting volume's photons have their own colours, not the light's.
+    const bool volumes_grey = std::all_of(document.volumes.begin(), document.volumes.end(), [&](const auto& named) {
+        return grey(named.second.extinction) && !named.second.emission.emits();
+    });
     return grey(document.medium.extinction) && objects_grey && volumes_grey && !film_reflects(document) &&
                    lights_share_colour(document) && !environment_lights(document)
                ? CHANNELS_GREY
@@ -354,8 +356,12 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
         powers.push_back(environment_power);
         p.environment_light = glm::vec4(lighting->floor_irradiance, 0.0f);
     }
+    // The volumes' emission, like the environment, sends its photons with the carrier below.
+    const bool volume_photons = options.volume_emission_power > 0.0;
+    if (volume_photons) powers.push_back(options.volume_emission_power);
     const std::vector<uint32_t> shares = passes::photon_shares(document.photons.count, powers);
-    const uint32_t from_environment = environment_photons ? shares.back() : 0u;
+    const uint32_t from_volumes = volume_photons ? shares.back() : 0u;
+    const uint32_t from_environment = environment_photons ? shares[lights.size()] : 0u;
     // The dispatch that carries the environment's photons: the first light's that has any (the first
     // light's when none has).
     size_t carrier = 0;
@@ -364,7 +370,8 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
     for (size_t i = 0; i < lights.size(); ++i) {
         const uint32_t photons = shares[i];
         const uint32_t environment_share = i == carrier ? from_environment : 0u;
-        if (photons == 0 && environment_share == 0) continue;
+        const uint32_t volume_share = i == carrier ? from_volumes : 0u;
+        if (photons == 0 && environment_share == 0 && volume_share == 0) continue;
         shaders::TransportParams q = p;
         const shaders::LightParams& light = lights[i];
         const Emitter& e = emitters[i];
@@ -386,12 +393,21 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
             q.environment.z = environment_share;
             q.environment_frame.w = static_cast<float>(environment_flux / static_cast<double>(reference));
         }
+        if (volume_share > 0) {
+            // A volume photon carries its voxel's colour over the colour's mean times this.
+            const double volume_flux = options.volume_emission_power / volume_share;
+            reference = std::max(reference, static_cast<float>(volume_flux * options.volume_emission_ratio));
+            q.volume_emission.x = volume_share;
+            q.volume_emission_flux.x = static_cast<float>(volume_flux / static_cast<double>(reference));
+            if (environment_share > 0)  // against the reference as it now is
+                q.environment_frame.w = static_cast<float>(environment_power / environment_share / static_cast<double>(reference));
+        }
         q.photon_flux = glm::vec4(flux, reference);
         // Each refinement batch draws its own photons: another seed (a Weyl step, so batches never repeat
         // one), and so does each light.
         const uint32_t seed = document.photons.seed + options.photon_batch * 0x9e3779b9u +
                               static_cast<uint32_t>(i) * 0x632be5abu + options.history_frame * 0x2545f491u;
-        const uint32_t count = photons + environment_share;
+        const uint32_t count = photons + environment_share + volume_share;
         q.photon_info = glm::uvec4(count, seed, max_steps, options.fixed_step ? 1u : 0u);
         // Fixed-point scales chosen so no voxel or texel sum can overflow 2^31 even if every photon
         // deposited its full weight into it: a voxel crossing is at most sqrt(3) voxel lengths, and a net

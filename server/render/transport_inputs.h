@@ -29,6 +29,10 @@ struct TransportOptions {
     uint32_t view_jitter = 0;   // RunOptions::view_jitter
     uint32_t bounce_cap = protocol::kMaxBounces;  // most of photons.max_bounces taken (interactive: fewer)
     const passes::EnvironmentLight* environment = nullptr;  // the document's environment (nullptr: lights nothing)
+    // What the volumes emit (MediumField::emitted_power, W, the channels' mean; 0: nothing) and the
+    // largest channel over that mean (MediumField::emission_channel_ratio).
+    double volume_emission_power = 0.0;
+    double volume_emission_ratio = 1.0;
 };
 
 // The frame's parameters, once per light whose photons run (each with its light_* and emit_* fields,

@@ -109,33 +109,50 @@ void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t phot
     }
 }
 
-void TransportStage::prepare_medium_field(const FrameInputs::Transport& in, const passes::GridGeometry& lattice,
-                                          const Densities& densities) {
+void TransportStage::prepare_medium_field(const std::map<std::string, protocol::DensityVolume>& volumes,
+                                          const passes::GridGeometry& lattice, const Densities& densities) {
     uploaded_field_.reset();  // the run that copied it has ended
     // Without volumes the field is one texel of zeros whatever the lattice, so the passes always bind it.
-    FieldSource source{in.volumes.empty() ? passes::GridGeometry{} : lattice, in.volumes, {}};
-    for (const auto& [name, member] : in.volumes) {
+    FieldSource source{volumes.empty() ? passes::GridGeometry{} : lattice, volumes, {}};
+    for (const auto& [name, member] : volumes) {
         const auto it = densities.find(name);
         if (it != densities.end()) source.densities.emplace(name, it->second);
     }
     if (field_source_ == source) return;
-    const MediumField field = resample_volumes(lattice, in.volumes, densities);
-    const uint64_t bytes = field.dims.count() * sizeof(glm::vec4);
-    medium_extinction_ = {};
-    medium_scattering_ = {};
-    medium_extinction_ = vk::Image3D(kit_.context, field.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "medium field extinction");
-    medium_scattering_ = vk::Image3D(kit_.context, field.dims, VK_FORMAT_R32G32B32A32_SFLOAT, "medium field scattering");
-    field_upload_.emplace(
-        vk::Buffer(kit_.context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::upload, "medium field extinction upload"),
-        vk::Buffer(kit_.context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::upload, "medium field scattering upload"));
-    field_upload_->first.write(field.extinction.data(), bytes);
-    field_upload_->second.write(field.scattering.data(), bytes);
+    const MediumField field = resample_volumes(lattice, volumes, densities);
+    const vk::Extent3 emission_dims = field.emission.empty() ? vk::Extent3{1, 1, 1} : field.dims;
+    const std::vector<glm::vec4> no_emission(field.emission.empty() ? 1 : 0, glm::vec4(0.0f));
+    const std::vector<glm::vec4>& emission = field.emission.empty() ? no_emission : field.emission;
+    auto image = [&](vk::Image3D& target, vk::Extent3 dims, const char* name) {
+        target = {};
+        target = vk::Image3D(kit_.context, dims, VK_FORMAT_R32G32B32A32_SFLOAT, name);
+    };
+    image(medium_extinction_, field.dims, "medium field extinction");
+    image(medium_scattering_, field.dims, "medium field scattering");
+    image(medium_emission_, emission_dims, "medium field emission");
+    auto staged = [&](const std::vector<glm::vec4>& texels, const char* name) {
+        const uint64_t bytes = texels.size() * sizeof(glm::vec4);
+        vk::Buffer buffer(kit_.context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::upload, name);
+        buffer.write(texels.data(), bytes);
+        return buffer;
+    };
+    field_upload_.emplace(FieldUpload{staged(field.extinction, "medium field extinction upload"),
+                                      staged(field.scattering, "medium field scattering upload"),
+                                      staged(emission, "medium field emission upload")});
+    // Read by the photon pass through its address: written here, as the materials are.
+    const std::vector<glm::uvec2> placeholder(field.emitters.empty() ? 1 : 0, glm::uvec2(0u));
+    const std::vector<glm::uvec2>& emitters = field.emitters.empty() ? placeholder : field.emitters;
+    medium_emitters_ = {};
+    medium_emitters_ = vk::Buffer(kit_.context, emitters.size() * sizeof(glm::uvec2), VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
+                                  vk::MemoryUse::upload, "medium field emitters");
+    medium_emitters_.write(emitters.data(), emitters.size() * sizeof(glm::uvec2));
+    emitter_count_ = static_cast<uint32_t>(field.emitters.size());
+    emitted_ = field.emitted;
     field_source_ = std::move(source);
 }
 
 void TransportStage::prepare(const FrameInputs::Transport& in, PassSet stale, const RunOptions& options,
-                             const passes::GridGeometry& lattice, const VolumeStage& volume, const Densities& densities) {
-    prepare_medium_field(in, lattice, densities);
+                             const passes::GridGeometry& lattice, const VolumeStage& volume) {
     light_params_ = in.lights;
     // Several objects: their materials, by the object numbers the index field holds per voxel.
     const bool several = !in.materials.empty();
@@ -162,6 +179,7 @@ void TransportStage::prepare(const FrameInputs::Transport& in, PassSet stale, co
         if (several) params.materials = glm::uvec4(halves(materials_.address()), params.materials.z, 0u);
         if (!atlas.dense) params.field_atlas = glm::uvec4(halves(volume.atlas_map().address()), 0u, 0u);
         params.atlas_dims = glm::uvec4(atlas.dims.x, atlas.dims.y, atlas.dims.z, 0u);
+        params.volume_emission = glm::uvec4(params.volume_emission.x, emitter_count_, halves(medium_emitters_.address()));
         params_buffers_[i].write(&params, sizeof(params));
     }
     const shaders::TransportParams& first = light_params_.front();
@@ -171,7 +189,8 @@ void TransportStage::prepare(const FrameInputs::Transport& in, PassSet stale, co
 
 passes::TransportInputs TransportStage::inputs_for(const vk::Buffer& params, const VolumeStage& volume) const {
     return passes::TransportInputs{params,           volume.index_field(), volume.coverage_image(), volume.levels(),
-                                   medium_extinction_, medium_scattering_, kit_.linear_sampler.get(), variant_};
+                                   medium_extinction_, medium_scattering_, medium_emission_, kit_.linear_sampler.get(),
+                                   variant_};
 }
 
 passes::TransportInputs TransportStage::view_inputs(const VolumeStage& volume) const {
@@ -183,10 +202,12 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
     vk::CommandRecorder& recorder = recording.recorder();
     if (field_upload_) {
         // A new medium field: its images into the layout the passes sample, filled before any pass reads.
-        recorder.init_image(medium_extinction_);
-        recorder.init_image(medium_scattering_);
-        recorder.copy(field_upload_->first, medium_extinction_);
-        recorder.copy(field_upload_->second, medium_scattering_);
+        for (const auto& [staging, image] : {std::pair{&field_upload_->extinction, &medium_extinction_},
+                                             std::pair{&field_upload_->scattering, &medium_scattering_},
+                                             std::pair{&field_upload_->emission, &medium_emission_}}) {
+            recorder.init_image(*image);
+            recorder.copy(*staging, *image);
+        }
         recorder.transfer_to_compute_barrier();
         uploaded_field_ = std::move(field_upload_);
         field_upload_.reset();

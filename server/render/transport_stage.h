@@ -41,11 +41,15 @@ public:
     // lights nothing, so the passes always address a buffer. Throws RenderError for an image not given.
     void prepare_environment(const passes::EnvironmentSource& source);
     const passes::EnvironmentLight& environment() const { return environment_light_; }
-    // The frame's parameters (with the device addresses they name), the materials, the photon images
-    // when the photons are stale, and the medium field when the volumes, their `densities` or the lattice
-    // changed (uploaded by the next record).
+    // The medium field, made again when the volumes, their `densities` or the lattice changed (uploaded
+    // by the next record), and what it emits.
+    void prepare_medium_field(const std::map<std::string, protocol::DensityVolume>& volumes,
+                              const passes::GridGeometry& lattice, const Densities& densities);
+    const MediumEmission& medium_emission() const { return emitted_; }
+    // The frame's parameters (with the device addresses they name), the materials and the photon images
+    // when the photons are stale.
     void prepare(const FrameInputs::Transport& in, PassSet stale, const RunOptions& options,
-                 const passes::GridGeometry& lattice, const VolumeStage& volume, const Densities& densities);
+                 const passes::GridGeometry& lattice, const VolumeStage& volume);
     // Records the photon passes when stale; false when the run stopped at a part. `resolved` is set once
     // a light's photons replaced the radiance grid's running mean.
     bool record(FrameRecording& recording, PassSet stale, PassSet built, const RunOptions& options,
@@ -75,8 +79,6 @@ private:
     void allocate(const passes::GridGeometry& lattice, uint32_t photon_exit_count, bool record_exits,
                   uint32_t radiance_factor, uint32_t channels, bool adaptive_density);
     passes::TransportInputs inputs_for(const vk::Buffer& params, const VolumeStage& volume) const;
-    void prepare_medium_field(const FrameInputs::Transport& in, const passes::GridGeometry& lattice,
-                              const Densities& densities);
 
     PassKit& kit_;
     uint32_t floor_texels_ = 0, exit_capacity_ = 0, radiance_factor_ = 0;
@@ -105,10 +107,17 @@ private:
         Densities densities;
         bool operator==(const FieldSource&) const = default;
     };
-    vk::Image3D medium_extinction_, medium_scattering_;
+    struct FieldUpload {
+        vk::Buffer extinction, scattering, emission;
+    };
+    vk::Image3D medium_extinction_, medium_scattering_, medium_emission_;
+    // The emitting field voxels (MediumField::emitters) by device address; a placeholder where none emit.
+    vk::Buffer medium_emitters_;
+    uint32_t emitter_count_ = 0;
+    MediumEmission emitted_;
     std::optional<FieldSource> field_source_;
-    std::optional<std::pair<vk::Buffer, vk::Buffer>> field_upload_;
-    std::optional<std::pair<vk::Buffer, vk::Buffer>> uploaded_field_;  // recorded: kept until the next run
+    std::optional<FieldUpload> field_upload_;
+    std::optional<FieldUpload> uploaded_field_;  // recorded: kept until the next run
 };
 
 }  // namespace refract::scene

@@ -224,16 +224,21 @@ void check_volumes(const protocol::SceneDocument& document,
         if (!report)
             throw protocol::ValidationError(base + "/asset", "no volume named \"" + density.asset +
                                                                  "\" (GET /api/volumes lists them)");
-        std::string usable;
-        bool found = false;
-        for (const volume::GridSummary& grid : report->grids) {
-            found = found || (grid.usable && grid.name == density.grid);
-            if (grid.usable) usable += (usable.empty() ? "\"" : ", \"") + grid.name + "\"";
-        }
-        if (!found)
-            throw protocol::ValidationError(base + "/grid", "volume \"" + density.asset +
-                                                                "\" has no usable float grid \"" + density.grid +
-                                                                "\" (its usable grids: " + usable + ")");
+        auto check_grid = [&](const std::string& name, const std::string& pointer) {
+            std::string usable;
+            bool found = false;
+            for (const volume::GridSummary& grid : report->grids) {
+                found = found || (grid.usable && grid.name == name);
+                if (grid.usable) usable += (usable.empty() ? "\"" : ", \"") + grid.name + "\"";
+            }
+            if (!found)
+                throw protocol::ValidationError(pointer, "volume \"" + density.asset + "\" has no usable float grid \"" +
+                                                             name + "\" (its usable grids: " + usable + ")");
+        };
+        check_grid(density.grid, base + "/grid");
+        if (density.emission.emits())
+            check_grid(density.emission_grid(),
+                       base + (density.emission.grid.empty() ? "/emission/temperature_grid" : "/emission/grid"));
     }
 }
 

@@ -62,6 +62,31 @@ void emit_environment_ray(vec2 s, vec2 disc, out vec3 origin, out vec3 direction
     weight = texel.rgb * (3.0 * params.environment_frame.w / max(texel.r + texel.g + texel.b, 1e-30));
 }
 
+layout(buffer_reference, std430, buffer_reference_align = 8) readonly buffer MediumEmitters { uvec2 entries[]; };
+
+// The ray of a photon the volumes emit (transport.h, volume_emission): `pick` draws its field voxel from
+// the emitters' table by what each emits, `within` the point in that voxel, `turn` its direction,
+// uniform on the sphere. Origin in world units. weight: its flux relative to photon_flux.w, the voxel's
+// colour over the colour's mean times volume_emission_flux.x.
+void emit_volume_ray(float pick, vec3 within, vec2 turn, out vec3 origin, out vec3 direction, out vec3 weight) {
+    MediumEmitters table = MediumEmitters(params.volume_emission.zw);
+    uint lo = 0u, hi = params.volume_emission.y - 1u;
+    while (lo < hi) {
+        uint mid = (lo + hi) / 2u;
+        if (uintBitsToFloat(table.entries[mid].y) > pick) hi = mid;
+        else lo = mid + 1u;
+    }
+    uint voxel = table.entries[lo].x;
+    ivec3 size = textureSize(medium_emission_field, 0);
+    ivec3 v = ivec3(voxel % uint(size.x), (voxel / uint(size.x)) % uint(size.y), voxel / uint(size.x * size.y));
+    vec3 colour = texelFetch(medium_emission_field, v, 0).rgb;
+    origin = to_world((vec3(v) + within) * params.medium_field.w);
+    float cos_t = 1.0 - 2.0 * turn.x, sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
+    float phi = kTwoPi * turn.y;
+    direction = vec3(sin_t * cos(phi), sin_t * sin(phi), cos_t);
+    weight = colour * (3.0 * params.volume_emission_flux.x / max(colour.r + colour.g + colour.b, 1e-30));
+}
+
 // The unit direction of the light's ray through world point x, and how far x lies along it (voxels,
 // from the light or the emitter's plane).
 vec3 ray_through(vec3 x, out float along) {

@@ -91,6 +91,8 @@ REFRACT_SHADERS_BEGIN
                                                 // extinction about the voxel's block (below), 0: empty
 #define TRANSPORT_BINDING_MEDIUM_SCATTERING 28  // sampler3D rgba32f: rgb scattering per metre; a: the phase
                                                 // g of each volume there times its channels' mean scattering
+#define TRANSPORT_BINDING_MEDIUM_EMISSION 29    // sampler3D rgba32f: rgb the volumes' emitted radiance per
+                                                // metre of path; one texel of zeros where none emits
 // Rays cross a block of MEDIUM_FIELD_BLOCK^3 field voxels where the field is 0 (and around it, as far as a
 // trilinear fetch reaches) in one step, and elsewhere step a field voxel at most.
 #define MEDIUM_FIELD_BLOCK 8
@@ -318,6 +320,15 @@ struct TransportParams {
     vec4 medium_field;        // the medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): xyz: 1 / its extent in
                               // lattice voxels (a lattice point's texture coordinate is p * xyz); w: its
                               // voxel's side in lattice voxels, the longest step through it
+    // The volumes' emission (render/medium_field.h): the last volume_emission.x of the photon_info.x
+    // photons (after the light's and the environment's) leave field voxels drawn in proportion to what
+    // each emits, from a point uniform in the voxel, in a direction uniform on the sphere.
+    uvec4 volume_emission;    // x: photons from the volumes; y: emitting field voxels (entries of the
+                              // emitters' table; 0: nothing emits); zw: the table's device address (low,
+                              // high): per entry uvec2(field voxel index, x fastest; the inclusive CDF of
+                              // what the voxels emit as float bits)
+    vec4 volume_emission_flux;  // x: a volume photon's flux (the channels' mean) relative to photon_flux.w;
+                                // yzw: unused
     LightParams lights[TRANSPORT_MAX_LIGHTS];
 };
 
@@ -421,7 +432,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == (48 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == (50 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
 static_assert(sizeof(refract::shaders::Material) == 80);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);

@@ -20,6 +20,7 @@ layout(std430, binding = TRANSPORT_BINDING_LEVELS) readonly buffer Levels { uint
 layout(std430, binding = TRANSPORT_BINDING_STATS) buffer Stats { PhotonStats stats; };
 layout(binding = TRANSPORT_BINDING_MEDIUM_EXTINCTION) uniform sampler3D medium_extinction_field;
 layout(binding = TRANSPORT_BINDING_MEDIUM_SCATTERING) uniform sampler3D medium_scattering_field;
+layout(binding = TRANSPORT_BINDING_MEDIUM_EMISSION) uniform sampler3D medium_emission_field;
 
 // The index of the work item (pixel, photon) this invocation takes from `queue` (QUEUE_*), a subgroup's
 // worth at a time in the order subgroups run, rather than by invocation ID. lavapipe hands each CPU
@@ -168,6 +169,11 @@ vec3 field_extinction(vec3 p) {
 }
 vec4 field_scattering(vec3 p) {
     return kMediumField ? textureLod(medium_scattering_field, p * params.medium_field.xyz, 0.0) : vec4(0.0);
+}
+// Whether the volumes emit, and what (radiance per metre of path) at voxel point p.
+bool field_emits() { return kMediumField && params.volume_emission.y > 0u; }
+vec3 field_emission(vec3 p) {
+    return field_emits() ? textureLod(medium_emission_field, p * params.medium_field.xyz, 0.0).rgb : vec3(0.0);
 }
 
 // The phase function (model, g) where scattering takes the coverage c of object o: the object's over

@@ -67,6 +67,26 @@ std::string density_sphere_vdb(int radius, bool with_velocity) {
     return write(grids);
 }
 
+std::string flame_vdb(int radius, float kelvin) {
+    auto density = density_grid();
+    auto temperature = density_grid();
+    temperature->setName("temperature");
+    auto heat = density_grid();
+    heat->setName("heat");
+    auto d = density->getAccessor(), t = temperature->getAccessor(), h = heat->getAccessor();
+    for (int x = -radius; x <= radius; ++x)
+        for (int y = -radius; y <= radius; ++y)
+            for (int z = -radius; z <= radius; ++z) {
+                const double r = std::sqrt(double(x * x + y * y + z * z)) / radius;
+                if (r >= 1) continue;
+                const openvdb::Coord at(x, y, z);
+                d.setValue(at, float(1 - r));
+                h.setValue(at, float(1 - r));
+                t.setValue(at, kelvin * float(1 - r));
+            }
+    return write({density, temperature, heat});
+}
+
 std::string ramp_box_vdb(const std::array<int, 3>& lo, const std::array<int, 3>& hi, double voxel, float a, float b,
                          const std::string& name) {
     auto grid = density_grid();

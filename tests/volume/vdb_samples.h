@@ -27,6 +27,10 @@ std::string far_apart_vdb(int apart);
 // with active tiles where whole nodes fit (as DCCs write constant regions), else voxel by voxel.
 std::string ramp_box_vdb(const std::array<int, 3>& lo, const std::array<int, 3>& hi, double voxel, float a, float b,
                          const std::string& name = "density");
+// A flame: the density sphere of density_sphere_vdb(radius) and, over the same voxels, a float grid
+// "temperature" of `kelvin` at the centre falling linearly to 0 at the edge, and a float grid "heat" of
+// the density's values.
+std::string flame_vdb(int radius, float kelvin);
 // A float grid with a 6-5-4-3 tree (deeper than OpenVDB's standard), registered only while writing.
 std::string deep_tree_vdb();
 
