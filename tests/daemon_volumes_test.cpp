@@ -38,6 +38,22 @@ void expect_refused(httplib::Client& client, const json& document, const std::st
     EXPECT_EQ(client.Get("/api/scenes/bad")->status, 404);
 }
 
+// Scenes `lit` (the document) and `lit`-dark (its volume `member` at emission intensity 0) render apart:
+// the emission shows. Returns the dark scene's frame.
+std::string expect_emission_shows(httplib::Client& client, const json& document, const std::string& lit,
+                                  const std::string& member) {
+    create_scene(client, lit, document);
+    json dark = document;
+    dark["volumes"][member]["emission"]["intensity"] = 0;
+    create_scene(client, lit + "-dark", dark);
+    auto burning = get_frame(client, lit);
+    auto unlit = get_frame(client, lit + "-dark");
+    EXPECT_TRUE(burning && unlit);
+    if (!burning || !unlit) return {};
+    EXPECT_NE(burning->body, unlit->body) << "the emission changed nothing in the frame";
+    return unlit->body;
+}
+
 TEST(DaemonVolumesTest, AVolumeIsListedWithItsGridsKeptAcrossARestartAndDeleted) {
     TempDir dir;
     const auto data = dir.path() / "data";
@@ -181,8 +197,7 @@ TEST(DaemonVolumesTest, AFlameNamesItsTemperatureGridAndLightsTheFrame) {
     Daemon daemon(dir.path() / "data");
     auto client = daemon.client();
     ASSERT_EQ(client.Put("/api/volumes/fire", flame_vdb(8, 1800.0f), "application/octet-stream")->status, 201);
-    const json listed = get_json(client, "/api/volumes");
-    ASSERT_EQ(listed.size(), 1u) << listed.dump();
+    ASSERT_EQ(volumes(client).size(), 1u);
 
     json document = kSmallScene;
     document["photons"]["count"] = 16384;
@@ -202,14 +217,7 @@ TEST(DaemonVolumesTest, AFlameNamesItsTemperatureGridAndLightsTheFrame) {
         expect_refused(client, bad, pointer);
     }
 
-    create_scene(client, "burning", document);
-    json dark = document;
-    dark["volumes"]["flame"]["emission"]["intensity"] = 0;
-    create_scene(client, "dark", dark);
-    auto burning = get_frame(client, "burning");
-    auto unlit = get_frame(client, "dark");
-    ASSERT_TRUE(burning && unlit);
-    EXPECT_NE(burning->body, unlit->body) << "the flame changed nothing in the frame";
+    const std::string unlit = expect_emission_shows(client, document, "burning", "flame");
     EXPECT_TRUE(get_frame(client, "burning", "?quality=interactive"));
     // Put out by an edit: the frame is the dark scene's.
     const json before = get_json(client, "/api/scenes/burning");
@@ -220,7 +228,39 @@ TEST(DaemonVolumesTest, AFlameNamesItsTemperatureGridAndLightsTheFrame) {
     ASSERT_EQ(patch(client, "burning", {{"volumes", {{"flame", {{"emission", {{"intensity", 0}}}}}}}})->status, 200);
     auto out = get_frame(client, "burning");
     ASSERT_TRUE(out);
-    EXPECT_EQ(out->body, unlit->body);
+    EXPECT_EQ(out->body, unlit);
+    ASSERT_TRUE(daemon.running());
+}
+
+// Built-in volumes (builtin.cloud, .flame, .smoke) are listed beside uploads and render without one; their
+// namespace is kept: an upload or deletion in it is refused and changes nothing.
+TEST(DaemonVolumesTest, BuiltInVolumesRenderWithoutAnUploadAndKeepTheirNames) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    const json listed = get_json(client, "/api/volumes");
+    EXPECT_EQ(listed["volumes"], json::array());  // the uploads: none
+    std::vector<std::string> names;
+    for (const json& v : listed["builtin"]) names.push_back(v["name"]);
+    EXPECT_EQ(names, (std::vector<std::string>{"builtin.cloud", "builtin.flame", "builtin.smoke"}));
+    for (const char* name : {"builtin.flame", "builtin.mine"}) {
+        auto put = client.Put(std::string("/api/volumes/") + name, density_sphere_vdb(4), "application/octet-stream");
+        ASSERT_TRUE(put);
+        EXPECT_EQ(put->status, 409) << put->body;
+    }
+    auto removed = client.Delete("/api/volumes/builtin.smoke");
+    ASSERT_TRUE(removed);
+    EXPECT_EQ(removed->status, 409) << removed->body;
+    EXPECT_EQ(get_json(client, "/api/volumes"), listed);
+
+    json document = kSmallScene;
+    document["photons"]["count"] = 16384;
+    document["light"]["intensity"] = 0;
+    document["volumes"] = {{"fire", {{"asset", "builtin.flame"}, {"emission", {{"temperature_grid", "temperature"}, {"intensity", 4}}}}}};
+    json bad = document;
+    bad["volumes"]["fire"]["grid"] = "soot";
+    expect_refused(client, bad, "/volumes/fire/grid");
+    expect_emission_shows(client, document, "fire", "fire");
     ASSERT_TRUE(daemon.running());
 }
 

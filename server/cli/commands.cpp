@@ -25,6 +25,7 @@
 #include "render/renderer.h"
 #include "render/scene_gpu.h"
 #include "vk/context.h"
+#include "volume/builtin_volumes.h"
 #include "volume/vdb_reader.h"
 
 namespace refract::cli {
@@ -136,6 +137,13 @@ std::shared_ptr<const image::EnvironmentMap> environment_of(const Loaded& loaded
 scene::Densities densities_of(const Loaded& loaded) {
     scene::Densities densities;
     for (const auto& [key, member] : loaded.document.volumes) {
+        if (volume::is_builtin_volume(member.asset) && !loaded.volumes.contains(member.asset)) {
+            densities[key].density = volume::builtin_density(member.asset, member.grid);
+            if (member.emission.emits()) densities[key].emission = volume::builtin_density(member.asset, member.emission_grid());
+            if (!densities[key].density || (member.emission.emits() && !densities[key].emission))
+                throw std::runtime_error("built-in volume " + member.asset + " has no grid the scene names");
+            continue;
+        }
         const auto it = loaded.volumes.find(member.asset);
         if (it == loaded.volumes.end())
             throw std::runtime_error("the scene names volume " + member.asset + ": pass --volume " + member.asset + "=FILE.vdb");

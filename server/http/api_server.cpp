@@ -18,6 +18,7 @@
 #include "http/static_files.h"
 #include "image/exr.h"
 #include "render/invalidation.h"
+#include "volume/builtin_volumes.h"
 #include "volume/vdb_check.h"
 
 namespace refract::http {
@@ -692,19 +693,28 @@ struct ApiServer::Impl {
     }
 
     void list_volumes(const Request&, Response& res) {
-        json list = json::array();
+        json builtin = json::array(), list = json::array();
+        for (const std::string& name : volume::builtin_volume_names()) {
+            json item = volume::to_json(*volume::builtin_volume_report(name));
+            item["name"] = name;
+            builtin.push_back(item);
+        }
         for (const auto& entry : service.store().list_volumes()) {
             json item = volume::to_json(entry.report);
             item["name"] = entry.name;
             list.push_back(item);
         }
-        send_json(res, 200, {{"volumes", list}});
+        send_json(res, 200, {{"volumes", list}, {"builtin", builtin}});
     }
 
     // A re-upload changes the frames of the scenes whose volumes name it: cached frames are forgotten, as
     // after a mesh upload.
     void put_volume(const Request& req, Response& res) {
         std::string name = req.matches[1];
+        if (volume::is_builtin_volume(name)) {
+            send_error(res, 409, "'" + name + "': names starting \"builtin.\" are the built-in volumes': upload under another name");
+            return;
+        }
         try {
             scene::VolumeEntry entry = service.store().put_volume(name, req.body);
             service.queue().forget_cached_frames();
@@ -722,6 +732,10 @@ struct ApiServer::Impl {
 
     void delete_volume(const Request& req, Response& res) {
         const std::string name = req.matches[1];
+        if (volume::is_builtin_volume(name)) {
+            send_error(res, 409, "'" + name + "': names starting \"builtin.\" are the built-in volumes': they cannot be deleted");
+            return;
+        }
         remove_asset(
             res, [&] { return service.store().remove_volume(name); }, "no uploaded volume named '" + name + "'");
     }

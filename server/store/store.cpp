@@ -6,6 +6,7 @@
 #include <random>
 #include <sstream>
 
+#include "volume/builtin_volumes.h"
 #include "volume/vdb_check.h"
 
 namespace refract::scene {
@@ -220,7 +221,8 @@ void check_volumes(const protocol::SceneDocument& document,
                    const std::function<std::optional<volume::VolumeReport>(const std::string& name)>& stored) {
     for (const auto& [key, density] : document.volumes) {
         const std::string base = "/volumes/" + key;  // keys are valid names: nothing to escape
-        const std::optional<volume::VolumeReport> report = stored(density.asset);
+        const std::optional<volume::VolumeReport> report =
+            volume::is_builtin_volume(density.asset) ? volume::builtin_volume_report(density.asset) : stored(density.asset);
         if (!report)
             throw protocol::ValidationError(base + "/asset", "no volume named \"" + density.asset +
                                                                  "\" (GET /api/volumes lists them)");
@@ -247,7 +249,9 @@ Assets Store::assets() const {
     assets.mesh = [this](const std::string& name) { return mesh(name); };
     assets.grid = [this](const std::string& name) { return grid(name); };
     assets.environment = [this](const std::string& name) { return environment(name); };
-    assets.density = [this](const std::string& name, const std::string& grid) { return density(name, grid); };
+    assets.density = [this](const std::string& name, const std::string& grid) {
+        return volume::is_builtin_volume(name) ? volume::builtin_density(name, grid) : density(name, grid);
+    };
     return assets;
 }
 
