@@ -74,6 +74,7 @@ float cloud(float x, float y, float z) {
         shape = std::max(shape, 1.0f - d);
     }
     const float base = clamp01(y / 0.12f);  // a flat underside
+    if (shape <= -0.175f || base == 0.0f) return 0.0f;  // beyond what the noise can reach (+-0.175)
     return clamp01((shape + 0.35f * (fbm(3.0f * x, 3.0f * y, 3.0f * z) - 0.5f)) * 4.0f) * base;
 }
 
@@ -84,6 +85,7 @@ float flame_shape(float x, float y, float z) {
     const float radius = 0.11f * std::sqrt(t) * (1.0f - t) * 2.2f + 0.01f;
     const float wobble = 0.03f * t * (noise(4.0f * y, 1.7f, 0.3f) - 0.5f);
     const float r = std::sqrt((x - wobble) * (x - wobble) + z * z) / radius;
+    if (r >= 1.0f) return 0.0f;
     return clamp01((1.0f - r) * 2.0f) * (0.75f + 0.25f * fbm(12.0f * x, 12.0f * y - 3.0f, 12.0f * z));
 }
 
@@ -101,6 +103,7 @@ float smoke(float x, float y, float z) {
     const float sway = 0.08f * t * (noise(2.0f * y, 0.5f, 0.0f) - 0.5f) * 2.0f;
     const float radius = 0.05f + 0.2f * t;
     const float r = std::sqrt((x - sway) * (x - sway) + z * z) / radius;
+    if (r >= 1.0f) return 0.0f;
     const float turbulence = fbm(6.0f * x, 6.0f * y - 2.0f, 6.0f * z);
     return clamp01(1.0f - r * r) * (1.0f - 0.7f * t) * clamp01(1.6f * turbulence - 0.15f) * clamp01(t * 12.0f);
 }
