@@ -167,9 +167,7 @@ int64_t needed_bytes(const protocol::SceneDocument& document, const WorldMeshes&
         field_atlas_for(g, boxes, grid || document.objects.size() < 2, std::numeric_limits<uint32_t>::max()).dims.count();
     return estimate_scene_bytes(g, field_voxels, object_voxels, g.coarsened(g.light_factor).count(), document.image.width,
                                 document.image.height) +
-           estimate_environment_bytes(environment) + static_cast<int64_t>(medium_field_bytes(
-               g, !document.volumes.empty(), std::any_of(document.volumes.begin(), document.volumes.end(),
-                                                         [](const auto& named) { return named.second.emission.emits(); })));
+           estimate_environment_bytes(environment) + static_cast<int64_t>(medium_field_bytes(plan_medium_field(g, document.volumes, densities)));
 }
 
 // Still frames of other views of the scene kept for their refinement (ViewStage::ParkedFrame): a few

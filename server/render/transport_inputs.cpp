@@ -465,13 +465,6 @@ std::vector<shaders::TransportParams> make_transport_params(const protocol::Scen
     set_floor(p, document.floor, grid, lights);
     set_camera(p, document, options);
     set_medium_fade(p, document, grid);
-    if (!document.volumes.empty()) {
-        const uint32_t step = medium_field_step(grid);
-        const vk::Extent3 field = grid.coarsened(step);
-        p.medium_field = glm::vec4(1.0f / glm::vec3(static_cast<float>(field.x * step), static_cast<float>(field.y * step),
-                                                    static_cast<float>(field.z * step)),
-                                   static_cast<float>(step));
-    }
     // How passes find coverage for each coefficient, and whether photons need to deposit at all. n is
     // linear in coverage only in the field of one uniform object.
     const bool uniform_index = document.objects.size() == 1 && object.index_field == protocol::IndexFieldKind::uniform &&

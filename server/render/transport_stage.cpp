@@ -112,7 +112,7 @@ void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t phot
 void TransportStage::prepare_medium_field(const std::map<std::string, protocol::DensityVolume>& volumes,
                                           const passes::GridGeometry& lattice, const Densities& densities) {
     uploaded_field_.reset();  // the run that copied it has ended
-    // Without volumes the field is one texel of zeros whatever the lattice, so the passes always bind it.
+    // Without volumes the field is one brick of zeros whatever the lattice, so the passes always bind it.
     FieldSource source{volumes.empty() ? passes::GridGeometry{} : lattice, volumes, {}};
     for (const auto& [name, member] : volumes) {
         const auto it = densities.find(name);
@@ -120,16 +120,17 @@ void TransportStage::prepare_medium_field(const std::map<std::string, protocol::
     }
     if (field_source_ == source) return;
     const MediumField field = resample_volumes(lattice, volumes, densities);
-    const vk::Extent3 emission_dims = field.emission.empty() ? vk::Extent3{1, 1, 1} : field.dims;
+    const vk::Extent3 atlas{field.layout.bricks.x * kMediumBrickSide, field.layout.bricks.y * kMediumBrickSide,
+                            field.layout.bricks.z * kMediumBrickSide};
     const std::vector<glm::vec4> no_emission(field.emission.empty() ? 1 : 0, glm::vec4(0.0f));
     const std::vector<glm::vec4>& emission = field.emission.empty() ? no_emission : field.emission;
     auto image = [&](vk::Image3D& target, vk::Extent3 dims, const char* name) {
         target = {};
         target = vk::Image3D(kit_.context, dims, VK_FORMAT_R32G32B32A32_SFLOAT, name);
     };
-    image(medium_extinction_, field.dims, "medium field extinction");
-    image(medium_scattering_, field.dims, "medium field scattering");
-    image(medium_emission_, emission_dims, "medium field emission");
+    image(medium_extinction_, atlas, "medium field extinction bricks");
+    image(medium_scattering_, atlas, "medium field scattering bricks");
+    image(medium_emission_, field.emission.empty() ? vk::Extent3{1, 1, 1} : atlas, "medium field emission bricks");
     auto staged = [&](const std::vector<glm::vec4>& texels, const char* name) {
         const uint64_t bytes = texels.size() * sizeof(glm::vec4);
         vk::Buffer buffer(kit_.context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUse::upload, name);
@@ -139,13 +140,17 @@ void TransportStage::prepare_medium_field(const std::map<std::string, protocol::
     field_upload_.emplace(FieldUpload{staged(field.extinction, "medium field extinction upload"),
                                       staged(field.scattering, "medium field scattering upload"),
                                       staged(emission, "medium field emission upload")});
-    // Read by the photon pass through its address: written here, as the materials are.
-    const std::vector<glm::uvec2> placeholder(field.emitters.empty() ? 1 : 0, glm::uvec2(0u));
-    const std::vector<glm::uvec2>& emitters = field.emitters.empty() ? placeholder : field.emitters;
-    medium_emitters_ = {};
-    medium_emitters_ = vk::Buffer(kit_.context, emitters.size() * sizeof(glm::uvec2), VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
-                                  vk::MemoryUse::upload, "medium field emitters");
-    medium_emitters_.write(emitters.data(), emitters.size() * sizeof(glm::uvec2));
+    // Read by the passes through their addresses: written here, as the materials are.
+    auto addressed = [&](vk::Buffer& target, std::vector<glm::uvec2> entries, const char* name) {
+        if (entries.empty()) entries.assign(1, glm::uvec2(MEDIUM_NO_BRICK, 0u));
+        target = {};
+        target = vk::Buffer(kit_.context, entries.size() * sizeof(glm::uvec2), VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
+                            vk::MemoryUse::upload, name);
+        target.write(entries.data(), entries.size() * sizeof(glm::uvec2));
+    };
+    addressed(medium_blocks_, field.blocks, "medium field blocks");
+    addressed(medium_emitters_, field.emitters, "medium field emitters");
+    field_layout_ = field.layout;
     emitter_count_ = static_cast<uint32_t>(field.emitters.size());
     emitted_ = field.emitted;
     field_source_ = std::move(source);
@@ -180,6 +185,10 @@ void TransportStage::prepare(const FrameInputs::Transport& in, PassSet stale, co
         if (!atlas.dense) params.field_atlas = glm::uvec4(halves(volume.atlas_map().address()), 0u, 0u);
         params.atlas_dims = glm::uvec4(atlas.dims.x, atlas.dims.y, atlas.dims.z, 0u);
         params.volume_emission = glm::uvec4(params.volume_emission.x, emitter_count_, halves(medium_emitters_.address()));
+        const vk::Extent3& dims = field_layout_.dims;
+        params.medium_field = glm::vec4(static_cast<float>(dims.x), static_cast<float>(dims.y), static_cast<float>(dims.z),
+                                        static_cast<float>(field_layout_.step));
+        params.medium_blocks = glm::uvec4(halves(medium_blocks_.address()), field_layout_.bricks.x, field_layout_.bricks.y);
         params_buffers_[i].write(&params, sizeof(params));
     }
     const shaders::TransportParams& first = light_params_.front();

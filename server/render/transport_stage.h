@@ -111,9 +111,11 @@ private:
         vk::Buffer extinction, scattering, emission;
     };
     vk::Image3D medium_extinction_, medium_scattering_, medium_emission_;
-    // The emitting field voxels (MediumField::emitters) by device address; a placeholder where none emit.
-    vk::Buffer medium_emitters_;
+    // The map of blocks and the emitting field voxels (MediumField::blocks, emitters) by device address; a
+    // placeholder where none emit.
+    vk::Buffer medium_blocks_, medium_emitters_;
     uint32_t emitter_count_ = 0;
+    MediumFieldLayout field_layout_;
     MediumEmission emitted_;
     std::optional<FieldSource> field_source_;
     std::optional<FieldUpload> field_upload_;

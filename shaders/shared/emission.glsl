@@ -76,11 +76,10 @@ void emit_volume_ray(float pick, vec3 within, vec2 turn, out vec3 origin, out ve
         if (uintBitsToFloat(table.entries[mid].y) > pick) hi = mid;
         else lo = mid + 1u;
     }
-    uint voxel = table.entries[lo].x;
-    ivec3 size = textureSize(medium_emission_field, 0);
-    ivec3 v = ivec3(voxel % uint(size.x), (voxel / uint(size.x)) % uint(size.y), voxel / uint(size.x * size.y));
-    vec3 colour = texelFetch(medium_emission_field, v, 0).rgb;
-    origin = to_world((vec3(v) + within) * params.medium_field.w);
+    uint voxel = table.entries[lo].x, mask = (1u << MEDIUM_VOXEL_BITS) - 1u;
+    vec3 v = vec3(uvec3(voxel & mask, (voxel >> MEDIUM_VOXEL_BITS) & mask, voxel >> (2u * MEDIUM_VOXEL_BITS)));
+    vec3 colour = field_emission((v + 0.5) * params.medium_field.w);  // the voxel's own value, at its centre
+    origin = to_world((v + within) * params.medium_field.w);
     float cos_t = 1.0 - 2.0 * turn.x, sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
     float phi = kTwoPi * turn.y;
     direction = vec3(sin_t * cos(phi), sin_t * sin(phi), cos_t);

@@ -87,15 +87,22 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_RAW_FLOOR_MAP 26  // rgba16f, as TRANSPORT_BINDING_FLOOR_MAP
 // The medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): the scene's volumes resampled on a coarse copy of the
 // lattice (render/medium_field.h), trilinearly filtered; a texel of zeros where a scene has none.
-#define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27  // sampler3D rgba32f: rgb extinction per metre; a: the most
-                                                // extinction about the voxel's block (below), 0: empty
-#define TRANSPORT_BINDING_MEDIUM_SCATTERING 28  // sampler3D rgba32f: rgb scattering per metre; a: the phase
+#define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27  // sampler3D rgba32f, bricks (below): rgb extinction per metre
+#define TRANSPORT_BINDING_MEDIUM_SCATTERING 28  // sampler3D rgba32f, bricks: rgb scattering per metre; a: the phase
                                                 // g of each volume there times its channels' mean scattering
-#define TRANSPORT_BINDING_MEDIUM_EMISSION 29    // sampler3D rgba32f: rgb the volumes' emitted radiance per
-                                                // metre of path; one texel of zeros where none emits
-// Rays cross a block of MEDIUM_FIELD_BLOCK^3 field voxels where the field is 0 (and around it, as far as a
-// trilinear fetch reaches) in one step, and elsewhere step a field voxel at most.
+#define TRANSPORT_BINDING_MEDIUM_EMISSION 29    // sampler3D rgba32f, bricks: rgb the volumes' emitted radiance
+                                                // per metre of path; one texel of zeros where none emits
+// The field is stored sparse: per block of MEDIUM_FIELD_BLOCK^3 field voxels a brick of MEDIUM_BRICK_SIDE^3
+// texels in each atlas above (the block and the voxel around it, so filtering is the dense field's),
+// found through the map of blocks (medium_blocks: uvec2 per block, x fastest: its brick, MEDIUM_NO_BRICK
+// where the block and the voxels around it hold nothing, and its majorant's float bits, the most
+// extinction its brick holds). Rays cross a block without a brick or with majorant 0 in one step, and
+// elsewhere step a field voxel at most.
 #define MEDIUM_FIELD_BLOCK 8
+#define MEDIUM_BRICK_SIDE 10
+#define MEDIUM_NO_BRICK 0xffffffffu
+// An emitting voxel's coordinates in the emitters' table: MEDIUM_VOXEL_BITS each, x lowest.
+#define MEDIUM_VOXEL_BITS 10u
 // A voxel whose photon tracks (in voxel lengths of photons of the reference flux) number fewer than
 // SPREAD_TRACKS spreads its light evenly over the smallest box of (2r + 1)^3 voxels that would hold that
 // many at its density, r at most SPREAD_VOXEL_RADIUS: about a quarter relative noise where photons are
@@ -317,16 +324,17 @@ struct TransportParams {
                               // to 0 at the grid's faces, 0: none; y: where the lowest face that fades lies
                               // (voxels: 0, or -1e30 where the floor hides the bottom face); z: 1 / x (0
                               // without a fade); w: unused
-    vec4 medium_field;        // the medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): xyz: 1 / its extent in
-                              // lattice voxels (a lattice point's texture coordinate is p * xyz); w: its
+    vec4 medium_field;        // the medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): xyz: its voxels; w: its
                               // voxel's side in lattice voxels, the longest step through it
+    uvec4 medium_blocks;      // xy: device address (low, high) of its map of blocks (MEDIUM_NO_BRICK above);
+                              // z, w: the atlases' bricks along x and y
     // The volumes' emission (render/medium_field.h): the last volume_emission.x of the photon_info.x
     // photons (after the light's and the environment's) leave field voxels drawn in proportion to what
     // each emits, from a point uniform in the voxel, in a direction uniform on the sphere.
     uvec4 volume_emission;    // x: photons from the volumes; y: emitting field voxels (entries of the
                               // emitters' table; 0: nothing emits); zw: the table's device address (low,
-                              // high): per entry uvec2(field voxel index, x fastest; the inclusive CDF of
-                              // what the voxels emit as float bits)
+                              // high): per entry uvec2(field voxel, MEDIUM_VOXEL_BITS a coordinate; the
+                              // inclusive CDF of what the voxels emit as float bits)
     vec4 volume_emission_flux;  // x: a volume photon's flux (the channels' mean) relative to photon_flux.w;
                                 // yzw: unused
     LightParams lights[TRANSPORT_MAX_LIGHTS];
@@ -432,7 +440,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == (50 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == (51 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
 static_assert(sizeof(refract::shaders::Material) == 80);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);

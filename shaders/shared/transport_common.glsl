@@ -161,19 +161,48 @@ vec3 thinned(vec3 coefficient, vec3 medium, float c, float density) {
     return max(coefficient - (1.0 - density) * (1.0 - c) * medium, vec3(0.0));
 }
 
+layout(buffer_reference, std430, buffer_reference_align = 8) readonly buffer MediumBlocks { uvec2 blocks[]; };
+
+// Field point f (field voxels) held where a clamped dense field would take it (its texel centres).
+vec3 field_point(vec3 p) { return clamp(p / params.medium_field.w, vec3(0.5), params.medium_field.xyz - 0.5); }
+
+// The medium field's block holding field point f: its brick (MEDIUM_NO_BRICK: none) and majorant bits.
+uvec2 medium_block(vec3 f) {
+    uvec3 dims = uvec3(params.medium_field.xyz);
+    uvec3 blocks = (dims + (MEDIUM_FIELD_BLOCK - 1u)) / MEDIUM_FIELD_BLOCK;
+    uvec3 b = min(uvec3(f), dims - 1u) / MEDIUM_FIELD_BLOCK;
+    return MediumBlocks(params.medium_blocks.xy).blocks[(b.z * blocks.y + b.y) * blocks.x + b.x];
+}
+
+// The atlas's filtered value at field point f of the block `block` (medium_block(f)); 0 without a brick.
+vec4 brick_fetch(sampler3D atlas, vec3 f, uvec2 block) {
+    if (block.x == MEDIUM_NO_BRICK) return vec4(0.0);
+    uint row = params.medium_blocks.z, column = params.medium_blocks.w;
+    uvec3 brick = uvec3(block.x % row, block.x / row % column, block.x / (row * column));
+    vec3 local = f - vec3(min(uvec3(f), uvec3(params.medium_field.xyz) - 1u) / MEDIUM_FIELD_BLOCK * MEDIUM_FIELD_BLOCK);
+    vec3 texel = vec3(brick * MEDIUM_BRICK_SIDE) + 1.0 + local;
+    return textureLod(atlas, texel / vec3(textureSize(atlas, 0)), 0.0);
+}
+
 // The volumes' extinction and scattering (per metre) at voxel point p, added to the medium's and the
 // objects' where they lie (kMediumField only; 0 without). Scattering's w: the volumes' phase g times
 // their channels' mean scattering.
 vec3 field_extinction(vec3 p) {
-    return kMediumField ? textureLod(medium_extinction_field, p * params.medium_field.xyz, 0.0).rgb : vec3(0.0);
+    if (!kMediumField) return vec3(0.0);
+    vec3 f = field_point(p);
+    return brick_fetch(medium_extinction_field, f, medium_block(f)).rgb;
 }
 vec4 field_scattering(vec3 p) {
-    return kMediumField ? textureLod(medium_scattering_field, p * params.medium_field.xyz, 0.0) : vec4(0.0);
+    if (!kMediumField) return vec4(0.0);
+    vec3 f = field_point(p);
+    return brick_fetch(medium_scattering_field, f, medium_block(f));
 }
 // Whether the volumes emit, and what (radiance per metre of path) at voxel point p.
 bool field_emits() { return kMediumField && params.volume_emission.y > 0u; }
 vec3 field_emission(vec3 p) {
-    return field_emits() ? textureLod(medium_emission_field, p * params.medium_field.xyz, 0.0).rgb : vec3(0.0);
+    if (!field_emits()) return vec3(0.0);
+    vec3 f = field_point(p);
+    return brick_fetch(medium_emission_field, f, medium_block(f)).rgb;
 }
 
 // The phase function (model, g) where scattering takes the coverage c of object o: the object's over
@@ -232,13 +261,14 @@ float cell_exit(vec3 p, vec3 d, float size) {
 
 // A step of `ds` voxels from p along d cut to the medium field's voxel, over which its coefficients are
 // taken at the step's midpoint (exact per-step Beer-Lambert for what the trilinear field holds, to the
-// midpoint rule); where the field's block is empty, cut to the block's end instead (just past it).
+// midpoint rule); where the field's block holds nothing (no brick, or majorant 0), cut to the block's
+// end instead (just past it).
 float field_step(vec3 p, vec3 d, float ds) {
     if (!kMediumField) return ds;
     float side = params.medium_field.w;
     vec3 f = p / side;  // field voxels
-    ivec3 voxel = ivec3(clamp(f, vec3(0.0), vec3(textureSize(medium_extinction_field, 0)) - 1.0));
-    if (texelFetch(medium_extinction_field, voxel, 0).a > 0.0) return min(ds, side);
+    uvec2 block = medium_block(clamp(f, vec3(0.0), params.medium_field.xyz - 0.5));
+    if (block.x != MEDIUM_NO_BRICK && uintBitsToFloat(block.y) > 0.0) return min(ds, side);
     return min(ds, cell_exit(f, d, float(MEDIUM_FIELD_BLOCK)) * side + params.stepping.y);
 }
 

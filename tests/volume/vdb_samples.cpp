@@ -87,6 +87,22 @@ std::string flame_vdb(int radius, float kelvin) {
     return write({density, temperature, heat});
 }
 
+std::string vdb_of(const volume::DensityGrid& grid, const std::string& name) {
+    auto out = density_grid();
+    out->setName(name);
+    const auto& m = grid.index_to_world;
+    out->setTransform(openvdb::math::Transform::createLinearTransform(
+        openvdb::math::Mat4d(m[0], m[4], m[8], 0.0, m[1], m[5], m[9], 0.0, m[2], m[6], m[10], 0.0, m[3], m[7], m[11], 1.0)));
+    auto access = out->getAccessor();
+    for (const volume::DensityLeaf& leaf : grid.leaves)
+        for (size_t i = 0; i < volume::kLeafVoxels; ++i)
+            if (leaf.values[i] != 0.0f)
+                access.setValue(openvdb::Coord(leaf.origin[0] + static_cast<int>(i / 64), leaf.origin[1] + static_cast<int>(i / 8 % 8),
+                                               leaf.origin[2] + static_cast<int>(i % 8)),
+                                leaf.values[i]);
+    return write({out});
+}
+
 std::string ramp_box_vdb(const std::array<int, 3>& lo, const std::array<int, 3>& hi, double voxel, float a, float b,
                          const std::string& name) {
     auto grid = density_grid();

@@ -6,6 +6,8 @@
 #include <cstddef>
 #include <string>
 
+#include "volume/density_export.h"
+
 namespace refract::test {
 
 // A density sphere of `radius` voxels (1 at the centre, falling linearly to 0 at the edge), voxel size
@@ -31,6 +33,8 @@ std::string ramp_box_vdb(const std::array<int, 3>& lo, const std::array<int, 3>&
 // "temperature" of `kelvin` at the centre falling linearly to 0 at the edge, and a float grid "heat" of
 // the density's values.
 std::string flame_vdb(int radius, float kelvin);
+// A float grid `name` holding `grid`'s leaves' non-zero values as active voxels, with its linear transform.
+std::string vdb_of(const volume::DensityGrid& grid, const std::string& name);
 // A float grid with a 6-5-4-3 tree (deeper than OpenVDB's standard), registered only while writing.
 std::string deep_tree_vdb();
 
