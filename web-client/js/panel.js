@@ -3,12 +3,11 @@
 
 import { $, h } from './dom.js';
 import { CheckboxField, ColorField, FogField, RangeField, RgbField, SelectField, Vec3Field } from './fields.js';
-import {
-  EnvironmentField, ExampleField, MembersField, MeshField, SceneFileField, ViewField, VolumeAssetField, VolumeGridField,
-} from './pickers.js';
+import { EnvironmentField, ExampleField, MembersField, MeshField, SceneFileField, ViewField } from './pickers.js';
 import { panelPointer, parsePointer } from './scene.js';
 import { hooks, panel, state, view } from './state.js';
 import { announce, showGlobalError } from './status.js';
+import { VolumeAssetField, VolumeGridField } from './volumes.js';
 
 // Sliders whose position is not the value itself: `fromSlider` maps a slider position to the value,
 // `toSlider` back, `numberStep` is the exact-value box's step.
