@@ -1,5 +1,6 @@
 // What the daemon offers besides the scene: meshes (built in and uploaded, with their bounds), environment
-// images and example scenes; and which example the scene still is.
+// images, volumes (built in and uploaded, with their grids) and example scenes; and which example the scene
+// still is.
 
 import { api } from './connection.js';
 import { controls } from './panel.js';
@@ -16,7 +17,7 @@ const BUILTIN_BOUNDS = {
   bunny: { min: [-0.96883, -1, -0.56078], max: [0.96883, 1, 0.56078] },
 };
 const meshBounds = {};  // uploaded mesh name -> bounds in its own units
-const volumeGrids = {};  // uploaded volume name -> the names of its usable float grids
+const volumeGrids = {};  // volume name (uploaded or built in) -> the names of its usable float grids
 let example = null;     // { name, doc }: the example the scene still is
 
 export function rememberBounds(name, bounds) {
@@ -54,16 +55,19 @@ export async function refreshMeshes() {
   } catch { /* the built-in meshes still work */ }
 }
 
-// The usable grids of uploaded volume `name`, as listed when last asked.
+// The usable grids of volume `name`, as listed when last asked.
 export const volumeGridsOf = (name) => volumeGrids[name] || [];
-// The uploaded volume the panel shows: Add places it.
+// The volume the panel shows: Add places it.
 export const chosenVolumeAsset = () => controls.volumes.select.value || null;
 
 export async function refreshVolumes() {
   try {
-    const items = (await api('GET', '/api/volumes'))?.volumes || [];
-    for (const v of items) volumeGrids[v.name] = (v.grids || []).filter((g) => g.usable).map((g) => g.name);
-    controls.volumes.setVolumes(items.map((v) => v.name).filter(Boolean).sort());
+    const list = await api('GET', '/api/volumes');
+    const names = (items) => (items || []).map((v) => v?.name).filter(Boolean);
+    for (const v of [...(list?.volumes || []), ...(list?.builtin || [])]) {
+      volumeGrids[v.name] = (v.grids || []).filter((g) => g.usable).map((g) => g.name);
+    }
+    controls.volumes.setVolumes(names(list?.volumes).sort(), names(list?.builtin));
     controls.update(panel());
   } catch { /* volumes already in the scene still render */ }
 }

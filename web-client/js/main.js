@@ -11,14 +11,14 @@ import { initView } from './interaction.js';
 import { members } from './outliner.js';
 import { buildPanel } from './panel.js';
 import { edit, link, saveView, setFollow, stopPlay } from './session.js';
-import { hooks, state, view } from './state.js';
+import { hooks, panel, state, view } from './state.js';
 import { stageMessage } from './status.js';
 
 window.refract = hooks;  // read by the end-to-end test and the benchmark (README: Test hooks)
 
 buildPanel($('controls'), edit, {
   uploadMesh, uploadEnvironment, uploadVolume, meshPatch, environmentPatch, volumeGrids: volumeGridsOf, loadExample,
-  importScene, exportScene, playKeyframes, stopPlay, members,
+  importScene, exportScene, playKeyframes, stopPlay, members, chosenVolume: () => panel().medium_volume,
   saveView, setFollow, following: () => state.follow, sceneCamera: () => view().camera,
 });
 initView();

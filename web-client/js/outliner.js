@@ -1,18 +1,22 @@
 // The outliners' actions (their lists are pickers.js's MembersField): which light and object the panel
 // edits, and adding, removing and renaming them.
 
-import { chosenVolumeAsset, placedObject } from './catalog.js';
+import { chosenVolumeAsset, placedObject, volumeGridsOf } from './catalog.js';
 import { complain, controls } from './panel.js';
 import * as S from './scene.js';
 import { edit, showDocument } from './session.js';
 import { panel, state, view } from './state.js';
 import { announce } from './status.js';
+import { densityGrid } from './volumes.js';
 
 // What Add puts in the scene, by kind: a point light beside the others; a small sphere beside the chosen
-// object (so it is in view), sharing its Abbe number as the daemon requires; the uploaded volume chosen
-// (none: null), where its file puts it.
+// object (so it is in view), sharing its Abbe number as the daemon requires; the volume shown in the picker
+// (built in or uploaded; none: null), where its file puts it.
 const NEW_MEMBER = {
-  medium_volume: () => (chosenVolumeAsset() ? { asset: chosenVolumeAsset() } : null),
+  medium_volume: () => {
+    const asset = chosenVolumeAsset();
+    return asset && { asset, grid: densityGrid(volumeGridsOf(asset)) };
+  },
   light: () => ({ type: 'point', position: [-2, 2.5, 1.5], intensity: 10 }),
   object: (doc) => {
     const chosen = doc.object || {};
@@ -35,7 +39,7 @@ function add(kind) {
   const noun = S.MEMBER_NOUN[kind];
   const member = NEW_MEMBER[kind](panel());
   const outliner = controls.outliners.find((f) => f.kind === kind);
-  if (!member) return void complain(outliner, `Upload a ${noun} first: each ${noun} in the scene shows an upload.`, `/${S.COLLECTIONS[kind]}`);
+  if (!member) return void complain(outliner, `Upload a ${noun} first: the daemon offers none.`, `/${S.COLLECTIONS[kind]}`);
   const name = S.freeName(view(), kind, noun);
   edit({ [S.COLLECTIONS[kind]]: { [name]: member } }, true);
   select(kind, name);

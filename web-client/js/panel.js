@@ -7,7 +7,7 @@ import { EnvironmentField, ExampleField, MembersField, MeshField, SceneFileField
 import { panelPointer, parsePointer } from './scene.js';
 import { hooks, panel, state, view } from './state.js';
 import { announce, showGlobalError } from './status.js';
-import { VolumeAssetField, VolumeGridField } from './volumes.js';
+import { EmissionIntensityField, EmitterField, VolumeAssetField, VolumeGridField } from './volumes.js';
 
 // Sliders whose position is not the value itself: `fromSlider` maps a slider position to the value,
 // `toSlider` back, `numberStep` is the exact-value box's step.
@@ -26,6 +26,8 @@ const LOG10_SLIDER = {
 
 // Whether the scene has a volume for the panel to edit.
 const HAS_VOLUME = (doc) => typeof doc.medium_volume?.asset === 'string';
+// Whether the chosen volume glows in a colour of its own (a plain emission grid, not a temperature).
+const GLOWS_IN_COLOUR = (doc) => HAS_VOLUME(doc) && Boolean(doc.medium_volume.emission?.grid);
 
 // The panel, section by section. A control's `kind` is its field class (KINDS below), `ptr` the pointer
 // it writes; `showIf(doc)` hides it while the document ignores it; `limit` names the /api/health limit
@@ -105,6 +107,10 @@ const SECTIONS = [
         min: 0, max: 50, step: 0.1, showIf: HAS_VOLUME },
       { kind: 'range', ptr: '/medium_volume/phase/g', label: 'Volume anisotropy g', min: -0.95, max: 0.95, step: 0.01,
         showIf: HAS_VOLUME },
+      { kind: 'emission-intensity', ptr: '/medium_volume/emission/intensity',
+        label: 'Emission intensity (the light it gives off; 0 = none)', min: 0, max: 20, step: 0.1, showIf: HAS_VOLUME },
+      { kind: 'emitter', label: 'Emitting grid (which of its grids glows, and how)', showIf: HAS_VOLUME },
+      { kind: 'color', ptr: '/medium_volume/emission/color', label: 'Emission colour', showIf: GLOWS_IN_COLOUR },
       { kind: 'vec3', ptr: '/medium_volume/position', label: 'Position (m, of the file’s origin)', step: 0.05,
         showIf: HAS_VOLUME },
       { kind: 'range', ptr: '/medium_volume/scale', label: 'Volume scale', min: -3, max: 2, step: 0.01, ...LOG10_SLIDER,
@@ -146,6 +152,7 @@ const KINDS = {
   range: RangeField, select: SelectField, checkbox: CheckboxField, color: ColorField, rgb: RgbField,
   fog: FogField, example: ExampleField, mesh: MeshField, file: SceneFileField, vec3: Vec3Field, members: MembersField,
   environment: EnvironmentField, view: ViewField, 'volume-asset': VolumeAssetField, 'volume-grid': VolumeGridField,
+  'emission-intensity': EmissionIntensityField, emitter: EmitterField,
 };
 
 // The panel once built (buildPanel, from main.js before anything else runs).
