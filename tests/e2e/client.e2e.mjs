@@ -7,8 +7,8 @@
 // (headless, through playwright-core; no browser download) and checks what a user would: the first
 // frame and its progress line, moving the light, orbiting with the keyboard, an invalid value reported
 // next to its control, an OBJ upload (fitted, or in its own units and framed), reload, example scenes
-// from the daemon, export and import of the document, saving the frame, dispersion, a narrow window and
-// a daemon restart. Screenshots go to
+// from the daemon, export and import of the document, saving the frame, dispersion, volumes (built in and
+// uploaded, and their emission), a narrow window and a daemon restart. Screenshots go to
 // $REFRACT_E2E_OUT (default build/e2e-screenshots); $REFRACT_CHROMIUM overrides /usr/bin/chromium.
 // Ends with "browser_e2e: N passed, M failed".
 
@@ -906,6 +906,61 @@ async function main() {
     assert(after.mesh === 'upload:e2e-cube', `controls show mesh ${after.mesh} after reload`);
     assert(Number(after.ior) === 1.6, `controls show IOR ${after.ior} after reload`);
     await shot(page, '06-after-reload.png');
+  });
+
+  await check('without uploads, Add places a built-in volume; the flame glows by its temperature, each edit valid', async () => {
+    await waitSettled(page);
+    assert(!(await api('GET', '/api/volumes')).json.volumes.length, 'this check wants a daemon without volume uploads');
+    const offered = await page.evaluate(() => [...document.getElementById('ctl-medium-volume-asset').options]
+      .map((o) => `${o.value}=${o.textContent}`));
+    assert(offered.includes('builtin.flame=Flame (built-in)'), `the volume picker offers ${offered}`);
+    const errors0 = await page.evaluate(() => window.refract.errors);
+    // One edit of the panel, and the scene as the daemon has it once its still is drawn.
+    const step = async (action) => {
+      const rev = await page.evaluate(() => window.refract.lastRevision);
+      await action();
+      await waitSettled(page, rev);
+      return (await sceneOnServer(sceneId)).scene.volumes || {};
+    };
+    let volumes = await step(() => page.click('#medium_volume-add'));
+    const [name] = Object.keys(volumes);
+    assert(volumes[name]?.asset.startsWith('builtin.'), `volumes ${JSON.stringify(volumes)}`);
+    volumes = await step(() => page.selectOption('#ctl-medium-volume-asset', 'builtin.flame'));
+    const grids = await page.evaluate(() => [...document.getElementById('ctl-medium-volume-grid').options].map((o) => o.value));
+    assert(volumes[name].asset === 'builtin.flame' && grids.join() === 'density,temperature', `grids ${grids}`);
+    await snapshotCanvas(page);
+    // A temperature grid names it and clears the plain one in one edit; then brighter.
+    await step(() => page.selectOption('#ctl-medium-volume-emitter', 'k:temperature'));
+    volumes = await step(async () => {
+      await page.fill('#ctl-medium-volume-emission-intensity-num', '6');
+      await page.press('#ctl-medium-volume-emission-intensity-num', 'Enter');
+    });
+    let emission = volumes[name].emission;
+    assert(emission.temperature_grid === 'temperature' && emission.grid === '' && emission.intensity === 6,
+      `emission ${JSON.stringify(emission)}`);
+    const glow = await canvasChange(page);
+    log(`the flame's glow changed ${(glow * 100).toFixed(1)}% of the pixels`);
+    assert(glow > 0.005, `the frame hardly changed (${glow})`);
+    await page.locator('#ctl-medium-volume-emitter').scrollIntoViewIfNeeded();
+    await shot(page, '06e-volume-emission.png');
+    // None turns it off; intensity raised with no grid named takes the temperature grid by itself.
+    await step(() => page.selectOption('#ctl-medium-volume-emitter', ''));
+    volumes = await step(async () => {
+      await page.fill('#ctl-medium-volume-emission-intensity-num', '2');
+      await page.press('#ctl-medium-volume-emission-intensity-num', 'Enter');
+    });
+    emission = volumes[name].emission;
+    assert(emission.temperature_grid === 'temperature' && emission.intensity === 2, `emission ${JSON.stringify(emission)}`);
+    // The cloud has no temperature grid: its density glows instead, in the colour shown for it.
+    volumes = await step(() => page.selectOption('#ctl-medium-volume-asset', 'builtin.cloud'));
+    emission = volumes[name].emission;
+    assert(emission.grid === 'density' && emission.temperature_grid === '', `emission ${JSON.stringify(emission)}`);
+    assert(!(await page.evaluate(() => document.getElementById('ctl-medium-volume-emission-color').closest('.field').hidden)),
+      'the emission colour is hidden while a grid glows in it');
+    const errors = await page.evaluate((n) => window.refract.errors - n, errors0);
+    assert(errors === 0, `${errors} edit(s) refused: ${JSON.stringify(await page.evaluate(() => window.refract.lastError))}`);
+    volumes = await step(() => page.click('#medium_volume-remove'));
+    assert(!Object.keys(volumes).length, `volumes ${JSON.stringify(volumes)}`);
   });
 
   await check('an OBJ 190 units wide is fitted and centred; in its own units, "Frame object" frames it', async () => {
