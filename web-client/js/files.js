@@ -11,7 +11,7 @@ import * as S from './scene.js';
 import { edit, play, replaceScene, stillAfterPreview } from './session.js';
 import { hooks, panel, state, view } from './state.js';
 import { announce, updateProgress } from './status.js';
-import { densityGrid } from './volumes.js';
+import { newVolume } from './volumes.js';
 
 // A name the daemon takes for an upload, made from its file's name.
 function uploadName(fileName) {
@@ -65,7 +65,7 @@ export function uploadVolume(file, field) {
     }
     field.setStatus(`Uploaded “${name}” (${facts}) and placed it in the scene as “volume”.`);
     state.selected.medium_volume = 'volume';
-    edit({ volumes: { volume: { asset: name, grid: densityGrid(grids) } } }, true);
+    edit({ volumes: { volume: newVolume(name, grids) } }, true);
   });
 }
 

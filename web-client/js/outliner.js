@@ -7,7 +7,7 @@ import * as S from './scene.js';
 import { edit, showDocument } from './session.js';
 import { panel, state, view } from './state.js';
 import { announce } from './status.js';
-import { densityGrid } from './volumes.js';
+import { newVolume } from './volumes.js';
 
 // What Add puts in the scene, by kind: a point light beside the others; a small sphere beside the chosen
 // object (so it is in view), sharing its Abbe number as the daemon requires; the volume shown in the picker
@@ -15,7 +15,7 @@ import { densityGrid } from './volumes.js';
 const NEW_MEMBER = {
   medium_volume: () => {
     const asset = chosenVolumeAsset();
-    return asset && { asset, grid: densityGrid(volumeGridsOf(asset)) };
+    return asset && newVolume(asset, volumeGridsOf(asset));
   },
   light: () => ({ type: 'point', position: [-2, 2.5, 1.5], intensity: 10 }),
   object: (doc) => {

@@ -13,9 +13,17 @@ const BUILTIN = 'builtin.';
 const volumeLabel = (name) => (name.startsWith(BUILTIN)
   ? `${name.charAt(BUILTIN.length).toUpperCase()}${name.slice(BUILTIN.length + 1)} (built-in)` : name);
 
-// The density grid of a new volume of a file with usable grids `grids`: `density` where it has one (or its
+// The density grid of a volume of a file with usable grids `grids`: `density` where it has one (or its
 // grids are not known yet), else its first.
-export const densityGrid = (grids) => (grids.length && !grids.includes('density') ? grids[0] : 'density');
+const densityGrid = (grids) => (grids.length && !grids.includes('density') ? grids[0] : 'density');
+
+// A new volume of file `asset` (usable grids `grids`) whole, as the daemon would fill it in
+// (protocol/README.md, volumes): the panel shows what it is sent, and would leave blank what it lacked.
+export const newVolume = (asset, grids) => ({
+  asset, grid: densityGrid(grids), position: [0, 0, 0], rotation_deg: [0, 0, 0], scale: 1, density_scale: 1,
+  extinction: [1, 1, 1], scattering: [1, 1, 1], phase: { model: 'henyey-greenstein', g: 0 },
+  emission: { grid: '', temperature_grid: '', color: [1, 1, 1], intensity: 0 },
+});
 
 // What starts to glow in a volume of usable grids `grids` whose density is grid `density`: its `temperature`
 // grid as a blackbody (a flame's), else its first other grid in the colour chosen, else its density.
