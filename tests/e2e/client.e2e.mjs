@@ -957,6 +957,8 @@ async function main() {
     assert(emission.grid === 'density' && emission.temperature_grid === '', `emission ${JSON.stringify(emission)}`);
     assert(!(await page.evaluate(() => document.getElementById('ctl-medium-volume-emission-color').closest('.field').hidden)),
       'the emission colour is hidden while a grid glows in it');
+    await page.locator('#ctl-medium-volume-emission-color').scrollIntoViewIfNeeded();
+    await shot(page, '06f-volume-emission-colour.png');
     const errors = await page.evaluate((n) => window.refract.errors - n, errors0);
     assert(errors === 0, `${errors} edit(s) refused: ${JSON.stringify(await page.evaluate(() => window.refract.lastError))}`);
     volumes = await step(() => page.click('#medium_volume-remove'));
