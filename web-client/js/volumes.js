@@ -34,7 +34,8 @@ function defaultEmitter(grids, density) {
 
 // The emission grids that make `member` (a volume as an edit will leave it) valid for a file of usable
 // grids `grids`, or null when its own do (or the file's grids are not known yet, when the daemon judges).
-// A grid the file lacks (the member's earlier file's) is dropped, and one that glows chosen by default.
+// A grid the file lacks (one of the member's earlier file) is dropped; while the volume glows, the file's
+// default emitter takes its place.
 function emitterFor(member, grids) {
   const emission = member.emission || {};
   const named = emission.temperature_grid || emission.grid;
