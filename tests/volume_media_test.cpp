@@ -119,6 +119,71 @@ TEST_F(VolumeMediaTest, PhotonsThroughALinearRampKeepExpOfItsIntegral) {
     EXPECT_NEAR(depth, kRampExtinction * kRampDepth, depth_tolerance(gpu));
 }
 
+// A Gaussian blob of density, exp(-r^2 / 2 s^2) with s = 0.2 m in voxels of 2 cm, crossed along x by eye
+// rays and by photons: a ray at distance b from its centre sees the optical depth sigma s sqrt(2 pi)
+// exp(-b^2 / 2 s^2). The estimate smooths the blob three times, each exact for a linear density and off by
+// at most |rho''| (along each axis, <= rho / s^2) times a point otherwise: the grid's trilinear
+// interpolation h_g^2 / 8 an axis, the field voxel's mean of 2^3 samples (h / 4 off its centre) h^2 / 32,
+// and the field's trilinear interpolation h^2 / 8 (the steps' midpoints add h^2 / 24 along the ray, less
+// than these). So the depth may be off by sigma s sqrt(2 pi) 3 (h_g^2 / 8 + h^2 / 32 + h^2 / 8) / s^2, which
+// the tolerance is.
+TEST_F(VolumeMediaTest, EyeRaysAndPhotonsThroughAGaussianBlobSeeExpOfItsIntegral) {
+    constexpr double kS = 0.2, kVoxel = 0.02, kSigma = 2.0;
+    volume::DensityGrid blob;
+    blob.index_to_world = {kVoxel, 0, 0, 0, 0, kVoxel, 0, 0, 0, 0, kVoxel, 0};
+    for (int ox = -64; ox < 64; ox += 8)
+        for (int oy = -64; oy < 64; oy += 8)
+            for (int oz = -64; oz < 64; oz += 8) {
+                volume::DensityLeaf leaf;
+                leaf.origin = {ox, oy, oz};
+                for (size_t i = 0; i < volume::kLeafVoxels; ++i) {
+                    const glm::dvec3 x = glm::dvec3(ox + static_cast<int>(i / 64), oy + static_cast<int>(i / 8 % 8), oz + static_cast<int>(i % 8)) * kVoxel;
+                    leaf.values[i] = static_cast<float>(std::exp(-glm::dot(x, x) / (2.0 * kS * kS)));
+                }
+                blob.leaves.push_back(leaf);
+            }
+    const scene::Densities densities{{"blob", {std::make_shared<const volume::DensityGrid>(blob)}}};
+    const protocol::SceneDocument document = protocol::parse_scene(json::parse(R"({
+        "camera": {"position": [-3, 0, 0], "target": [0, 0, 0], "up": [0, 1, 0], "fov_deg": 20},
+        "image": {"width": 33, "height": 33},
+        "light": {"type": "directional", "direction": [1, 0, 0], "intensity": 1},
+        "object": {"position": [0.9, 0.9, 0.9], "scale": 0.03, "ior": 1.0, "extinction": [0, 0, 0], "scattering": [0, 0, 0]},
+        "medium": {"extinction": [0, 0, 0], "scattering": [0, 0, 0], "fade": 0},
+        "volumes": {"blob": {"asset": "blob", "extinction": [2, 2, 2], "scattering": [0, 0, 0]}},
+        "volume": {"resolution": 48, "bounds": {"min": [-1, -1, -1], "max": [1, 1, 1]}},
+        "photons": {"count": 65536},
+        "floor": {"enabled": false},
+        "environment": {"type": "uniform", "color": [1, 1, 1], "lights": false}})"));
+    scene::SceneGpu gpu(kit());
+    scene::RunOptions options = scene::run_options_for(scene::Quality::still);
+    options.record_photon_exits = true;
+    gpu.run(scene::kAllPasses, document, worlds(document), nullptr, options, nullptr, densities);
+    save(gpu, "gaussian_blob");
+    const double h = static_cast<double>(gpu.grid().voxel_size);
+    const double width = kS * std::sqrt(2.0 * std::numbers::pi);
+    const double tolerance = kSigma * width * 3.0 * (kVoxel * kVoxel / 8.0 + h * h / 32.0 + h * h / 8.0) / (kS * kS);
+    // The middle pixel looks along the axis through the centre.
+    const double eye = -std::log(static_cast<double>(gpu.read_hdr()[16 * 33 + 16].g));
+    // Photons entering within 10 cm of the axis, each against the exact transmittance at its own distance
+    // (they do not scatter: every weight is its path's transmittance, no noise).
+    double sum = 0.0, exact = 0.0;
+    uint32_t crossed = 0;
+    for (const shaders::PhotonExit& exit : gpu.read_photon_exits()) {
+        const double b = std::hypot(static_cast<double>(exit.entry.y), static_cast<double>(exit.entry.z));
+        if (exit.entry.w != 1.0f || b > 0.1) continue;
+        sum += static_cast<double>(exit.weight.g);
+        exact += std::exp(-kSigma * width * std::exp(-b * b / (2.0 * kS * kS)));
+        ++crossed;
+    }
+    ASSERT_GT(crossed, 200u);
+    const double photons = -std::log(sum / crossed), photons_exact = -std::log(exact / crossed);
+    std::printf("optical depth through a Gaussian blob: eye ray %.4f, exact %.4f; photons %.4f, exact %.4f (%u; "
+                "tolerance %.4f)\n",
+                eye, kSigma * width, photons, photons_exact, crossed, tolerance);
+    EXPECT_NEAR(eye, kSigma * width, tolerance);
+    EXPECT_NEAR(photons, photons_exact, tolerance);
+}
+
 // A volume of density 1 filling the lattice with the fog's coefficients is that fog: its frame differs
 // from the fog's by no more than two seeds of the fog differ (photons carry all light in both: the
 // closed-form direct light knows only the homogeneous medium), with single scattering and with photons'
