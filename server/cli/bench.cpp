@@ -21,10 +21,12 @@
 #include "image/png.h"
 #include "mesh/mesh.h"
 #include "protocol/scene_document.h"
+#include "render/medium_field.h"
 #include "render/object_mesh.h"
 #include "render/renderer.h"
 #include "render/scene_gpu.h"
 #include "render/scene_lattice.h"
+#include "volume/builtin_volumes.h"
 #include "vk/commands.h"
 #include "vk/context.h"
 #include "vk/gpu_timer.h"
@@ -158,6 +160,17 @@ std::vector<BenchCase> standard_suite(bool gpu) {
         alone["volume"] = {{"resolution", static_cast<int>(std::lround(2.0 * half / voxel))}, {"bounds", {{"min", lo}, {"max", hi}}}};
         cases.push_back({"gallery bunny alone move", alone, scene::kAllPasses, "move", scene::Quality::still, move});
     }
+    // Smoke: examples/smoke_past_glass.json (the built-in smoke lit through a glass ball) on a lattice of
+    // 256 voxels, its still build and its light edit while dragging: what a sparse volume costs.
+    std::ifstream smoke_file(std::string(REFRACT_SOURCE_DIR) + "/examples/smoke_past_glass.json");
+    if (smoke_file) {
+        json smoke = json::parse(smoke_file);
+        smoke["volume"]["resolution"] = 256;
+        smoke["image"] = {{"width", base_image}, {"height", base_image}};
+        smoke["photons"] = {{"count", base_photons}};
+        cases.push_back({"smoke 256", smoke, scene::kAllPasses, "full"});
+        cases.push_back({"smoke 256 interactive", smoke, scene::kPhotons | scene::kView, "light", scene::Quality::interactive});
+    }
     for (const std::string base : {"luneburg", "torus_floor", "bunny", "dispersion"})
         add(base, base, {{"photons", {{"count", base_photons}}}, {"image", {{"width", base_image}, {"height", base_image}}}},
             scene::kAllPasses, "full");
@@ -170,6 +183,19 @@ scene::WorldMeshes worlds_of(const protocol::SceneDocument& d, const std::map<st
         if (it == uploads.end()) throw std::runtime_error("bench: scene needs --mesh " + name + "=FILE.obj");
         return it->second;
     });
+}
+
+// The grids of the scene's volumes: the built-in ones (the bench reads no uploads).
+scene::Densities bench_densities(const protocol::SceneDocument& d) {
+    scene::Densities densities;
+    for (const auto& [key, member] : d.volumes) {
+        densities[key].density = volume::builtin_density(member.asset, member.grid);
+        if (member.emission.emits()) densities[key].emission = volume::builtin_density(member.asset, member.emission_grid());
+        if (!densities[key].density || (member.emission.emits() && !densities[key].emission))
+            throw std::runtime_error("bench: volume " + member.asset + " of /volumes/" + key +
+                                     " is no built-in one's grid (the bench reads only built-in volumes)");
+    }
+    return densities;
 }
 
 // Radiance-grid deposits per second as three packed 64-bit integer atomics (the photon pass's way)
@@ -373,11 +399,12 @@ CaseRuns run_case(vk::Context& context, int64_t memory_before, scene::SceneGpu& 
                   const protocol::SceneDocument& document, const scene::WorldMeshes& worlds,
                   const Uploads& uploads, int runs) {
     CaseRuns measured;
+    const scene::Densities densities = bench_densities(document);
     scene::RunOptions run_options = scene::run_options_for(c.quality);
     // A rebuild voxelizes every object again, though their coverage is resident.
     run_options.revoxelize = c.move.is_null() && (c.edit & scene::kVoxelize);
-    scene_gpu.run(scene::kAllPasses, document, worlds, nullptr,
-                  run_options);  // warm-up: builds everything once
+    scene_gpu.run(scene::kAllPasses, document, worlds, nullptr, run_options, nullptr,
+                  densities);  // warm-up: builds everything once
     measured.memory = context.allocated_bytes() - memory_before;
     // A moving case alternates between the document and the moved one.
     const protocol::SceneDocument moved =
@@ -389,7 +416,7 @@ CaseRuns run_case(vk::Context& context, int64_t memory_before, scene::SceneGpu& 
         const protocol::SceneDocument& to = there ? moved : document;
         const scene::PassSet passes = c.move.is_null() ? c.edit : scene::passes_invalidated(from, to);
         const auto start = Clock::now();
-        measured.last = scene_gpu.run(passes, to, there ? moved_worlds : worlds, nullptr, run_options);
+        measured.last = scene_gpu.run(passes, to, there ? moved_worlds : worlds, nullptr, run_options, nullptr, densities);
         const auto encode_start = Clock::now();
         const auto png = image::encode_png(scene_gpu.read_ldr(), scene_gpu.width(), scene_gpu.height());
         const auto end = Clock::now();
@@ -423,6 +450,14 @@ json case_entry(const BenchCase& c, const protocol::SceneDocument& document, con
         {"clusters", scene_gpu.field_atlas().dense ? 0 : scene_gpu.field_atlas().clusters.size()},
         {"voxels", scene_gpu.field_atlas().dims.count()}};
     entry["dense_lattice_mib"] = static_cast<double>(dense_lattice_bytes(scene_gpu, document)) / (1 << 20);
+    if (!document.volumes.empty()) {
+        // The sparse medium field against a dense one of the lattice's voxel (its two or three atlases).
+        const scene::MediumFieldLayout field = scene::plan_medium_field(scene_gpu.grid(), document.volumes, bench_densities(document));
+        entry["medium_field"] = {
+            {"step", field.step}, {"bricks", field.brick_count},
+            {"mib", static_cast<double>(scene::medium_field_bytes(field)) / (1 << 20)},
+            {"dense_mib", static_cast<double>(scene_gpu.grid().dims.count() * sizeof(glm::vec4) * (field.emits ? 3 : 2)) / (1 << 20)}};
+    }
     double gpu_total = 0.0;
     for (const auto& [name, samples] : measured.pass_ms) {
         const Summary s = summarize(samples);
@@ -467,6 +502,9 @@ void print_case(const BenchCase& c, const json& entry, const scene::SceneGpu& sc
         std::printf(" (a dense lattice: %.0f MiB; field atlas of %zu clusters, %.2f Mvoxels)",
                     entry["dense_lattice_mib"].get<double>(), scene_gpu.field_atlas().clusters.size(),
                     static_cast<double>(scene_gpu.field_atlas().dims.count()) * 1e-6);
+    if (entry.contains("medium_field"))
+        std::printf(" (medium field: %u bricks, %.1f MiB; dense %.0f MiB)", entry["medium_field"]["bricks"].get<uint32_t>(),
+                    entry["medium_field"]["mib"].get<double>(), entry["medium_field"]["dense_mib"].get<double>());
     if (entry.contains("photons_per_s"))
         std::printf(" | %.2f Mphotons/s %.1f steps/photon %.2f bounces/photon %.1f Msteps/s",
                     entry["photons_per_s"].get<double>() * 1e-6, entry["mean_steps_per_photon"].get<double>(),
