@@ -354,8 +354,9 @@ void main() {
             // (the direct span is crossed in one), so photons thin out as the direct light does.
             float density = len > 0.0 ? medium_depth(ray.p, ray.d, len) / len : 1.0;
             kappa = thinned(kappa, params.medium_extinction.rgb * h, coverage, density);
-            vec4 field_s = field_scattering(ray.p + (0.5 * len) * ray.d);
-            if (kMediumField) kappa += field_extinction(ray.p + (0.5 * len) * ray.d) * h;
+            FieldSample midpoint = field_at(ray.p + (0.5 * len) * ray.d);
+            vec4 field_s = field_scattering(midpoint);
+            if (kMediumField) kappa += field_extinction(midpoint) * h;
             if (kRandomWalks) {
                 // Absorption stays in the weight; scattering ends the step where the walk says.
                 kappa -= walk_free_path(walk, coverage_as(params.flags.z, coverage), object, h, density, field_s, len);

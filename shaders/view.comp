@@ -293,8 +293,9 @@ void shade(uvec2 pixel) {
                     float density = medium_density(x);
                     bool whole = !kMediumField && len == gather_step && density == 1.0;
                     vec3 kappa_here = thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density);
-                    vec4 field_s = field_scattering(x);
-                    if (kMediumField) kappa_here += field_extinction(x) * h;
+                    FieldSample at = field_at(x);
+                    vec4 field_s = field_scattering(at);
+                    if (kMediumField) kappa_here += field_extinction(at) * h;
                     vec3 attenuation = whole ? step_attenuation : exp(-kappa_here * len);
                     vec3 path_length = whole ? step_path : transmitted_path(kappa_here, len, attenuation);
                     vec3 sigma_here = thinned(sigma_s, params.medium_scattering.rgb * h, scatter_coverage, density);
@@ -305,7 +306,7 @@ void shade(uvec2 pixel) {
                         float field_g = field_mean > 0.0 ? clamp(field_s.a / field_mean, -0.99, 0.99) : 0.0;
                         radiance_sum += transmittance * field_s.rgb * h * path_length * in_scattered(x, ray.d, PHASE_HG_ID, field_g);
                     }
-                    if (field_emits()) radiance_sum += transmittance * field_emission(x) * h * path_length;
+                    if (field_emits()) radiance_sum += transmittance * field_emission(at) * h * path_length;
                     transmittance *= attenuation;
                     t += len;
                     ++steps;
@@ -319,13 +320,14 @@ void shade(uvec2 pixel) {
             } else {
                 float density = run > 0.0 ? medium_depth(ray.p, ray.d, run) / run : 1.0;
                 vec3 kappa_run = thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density);
-                if (kMediumField) kappa_run += field_extinction(ray.p + (0.5 * run) * ray.d) * h;
+                vec3 x = ray.p + (0.5 * run) * ray.d;
+                FieldSample at = field_at(x);
+                if (kMediumField) kappa_run += field_extinction(at) * h;
                 vec3 attenuation = exp(-kappa_run * run);
                 if (field_emits()) {
                     // Unlit or not, what the volumes emit along the run reaches the eye (the run is a
                     // field voxel at most where they do: field_step).
-                    vec3 x = ray.p + (0.5 * run) * ray.d;
-                    vec3 emitted = transmittance * field_emission(x) * h * transmitted_path(kappa_run, run, attenuation);
+                    vec3 emitted = transmittance * field_emission(at) * h * transmitted_path(kappa_run, run, attenuation);
                     radiance_sum += emitted;
                     float share = (emitted.r + emitted.g + emitted.b) * (1.0 / 3.0);
                     light_weight += share;

@@ -78,7 +78,7 @@ void emit_volume_ray(float pick, vec3 within, vec2 turn, out vec3 origin, out ve
     }
     uint voxel = table.entries[lo].x, mask = (1u << MEDIUM_VOXEL_BITS) - 1u;
     vec3 v = vec3(uvec3(voxel & mask, (voxel >> MEDIUM_VOXEL_BITS) & mask, voxel >> (2u * MEDIUM_VOXEL_BITS)));
-    vec3 colour = field_emission((v + 0.5) * params.medium_field.w);  // the voxel's own value, at its centre
+    vec3 colour = field_emission(field_at((v + 0.5) * params.medium_field.w));  // the voxel's own value, at its centre
     origin = to_world((v + within) * params.medium_field.w);
     float cos_t = 1.0 - 2.0 * turn.x, sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
     float phi = kTwoPi * turn.y;

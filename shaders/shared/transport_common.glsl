@@ -184,25 +184,31 @@ vec4 brick_fetch(sampler3D atlas, vec3 f, uvec2 block) {
     return textureLod(atlas, texel / vec3(textureSize(atlas, 0)), 0.0);
 }
 
-// The volumes' extinction and scattering (per metre) at voxel point p, added to the medium's and the
-// objects' where they lie (kMediumField only; 0 without). Scattering's w: the volumes' phase g times
-// their channels' mean scattering.
-vec3 field_extinction(vec3 p) {
-    if (!kMediumField) return vec3(0.0);
+// Where the medium field is read at voxel point p: its field point and block (one map lookup serves
+// every coefficient read there).
+struct FieldSample {
+    vec3 f;
+    uvec2 block;
+};
+FieldSample field_at(vec3 p) {
+    if (!kMediumField) return FieldSample(vec3(0.0), uvec2(MEDIUM_NO_BRICK, 0u));
     vec3 f = field_point(p);
-    return brick_fetch(medium_extinction_field, f, medium_block(f)).rgb;
+    return FieldSample(f, medium_block(f));
 }
-vec4 field_scattering(vec3 p) {
-    if (!kMediumField) return vec4(0.0);
-    vec3 f = field_point(p);
-    return brick_fetch(medium_scattering_field, f, medium_block(f));
+
+// The volumes' extinction and scattering (per metre) there, added to the medium's and the objects' where
+// they lie (kMediumField only; 0 without). Scattering's w: the volumes' phase g times their channels'
+// mean scattering.
+vec3 field_extinction(FieldSample at) {
+    return kMediumField ? brick_fetch(medium_extinction_field, at.f, at.block).rgb : vec3(0.0);
 }
-// Whether the volumes emit, and what (radiance per metre of path) at voxel point p.
+vec4 field_scattering(FieldSample at) {
+    return kMediumField ? brick_fetch(medium_scattering_field, at.f, at.block) : vec4(0.0);
+}
+// Whether the volumes emit, and what there (radiance per metre of path).
 bool field_emits() { return kMediumField && params.volume_emission.y > 0u; }
-vec3 field_emission(vec3 p) {
-    if (!field_emits()) return vec3(0.0);
-    vec3 f = field_point(p);
-    return brick_fetch(medium_emission_field, f, medium_block(f)).rgb;
+vec3 field_emission(FieldSample at) {
+    return field_emits() ? brick_fetch(medium_emission_field, at.f, at.block).rgb : vec3(0.0);
 }
 
 // The phase function (model, g) where scattering takes the coverage c of object o: the object's over
