@@ -290,7 +290,7 @@ void main() {
     uint split_steps = 0u, split_rng = 0u, split_phase = 0u;
     bool split_jumped = false, split_overlap = false, split_unbent = true, split_after_leaf = true;
     // Multiple scattering (random_walk.glsl): compiled out where photons do not scatter.
-    Walk walk = start_walk(kRandomWalks ? next_unit() : 0.0);
+    Walk walk = start_walk(kRandomWalks ? next_unit() : 0.0, hash(i ^ hash(params.photon_info.y + 7u)));
     Walk split_walk = walk;
     // One loop and one floor deposit for all paths: lavapipe runs every line of a loop body on each pass.
     for (uint path = 0u; path < (kDispersive ? 4u : 1u); ++path) {
@@ -359,7 +359,7 @@ void main() {
             if (kMediumField) kappa += field_extinction(midpoint) * h;
             if (kRandomWalks) {
                 // Absorption stays in the weight; scattering ends the step where the walk says.
-                kappa -= walk_free_path(walk, coverage_as(params.flags.z, coverage), object, h, density, field_s, len);
+                kappa -= walk_free_path(walk, ray.p, ray.d, coverage_as(params.flags.z, coverage), object, h, density, field_s, len);
                 if (walk.collides) { ds = len; to_exit = 1e30; to_floor = 1e30; }
             }
             unbent = unbent && all(equal(ray.field.yzw, vec3(0.0)));
