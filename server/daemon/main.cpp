@@ -227,12 +227,12 @@ int run(const http::DaemonConfig& config) {
     } stop_queue{queue};
     if (device.context) service.device_bytes.store(device.context->allocated_bytes());
 
-    // Another replica's deletions and mesh and environment uploads reach this daemon's render queue as its own do (the
-    // routes tell the queue of those made here; telling it twice costs nothing).
+    // Another replica's deletions and mesh, environment and volume uploads reach this daemon's render queue as its own
+    // do (the routes tell the queue of those made here; telling it twice costs nothing).
     scene::Subscription forget = store.on_change([&queue](const scene::StoreEvent& event) {
         if (event.kind == scene::StoreEvent::Kind::deleted) queue.forget_scene(event.name);
         if (event.kind == scene::StoreEvent::Kind::mesh || event.kind == scene::StoreEvent::Kind::environment ||
-            event.kind == scene::StoreEvent::Kind::missed)
+            event.kind == scene::StoreEvent::Kind::volume || event.kind == scene::StoreEvent::Kind::missed)
             queue.forget_cached_frames();
     });
 

@@ -47,6 +47,7 @@ std::optional<std::pair<StoreEvent, bool>> parse_notification(std::string_view p
     if (kind == "deleted") return event(StoreEvent::Kind::deleted, false);
     if (kind == "mesh") return event(StoreEvent::Kind::mesh, false);
     if (kind == "environment") return event(StoreEvent::Kind::environment, false);
+    if (kind == "volume") return event(StoreEvent::Kind::volume, false);
     if (kind == kDeletedMesh) return event(StoreEvent::Kind::mesh, true);
     if (kind == kDeletedEnvironment) return event(StoreEvent::Kind::environment, true);
     if (kind == kDeletedGrid) return event(StoreEvent::Kind::grid, true);

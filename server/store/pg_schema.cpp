@@ -92,8 +92,8 @@ END $$;
 CREATE TRIGGER environments_notify AFTER INSERT OR UPDATE ON environments
     FOR EACH ROW EXECUTE FUNCTION refract_notify();
 )sql",
-// Version 3. Uploaded volumes (OpenVDB files) as uploaded, with the report GET /api/volumes lists. Their
-// uploads are not announced (yet): other replicas keep the frames they cached of scenes that name them.
+// Version 3. Uploaded volumes (OpenVDB files) as uploaded, with the report GET /api/volumes lists (their
+// uploads are announced from version 4).
 R"sql(
 CREATE TABLE volumes (
     name text PRIMARY KEY CONSTRAINT volume_name_format
@@ -102,6 +102,27 @@ CREATE TABLE volumes (
     report jsonb NOT NULL,
     version bigint NOT NULL DEFAULT 1
 );
+)sql",
+// Version 4. Volume uploads are announced as "volume NAME", as meshes' and environments' are: other
+// replicas forget the frames they cached of scenes that name the volume.
+R"sql(
+CREATE OR REPLACE FUNCTION refract_notify() RETURNS trigger LANGUAGE plpgsql AS $$
+BEGIN
+    IF TG_TABLE_NAME = 'meshes' THEN
+        PERFORM pg_notify('refract_scenes', 'mesh ' || NEW.name);
+    ELSIF TG_TABLE_NAME = 'environments' THEN
+        PERFORM pg_notify('refract_scenes', 'environment ' || NEW.name);
+    ELSIF TG_TABLE_NAME = 'volumes' THEN
+        PERFORM pg_notify('refract_scenes', 'volume ' || NEW.name);
+    ELSIF TG_OP = 'DELETE' THEN
+        PERFORM pg_notify('refract_scenes', 'deleted ' || OLD.id);
+    ELSE
+        PERFORM pg_notify('refract_scenes', 'revision ' || NEW.id || ' ' || NEW.revision);
+    END IF;
+    RETURN NULL;
+END $$;
+CREATE TRIGGER volumes_notify AFTER INSERT OR UPDATE ON volumes
+    FOR EACH ROW EXECUTE FUNCTION refract_notify();
 )sql"};
 
 }  // namespace

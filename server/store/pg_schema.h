@@ -7,7 +7,7 @@
 namespace refract::scene::pg {
 
 // The schema version this build writes.
-constexpr int kSchemaVersion = 3;
+constexpr int kSchemaVersion = 4;
 
 // Brings the database to kSchemaVersion under an advisory lock (replicas starting together migrate
 // once). Throws StoreError: unavailable when unreachable, broken (naming both versions) when the

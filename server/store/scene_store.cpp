@@ -524,6 +524,7 @@ VolumeEntry SceneStore::put_volume(const std::string& name, const std::string& b
         write_file_atomically(report_path, report.data(), report.size());
         next_version(AssetKind::volume, name);
     }
+    publish({StoreEvent::Kind::volume, name});
     return entry;
 }
 
