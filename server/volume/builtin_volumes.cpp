@@ -68,7 +68,7 @@ float cloud(float x, float y, float z) {
     static constexpr Puff kPuffs[] = {{0.0f, 0.45f, 0.0f, 0.5f},   {-0.55f, 0.35f, 0.1f, 0.38f}, {0.6f, 0.33f, -0.05f, 0.4f},
                                       {0.2f, 0.75f, 0.1f, 0.35f},  {-0.25f, 0.7f, -0.15f, 0.3f}, {0.95f, 0.25f, 0.2f, 0.25f},
                                       {-0.9f, 0.25f, -0.1f, 0.25f}, {0.1f, 0.35f, 0.45f, 0.33f}, {-0.1f, 0.35f, -0.45f, 0.3f}};
-    float shape = 0.0f;
+    float shape = -1.0f;  // far from every puff
     for (const Puff& p : kPuffs) {
         const float d = std::sqrt((x - p.x) * (x - p.x) + (y - p.y) * (y - p.y) + (z - p.z) * (z - p.z)) / p.r;
         shape = std::max(shape, 1.0f - d);
@@ -118,7 +118,7 @@ struct Maker {
 
 // Index boxes cover each shape's support with a voxel to spare.
 constexpr Maker kMakers[] = {
-    {"builtin.cloud", "density", 0.03, {-56, -2, -40}, {56, 56, 40}, &cloud},
+    {"builtin.cloud", "density", 0.03, {-44, -2, -32}, {44, 44, 32}, &cloud},
     {"builtin.flame", "density", 0.008, {-20, -1, -20}, {20, 64, 20}, &flame_soot},
     {"builtin.flame", "temperature", 0.008, {-20, -1, -20}, {20, 64, 20}, &flame_temperature},
     {"builtin.smoke", "density", 0.02, {-16, -1, -16}, {16, 61, 16}, &smoke},

@@ -16,7 +16,7 @@ namespace refract::volume {
 
 inline constexpr std::string_view kBuiltinVolumePrefix = "builtin.";
 
-// "builtin.cloud": a cumulus of about 3 x 1.5 x 2 m, density up to 1 with billowed edges ("density").
+// "builtin.cloud": a cumulus of about 2.4 x 1.1 x 1.5 m, density up to 1 with billowed edges ("density").
 // "builtin.flame": a flame 0.5 m tall, "temperature" up to 1900 K in its core, and thin "density" (its soot).
 // "builtin.smoke": a plume rising 1.2 m from a point, widening and thinning as it goes ("density").
 // Each stands on its grid's origin (y up), its world box in its report.
