@@ -8,11 +8,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 # The test services (PostgreSQL, HAProxy) are installed here only; tests/scale/with_postgres.sh starts and
 # removes a throwaway cluster for the scale-out test (ctest's scale_out), which starts HAProxy itself.
+echo "== install at $(date +%T) =="
 REFRACT_TEST_SERVICES=1 bash scripts/install-deps.sh
 npm --prefix tests/e2e ci --no-audit --no-fund --loglevel=error
 REFRACT_CMAKE_ARGS="-DREFRACT_WERROR=ON" REFRACT_NO_BROWSER=0 bash scripts/build.sh
 
-echo "== sanitizer build (unit tests, and the daemon under its integration tests) =="
+echo "== sanitizer build (unit tests, and the daemon under its integration tests) at $(date +%T) =="
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Debug -DREFRACT_SANITIZE=ON -DREFRACT_WERROR=ON > /dev/null
 cmake --build build-asan -j"$(nproc)" --target protocol_test mesh_test vk_context_test refractd daemon_test
 # Leak checking stays on; what the Vulkan driver stack keeps until exit is suppressed by module
@@ -25,8 +26,8 @@ for t in protocol_test mesh_test vk_context_test daemon_test; do
     REFRACT_VALIDATION=1 LP_NUM_THREADS=2 build-asan/tests/$t --gtest_brief=1
 done
 
-echo "== fuzzing (10 s per target; scripts/fuzz.sh with no argument runs 10 minutes each) =="
+echo "== fuzzing (10 s per target; scripts/fuzz.sh with no argument runs 10 minutes each) at $(date +%T) =="
 bash scripts/fuzz.sh 10
 
-echo "== full suite =="
+echo "== full suite at $(date +%T) =="
 cd build && ctest --output-on-failure --timeout 600
