@@ -9,23 +9,17 @@
 #include <limits>
 #include <sstream>
 
+#include "volume/grid_checks.h"
+#include "volume/nvdb_reader.h"
 #include "volume/vdb_layout.h"
 
 namespace refract::volume {
 
 namespace {
 
-// The first bytes of a file: OpenVDB's magic number (an int64, little-endian) and NanoVDB's.
+// The first bytes of a file: OpenVDB's magic number (an int64, little-endian). NanoVDB's go to
+// nvdb_reader.h.
 constexpr unsigned char kVdbMagic[8] = {0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0};
-constexpr std::string_view kNanoVdbMagic = "NanoVDB";
-
-std::string quoted(const std::string& name) {
-    return "'" + name + "'";
-}
-
-std::string grid_name(const openvdb::GridBase& grid, size_t index) {
-    return grid.getName().empty() ? "#" + std::to_string(index) + " (unnamed)" : quoted(grid.getName());
-}
 
 // Checks one float grid and fills in its summary; throws VolumeError naming it.
 void check_float_grid(const openvdb::FloatGrid& grid, const std::string& what, const VolumeLimits& limits,
@@ -45,26 +39,12 @@ void check_float_grid(const openvdb::FloatGrid& grid, const std::string& what, c
         summary.unusable_reason = "no active voxels";
         return;
     }
-    // The dimensions multiplied in double: two voxels at opposite ends of the index range overflow 64 bits.
-    const openvdb::Coord dim = box.dim();
-    const double box_voxels = double(dim.x()) * double(dim.y()) * double(dim.z());
-    if (box_voxels > double(limits.max_box_voxels))
-        throw VolumeError("the active bounding box of grid " + what + " spans " + std::to_string(dim.x()) +
-                          " x " + std::to_string(dim.y()) + " x " + std::to_string(dim.z()) +
-                          " voxels, more than the daemon's limit of " +
-                          std::to_string(limits.max_box_voxels));
-
-    // Negative or non-finite values would make extinction negative or poison every estimate through it.
-    const auto check_value = [&](float value, const char* where) {
-        if (!std::isfinite(value))
-            throw VolumeError("grid " + what + " holds a non-finite value (" + std::to_string(value) + ") " +
-                              where);
-        if (value < 0)
-            throw VolumeError("grid " + what + " holds a negative value (" + std::to_string(value) + ") " +
-                              where);
-    };
-    check_value(grid.background(), "as its background");
-    for (auto value = grid.cbeginValueOn(); value; ++value) check_value(*value, "in an active voxel");
+    // Coord::dim is 32-bit and wraps for a box across the whole index range: widened first.
+    check_active_box({int64_t{box.max().x()} - box.min().x() + 1, int64_t{box.max().y()} - box.min().y() + 1,
+                      int64_t{box.max().z()} - box.min().z() + 1},
+                     what, limits);
+    check_grid_value(grid.background(), what, "as its background");
+    for (auto value = grid.cbeginValueOn(); value; ++value) check_grid_value(*value, what, "in an active voxel");
 
     summary.active_voxels = grid.activeVoxelCount();
     summary.index_min = {box.min().x(), box.min().y(), box.min().z()};
@@ -90,10 +70,6 @@ void check_float_grid(const openvdb::FloatGrid& grid, const std::string& what, c
 constexpr uint32_t kOldestVersion = 222;
 
 openvdb::GridPtrVec read_grids(std::string_view bytes, uint32_t max_grids) {
-    if (bytes.substr(0, kNanoVdbMagic.size()) == kNanoVdbMagic)
-        throw VolumeError(
-            "a NanoVDB (.nvdb) file; only OpenVDB (.vdb) files are read (convert it with "
-            "nanovdb_convert, or upload the .vdb it came from)");
     if (bytes.size() < sizeof kVdbMagic || std::memcmp(bytes.data(), kVdbMagic, sizeof kVdbMagic) != 0)
         throw VolumeError("not an OpenVDB file (it does not start with the VDB magic number)");
     // OpenVDB only warns about a format version it cannot read, and then reads no grids.
@@ -137,6 +113,11 @@ VolumeLimits limits_for_resolution(uint32_t max_resolution) {
 }
 
 VolumeReport inspect_vdb(std::string_view bytes, const VolumeLimits& limits) {
+    if (is_nanovdb(bytes)) {
+        VolumeReport report{inspect_nvdb(bytes, limits)};
+        require_usable_grid(report);
+        return report;
+    }
     const openvdb::GridPtrVec grids = read_grids(bytes, limits.max_grids);
     VolumeReport report;
     for (size_t i = 0; i < grids.size(); ++i) {
@@ -144,7 +125,7 @@ VolumeReport inspect_vdb(std::string_view bytes, const VolumeLimits& limits) {
         GridSummary summary;
         summary.name = grid.getName();
         summary.type = grid.valueType();
-        const std::string what = grid_name(grid, i);
+        const std::string what = grid_label(grid.getName(), i);
         if (const auto floats = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grids[i]))
             check_float_grid(*floats, what, limits, summary);
         else if (summary.type == "float")
@@ -154,18 +135,12 @@ VolumeReport inspect_vdb(std::string_view bytes, const VolumeLimits& limits) {
             summary.unusable_reason = "a " + summary.type + " grid; only float grids are read";
         report.grids.push_back(std::move(summary));
     }
-    bool any_usable = false;
-    for (const GridSummary& grid : report.grids) any_usable = any_usable || grid.usable;
-    if (!any_usable) {
-        std::string found;
-        for (const GridSummary& grid : report.grids)
-            found += (found.empty() ? "" : ", ") + quoted(grid.name) + " (" + grid.unusable_reason + ")";
-        throw VolumeError("no usable float grid in the file: " + found);
-    }
+    require_usable_grid(report);
     return report;
 }
 DensityGrid export_density(std::string_view bytes, const std::string& grid_name, const VolumeLimits& limits,
                            uint64_t max_leaves) {
+    if (is_nanovdb(bytes)) return export_nvdb_density(bytes, grid_name, limits, max_leaves);
     const openvdb::GridPtrVec grids = read_grids(bytes, limits.max_grids);
     for (size_t i = 0; i < grids.size(); ++i) {
         if (grids[i]->getName() != grid_name) continue;
