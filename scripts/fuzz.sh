@@ -11,7 +11,7 @@ seconds="${1:-600}"
 shift || true
 targets=("$@")
 if [ "${#targets[@]}" -eq 0 ]; then
-  targets=(scene_document_fuzzer obj_fuzzer index_grid_fuzzer ws_message_fuzzer environment_fuzzer gltf_fuzzer density_export_fuzzer)
+  targets=(scene_document_fuzzer obj_fuzzer index_grid_fuzzer ws_message_fuzzer environment_fuzzer gltf_fuzzer density_export_fuzzer nvdb_fuzzer)
 fi
 
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=Release -DREFRACT_FUZZ=ON -DREFRACT_TESTS=OFF \

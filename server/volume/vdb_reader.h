@@ -1,5 +1,6 @@
-// Volume assets (smoke, clouds, fire) as OpenVDB files: read from the uploaded bytes, checked whole, and
-// summarised per grid. Nothing here renders; a volume's grids are named by the document later.
+// Volume assets (smoke, clouds, fire) as OpenVDB files (or NanoVDB ones, nvdb_reader.h): read from the
+// uploaded bytes, checked whole, and summarised per grid. Nothing here renders; a volume's grids are
+// named by the document later.
 #pragma once
 
 #include <array>
@@ -50,8 +51,9 @@ struct VolumeReport {
     bool operator==(const VolumeReport&) const = default;
 };
 
-// Reads an OpenVDB file from `bytes` and checks it: a VDB file of format 222 to 224 (NanoVDB, truncated
-// or other bytes are refused with the reason) whose declared lengths fit (vdb_layout.h), at most
+// Reads an OpenVDB file from `bytes` and checks it: a VDB file of format 222 to 224 (truncated or other
+// bytes are refused with the reason; a NanoVDB file goes to inspect_nvdb, nvdb_reader.h, and reports as
+// the same grids in a .vdb would) whose declared lengths fit (vdb_layout.h), at most
 // max_grids grids, at least one usable float grid, each float grid with
 // OpenVDB's standard 5-4-3 tree, a linear transform with a finite positive voxel size, an active bounding
 // box within max_box_voxels and finite non-negative values (active and background). Grids of other
