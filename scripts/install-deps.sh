@@ -19,6 +19,7 @@ packages=(
   libstb-dev libopenexr-dev  # environment maps: Radiance .hdr (stb_image, header only) and OpenEXR
   libtinygltf-dev  # glTF 2.0 scenes in and out (server/gltf)
   libopenvdb-dev  # volume assets: OpenVDB files (server/volume), also written by the tests
+  libnanovdb-dev  # volume assets: NanoVDB .nvdb files, whose layout its headers fix (header only), converted by the tests
   assimp-testmodels
   clang lld libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer (libclang_rt.fuzzer) and lld's --gc-sections
 )
