@@ -25,8 +25,10 @@ namespace {
 using test::nvdb_from_vdb;
 
 // Byte offsets of the layout (nanovdb/util/IO.h, NanoVDB.h 32.4) that the hostile files change.
-constexpr size_t kHeaderVersion = 8, kHeaderCodec = 14, kMetaGridSize = 16, kMetaFileSize = 24, kMetaCodec = 16 + 168;
-constexpr size_t kGridVersion = 16, kGridSize = 32, kGridMatrix = 296 + 88, kTree = 672, kTreeCounts = 672 + 32;
+constexpr size_t kHeaderVersion = 8, kHeaderCodec = 14, kMetaGridSize = 16, kMetaFileSize = 24,
+                 kMetaCodec = 16 + 168;
+constexpr size_t kGridVersion = 16, kGridSize = 32, kGridMatrix = 296 + 88, kTree = 672,
+                 kTreeCounts = 672 + 32;
 
 std::string refusal(const std::string& bytes, const VolumeLimits& limits = {}) {
     return test::volume_refusal(bytes, limits);
@@ -73,7 +75,8 @@ TEST(NvdbReader, ReportsAndExportsAsTheVdbItWasConvertedFrom) {
             const DensityGrid from_nvdb = export_density(nvdb, grid.name, {});
             const DensityGrid from_vdb = export_density(vdb, grid.name, {});
             for (size_t i = 0; i < 12; ++i)
-                EXPECT_NEAR(from_nvdb.index_to_world[i], from_vdb.index_to_world[i], 1e-12) << grid.name << " " << i;
+                EXPECT_NEAR(from_nvdb.index_to_world[i], from_vdb.index_to_world[i], 1e-12)
+                    << grid.name << " " << i;
             EXPECT_EQ(by_origin(from_nvdb), by_origin(from_vdb)) << grid.name;
             EXPECT_EQ(decode_density(encode_density(from_nvdb)), from_nvdb);
         }
@@ -113,9 +116,12 @@ TEST(NvdbReader, RefusesValuesBoxesGridsAndLeavesBeyondWhatIsRead) {
         EXPECT_NE(why.find("grid 'density' holds a non-finite value"), std::string::npos) << why;
     }
     std::string why = refusal(nvdb_from_vdb(test::density_with_value_vdb(-0.25f)));
-    EXPECT_NE(why.find("grid 'density' holds a negative value (-0.250000) in an active voxel"), std::string::npos) << why;
+    EXPECT_NE(why.find("grid 'density' holds a negative value (-0.250000) in an active voxel"),
+              std::string::npos)
+        << why;
     why = refusal(nvdb_from_vdb(test::far_apart_vdb(1'000'000)));
-    EXPECT_NE(why.find("active bounding box of grid 'density' spans 1000001 x 1000001 x 1000001"), std::string::npos)
+    EXPECT_NE(why.find("active bounding box of grid 'density' spans 1000001 x 1000001 x 1000001"),
+              std::string::npos)
         << why;
     const std::string nine = nvdb_from_vdb(test::far_apart_vdb(8));
     EXPECT_NO_THROW(inspect_vdb(nine, {.max_box_voxels = 729}));
@@ -126,7 +132,8 @@ TEST(NvdbReader, RefusesValuesBoxesGridsAndLeavesBeyondWhatIsRead) {
         export_density(nvdb_from_vdb(test::density_sphere_vdb(6)), "density", {}, 7);
         ADD_FAILURE() << "exported past max_leaves";
     } catch (const VolumeError& e) {
-        EXPECT_NE(std::string(e.what()).find("8 leaves of 8^3 voxels, more than the 7 a scene takes"), std::string::npos)
+        EXPECT_NE(std::string(e.what()).find("8 leaves of 8^3 voxels, more than the 7 a scene takes"),
+                  std::string::npos)
             << e.what();
     }
 }
@@ -137,7 +144,9 @@ TEST(NvdbReader, RefusesABadBackground) {
     const size_t grid = test::nvdb_grid_offset(nvdb, 0);
     const size_t root = grid + kTree + read<uint64_t>(nvdb, grid + kTree + 24);
     const std::string why = refusal(with(nvdb, root + 28, -1.0f));
-    EXPECT_NE(why.find("grid 'density' holds a negative value (-1.000000) as its background"), std::string::npos) << why;
+    EXPECT_NE(why.find("grid 'density' holds a negative value (-1.000000) as its background"),
+              std::string::npos)
+        << why;
 }
 
 TEST(NvdbReader, RefusesEveryTruncation) {
@@ -147,7 +156,8 @@ TEST(NvdbReader, RefusesEveryTruncation) {
         if (length < 8)
             EXPECT_NE(why.find("not an OpenVDB file"), std::string::npos) << length << ": " << why;
         else
-            EXPECT_NE(why.find("not a readable NanoVDB file: it ends inside"), std::string::npos) << length << ": " << why;
+            EXPECT_NE(why.find("not a readable NanoVDB file: it ends inside"), std::string::npos)
+                << length << ": " << why;
     }
     for (size_t cut : {size_t{15}, size_t{17}, size_t{16 + 176}, nvdb.size() - 1})
         EXPECT_NE(refusal(nvdb.substr(0, cut)).find("it ends inside"), std::string::npos) << cut;
@@ -179,11 +189,15 @@ TEST(NvdbReader, RefusesHostileHeadersWithTheReason) {
         {with(nvdb, kMetaFileSize, uint64_t{100}), "stored in another size than its own"},
         {with(nvdb, 16 + 136, uint32_t{0xffffffff}), "ends inside a grid's name (4294967295 bytes declared"},
         {with(nvdb, grid, uint64_t{0}), "does not start with NanoVDB's magic number"},
-        {with(nvdb, grid + kGridSize, uint64_t{1} << 40), "declares 1099511627776 bytes where the file holds"},
-        {with(nvdb, grid + kGridMatrix, std::numeric_limits<double>::quiet_NaN()), "transform that is not finite"},
+        {with(nvdb, grid + kGridSize, uint64_t{1} << 40),
+         "declares 1099511627776 bytes where the file holds"},
+        {with(nvdb, grid + kGridMatrix, std::numeric_limits<double>::quiet_NaN()),
+         "transform that is not finite"},
         {with(nvdb, grid + kGridMatrix, 0.0), "voxel size that is not finite and positive"},
-        {with(with(nvdb, grid + kGridMatrix + 8, 0.1), grid + kGridMatrix + 32, 0.0), "transform that is not invertible"},
-        {with(nvdb, grid + kTree, uint64_t{1} << 40), "lists 8 leaves at byte 1099511627776 of its tree, beyond"},
+        {with(with(nvdb, grid + kGridMatrix + 8, 0.1), grid + kGridMatrix + 32, 0.0),
+         "transform that is not invertible"},
+        {with(nvdb, grid + kTree, uint64_t{1} << 40),
+         "lists 8 leaves at byte 1099511627776 of its tree, beyond"},
         {with(nvdb, grid + kTreeCounts, uint32_t{0xffffffff}), "lists 4294967295 leaves"},
         {with(nvdb, grid + kTreeCounts + 4, uint32_t{100}), "lists 100 lower internal nodes"},
         {with(nvdb, grid + kTreeCounts + 8, uint32_t{200}), "lists 200 upper internal nodes"},
@@ -192,7 +206,8 @@ TEST(NvdbReader, RefusesHostileHeadersWithTheReason) {
         {with(nvdb, grid + kTree + 24, uint64_t{1} << 40), "has its root beyond its buffer"},
         {with(nvdb, tile0 - 64 + 24, uint32_t{1} << 30), "has a root of 1073741824 tiles, beyond its buffer"},
         {with(nvdb, tile0 + 8, int64_t{-1} << 61), "does not lead to an upper internal node"},
-        {with(nvdb, tile0 + 8, read<int64_t>(nvdb, tile0 + 8) + 32), "does not lead to an upper internal node"},
+        {with(nvdb, tile0 + 8, read<int64_t>(nvdb, tile0 + 8) + 32),
+         "does not lead to an upper internal node"},
         {with(nvdb, tile0 + 32 + 8, read<int64_t>(nvdb, tile0 + 8)), "reaches an upper internal node twice"},
         {with(nvdb, tile0 + 32, read<uint64_t>(nvdb, tile0)), "two root entries at one origin"},
     };
@@ -214,7 +229,8 @@ TEST(NvdbReader, RandomDamageIsRefusedOrReadWhole) {
         const int flips = 1 + int(random() % 4);
         for (int flip = 0; flip < flips; ++flip) {
             const size_t at = random() % 2 ? random() % headers : random() % bytes.size();
-            bytes[at] = random() % 2 ? static_cast<char>(random() & 0xff) : static_cast<char>(bytes[at] ^ (1 << (random() % 8)));
+            bytes[at] = random() % 2 ? static_cast<char>(random() & 0xff)
+                                     : static_cast<char>(bytes[at] ^ (1 << (random() % 8)));
         }
         VolumeReport report;
         try {

@@ -5,10 +5,10 @@
 
 #include <algorithm>
 #include <bit>
-#include <iterator>
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <set>
 
@@ -22,20 +22,21 @@ namespace {
 constexpr uint64_t kMagic = NANOVDB_MAGIC_NUMBER;  // "NanoVDB0", little-endian
 constexpr uint32_t kMajor = NANOVDB_MAJOR_VERSION_NUMBER;
 constexpr uint32_t kNewestMinor = NANOVDB_MINOR_VERSION_NUMBER;
-constexpr uint64_t kHeaderBytes = 16;                // io::Header: magic, version, grid count (u16), codec (u16)
-constexpr uint64_t kMetaBytes = 176;                 // io::MetaData, then the name
+constexpr uint64_t kHeaderBytes = 16;  // io::Header: magic, version, grid count (u16), codec (u16)
+constexpr uint64_t kMetaBytes = 176;   // io::MetaData, then the name
 constexpr uint64_t kMetaGridSize = 0, kMetaFileSize = 8, kMetaNameSize = 136, kMetaCodec = 168;
-constexpr uint64_t kGridBytes = 672;                 // GridData
+constexpr uint64_t kGridBytes = 672;  // GridData
 constexpr uint64_t kGridVersion = 16, kGridSize = 32, kGridType = 636;
 constexpr uint64_t kGridMatrix = 296 + 88, kGridTranslation = 296 + 232;  // Map's mMatD and mVecD (doubles)
-constexpr uint64_t kTreeBytes = 64;                  // TreeData: 4 x u64 node offsets, 3 x u32 node counts
+constexpr uint64_t kTreeBytes = 64;  // TreeData: 4 x u64 node offsets, 3 x u32 node counts
 constexpr uint64_t kTreeCounts = 32;
 constexpr uint64_t kRootBytes = 64, kRootTableSize = 24, kRootBackground = 28;
 constexpr uint64_t kRootTileBytes = 32, kTileChild = 8, kTileState = 16, kTileValue = 20;
 constexpr uint64_t kLeafBytes = 2144, kLeafMask = 16, kLeafValues = 96;
 
 static_assert(sizeof(nanovdb::io::Header) == kHeaderBytes && sizeof(nanovdb::io::MetaData) == kMetaBytes);
-static_assert(sizeof(nanovdb::GridData) == kGridBytes && sizeof(nanovdb::NanoTree<float>::DataType) == kTreeBytes);
+static_assert(sizeof(nanovdb::GridData) == kGridBytes &&
+              sizeof(nanovdb::NanoTree<float>::DataType) == kTreeBytes);
 static_assert(sizeof(nanovdb::NanoRoot<float>::DataType) == kRootBytes);
 static_assert(sizeof(nanovdb::NanoRoot<float>::DataType::Tile) == kRootTileBytes);
 static_assert(sizeof(nanovdb::NanoLeaf<float>::DataType) == kLeafBytes);
@@ -53,9 +54,9 @@ static_assert(sizeof(nanovdb::NanoLower<float>::DataType) == kLower.bytes);
 
 // OpenVDB's names of the value types, so that a grid reads the same in a .vdb and a .nvdb.
 std::string type_name(uint32_t type) {
-    static const char* const kNames[] = {"unknown", "float", "double", "int16", "int32", "int64", "vec3s",
-                                         "vec3d",   "mask",  "half",   "uint32", "bool", "rgba8", "fp4",
-                                         "fp8",     "fp16",  "fpn",    "vec4s", "vec4d", "index"};
+    static const char* const kNames[] = {"unknown", "float", "double", "int16",  "int32", "int64", "vec3s",
+                                         "vec3d",   "mask",  "half",   "uint32", "bool",  "rgba8", "fp4",
+                                         "fp8",     "fp16",  "fpn",    "vec4s",  "vec4d", "index"};
     if (type < std::size(kNames)) return kNames[type];
     return "type #" + std::to_string(type);
 }
@@ -63,7 +64,8 @@ std::string type_name(uint32_t type) {
 template <typename T>
 T load(std::string_view bytes, uint64_t at) {
     // Every caller has checked its range; this guards against a slip in that, not against the file.
-    if (at > bytes.size() || sizeof(T) > bytes.size() - at) throw VolumeError("NanoVDB reader: a read past a grid");
+    if (at > bytes.size() || sizeof(T) > bytes.size() - at)
+        throw VolumeError("NanoVDB reader: a read past a grid");
     T value;
     std::memcpy(&value, bytes.data() + at, sizeof(T));
     return value;
@@ -83,7 +85,9 @@ void check_version(uint32_t version, const std::string& what) {
 
 void check_codec(uint16_t codec, const std::string& what) {
     if (codec == 0) return;
-    const std::string name = codec == 1 ? "ZIP" : codec == 2 ? "BLOSC" : "unknown codec #" + std::to_string(codec);
+    const std::string name = codec == 1   ? "ZIP"
+                             : codec == 2 ? "BLOSC"
+                                          : "unknown codec #" + std::to_string(codec);
     throw VolumeError("a compressed NanoVDB file (" + what + " uses " + name +
                       "); only uncompressed ones are read (write it with codec NONE)");
 }
@@ -101,8 +105,8 @@ public:
     std::string_view take(uint64_t length, const std::string& what) {
         const uint64_t left = bytes_.size() - pos_;
         if (length > left)
-            throw VolumeError("not a readable NanoVDB file: it ends inside " + what + " (" + std::to_string(length) +
-                              " bytes declared, " + std::to_string(left) + " left)");
+            throw VolumeError("not a readable NanoVDB file: it ends inside " + what + " (" +
+                              std::to_string(length) + " bytes declared, " + std::to_string(left) + " left)");
         const std::string_view taken = bytes_.substr(pos_, length);
         pos_ += length;
         return taken;
@@ -122,13 +126,14 @@ std::vector<FileGrid> split_file(std::string_view bytes, uint32_t max_grids) {
         if (magic == __builtin_bswap64(kMagic))
             throw VolumeError("a big-endian NanoVDB file; only little-endian ones are read");
         if (magic != kMagic)
-            throw VolumeError(header.substr(0, 7) == "NanoVDB"
-                                  ? "not a readable NanoVDB file: its magic number " + std::string(header.substr(0, 8)) +
-                                        " is of another NanoVDB generation than this build reads (NanoVDB0, " +
-                                        std::to_string(kMajor) + ".0 to " + std::to_string(kMajor) + "." +
-                                        std::to_string(kNewestMinor) + ")"
-                                  : std::string("not a readable NanoVDB file: a segment does not start with the "
-                                                "NanoVDB magic number"));
+            throw VolumeError(
+                header.substr(0, 7) == "NanoVDB"
+                    ? "not a readable NanoVDB file: its magic number " + std::string(header.substr(0, 8)) +
+                          " is of another NanoVDB generation than this build reads (NanoVDB0, " +
+                          std::to_string(kMajor) + ".0 to " + std::to_string(kMajor) + "." +
+                          std::to_string(kNewestMinor) + ")"
+                    : std::string("not a readable NanoVDB file: a segment does not start with the "
+                                  "NanoVDB magic number"));
         check_version(load<uint32_t>(header, 8), "a segment");
         check_codec(load<uint16_t>(header, 14), "a segment");
         const auto count = load<uint16_t>(header, 12);
@@ -144,10 +149,12 @@ std::vector<FileGrid> split_file(std::string_view bytes, uint32_t max_grids) {
             const auto name_size = load<uint32_t>(meta, kMetaNameSize);
             const std::string_view name = file.take(name_size, "a grid's name");
             grids.push_back({std::string(name.substr(0, name.find('\0'))), {}});
-            check_codec(load<uint16_t>(meta, kMetaCodec), "grid " + grid_label(grids.back().name, grids.size() - 1));
+            check_codec(load<uint16_t>(meta, kMetaCodec),
+                        "grid " + grid_label(grids.back().name, grids.size() - 1));
             sizes.push_back(load<uint64_t>(meta, kMetaGridSize));
             if (load<uint64_t>(meta, kMetaFileSize) != sizes.back())
-                throw VolumeError("not a readable NanoVDB file: grid " + grid_label(grids.back().name, grids.size() - 1) +
+                throw VolumeError("not a readable NanoVDB file: grid " +
+                                  grid_label(grids.back().name, grids.size() - 1) +
                                   " is stored in another size than its own, uncompressed");
         }
         for (size_t i = first; i < grids.size(); ++i)
@@ -207,9 +214,11 @@ NodeArray TreeWalk::array(int level, uint64_t stride) {
     const auto offset = load<uint64_t>(grid_, kGridBytes + 8 * uint64_t(level));
     const auto count = load<uint32_t>(grid_, kGridBytes + kTreeCounts + 4 * uint64_t(level));
     static const char* const kNames[] = {"leaves", "lower internal nodes", "upper internal nodes"};
-    if (count != 0 && (offset > grid_.size() - kGridBytes || count > (grid_.size() - kGridBytes - offset) / stride))
-        damaged("lists " + std::to_string(count) + " " + kNames[level] + " at byte " + std::to_string(offset) +
-                " of its tree, beyond its buffer of " + std::to_string(grid_.size()) + " bytes");
+    if (count != 0 &&
+        (offset > grid_.size() - kGridBytes || count > (grid_.size() - kGridBytes - offset) / stride))
+        damaged("lists " + std::to_string(count) + " " + kNames[level] + " at byte " +
+                std::to_string(offset) + " of its tree, beyond its buffer of " +
+                std::to_string(grid_.size()) + " bytes");
     NodeArray nodes{kGridBytes + (count ? offset : 0), count, stride, {}};
     nodes.reached.assign(count, false);
     return nodes;
@@ -232,7 +241,8 @@ void TreeWalk::walk(const LeafVisit& on_leaf, const TileVisit& on_tile) {
     std::set<std::array<int32_t, 3>> origins;
     for (uint64_t t = 0; t < table_size_; ++t) {
         const uint64_t tile = root_ + kRootBytes + t * kRootTileBytes;
-        // The key packs x, y and z >> 12 in 21 bits each; the origin is taken as NanoVDB takes it, modulo 2^32.
+        // The key packs x, y and z >> 12 in 21 bits each; the origin is taken as NanoVDB takes it, modulo
+        // 2^32.
         const auto key = load<uint64_t>(grid_, tile);
         const std::array<int32_t, 3> origin{int32_t(uint32_t(((key >> 42) & 0x1fffff) << 12)),
                                             int32_t(uint32_t(((key >> 21) & 0x1fffff) << 12)),
@@ -257,17 +267,20 @@ void TreeWalk::walk_internal(const NodeKind& kind, uint64_t at, const std::array
     for (uint32_t word = 0; word < entries / 64; ++word) {
         const auto values = load<uint64_t>(grid_, at + kind.value_mask + 8 * word);
         const auto children = load<uint64_t>(grid_, at + kind.child_mask + 8 * word);
-        if ((values & children) != 0) damaged("has " + std::string(kind.name) + " with a child and a tile at one place");
+        if ((values & children) != 0)
+            damaged("has " + std::string(kind.name) + " with a child and a tile at one place");
         for (uint64_t bits = values | children; bits != 0; bits &= bits - 1) {
             const uint32_t n = word * 64 + uint32_t(std::countr_zero(bits));
-            const std::array<int32_t, 3> at_child{origin[0] + int32_t((n >> (2 * kind.log2dim)) << kind.child_log2),
-                                                  origin[1] + int32_t(((n >> kind.log2dim) & (side - 1)) << kind.child_log2),
-                                                  origin[2] + int32_t((n & (side - 1)) << kind.child_log2)};
+            const std::array<int32_t, 3> at_child{
+                origin[0] + int32_t((n >> (2 * kind.log2dim)) << kind.child_log2),
+                origin[1] + int32_t(((n >> kind.log2dim) & (side - 1)) << kind.child_log2),
+                origin[2] + int32_t((n & (side - 1)) << kind.child_log2)};
             const uint64_t entry = at + kind.table + 8 * uint64_t(n);
             if ((values >> (n % 64)) & 1) {
                 on_tile(at_child, int64_t{1} << kind.child_log2, load<float>(grid_, entry));
             } else if (kind.log2dim == kUpper.log2dim) {
-                walk_internal(kLower, locate(at, load<int64_t>(grid_, entry), lowers_, kLower.name), at_child, on_leaf, on_tile);
+                walk_internal(kLower, locate(at, load<int64_t>(grid_, entry), lowers_, kLower.name), at_child,
+                              on_leaf, on_tile);
             } else {
                 on_leaf(at_child, locate(at, load<int64_t>(grid_, entry), leaves_, "a leaf"));
             }
@@ -287,13 +300,15 @@ std::array<double, 12> index_to_world(std::string_view grid, const std::string& 
         if (!std::isfinite(entry)) throw VolumeError("grid " + what + " has a transform that is not finite");
     for (size_t axis = 0; axis < 3; ++axis) {
         // As OpenVDB's linear maps measure it: the length of the image of an index step along the axis.
-        summary.voxel_size[axis] = std::sqrt(m[axis] * m[axis] + m[4 + axis] * m[4 + axis] + m[8 + axis] * m[8 + axis]);
+        summary.voxel_size[axis] =
+            std::sqrt(m[axis] * m[axis] + m[4 + axis] * m[4 + axis] + m[8 + axis] * m[8 + axis]);
         if (!std::isfinite(summary.voxel_size[axis]) || summary.voxel_size[axis] <= 0)
             throw VolumeError("grid " + what + " has a voxel size that is not finite and positive");
     }
     const double det = m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) +
                        m[2] * (m[4] * m[9] - m[5] * m[8]);
-    if (!std::isfinite(det) || det == 0) throw VolumeError("grid " + what + " has a transform that is not invertible");
+    if (!std::isfinite(det) || det == 0)
+        throw VolumeError("grid " + what + " has a transform that is not invertible");
     return m;
 }
 
@@ -325,9 +340,11 @@ Survey survey(TreeWalk& tree, std::string_view grid) {
         [&](const std::array<int32_t, 3>& origin, uint64_t at) {
             ++s.export_leaves;
             for (uint64_t word = 0; word < 8; ++word)
-                for (uint64_t bits = load<uint64_t>(grid, at + kLeafMask + 8 * word); bits != 0; bits &= bits - 1) {
+                for (uint64_t bits = load<uint64_t>(grid, at + kLeafMask + 8 * word); bits != 0;
+                     bits &= bits - 1) {
                     const uint64_t n = word * 64 + uint64_t(std::countr_zero(bits));
-                    const std::array<int32_t, 3> voxel{origin[0] + int32_t(n >> 6), origin[1] + int32_t((n >> 3) & 7),
+                    const std::array<int32_t, 3> voxel{origin[0] + int32_t(n >> 6),
+                                                       origin[1] + int32_t((n >> 3) & 7),
                                                        origin[2] + int32_t(n & 7)};
                     s.add(voxel, 1, 1, load<float>(grid, at + kLeafValues + 4 * n));
                 }
@@ -347,7 +364,8 @@ struct CheckedGrid {
     uint64_t export_leaves = 0;
 };
 
-void check_float_grid(std::string_view grid, const std::string& what, const VolumeLimits& limits, CheckedGrid& out) {
+void check_float_grid(std::string_view grid, const std::string& what, const VolumeLimits& limits,
+                      CheckedGrid& out) {
     GridSummary& summary = out.summary;
     out.index_to_world = index_to_world(grid, what, summary);
     TreeWalk tree(grid, what);
@@ -370,11 +388,12 @@ void check_float_grid(std::string_view grid, const std::string& what, const Volu
     }
     // The world box holds the index box's eight corners (voxel centres at integer coordinates).
     for (int corner = 0; corner < 8; ++corner) {
-        const std::array<double, 3> index{double((corner & 1) ? s.hi[0] : s.lo[0]), double((corner & 2) ? s.hi[1] : s.lo[1]),
+        const std::array<double, 3> index{double((corner & 1) ? s.hi[0] : s.lo[0]),
+                                          double((corner & 2) ? s.hi[1] : s.lo[1]),
                                           double((corner & 4) ? s.hi[2] : s.lo[2])};
         for (size_t row = 0; row < 3; ++row) {
-            const double world =
-                index[0] * m[row * 4] + index[1] * m[row * 4 + 1] + index[2] * m[row * 4 + 2] + m[row * 4 + 3];
+            const double world = index[0] * m[row * 4] + index[1] * m[row * 4 + 1] +
+                                 index[2] * m[row * 4 + 2] + m[row * 4 + 3];
             summary.world_min[row] = std::min(summary.world_min[row], world);
             summary.world_max[row] = std::max(summary.world_max[row], world);
         }
@@ -389,7 +408,8 @@ CheckedGrid check_grid(const FileGrid& file_grid, size_t index, const VolumeLimi
     if (grid.size() < kGridBytes + kTreeBytes)
         throw VolumeError("not a readable NanoVDB file: grid " + what + " is shorter than its header");
     if (load<uint64_t>(grid, 0) != kMagic)
-        throw VolumeError("not a readable NanoVDB file: grid " + what + " does not start with NanoVDB's magic number");
+        throw VolumeError("not a readable NanoVDB file: grid " + what +
+                          " does not start with NanoVDB's magic number");
     check_version(load<uint32_t>(grid, kGridVersion), "grid " + what);
     if (load<uint64_t>(grid, kGridSize) != grid.size())
         throw VolumeError("not a readable NanoVDB file: grid " + what + " declares " +
@@ -421,8 +441,8 @@ std::vector<GridSummary> inspect_nvdb(std::string_view bytes, const VolumeLimits
     return summaries;
 }
 
-DensityGrid export_nvdb_density(std::string_view bytes, const std::string& grid_name, const VolumeLimits& limits,
-                                uint64_t max_leaves) {
+DensityGrid export_nvdb_density(std::string_view bytes, const std::string& grid_name,
+                                const VolumeLimits& limits, uint64_t max_leaves) {
     const std::vector<FileGrid> grids = split_file(bytes, limits.max_grids);
     for (size_t i = 0; i < grids.size(); ++i) {
         if (grids[i].name != grid_name) continue;
@@ -432,7 +452,8 @@ DensityGrid export_nvdb_density(std::string_view bytes, const std::string& grid_
             throw VolumeError("grid " + quoted(grid_name) + " has " + checked.summary.unusable_reason);
         if (checked.export_leaves > max_leaves)
             throw VolumeError("grid " + quoted(grid_name) + " has " + std::to_string(checked.export_leaves) +
-                              " leaves of 8^3 voxels, more than the " + std::to_string(max_leaves) + " a scene takes");
+                              " leaves of 8^3 voxels, more than the " + std::to_string(max_leaves) +
+                              " a scene takes");
         const std::string_view grid = grids[i].bytes;
         DensityGrid out;
         out.index_to_world = checked.index_to_world;
@@ -446,7 +467,8 @@ DensityGrid export_nvdb_density(std::string_view bytes, const std::string& grid_
                     const auto mask = load<uint64_t>(grid, at + kLeafMask + 8 * word);
                     for (uint64_t bit = 0; bit < 64; ++bit)
                         if ((mask >> bit) & 1)
-                            leaf.values[word * 64 + bit] = load<float>(grid, at + kLeafValues + 4 * (word * 64 + bit));
+                            leaf.values[word * 64 + bit] =
+                                load<float>(grid, at + kLeafValues + 4 * (word * 64 + bit));
                 }
             },
             [&](const std::array<int32_t, 3>& origin, int64_t side, float value) {
