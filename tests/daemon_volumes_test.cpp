@@ -16,6 +16,7 @@
 
 #include "daemon/api.h"
 #include "daemon/harness.h"
+#include "volume/nvdb_samples.h"
 #include "volume/vdb_samples.h"
 
 namespace refract::test {
@@ -261,6 +262,38 @@ TEST(DaemonVolumesTest, BuiltInVolumesRenderWithoutAnUploadAndKeepTheirNames) {
     bad["volumes"]["fire"]["grid"] = "soot";
     expect_refused(client, bad, "/volumes/fire/grid");
     expect_emission_shows(client, document, "fire", "fire");
+    ASSERT_TRUE(daemon.running());
+}
+
+// A NanoVDB file of the same grid is listed as the .vdb is and renders the same frame, byte for byte.
+TEST(DaemonVolumesTest, ANanoVdbUploadRendersAsItsOpenVdbTwin) {
+    TempDir dir;
+    Daemon daemon(dir.path() / "data");
+    auto client = daemon.client();
+    const std::string vdb = flame_vdb(6, 1500.0f);
+    ASSERT_EQ(client.Put("/api/volumes/open", vdb, "application/octet-stream")->status, 201);
+    auto nano = client.Put("/api/volumes/nano", nvdb_from_vdb(vdb), "application/octet-stream");
+    ASSERT_TRUE(nano);
+    ASSERT_EQ(nano->status, 201) << nano->body;
+    const json listed = volumes(client);
+    ASSERT_EQ(listed.size(), 2u);
+    EXPECT_EQ(listed[0]["grids"], listed[1]["grids"]);
+    json document = kSmallScene;
+    document["photons"]["count"] = 16384;
+    for (const char* asset : {"open", "nano"}) {
+        document["volumes"] = {{"fire", {{"asset", asset}, {"emission", {{"temperature_grid", "temperature"}, {"intensity", 2}}}}}};
+        create_scene(client, asset, document);
+    }
+    auto open = get_frame(client, "open");
+    auto nano_frame = get_frame(client, "nano");
+    ASSERT_TRUE(open && nano_frame);
+    EXPECT_EQ(open->body, nano_frame->body);
+    // Cut short, it is refused with the reason and the first upload of the name stays.
+    const std::string cut = nvdb_from_vdb(vdb).substr(0, 200);
+    auto refused = client.Put("/api/volumes/nano", cut, "application/octet-stream");
+    ASSERT_TRUE(refused);
+    EXPECT_EQ(refused->status, 400) << refused->body;
+    EXPECT_EQ(volumes(client), listed);
     ASSERT_TRUE(daemon.running());
 }
 

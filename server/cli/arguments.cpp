@@ -38,8 +38,8 @@ Commands:
 Options for every command:
   --mesh NAME=FILE.obj                    make FILE.obj available to the scene as "upload:NAME"
   --environment NAME=FILE                 make FILE (.hdr or .exr) available as environment image NAME
-  --volume NAME=FILE.vdb                  make FILE.vdb (checked as refractd checks an upload) available
-                                          to the scene's volumes as asset NAME
+  --volume NAME=FILE                      make FILE (.vdb or .nvdb, checked as refractd checks an upload)
+                                          available to the scene's volumes as asset NAME
   --device NAME                           use the device whose name contains NAME (also REFRACT_DEVICE)
 SCENE.json may be - for the default scene {}.
 )";
@@ -133,10 +133,10 @@ std::vector<Option> with_common_options(std::vector<Option> options) {
                        [](Arguments& a, const std::string& flag, const std::string& spec) {
                            a.environments.push_back(named_file(flag, spec, "NAME=FILE"));
                        }});
-    options.push_back({"--volume", "", "NAME=FILE.vdb",
+    options.push_back({"--volume", "", "NAME=FILE",
                        "an OpenVDB volume the scene's volumes name NAME, checked as refractd checks an upload",
                        [](Arguments& a, const std::string& flag, const std::string& spec) {
-                           a.volumes.push_back(named_file(flag, spec, "NAME=FILE.vdb"));
+                           a.volumes.push_back(named_file(flag, spec, "NAME=FILE"));
                            if (!protocol::valid_name(a.volumes.back().first))
                                throw UsageError(flag + ": the name in '" + spec + "' must match [A-Za-z0-9_.-]{1,64}");
                        }});

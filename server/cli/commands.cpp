@@ -146,7 +146,7 @@ scene::Densities densities_of(const Loaded& loaded) {
         }
         const auto it = loaded.volumes.find(member.asset);
         if (it == loaded.volumes.end())
-            throw std::runtime_error("the scene names volume " + member.asset + ": pass --volume " + member.asset + "=FILE.vdb");
+            throw std::runtime_error("the scene names volume " + member.asset + ": pass --volume " + member.asset + "=FILE (.vdb or .nvdb)");
         auto grid = [&](const std::string& name) {
             return std::make_shared<const volume::DensityGrid>(volume::export_density(
                 it->second.second, name, volume::limits_for_resolution(protocol::Limits{}.max_resolution)));

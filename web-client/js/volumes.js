@@ -74,7 +74,7 @@ export class VolumeAssetField extends Field {
       const emission = emitterFor({ ...actions.chosenVolume(), grid }, grids);
       emit(this, { medium_volume: { asset, grid, ...(emission && { emission }) } }, true);
     });
-    const picker = filePicker('volume-file', '.vdb', 'Upload VDB…', (f) => actions.uploadVolume(f, this));
+    const picker = filePicker('volume-file', '.vdb,.nvdb', 'Upload VDB…', (f) => actions.uploadVolume(f, this));
     this.status = h('p', { class: 'note', id: 'volume-status', 'aria-live': 'polite' });
     this.describe(this.select, picker.input);
     this.el.append(this.label, h('div', { class: 'row' }, this.select, picker.input, picker.label), this.status,
