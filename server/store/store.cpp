@@ -219,7 +219,9 @@ void check_environment(const protocol::SceneDocument& document,
 
 void check_volumes(const protocol::SceneDocument& document,
                    const std::function<std::optional<volume::VolumeReport>(const std::string& name)>& stored) {
-    for (const auto& [key, density] : document.volumes) {
+    for (const auto& member : document.volumes) {
+        const std::string& key = member.first;
+        const protocol::DensityVolume& density = member.second;  // named, not bound: the lambda below takes it
         const std::string base = "/volumes/" + key;  // keys are valid names: nothing to escape
         const std::optional<volume::VolumeReport> report =
             volume::is_builtin_volume(density.asset) ? volume::builtin_volume_report(density.asset) : stored(density.asset);
