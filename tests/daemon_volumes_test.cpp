@@ -108,7 +108,7 @@ TEST(DaemonVolumesTest, HostileVolumesAreRefusedWithTheReasonAndStoreNothing) {
     const std::vector<std::pair<std::string, std::string>> hostile = {
         {valid.substr(0, valid.size() / 2), "not a readable OpenVDB file"},
         {noise, "not an OpenVDB file"},
-        {"NanoVDB0" + noise, "NanoVDB (.nvdb)"},
+        {"NanoVDB0" + noise, "not a readable NanoVDB file"},
         {vector_only_vdb(), "no usable float grid in the file: 'vel'"},
         {density_with_value_vdb(std::numeric_limits<float>::quiet_NaN()),
          "grid 'density' holds a non-finite value"},
