@@ -243,6 +243,7 @@ void main() {
     // Where shell steps start after a leaf (below), by step number: a channel's path replays its photon's.
     uint step_seed = hash(i ^ hash(params.photon_info.y + 5u));
     deposit_phase = i * 2654435769u + hash(params.photon_info.y + 1u);  // 2^32 / the golden ratio
+    uint ratio_rng = hash(i ^ hash(params.photon_info.y + 8u));  // the volumes' residual ratio tracking
 
     vec3 p = to_voxel(origin);
     vec2 span = grid_interval(p, direction);
@@ -356,7 +357,12 @@ void main() {
             kappa = thinned(kappa, params.medium_extinction.rgb * h, coverage, density);
             FieldSample midpoint = field_at(ray.p + (0.5 * len) * ray.d);
             vec4 field_s = field_scattering(midpoint);
-            if (kMediumField) kappa += field_extinction(midpoint) * h;
+            vec3 field_sigma = field_extinction(midpoint);
+            if (kMediumField) kappa += field_sigma * h;
+            // What the volumes take of the weight beyond the midpoint's (residual_ratio): their absorption
+            // while the photon walks (its scattering is delta-tracked), else their extinction.
+            bool walking = kRandomWalks && walk.bounces < params.models.w;
+            vec3 control = walking ? field_sigma - (field_s.r + field_s.g + field_s.b) * (1.0 / 3.0) : field_sigma;
             if (kRandomWalks) {
                 // Absorption stays in the weight; scattering ends the step where the walk says.
                 kappa -= walk_free_path(walk, ray.p, ray.d, coverage_as(params.flags.z, coverage), object, h, density, field_s, len);
@@ -366,12 +372,12 @@ void main() {
             if (deposits && !in_direct) deposit(ray.p / radiance_factor, ray.d, len / radiance_factor, weight, kappa * radiance_factor, unbent);
             path_length += len;
             if (to_floor <= min(ds, to_exit)) {
-                weight *= exp(-kappa * to_floor);
+                weight *= exp(-kappa * to_floor) * residual_ratio(midpoint, ray.p, ray.d, to_floor, control, h, walking, ratio_rng);
                 ray.p += ray.d * to_floor;
                 outcome = 2.0;
                 break;
             }
-            weight *= exp(-kappa * len);
+            weight *= exp(-kappa * len) * residual_ratio(midpoint, ray.p, ray.d, len, control, h, walking, ratio_rng);
             if (to_exit <= ds) {
                 ray.p += ray.d * to_exit;
                 outcome = 1.0;

@@ -36,12 +36,6 @@ struct Walk {
 // A walk before its first free path: `xi` uniform in [0, 1), `seed` its delta tracking's stream.
 Walk start_walk(float xi, uint seed) { return Walk(-log(1.0 - xi), 0u, false, false, 0.0, 0u, 1.0, vec4(0.0), seed); }
 
-// The next number of the walk's stream, uniform in [0, 1) (a PCG step and output hash).
-float walk_unit(inout Walk w) {
-    w.rng = w.rng * 747796405u + 2891336453u;
-    uint x = ((w.rng >> ((w.rng >> 28u) + 4u)) ^ w.rng) * 277803737u;
-    return float(((x >> 22u) ^ x) >> 8u) * (1.0 / 16777216.0);
-}
 
 // Delta tracking of the volumes' scattering over the step of `len` voxels from p along d: the distance to
 // their first collision in it, or a value >= len for none (`at`: their scattering there).
@@ -52,10 +46,10 @@ float field_collision(inout Walk w, vec3 p, vec3 d, float len, float h, out vec4
     if (start.block.x == MEDIUM_NO_BRICK || !(majorant > 0.0)) return len;
     float t = 0.0;
     for (int guard = 0; guard < 256; ++guard) {
-        t -= log(1.0 - walk_unit(w)) / majorant;
+        t -= log(1.0 - pcg_unit(w.rng)) / majorant;
         if (t >= len) return len;
         at = field_scattering(field_at(p + t * d));
-        if (walk_unit(w) * majorant < (at.r + at.g + at.b) * (1.0 / 3.0) * h) return t;
+        if (pcg_unit(w.rng) * majorant < (at.r + at.g + at.b) * (1.0 / 3.0) * h) return t;
     }
     return len;
 }

@@ -211,6 +211,40 @@ vec3 field_emission(FieldSample at) {
     return field_emits() ? brick_fetch(medium_emission_field, at.f, at.block).rgb : vec3(0.0);
 }
 
+// A small random stream (a PCG step and its output hash): the next number uniform in [0, 1).
+float pcg_unit(inout uint state) {
+    state = state * 747796405u + 2891336453u;
+    uint x = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return float(((x >> 22u) ^ x) >> 8u) * (1.0 / 16777216.0);
+}
+
+// The volumes' transmittance over a step of `len` voxels (of side h) from p along d beyond what the step's
+// Beer-Lambert factor took for them, their extinction `control` at its midpoint (`mid`): residual ratio
+// tracking (Novak et al. 2014), the product over tentative points at the rate of the block's majorant
+// of 1 - (sigma(x) - control) / majorant, whose mean is exp(-integral of (sigma - control)) however the
+// field varies along the step. So a step's transmittance is unbiased for the filtered field, and close
+// to 1 (little noise) where the field is near linear, as within a field voxel. `absorption`: sigma is
+// the extinction less the channels' mean scattering (what a walking photon's weight takes; its
+// scattering is delta-tracked), as `control` is then.
+vec3 residual_ratio(FieldSample mid, vec3 p, vec3 d, float len, vec3 control, float h, bool absorption, inout uint rng) {
+    float majorant = uintBitsToFloat(mid.block.y);  // per metre
+    if (!kMediumField || mid.block.x == MEDIUM_NO_BRICK || !(majorant > 0.0)) return vec3(1.0);
+    vec3 ratio = vec3(1.0);
+    float t = 0.0;
+    for (int guard = 0; guard < 64; ++guard) {
+        t -= log(1.0 - pcg_unit(rng)) / (majorant * h);
+        if (t >= len) break;
+        FieldSample at = field_at(p + t * d);
+        vec3 sigma = field_extinction(at);
+        if (absorption) {
+            vec4 s = field_scattering(at);
+            sigma -= (s.r + s.g + s.b) * (1.0 / 3.0);
+        }
+        ratio *= 1.0 - (sigma - control) / majorant;
+    }
+    return ratio;
+}
+
 // The phase function (model, g) where scattering takes the coverage c of object o: the object's over
 // 0.5, the medium's below.
 uint phase_model_at(float c, uint o) {
