@@ -353,4 +353,15 @@ TEST(Cli, RenderRefusesAnUnusableVolumeBeforeTheDevice) {
     fs::remove(file);
 }
 
+// A built-in volume needs no --volume; a grid it lacks is refused by name (exit 1), before a device starts.
+TEST(Cli, RenderRefusesAGridTheBuiltInVolumeLacks) {
+    const fs::path scene = fs::temp_directory_path() / ("refract_cli_builtin_" + std::to_string(::getpid()) + ".json");
+    std::ofstream(scene) << R"({"volumes": {"fire": {"asset": "builtin.flame", "grid": "soot"}}})";
+    const Outcome run = run_refract({"render", scene.string(), "-o", (fs::temp_directory_path() / "x.exr").string()});
+    EXPECT_EQ(run.status, 1);
+    EXPECT_NE(run.err.find("built-in volume builtin.flame has no grid 'soot'"), std::string::npos) << run.err;
+    EXPECT_EQ(run.err.find("VK_ERROR_"), std::string::npos) << run.err;
+    fs::remove(scene);
+}
+
 }  // namespace

@@ -26,7 +26,6 @@
 #include "render/renderer.h"
 #include "render/scene_gpu.h"
 #include "render/scene_lattice.h"
-#include "volume/builtin_volumes.h"
 #include "vk/commands.h"
 #include "vk/context.h"
 #include "vk/gpu_timer.h"
@@ -188,13 +187,7 @@ scene::WorldMeshes worlds_of(const protocol::SceneDocument& d, const std::map<st
 // The grids of the scene's volumes: the built-in ones (the bench reads no uploads).
 scene::Densities bench_densities(const protocol::SceneDocument& d) {
     scene::Densities densities;
-    for (const auto& [key, member] : d.volumes) {
-        densities[key].density = volume::builtin_density(member.asset, member.grid);
-        if (member.emission.emits()) densities[key].emission = volume::builtin_density(member.asset, member.emission_grid());
-        if (!densities[key].density || (member.emission.emits() && !densities[key].emission))
-            throw std::runtime_error("bench: volume " + member.asset + " of /volumes/" + key +
-                                     " is no built-in one's grid (the bench reads only built-in volumes)");
-    }
+    for (const auto& [key, member] : d.volumes) densities[key] = builtin_volume_grids(member);
     return densities;
 }
 
@@ -397,9 +390,8 @@ struct CaseRuns {
 // `memory_before`: the device memory allocated before `scene_gpu` was made (what it adds is the case's).
 CaseRuns run_case(vk::Context& context, int64_t memory_before, scene::SceneGpu& scene_gpu, const BenchCase& c,
                   const protocol::SceneDocument& document, const scene::WorldMeshes& worlds,
-                  const Uploads& uploads, int runs) {
+                  const scene::Densities& densities, const Uploads& uploads, int runs) {
     CaseRuns measured;
-    const scene::Densities densities = bench_densities(document);
     scene::RunOptions run_options = scene::run_options_for(c.quality);
     // A rebuild voxelizes every object again, though their coverage is resident.
     run_options.revoxelize = c.move.is_null() && (c.edit & scene::kVoxelize);
@@ -436,8 +428,8 @@ int64_t dense_lattice_bytes(const scene::SceneGpu& scene_gpu, const protocol::Sc
 }
 
 // The report's entry for one case: its size, each pass's median and spread, and the throughputs.
-json case_entry(const BenchCase& c, const protocol::SceneDocument& document, const scene::SceneGpu& scene_gpu,
-                const CaseRuns& measured) {
+json case_entry(const BenchCase& c, const protocol::SceneDocument& document, const scene::Densities& densities,
+                const scene::SceneGpu& scene_gpu, const CaseRuns& measured) {
     json entry = {{"case", c.name},
                   {"edit", c.edit_name},
                   {"quality", c.quality == scene::Quality::interactive ? "interactive" : "still"},
@@ -452,7 +444,7 @@ json case_entry(const BenchCase& c, const protocol::SceneDocument& document, con
     entry["dense_lattice_mib"] = static_cast<double>(dense_lattice_bytes(scene_gpu, document)) / (1 << 20);
     if (!document.volumes.empty()) {
         // The sparse medium field against a dense one of the lattice's voxel (its two or three atlases).
-        const scene::MediumFieldLayout field = scene::plan_medium_field(scene_gpu.grid(), document.volumes, bench_densities(document));
+        const scene::MediumFieldLayout field = scene::plan_medium_field(scene_gpu.grid(), document.volumes, densities);
         entry["medium_field"] = {
             {"step", field.step}, {"bricks", field.brick_count},
             {"mib", static_cast<double>(scene::medium_field_bytes(field)) / (1 << 20)},
@@ -544,9 +536,9 @@ int bench_command(const Arguments& args) {
         const scene::WorldMeshes worlds = worlds_of(document, uploads);
         const int64_t memory_before = context.allocated_bytes();
         scene::SceneGpu scene_gpu(kit);
-        const CaseRuns measured =
-            run_case(context, memory_before, scene_gpu, c, document, worlds, uploads, runs);
-        const json entry = case_entry(c, document, scene_gpu, measured);
+        const scene::Densities densities = bench_densities(document);
+        const CaseRuns measured = run_case(context, memory_before, scene_gpu, c, document, worlds, densities, uploads, runs);
+        const json entry = case_entry(c, document, densities, scene_gpu, measured);
         report["cases"].push_back(entry);
         if (!args.json) print_case(c, entry, scene_gpu, measured);
     }

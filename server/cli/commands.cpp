@@ -133,15 +133,12 @@ std::shared_ptr<const image::EnvironmentMap> environment_of(const Loaded& loaded
 }
 
 // The grid of each of the scene's volumes, from the files --volume gave (exported in this process: the
-// CLI reads the user's own files, as it checks them).
+// CLI reads the user's own files, as it checks them) or the built-in ones.
 scene::Densities densities_of(const Loaded& loaded) {
     scene::Densities densities;
     for (const auto& [key, member] : loaded.document.volumes) {
         if (volume::is_builtin_volume(member.asset) && !loaded.volumes.contains(member.asset)) {
-            densities[key].density = volume::builtin_density(member.asset, member.grid);
-            if (member.emission.emits()) densities[key].emission = volume::builtin_density(member.asset, member.emission_grid());
-            if (!densities[key].density || (member.emission.emits() && !densities[key].emission))
-                throw std::runtime_error("built-in volume " + member.asset + " has no grid the scene names");
+            densities[key] = builtin_volume_grids(member);
             continue;
         }
         const auto it = loaded.volumes.find(member.asset);
@@ -227,6 +224,15 @@ void write_frame(const std::string& path, const scene::SceneGpu& gpu, const prot
 
 }  // namespace
 
+scene::VolumeGrids builtin_volume_grids(const protocol::DensityVolume& member) {
+    scene::VolumeGrids grids{volume::builtin_density(member.asset, member.grid),
+                             member.emission.emits() ? volume::builtin_density(member.asset, member.emission_grid()) : nullptr};
+    if (!grids.density || (member.emission.emits() && !grids.emission))
+        throw std::runtime_error("built-in volume " + member.asset + " has no grid '" +
+                                 (grids.density ? member.emission_grid() : member.grid) + "'");
+    return grids;
+}
+
 int devices_command() {
     const auto devices = vk::list_devices();
     if (devices.empty()) {
@@ -277,6 +283,7 @@ int voxelize_command(const Arguments& args) {
 
 int trace_command(const Arguments& args) {
     const Loaded loaded = load(args);
+    const scene::Densities densities = densities_of(loaded);  // a grid not there is refused before the device
     const auto dir = output_dir(args);
     vk::Context context = make_context_for(args);
     scene::PassKit kit(context);
@@ -284,7 +291,7 @@ int trace_command(const Arguments& args) {
     scene::RunOptions options;
     options.limit = scene::kAllPasses & ~scene::kView;
     const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_meshes(loaded), nullptr, options,
-                               environment_of(loaded).get(), densities_of(loaded));
+                               environment_of(loaded).get(), densities);
     write_index_slices(dir, gpu);
     const auto radiance = gpu.read_radiance();
     std::vector<float> fluence(radiance.size());
@@ -319,13 +326,14 @@ int trace_command(const Arguments& args) {
 
 int render_command(const Arguments& args) {
     const Loaded loaded = load(args);
+    const scene::Densities densities = densities_of(loaded);  // a grid not there is refused before the device
     vk::Context context = make_context_for(args);
     scene::PassKit kit(context);
     scene::SceneGpu gpu(kit);
     const auto host_start = std::chrono::steady_clock::now();
     const auto stats = gpu.run(scene::kAllPasses, loaded.document, world_meshes(loaded), nullptr,
                                scene::run_options_for(args.interactive ? scene::Quality::interactive : scene::Quality::still),
-                               environment_of(loaded).get(), densities_of(loaded));
+                               environment_of(loaded).get(), densities);
     const auto encode_start = std::chrono::steady_clock::now();
     write_frame(args.out, gpu, loaded.document);
     const auto end = std::chrono::steady_clock::now();

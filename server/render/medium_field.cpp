@@ -318,6 +318,28 @@ std::vector<std::pair<glm::ivec3, glm::vec4>> lay_bricks(MediumField& field, con
     return emitting;
 }
 
+// The layout of the field (plan_medium_field) and which of its blocks the volumes reach.
+struct Plan {
+    MediumFieldLayout layout;
+    std::vector<bool> reached{false};
+};
+
+Plan plan(const passes::GridGeometry& lattice, const std::map<std::string, protocol::DensityVolume>& volumes,
+          const Densities& densities) {
+    Plan planned;
+    MediumFieldLayout& layout = planned.layout;
+    if (volumes.empty()) return planned;
+    layout.emits = std::any_of(volumes.begin(), volumes.end(), [](const auto& named) { return named.second.emission.emits(); });
+    const auto boxes = leaf_boxes(volumes, densities);
+    for (;; ++layout.step) {
+        planned.reached = reached_blocks(lattice, layout.step, boxes, layout.brick_count);
+        if (layout.brick_count <= kMaxMediumBricks) break;
+    }
+    layout.dims = lattice.coarsened(layout.step);
+    layout.bricks = atlas_bricks(layout.brick_count);
+    return planned;
+}
+
 }  // namespace
 
 bool volume_world_box(const protocol::DensityVolume& member, const volume::DensityGrid& grid, glm::dvec3& lo, glm::dvec3& hi) {
@@ -330,17 +352,7 @@ bool volume_world_box(const protocol::DensityVolume& member, const volume::Densi
 
 MediumFieldLayout plan_medium_field(const passes::GridGeometry& lattice,
                                     const std::map<std::string, protocol::DensityVolume>& volumes, const Densities& densities) {
-    MediumFieldLayout layout;
-    if (volumes.empty()) return layout;
-    layout.emits = std::any_of(volumes.begin(), volumes.end(), [](const auto& named) { return named.second.emission.emits(); });
-    const auto boxes = leaf_boxes(volumes, densities);
-    for (;; ++layout.step) {
-        (void)reached_blocks(lattice, layout.step, boxes, layout.brick_count);
-        if (layout.brick_count <= kMaxMediumBricks) break;
-    }
-    layout.dims = lattice.coarsened(layout.step);
-    layout.bricks = atlas_bricks(layout.brick_count);
-    return layout;
+    return plan(lattice, volumes, densities).layout;
 }
 
 uint64_t medium_field_bytes(const MediumFieldLayout& layout) {
@@ -363,14 +375,13 @@ MediumField resample_volumes(const passes::GridGeometry& lattice,
             throw RenderError("grid '" + member.emission_grid() + "' of volume '" + member.asset + "' (/volumes/" + name +
                               "/emission) is not loaded");
     }
-    field.layout = plan_medium_field(lattice, volumes, densities);
+    Plan planned = plan(lattice, volumes, densities);
+    field.layout = planned.layout;
     const MediumFieldLayout& layout = field.layout;
     const glm::ivec3 dims = extent(layout.dims);
     const int block = static_cast<int>(kMediumFieldBlock);
     const glm::ivec3 blocks = (dims + block - 1) / block;
-    uint32_t count = 0;
-    const std::vector<bool> reached =
-        volumes.empty() ? std::vector<bool>(1, false) : reached_blocks(lattice, layout.step, leaf_boxes(volumes, densities), count);
+    const std::vector<bool>& reached = planned.reached;
 
     std::vector<uint32_t> slot_of(reached.size(), MEDIUM_NO_BRICK);
     std::vector<glm::ivec3> block_of;
