@@ -15,15 +15,19 @@ REFRACT_CMAKE_ARGS="-DREFRACT_WERROR=ON" REFRACT_NO_BROWSER=0 bash scripts/build
 
 echo "== sanitizer build (unit tests, and the daemon under its integration tests) at $(date +%T) =="
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Debug -DREFRACT_SANITIZE=ON -DREFRACT_WERROR=ON > /dev/null
-cmake --build build-asan -j"$(nproc)" --target protocol_test mesh_test vk_context_test refractd daemon_test
+cmake --build build-asan -j"$(nproc)" --target protocol_test mesh_test vk_context_test daemon_units_test refractd
 # Leak checking stays on; what the Vulkan driver stack keeps until exit is suppressed by module
 # (tests/lsan.supp). The loader unloads lavapipe before LeakSanitizer looks, which leaves its frames
-# nameless ("<unknown module>") and so unsuppressable: preloading it keeps it mapped and named.
+# nameless ("<unknown module>") and so unsuppressable: preloading it keeps it mapped and named. The
+# daemon's integration tests are the Release build's, started against the sanitized refractd: what they
+# check is the daemon, and compiling them again with the sanitizers took longer than running them.
 lavapipe="$(dpkg -L mesa-vulkan-drivers | grep -m1 '/libvulkan_lvp\.so$')"
-for t in protocol_test mesh_test vk_context_test daemon_test; do
+for t in build-asan/tests/protocol_test build-asan/tests/mesh_test build-asan/tests/vk_context_test \
+         build-asan/tests/daemon_units_test build/tests/daemon_test; do
   LD_PRELOAD="$lavapipe" ASAN_OPTIONS=detect_leaks=1:verify_asan_link_order=0 \
     LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp:print_suppressions=0" \
-    REFRACT_VALIDATION=1 LP_NUM_THREADS=2 build-asan/tests/$t --gtest_brief=1
+    REFRACT_SANITIZED_REFRACTD="$PWD/build-asan/server/daemon/refractd" \
+    REFRACT_VALIDATION=1 LP_NUM_THREADS=2 "$t" --gtest_brief=1
 done
 
 echo "== fuzzing (10 s per target; scripts/fuzz.sh with no argument runs 10 minutes each) at $(date +%T) =="

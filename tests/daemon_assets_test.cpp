@@ -23,7 +23,6 @@ const json kSmallScene = {{"image", {{"width", 32}, {"height", 32}}},
                           {"volume", {{"resolution", 32}}},
                           {"photons", {{"count", 256}}}};
 
-const char kTetrahedronObj[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
 
 std::string le32(uint32_t value) {
     std::string out(4, '\0');
@@ -146,7 +145,7 @@ TEST(DaemonAssetsTest, DecodedEnvironmentsStayWithinTheHostMemoryBudget) {
     const int64_t after_refused = daemon.rss_bytes();
     // Nothing decoded: one decode is 384 MiB. What grows is the bodies received (3 MiB each, on the
     // server's threads, whose allocator arenas keep what they held).
-    if (!kSanitized) {
+    if (!daemon_sanitized()) {
         EXPECT_LT(after_refused - before, 128 * kMiB);
     }
 
@@ -165,7 +164,7 @@ TEST(DaemonAssetsTest, DecodedEnvironmentsStayWithinTheHostMemoryBudget) {
     // (stb_image's floats and the map, 96 MiB each) the allocator may keep up to one map's worth in a
     // worker thread's arena (measured: +286 MiB, flat from the third upload on). Kept, the six maps
     // alone would take 576 MiB.
-    if (!kSanitized) {
+    if (!daemon_sanitized()) {
         EXPECT_LT(after - before, 256 * kMiB + 96 * kMiB);
     }
 

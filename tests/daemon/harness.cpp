@@ -24,9 +24,16 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// The refractd the tests start: REFRACT_SANITIZED_REFRACTD where it is set, else this build's.
+std::string refractd_path() {
+    const char* sanitized = std::getenv("REFRACT_SANITIZED_REFRACTD");
+    return sanitized && *sanitized ? sanitized : REFRACTD_PATH;
+}
+
 // Starts refractd with `args`, its stdout and stderr appended to `log`; its pid.
 pid_t spawn_refractd(const std::vector<std::string>& args, const fs::path& log) {
-    std::vector<std::string> all = {REFRACTD_PATH};
+    const std::string path = refractd_path();
+    std::vector<std::string> all = {path};
     all.insert(all.end(), args.begin(), args.end());
     std::vector<char*> argv;
     for (auto& arg : all) argv.push_back(arg.data());
@@ -37,13 +44,36 @@ pid_t spawn_refractd(const std::vector<std::string>& args, const fs::path& log) 
                                      0644);
     posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
     pid_t pid = -1;
-    int error = posix_spawn(&pid, REFRACTD_PATH, &actions, nullptr, argv.data(), environ);
+    int error = posix_spawn(&pid, path.c_str(), &actions, nullptr, argv.data(), environ);
     posix_spawn_file_actions_destroy(&actions);
-    if (error != 0) throw std::runtime_error("cannot spawn " + std::string(REFRACTD_PATH));
+    if (error != 0) throw std::runtime_error("cannot spawn " + path);
     return pid;
 }
 
 }  // namespace
+
+bool daemon_sanitized() {
+#if defined(__SANITIZE_ADDRESS__)
+    return true;
+#else
+    const char* sanitized = std::getenv("REFRACT_SANITIZED_REFRACTD");
+    return sanitized && *sanitized;
+#endif
+}
+
+std::string read_file(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+bool wait_until(const std::function<bool()>& done, std::chrono::milliseconds limit) {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (!done()) {
+        if (std::chrono::steady_clock::now() > end) return false;
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    return true;
+}
 
 TempDir::TempDir() {
     std::string pattern = (fs::temp_directory_path() / "refractd-test-XXXXXX").string();

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -15,14 +16,22 @@
 
 namespace refract::test {
 
-// True when the tests, and the daemon they start, are built with AddressSanitizer: its allocator keeps
-// freed memory in quarantine and its checks slow the host code several times, so bounds on a daemon's
-// memory and on host-bound times are asserted in the Release run (scripts/test.sh runs both).
-#if defined(__SANITIZE_ADDRESS__)
-inline constexpr bool kSanitized = true;
-#else
-inline constexpr bool kSanitized = false;
-#endif
+// True when the daemon the tests start is built with AddressSanitizer: this test binary is (its own
+// refractd is then too), or REFRACT_SANITIZED_REFRACTD names one to start instead (scripts/test.sh runs
+// the Release tests against the sanitized daemon, so the tests' own code is not rebuilt for it). Its
+// allocator keeps freed memory in quarantine and its checks slow the host code several times, so bounds on
+// a daemon's memory and on host-bound times are asserted in the Release run (scripts/test.sh runs both).
+bool daemon_sanitized();
+
+// A tetrahedron, the smallest closed mesh.
+inline constexpr char kTetrahedronObj[] =
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+
+// The whole of a file's bytes ("" when unreadable).
+std::string read_file(const std::filesystem::path& path);
+
+// Polls `done` every 5 ms until it holds (true) or `limit` has passed (false).
+bool wait_until(const std::function<bool()>& done, std::chrono::milliseconds limit);
 
 // A fresh directory under the system temp dir, removed with everything in it on destruction.
 class TempDir {
