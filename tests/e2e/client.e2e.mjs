@@ -8,7 +8,7 @@
 // frame and its progress line, moving the light, orbiting with the keyboard, an invalid value reported
 // next to its control, an OBJ upload (fitted, or in its own units and framed), reload, example scenes
 // from the daemon, export and import of the document, saving the frame, dispersion, volumes (built in and
-// uploaded, and their emission), a narrow window and a daemon restart. Screenshots go to
+// uploaded, where Add places them, and their emission), a narrow window and a daemon restart. Screenshots go to
 // $REFRACT_E2E_OUT (default build/e2e-screenshots); $REFRACT_CHROMIUM overrides /usr/bin/chromium.
 // Ends with "browser_e2e: N passed, M failed".
 
@@ -159,6 +159,25 @@ async function downloadFrom(page, selector) {
   await download.saveAs(file);
   return file;
 }
+
+// Where world point `p` falls in the frames of camera `cam` (a document's) at aspect `aspect` (width /
+// height): normalised device coordinates (inside: |x|, |y| <= 1) and the depth in front of the camera.
+function inFrame(cam, aspect, p) {
+  const sub = (a, b) => a.map((x, i) => x - b[i]);
+  const dot = (a, b) => a.reduce((t, x, i) => t + x * b[i], 0);
+  const norm = (a) => a.map((x) => x / Math.hypot(...a));
+  const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+  const fwd = norm(sub(cam.target, cam.position));
+  const right = norm(cross(fwd, cam.up));
+  const up = cross(right, fwd);
+  const t = Math.tan((cam.fov_deg * Math.PI) / 360);
+  const rel = sub(p, cam.position);
+  const z = dot(rel, fwd);
+  return { x: dot(rel, right) / (z * t * aspect), y: dot(rel, up) / (z * t), z };
+}
+
+// The eight corners of the box `lo`..`hi`.
+const corners = (lo, hi) => [0, 1, 2, 3, 4, 5, 6, 7].map((k) => [0, 1, 2].map((i) => ((k >> i) & 1 ? hi[i] : lo[i])));
 
 // The scene document without the image size (which follows the browser window).
 const canonical = (v) => (Array.isArray(v) ? v.map(canonical) : v && typeof v === 'object'
@@ -965,6 +984,77 @@ async function main() {
     assert(!Object.keys(volumes).length, `volumes ${JSON.stringify(volumes)}`);
   });
 
+  await check('Add places a built-in volume beside the default glass, in view, on the floor; another file takes its place', async () => {
+    // A viewer of a new default scene (the glass sphere at the origin), so that nothing earlier moved it.
+    const made = await api('POST', '/api/scenes', SMALL_SCENE);
+    assert(made.status === 201, `POST /api/scenes -> ${made.status}`);
+    const id = made.json.id;
+    const fresh = await context.newPage();
+    try {
+      await fresh.goto(`${base}/?scene=${encodeURIComponent(id)}&maxpx=${MAX_PX}`);
+      await waitSettled(fresh);
+      const listed = (await api('GET', '/api/volumes')).json.builtin;
+      // A volume's box in the world: its usable grids' world boxes (GET /api/volumes) scaled and moved as
+      // the member says (the daemon applies scale, then position, to the grid's world coordinates).
+      const boxOf = (member) => {
+        const grids = listed.find((v) => v.name === member.asset).grids.filter((g) => g.usable);
+        const at = (v, i) => member.position[i] + member.scale * v;
+        return {
+          lo: [0, 1, 2].map((i) => at(Math.min(...grids.map((g) => g.world_bounds.min[i])), i)),
+          hi: [0, 1, 2].map((i) => at(Math.max(...grids.map((g) => g.world_bounds.max[i])), i)),
+        };
+      };
+      const edited = async (action) => {
+        const rev = await fresh.evaluate(() => window.refract.lastRevision);
+        await action();
+        await waitSettled(fresh, rev);
+        return (await sceneOnServer(id)).scene;
+      };
+      // With no volume in the scene, the picker only chooses what Add places.
+      await fresh.selectOption('#ctl-medium-volume-asset', 'builtin.cloud');
+      const scene = await edited(() => fresh.click('#medium_volume-add'));
+      const [name] = Object.keys(scene.volumes || {});
+      const volume = scene.volumes[name];
+      assert(volume?.asset === 'builtin.cloud', `volumes ${JSON.stringify(scene.volumes)}`);
+      const seen = await fresh.evaluate(() => window.refract.view());
+      const cam = seen.camera || scene.camera;
+      const { position: at, scale: size } = scene.object;  // the sphere: [-1, 1] a side in its own units
+      const object = { lo: at.map((p) => p - size), hi: at.map((p) => p + size) };
+      // Where a volume is placed well: its box apart from the glass's, every corner in this viewer's
+      // frame, its bottom on the floor (not below it, nor more than a few centimetres above).
+      const faults = (box) => [
+        [0, 1, 2].every((i) => box.lo[i] < object.hi[i] && box.hi[i] > object.lo[i]) && 'inside the glass sphere',
+        !corners(box.lo, box.hi).every((p) => {
+          const f = inFrame(cam, seen.width / seen.height, p);
+          return f.z > 0 && Math.abs(f.x) <= 1 && Math.abs(f.y) <= 1;
+        }) && 'out of the frame',
+        !(box.lo[1] >= scene.floor.height - 1e-6 && box.lo[1] <= scene.floor.height + 0.05) &&
+          `standing at ${box.lo[1]}, not on the floor`,
+      ].filter(Boolean);
+      const box = boxOf(volume);
+      assert(!faults(box).length,
+        `the cloud ${JSON.stringify(volume)} (box ${JSON.stringify(box)}) is ${faults(box).join(', ')}`);
+      // What Add did before: the volume at the origin, scale 1, is inside the glass.
+      const old = faults(boxOf({ ...volume, position: [0, 0, 0], scale: 1 }));
+      assert(old.includes('inside the glass sphere'), `the check would pass the old placement: ${old}`);
+      const shown = (v) => v.map((x) => x.toFixed(2));
+      log(`the cloud: scale ${volume.scale}, position ${volume.position}, box ${shown(box.lo)}..${shown(box.hi)}`);
+      await shot(fresh, '06g-volume-added.png');
+      // Another file for it stands where it stood, as large (its longest side), wherever that file's origin.
+      const swapped = (await edited(() => fresh.selectOption('#ctl-medium-volume-asset', 'builtin.flame'))).volumes[name];
+      const flame = boxOf(swapped);
+      const foot = (b) => [(b.lo[0] + b.hi[0]) / 2, b.lo[1], (b.lo[2] + b.hi[2]) / 2];
+      const longest = (b) => Math.max(...[0, 1, 2].map((i) => b.hi[i] - b.lo[i]));
+      assert(swapped.asset === 'builtin.flame' && foot(flame).every((v, i) => Math.abs(v - foot(box)[i]) < 0.02) &&
+        Math.abs(longest(flame) - longest(box)) < 0.02,
+      `the flame ${JSON.stringify(swapped)} (box ${JSON.stringify(flame)})`);
+      await shot(fresh, '06h-volume-swapped.png');
+    } finally {
+      await fresh.close();
+      await api('DELETE', `/api/scenes/${encodeURIComponent(id)}`);
+    }
+  });
+
   await check('an OBJ 190 units wide is fitted and centred; in its own units, "Frame object" frames it', async () => {
     // A box 190 x 80 x 150 units, far from the origin (as CAD files are).
     const lo = [400, -30, 20];
@@ -1016,23 +1106,11 @@ async function main() {
     const placed = [0, 1, 2].map((i) => own.position[i] + own.scale * (lo[i] + hi[i]) / 2);
     assert(cam.target.every((t, i) => Math.abs(t - placed[i]) < 1e-3), `camera aims at ${cam.target}, object at ${placed}`);
     // Every corner of the box is inside the view.
-    const sub = (a, b) => a.map((x, i) => x - b[i]);
-    const dot = (a, b) => a.reduce((t, x, i) => t + x * b[i], 0);
-    const norm = (a) => a.map((x) => x / Math.hypot(...a));
-    const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
-    const fwd = norm(sub(cam.target, cam.position));
-    const right = norm(cross(fwd, cam.up));
-    const up = cross(right, fwd);
-    const img = framed;
-    const t = Math.tan((cam.fov_deg * Math.PI) / 360);
-    for (let k = 0; k < 8; ++k) {
-      const p = [0, 1, 2].map((i) => own.position[i] + own.scale * ((k >> i) & 1 ? hi[i] : lo[i]));
-      const rel = sub(p, cam.position);
-      const z = dot(rel, fwd);
-      const x = dot(rel, right) / (z * t * (img.width / img.height));
-      const y = dot(rel, up) / (z * t);
+    const at = (p) => p.map((x, i) => own.position[i] + own.scale * x);
+    corners(lo, hi).forEach((p, k) => {
+      const { x, y, z } = inFrame(cam, framed.width / framed.height, at(p));
       assert(z > 0 && Math.abs(x) <= 1 && Math.abs(y) <= 1, `corner ${k} outside the view (${x}, ${y})`);
-    }
+    });
     await shot(page, '06c-obj-own-units-framed.png');
     await page.uncheck('#mesh-keep-units');
   });

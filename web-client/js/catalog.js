@@ -6,6 +6,7 @@ import { api } from './connection.js';
 import { controls } from './panel.js';
 import * as S from './scene.js';
 import { hooks, panel, view } from './state.js';
+import { frameAspect } from './viewport.js';
 
 export const OBJECT_SIZE = 2;  // metres: the built-in meshes span [-1, 1]; uploads are fitted to this
 // Bounds of the built-in meshes in their own units (server/mesh/mesh.cpp); uploads report theirs.
@@ -18,6 +19,7 @@ const BUILTIN_BOUNDS = {
 };
 const meshBounds = {};  // uploaded mesh name -> bounds in its own units
 const volumeGrids = {};  // volume name (uploaded or built in) -> the names of its usable float grids
+const volumeBoxes = {};  // volume name -> the box in its own world units around its usable grids' voxels
 let example = null;     // { name, doc }: the example the scene still is
 
 export function rememberBounds(name, bounds) {
@@ -33,6 +35,34 @@ function boundsOf(mesh) {
 // Where `object` lies in the world (S.placedBounds); a mesh of unknown bounds is taken for the sphere.
 export function placedObject(object) {
   return S.placedBounds(boundsOf(object.mesh) || BUILTIN_BOUNDS.sphere, object);
+}
+
+// The scale and position of a new member of box `box` (its own units) beside the object the panel
+// document `doc` shows, in the frames this viewer sees (S.besideObject); a new object is the sphere.
+export const besideChosen = (doc, box = BUILTIN_BOUNDS.sphere) =>
+  S.besideObject(placedObject(doc.object || {}), box, S.viewOf(doc, frameAspect()));
+
+// Where a new volume of file `asset` goes in `doc`, built in or uploaded alike: beside the chosen object,
+// sized by its box; where its box is not known yet ({}), where its file puts it.
+export const volumeSpot = (asset, doc) => (volumeBoxes[asset] ? besideChosen(doc, volumeBoxes[asset]) : {});
+
+// The edit that gives volume `member` file `asset` in place of its own: standing where it stood, as large.
+export const volumeSwapSpot = (member, asset) => (volumeBoxes[member.asset] && volumeBoxes[asset]
+  ? S.standInstead(volumeBoxes[member.asset], volumeBoxes[asset], member) : {});
+
+// A volume's box in its own world units: its usable grids' world boxes (the corners of their active
+// voxels' centres, GET /api/volumes) grown by a voxel, which trilinear lookups reach past those centres.
+// The daemon adds no offset: a member's scale, rotation and position apply to these coordinates.
+function volumeBox(grids) {
+  const boxes = grids.filter((g) => g.usable && g.world_bounds).map((g) => {
+    const pad = Math.max(...(g.voxel_size || [0]));
+    return { min: g.world_bounds.min.map((v) => v - pad), max: g.world_bounds.max.map((v) => v + pad) };
+  });
+  if (!boxes.length) return null;
+  return {
+    min: [0, 1, 2].map((i) => Math.min(...boxes.map((b) => b.min[i]))),
+    max: [0, 1, 2].map((i) => Math.max(...boxes.map((b) => b.max[i]))),
+  };
 }
 
 // The edit that picks `mesh`: unless the user keeps its own units, it is fitted to the default object
@@ -66,6 +96,7 @@ export async function refreshVolumes() {
     const names = (items) => (items || []).map((v) => v?.name).filter(Boolean);
     for (const v of [...(list?.volumes || []), ...(list?.builtin || [])]) {
       volumeGrids[v.name] = (v.grids || []).filter((g) => g.usable).map((g) => g.name);
+      volumeBoxes[v.name] = volumeBox(v.grids || []);
     }
     controls.volumes.setVolumes(names(list?.volumes).sort(), names(list?.builtin));
     controls.update(panel());

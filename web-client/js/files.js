@@ -3,7 +3,7 @@
 
 import {
   OBJECT_SIZE, checkExample, environmentPatch, loadedExample, meshPatch, refreshEnvironments, refreshMeshes, refreshVolumes,
-  rememberBounds,
+  rememberBounds, volumeSpot,
 } from './catalog.js';
 import { api } from './connection.js';
 import { complain, controls } from './panel.js';
@@ -49,8 +49,8 @@ export function uploadEnvironment(file, field) {
   });
 }
 
-// Uploads an OpenVDB file as a volume named after it. A scene without volumes gets one of it, where the
-// file puts it; otherwise Add places it.
+// Uploads an OpenVDB file as a volume named after it. A scene without volumes gets one of it, placed as
+// Add places one (beside the chosen object, sized by its box); otherwise Add places it.
 export function uploadVolume(file, field) {
   return upload(file, field, '/volumes', async (name) => {
     const info = await api('PUT', `/api/volumes/${encodeURIComponent(name)}`, await file.arrayBuffer(),
@@ -65,7 +65,7 @@ export function uploadVolume(file, field) {
     }
     field.setStatus(`Uploaded “${name}” (${facts}) and placed it in the scene as “volume”.`);
     state.selected.medium_volume = 'volume';
-    edit({ volumes: { volume: newVolume(name, grids) } }, true);
+    edit({ volumes: { volume: newVolume(name, grids, volumeSpot(name, panel())) } }, true);
   });
 }
 

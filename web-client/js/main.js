@@ -1,7 +1,7 @@
 // Refract browser client: shows frames streamed by refractd and edits the scene with merge patches.
 // This file wires the modules together and starts; README.md lists what each module owns.
 
-import { environmentPatch, meshPatch, volumeGridsOf } from './catalog.js';
+import { environmentPatch, meshPatch, volumeGridsOf, volumeSwapSpot } from './catalog.js';
 import { connect } from './connection.js';
 import { $ } from './dom.js';
 import {
@@ -17,8 +17,8 @@ import { stageMessage } from './status.js';
 window.refract = hooks;  // read by the end-to-end test and the benchmark (README: Test hooks)
 
 buildPanel($('controls'), edit, {
-  uploadMesh, uploadEnvironment, uploadVolume, meshPatch, environmentPatch, volumeGrids: volumeGridsOf, loadExample,
-  importScene, exportScene, playKeyframes, stopPlay, members, chosenVolume: () => panel().medium_volume,
+  uploadMesh, uploadEnvironment, uploadVolume, meshPatch, environmentPatch, volumeGrids: volumeGridsOf, volumeSwapSpot,
+  loadExample, importScene, exportScene, playKeyframes, stopPlay, members, chosenVolume: () => panel().medium_volume,
   saveView, setFollow, following: () => state.follow, sceneCamera: () => view().camera,
 });
 initView();

@@ -1,7 +1,7 @@
 // The outliners' actions (their lists are pickers.js's MembersField): which light and object the panel
 // edits, and adding, removing and renaming them.
 
-import { chosenVolumeAsset, placedObject, volumeGridsOf } from './catalog.js';
+import { besideChosen, chosenVolumeAsset, volumeGridsOf, volumeSpot } from './catalog.js';
 import { complain, controls } from './panel.js';
 import * as S from './scene.js';
 import { edit, showDocument } from './session.js';
@@ -11,16 +11,17 @@ import { newVolume } from './volumes.js';
 
 // What Add puts in the scene, by kind: a point light beside the others; a small sphere beside the chosen
 // object (so it is in view), sharing its Abbe number as the daemon requires; the volume shown in the picker
-// (built in or uploaded; none: null), where its file puts it.
+// (built in or uploaded; none: null), beside the chosen object too, sized by its own box (at the origin it
+// would sit inside the default glass sphere).
 const NEW_MEMBER = {
-  medium_volume: () => {
+  medium_volume: (doc) => {
     const asset = chosenVolumeAsset();
-    return asset && newVolume(asset, volumeGridsOf(asset));
+    return asset && newVolume(asset, volumeGridsOf(asset), volumeSpot(asset, doc));
   },
   light: () => ({ type: 'point', position: [-2, 2.5, 1.5], intensity: 10 }),
   object: (doc) => {
     const chosen = doc.object || {};
-    return { mesh: 'sphere', ...S.besideObject(placedObject(chosen), S.cameraOf(doc)), abbe: chosen.abbe ?? 0 };
+    return { mesh: 'sphere', ...besideChosen(doc), abbe: chosen.abbe ?? 0 };
   },
 };
 const ARTICLE = { light: 'a', object: 'an', medium_volume: 'a' };

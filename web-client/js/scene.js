@@ -193,19 +193,66 @@ export function placedBounds(bounds, object) {
   return { center, radius: Math.max(1e-6, ...placed.map((p) => length(sub(p, center)))), lo, hi };
 }
 
-// Where a new object goes beside a placed one (`placedBounds` of it), seen by `camera`: a unit-mesh
-// scale half the placed one's largest half-extent, standing on the same bottom, just past it towards the
-// view's right (horizontally), so that it is in view wherever the camera looks from.
-export function besideObject(placed, camera) {
+// What frames a document's new members: its camera (cameraOf), the aspect of the frames it is seen in (a
+// viewer's, which follow its viewport, not the document's image size) and its floor's height (-Infinity: none).
+export function viewOf(doc, aspect) {
+  return { camera: cameraOf(doc), aspect, floor: doc.floor?.enabled ? (doc.floor.height ?? -1) : -Infinity };
+}
+
+// Half the width of a level box of half-extents `half` across horizontal direction `d`.
+const across = (half, d) => Math.abs(d[0]) * half[0] + Math.abs(d[2]) * half[2];
+// The middle of the bottom face of a box `{min, max}`: what a thing stands on.
+const footOf = (box) => [(box.min[0] + box.max[0]) / 2, box.min[1], (box.min[2] + box.max[2]) / 2];
+const longestSide = (box) => Math.max(1e-9, ...[0, 1, 2].map((i) => box.max[i] - box.min[i]));
+// A uniform scale as members take it: 4 significant digits, in (0, 1000].
+const memberScale = (s) => Math.min(1000, Math.max(1e-6, Number(s.toPrecision(4))));
+
+// Where a new member goes beside a placed one (`placedBounds` of it), seen in `view` (viewOf): the scale
+// and position (unrotated) of a thing whose box in its own units is `box`. Its longest side is the placed
+// one's largest half-extent, whatever units its file uses; it stands on the same bottom (or on the floor,
+// where that is higher), just past it towards the view's right (horizontally), or its left. Where the
+// whole box would not be in the frame, it is made smaller (and so nearer), so that it is seen wherever
+// the camera looks from; failing that, the first spot.
+export function besideObject(placed, box, view) {
   const half = Math.max(1e-3, ...[0, 1, 2].map((i) => (placed.hi[i] - placed.lo[i]) / 2));
-  const r = half / 2;
-  const forward = sub(camera.target, camera.position);
+  const placedHalf = scale(sub(placed.hi, placed.lo), 0.5);
+  const forward = sub(view.camera.target, view.camera.position);
   const flat = normalize([-forward[2], 0, forward[0]]);  // forward x up: the view's right, level
   const right = flat[0] || flat[2] ? flat : [1, 0, 0];
-  const offset = half + 1.2 * r;
-  const position = add(placed.center, scale(right, offset));
-  position[1] = placed.lo[1] + r;
-  return { scale: round(r, 4), position: roundVec(position, 4) };
+  const foot = footOf(box);
+  const bottom = Math.max(placed.lo[1], view.floor ?? -Infinity);
+  const spots = [];
+  for (const shrink of [1, 0.8, 0.64, 0.5, 0.4]) {
+    for (const side of [right, scale(right, -1)]) {
+      const s = memberScale((shrink * half) / longestSide(box));
+      const own = scale(sub(box.max, box.min), s / 2);
+      const gap = 0.1 * s * longestSide(box);  // a tenth of its longest side (0.2 of a new sphere's radius)
+      const centre = add(placed.center, scale(side, across(placedHalf, side) + across(own, side) + gap));
+      const position = roundVec([centre[0] - s * foot[0], bottom - s * foot[1], centre[2] - s * foot[2]], 4);
+      const spot = { scale: s, position };
+      spots.push(spot);
+      if (inFrame(view, placedBounds(box, spot))) return spot;
+    }
+  }
+  return spots[0];
+}
+
+// Whether every corner of a placed box (`lo`, `hi`) is inside the frame of `view`, a little in from its edges.
+function inFrame(view, { lo, hi }) {
+  return [0, 1, 2, 3, 4, 5, 6, 7].every((k) => {
+    const p = project(view.camera, view.aspect, [0, 1, 2].map((i) => ((k >> i) & 1 ? hi[i] : lo[i])));
+    return p !== null && Math.abs(p.x) <= 0.95 && Math.abs(p.y) <= 0.95;
+  });
+}
+
+// The scale and position that stand a thing of box `to` (its own units) where one of box `from` stands
+// as `member` places it: the same bottom middle and longest side, its rotation kept. A volume that takes
+// another file keeps its place and size so, whatever the new file's units and origin.
+export function standInstead(from, to, member) {
+  const before = member.scale ?? 1;
+  const s = memberScale((before * longestSide(from)) / longestSide(to));
+  const at = add(member.position || [0, 0, 0], rotateXYZ(scale(footOf(from), before), member.rotation_deg));
+  return { scale: s, position: roundVec(sub(at, rotateXYZ(scale(footOf(to), s), member.rotation_deg)), 4) };
 }
 
 // Scale and position that fit a mesh with bounds `{min, max}` to `size` (its longest side) with its

@@ -78,12 +78,16 @@ export async function drawFrame(blob, meta, token, quality) {
   updateLightMarker();
 }
 
+// The aspect (width / height) of the frames this view shows: the frame shown's, else the size asked for.
+export function frameAspect() {
+  const size = desiredImageSize();
+  return state.frame ? state.frame.width / state.frame.height : size.width / size.height;
+}
+
 // Where the image sits inside the canvas element (CSS pixels; letterboxed as paintFrame draws it).
 export function imageRect() {
   const r = canvas.getBoundingClientRect();
-  const size = desiredImageSize();
-  const aspect = state.frame ? state.frame.width / state.frame.height : size.width / size.height;
-  const { w, h } = fitted(r.width, r.height, aspect);
+  const { w, h } = fitted(r.width, r.height, frameAspect());
   return { left: (r.width - w) / 2, top: (r.height - h) / 2, width: w, height: h };
 }
 

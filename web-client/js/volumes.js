@@ -18,9 +18,10 @@ const volumeLabel = (name) => (name.startsWith(BUILTIN)
 const densityGrid = (grids) => (grids.length && !grids.includes('density') ? grids[0] : 'density');
 
 // A new volume of file `asset` (usable grids `grids`) whole, as the daemon would fill it in
-// (protocol/README.md, volumes): the panel shows what it is sent, and would leave blank what it lacked.
-export const newVolume = (asset, grids) => ({
-  asset, grid: densityGrid(grids), position: [0, 0, 0], rotation_deg: [0, 0, 0], scale: 1, density_scale: 1,
+// (protocol/README.md, volumes), at `spot` ({scale, position}; {}: where its file puts it): the panel shows
+// what it is sent, and would leave blank what it lacked.
+export const newVolume = (asset, grids, spot) => ({
+  asset, grid: densityGrid(grids), position: [0, 0, 0], rotation_deg: [0, 0, 0], scale: 1, ...spot, density_scale: 1,
   extinction: [1, 1, 1], scattering: [1, 1, 1], phase: { model: 'henyey-greenstein', g: 0 },
   emission: { grid: '', temperature_grid: '', color: [1, 1, 1], intensity: 0 },
 });
@@ -59,7 +60,8 @@ function setOptions(parent, options) {
 
 // The volumes the daemon offers, uploads first, then the built-in ones (so that a scene without uploads
 // adds one of those), showing the chosen volume's; choosing another gives the chosen volume that file,
-// with its density grid, and keeps its emission to grids the file has. With none in the scene, the one
+// with its density grid, standing where it stood as large (a flame in place of a cloud would otherwise
+// take the cloud's scale), and keeps its emission to grids the file has. With none in the scene, the one
 // shown is what Add places. An upload button beside it.
 export class VolumeAssetField extends Field {
   constructor(spec, emit, actions) {
@@ -71,8 +73,10 @@ export class VolumeAssetField extends Field {
       if (actions.members.selected('medium_volume') === null) return;
       const grids = actions.volumeGrids(asset);
       const grid = densityGrid(grids);
-      const emission = emitterFor({ ...actions.chosenVolume(), grid }, grids);
-      emit(this, { medium_volume: { asset, grid, ...(emission && { emission }) } }, true);
+      const { member } = chosen(actions);
+      const emission = emitterFor({ ...member, grid }, grids);
+      const spot = actions.volumeSwapSpot(member, asset);
+      emit(this, { medium_volume: { asset, grid, ...spot, ...(emission && { emission }) } }, true);
     });
     const picker = filePicker('volume-file', '.vdb,.nvdb', 'Upload VDB…', (f) => actions.uploadVolume(f, this));
     this.status = h('p', { class: 'note', id: 'volume-status', 'aria-live': 'polite' });
