@@ -1031,7 +1031,22 @@ async function main() {
         !(box.lo[1] >= scene.floor.height - 1e-6 && box.lo[1] <= scene.floor.height + 0.05) &&
           `standing at ${box.lo[1]}, not on the floor`,
       ].filter(Boolean);
+      // And lit, so that it shows: its middle inside the spot's cone and out of the sphere's shadow (the
+      // side of the sphere away from the light is dark, and a cloud there is not seen).
+      const lit = (b) => {
+        const light = scene.light;
+        const mid = [0, 1, 2].map((i) => (b.lo[i] + b.hi[i]) / 2);
+        const to = mid.map((v, i) => v - light.position[i]);
+        const r = Math.hypot(...to);
+        const d = to.map((v) => v / r);
+        const axis = light.direction.map((v) => v / Math.hypot(...light.direction));
+        const inCone = d.reduce((t, v, i) => t + v * axis[i], 0) >= Math.cos((light.cone_deg * Math.PI) / 180);
+        const t = Math.min(r, Math.max(0, d.reduce((u, v, i) => u + v * (at[i] - light.position[i]), 0)));
+        const closest = light.position.map((v, i) => v + t * d[i] - at[i]);
+        return inCone && Math.hypot(...closest) > size;
+      };
       const box = boxOf(volume);
+      assert(lit(box), `the cloud ${JSON.stringify(volume)} is out of the light`);
       assert(!faults(box).length,
         `the cloud ${JSON.stringify(volume)} (box ${JSON.stringify(box)}) is ${faults(box).join(', ')}`);
       // What Add did before: the volume at the origin, scale 1, is inside the glass.

@@ -43,8 +43,17 @@ export const besideChosen = (doc, box = BUILTIN_BOUNDS.sphere) =>
   S.besideObject(placedObject(doc.object || {}), box, S.viewOf(doc, frameAspect()));
 
 // Where a new volume of file `asset` goes in `doc`, built in or uploaded alike: beside the chosen object,
-// sized by its box; where its box is not known yet ({}), where its file puts it.
-export const volumeSpot = (asset, doc) => (volumeBoxes[asset] ? besideChosen(doc, volumeBoxes[asset]) : {});
+// sized by its box, where the lights reach it most; where its box is not known yet ({}), where its file
+// puts it.
+// Its density is scaled as its size is, inversely, so that it is as thick to light as its file made it.
+export function volumeSpot(asset, doc) {
+  if (!volumeBoxes[asset]) return {};
+  const placed = placedObject(doc.object || {});
+  // What the object shades: the ball of its box's least half-extent (the sphere itself, for the sphere).
+  const blocker = { center: placed.center, radius: Math.min(...[0, 1, 2].map((i) => (placed.hi[i] - placed.lo[i]) / 2)) };
+  const spot = S.besideObject(placed, volumeBoxes[asset], S.viewOf(doc, frameAspect()), (p) => S.lightAt(doc, p, blocker));
+  return { ...spot, density_scale: Math.min(1000, Number((1 / spot.scale).toPrecision(3))) };
+}
 
 // The edit that gives volume `member` file `asset` in place of its own: standing where it stood, as large.
 export const volumeSwapSpot = (member, asset) => (volumeBoxes[member.asset] && volumeBoxes[asset]

@@ -212,8 +212,9 @@ const memberScale = (s) => Math.min(1000, Math.max(1e-6, Number(s.toPrecision(4)
 // one's largest half-extent, whatever units its file uses; it stands on the same bottom (or on the floor,
 // where that is higher), just past it towards the view's right (horizontally), or its left. Where the
 // whole box would not be in the frame, it is made smaller (and so nearer), so that it is seen wherever
-// the camera looks from; failing that, the first spot.
-export function besideObject(placed, box, view) {
+// the camera looks from; failing that, the first spot. With `lit` (a point's light, lightAt), of the
+// spots in the frame the one whose middle is lit most: a volume scatters only the light it gets.
+export function besideObject(placed, box, view, lit = null) {
   const half = Math.max(1e-3, ...[0, 1, 2].map((i) => (placed.hi[i] - placed.lo[i]) / 2));
   const placedHalf = scale(sub(placed.hi, placed.lo), 0.5);
   const forward = sub(view.camera.target, view.camera.position);
@@ -222,6 +223,7 @@ export function besideObject(placed, box, view) {
   const foot = footOf(box);
   const bottom = Math.max(placed.lo[1], view.floor ?? -Infinity);
   const spots = [];
+  let best = null;
   for (const shrink of [1, 0.8, 0.64, 0.5, 0.4]) {
     for (const side of [right, scale(right, -1)]) {
       const s = memberScale((shrink * half) / longestSide(box));
@@ -231,10 +233,43 @@ export function besideObject(placed, box, view) {
       const position = roundVec([centre[0] - s * foot[0], bottom - s * foot[1], centre[2] - s * foot[2]], 4);
       const spot = { scale: s, position };
       spots.push(spot);
-      if (inFrame(view, placedBounds(box, spot))) return spot;
+      const seen = placedBounds(box, spot);
+      if (!inFrame(view, seen)) continue;
+      if (!lit) return spot;
+      const light = lit(seen.center);
+      if (!best || light > best.light) best = { spot, light };
     }
   }
-  return spots[0];
+  return best ? best.spot : spots[0];
+}
+
+// The light (luminance, W/m^2 on a surface facing it) that reaches point `p` of `doc`: each spot's inside
+// its cone, each point light's, by the inverse square, and the directional lights'; none of it where the
+// straight way from the light crosses `blocker` (a ball {center, radius} an object fills), so that the
+// side of an object in its own shadow counts as dark.
+export function lightAt(doc, p, blocker = null) {
+  const shadowed = (from, d, far) => {
+    if (!blocker) return false;
+    const t = Math.min(far, Math.max(0, dot(sub(blocker.center, from), d)));
+    return length(sub(add(from, scale(d, t)), blocker.center)) < blocker.radius;
+  };
+  let total = 0;
+  for (const light of Object.values(doc.lights || {})) {
+    const type = light.type ?? 'spot';
+    const power = luminance(light.color ?? [1, 1, 1]) * (light.intensity ?? 20);
+    const axis = normalize(light.direction ?? [-2, -3, -1]);
+    if (type === 'directional') {
+      if (!shadowed(p, scale(axis, -1), Infinity)) total += power;
+      continue;
+    }
+    const from = light.position ?? [2, 3, 1];
+    const to = sub(p, from);
+    const r = Math.max(1e-3, length(to));
+    const d = scale(to, 1 / r);
+    const cone = Math.cos(((light.cone_deg ?? 25) * Math.PI) / 180);
+    if ((type === 'point' || dot(d, axis) >= cone) && !shadowed(from, d, r)) total += power / (r * r);
+  }
+  return total;
 }
 
 // Whether every corner of a placed box (`lo`, `hi`) is inside the frame of `view`, a little in from its edges.

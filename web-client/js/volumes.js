@@ -18,10 +18,10 @@ const volumeLabel = (name) => (name.startsWith(BUILTIN)
 const densityGrid = (grids) => (grids.length && !grids.includes('density') ? grids[0] : 'density');
 
 // A new volume of file `asset` (usable grids `grids`) whole, as the daemon would fill it in
-// (protocol/README.md, volumes), at `spot` ({scale, position}; {}: where its file puts it): the panel shows
+// (protocol/README.md, volumes), at `spot` ({scale, position, density_scale}; {}: where its file puts it): the panel shows
 // what it is sent, and would leave blank what it lacked.
 export const newVolume = (asset, grids, spot) => ({
-  asset, grid: densityGrid(grids), position: [0, 0, 0], rotation_deg: [0, 0, 0], scale: 1, ...spot, density_scale: 1,
+  asset, grid: densityGrid(grids), position: [0, 0, 0], rotation_deg: [0, 0, 0], scale: 1, density_scale: 1, ...spot,
   extinction: [1, 1, 1], scattering: [1, 1, 1], phase: { model: 'henyey-greenstein', g: 0 },
   emission: { grid: '', temperature_grid: '', color: [1, 1, 1], intensity: 0 },
 });
