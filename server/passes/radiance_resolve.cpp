@@ -19,14 +19,14 @@ constexpr vk::BindingLayout kLayout[] = {
 
 RadianceResolvePass::RadianceResolvePass(vk::Context& context) {
     // Dispersive transport resolves as RGB does: per-channel sums either way.
-    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && RESOLVE_CONSTANT_FLOOR == 7 && CHANNELS_RGB == 0 &&
+    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && RESOLVE_CONSTANT_FLOOR == 8 && CHANNELS_RGB == 0 &&
                   CHANNELS_GREY == 1);
     const char* names[] = {"radiance resolve", "radiance resolve (grey)", "floor map resolve",
                            "floor map resolve (grey)"};
     pipelines_.reserve(4);
     for (uint32_t i = 0; i < 4; ++i) {
-        // The coverage fetch, Fresnel, films, materials, field atlas and medium field are never used here.
-        const std::array<uint32_t, 8> constants{i & 1u, 0u, 0u, 0u, 0u, 0u, 0u, i >> 1};
+        // The coverage fetch, Fresnel, films, materials, field atlas, medium field and fade are never used here.
+        const std::array<uint32_t, 9> constants{i & 1u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, i >> 1};
         pipelines_.emplace_back(context, radiance_resolve_spv, kLayout, 0, names[i], constants);
     }
 }

@@ -20,13 +20,13 @@ constexpr vk::BindingLayout kLayout[] = {
 }  // namespace
 
 RadianceSpreadPass::RadianceSpreadPass(vk::Context& context) {
-    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && SPREAD_CONSTANT_FLOOR == 7 && CHANNELS_RGB == 0 &&
+    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && SPREAD_CONSTANT_FLOOR == 8 && CHANNELS_RGB == 0 &&
                   CHANNELS_GREY == 1);
     const char* names[] = {"radiance spread", "radiance spread (grey)", "floor map spread", "floor map spread (grey)"};
     pipelines_.reserve(4);
     for (uint32_t i = 0; i < 4; ++i) {
-        // The coverage fetch, Fresnel, films, materials, field atlas and medium field are never used here.
-        const std::array<uint32_t, 8> constants{i & 1u, 0u, 0u, 0u, 0u, 0u, 0u, i >> 1};
+        // The coverage fetch, Fresnel, films, materials, field atlas, medium field and fade are never used here.
+        const std::array<uint32_t, 9> constants{i & 1u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, i >> 1};
         pipelines_.emplace_back(context, radiance_spread_spv, kLayout, 0, names[i], constants);
     }
 }

@@ -38,7 +38,8 @@ const vk::ComputePipeline& TransportPipeline::operator()(TransportVariant varian
     static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && TRANSPORT_CONSTANT_COVERAGE_FETCH == 1 &&
                   TRANSPORT_CONSTANT_FRESNEL == 2 && TRANSPORT_CONSTANT_FILM == 3 &&
                   TRANSPORT_CONSTANT_MATERIALS == 4 && TRANSPORT_CONSTANT_FIELD_ATLAS == 5 &&
-                  TRANSPORT_CONSTANT_MEDIUM_FIELD == 6 && TRANSPORT_CONSTANT_COUNT == 7);
+                  TRANSPORT_CONSTANT_MEDIUM_FIELD == 6 && TRANSPORT_CONSTANT_MEDIUM_FADE == 7 &&
+                  TRANSPORT_CONSTANT_COUNT == 8);
     if (variant.channels > CHANNELS_DISPERSIVE)
         throw std::invalid_argument(std::string(name_) + ": no transport channels " + std::to_string(variant.channels));
     const bool film = variant.fresnel && variant.film;
@@ -46,11 +47,11 @@ const vk::ComputePipeline& TransportPipeline::operator()(TransportVariant varian
     const bool field_atlas = variant.materials && variant.field_atlas;
     std::optional<vk::ComputePipeline>& pipeline =
         pipelines_[variant.channels + (variant.coverage_fetch ? 3u : 0u) + 6u * boundary + (variant.materials ? 18u : 0u) +
-                   (field_atlas ? 18u : 0u) + (variant.medium_field ? 54u : 0u)];
+                   (field_atlas ? 18u : 0u) + (variant.medium_field ? 54u : 0u) + (variant.medium_fade ? 108u : 0u)];
     if (!pipeline) {
         std::vector<uint32_t> constants{variant.channels, variant.coverage_fetch ? 1u : 0u, variant.fresnel ? 1u : 0u,
                                         film ? 1u : 0u, variant.materials ? 1u : 0u, field_atlas ? 1u : 0u,
-                                        variant.medium_field ? 1u : 0u};
+                                        variant.medium_field ? 1u : 0u, variant.medium_fade ? 1u : 0u};
         constants.insert(constants.end(), pass_constants_.begin(), pass_constants_.end());
         pipeline.emplace(context_, spirv_, layout_, push_constant_bytes_, name_, constants);
     }

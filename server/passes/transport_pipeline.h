@@ -74,6 +74,7 @@ struct TransportVariant {
     bool materials = false;            // several objects, a material each (TRANSPORT_CONSTANT_MATERIALS)
     bool field_atlas = false;          // their field in a field atlas (TRANSPORT_CONSTANT_FIELD_ATLAS; with materials)
     bool medium_field = false;         // volumes add to the medium (TRANSPORT_CONSTANT_MEDIUM_FIELD)
+    bool medium_fade = true;           // the medium thins out at the grid's faces (TRANSPORT_CONSTANT_MEDIUM_FADE)
 };
 
 // What every transport pass reads first: the frame's parameters, the index field, its coverage, the
@@ -138,8 +139,8 @@ public:
 
 private:
     // CHANNELS_* x coverage fetch x (none, Fresnel, film) x (one object, several, several in a field atlas)
-    // x medium field
-    static constexpr size_t kVariants = 3 * 2 * 3 * 3 * 2;
+    // x medium field x medium fade
+    static constexpr size_t kVariants = 3 * 2 * 3 * 3 * 2 * 2;
 
     vk::Context& context_;
     std::span<const uint32_t> spirv_;

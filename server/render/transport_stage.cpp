@@ -192,8 +192,11 @@ void TransportStage::prepare(const FrameInputs::Transport& in, PassSet stale, co
         params_buffers_[i].write(&params, sizeof(params));
     }
     const shaders::TransportParams& first = light_params_.front();
+    // A fade thins only the medium's coefficients: where they are 0 it changes nothing.
+    const bool medium = glm::any(glm::greaterThan(glm::vec3(first.medium_extinction) + glm::vec3(first.medium_scattering),
+                                                  glm::vec3(0.0f)));
     variant_ = {channels_, first.flags.y == COVERAGE_FETCH || first.flags.z == COVERAGE_FETCH, in.fresnel, in.film,
-                several, !atlas.dense, !in.volumes.empty()};
+                several, !atlas.dense, !in.volumes.empty(), medium && first.medium_fade.x > 0.0f};
 }
 
 passes::TransportInputs TransportStage::inputs_for(const vk::Buffer& params, const VolumeStage& volume) const {

@@ -191,7 +191,13 @@ struct LightParams {
 // the direct light is left to the photons (its closed form knows only the homogeneous medium). Off for
 // a scene without volumes, which runs the shaders it ran before volumes existed.
 #define TRANSPORT_CONSTANT_MEDIUM_FIELD 6
-#define TRANSPORT_CONSTANT_COUNT 7  // a pass's own constants are numbered from here
+// Specialization constant of the same passes: the homogeneous medium thins out towards the grid's faces
+// (medium.fade above 0, in a medium that extincts or scatters: TransportParams::medium_fade). Off, its
+// density is 1 wherever it matters and the fade's code (a step's exact integral, the density at each view
+// step) is compiled out: lavapipe pays for the code a shader holds whether its lanes take it or not, 15%
+// of the view and 10% of the photons (docs/perf-log/2026-12-04-where-the-still-frame-stands.md).
+#define TRANSPORT_CONSTANT_MEDIUM_FADE 7
+#define TRANSPORT_CONSTANT_COUNT 8  // a pass's own constants are numbered from here
 // Specialization constant of the photon pass (after the transport constants): deposits are sampled, one
 // per radiance voxel of path, rather than exact per voxel crossed (photon_trace.comp, deposit).
 #define PHOTON_CONSTANT_SAMPLED_DEPOSITS TRANSPORT_CONSTANT_COUNT
@@ -209,6 +215,7 @@ layout(constant_id = TRANSPORT_CONSTANT_FILM) const bool kFilm = false;
 layout(constant_id = TRANSPORT_CONSTANT_MATERIALS) const bool kMaterials = false;
 layout(constant_id = TRANSPORT_CONSTANT_FIELD_ATLAS) const bool kFieldAtlas = false;
 layout(constant_id = TRANSPORT_CONSTANT_MEDIUM_FIELD) const bool kMediumField = false;
+layout(constant_id = TRANSPORT_CONSTANT_MEDIUM_FADE) const bool kMediumFade = true;
 #endif
 
 // One object's material, as the table of a scene of several objects holds it (TRANSPORT_CONSTANT_MATERIALS):

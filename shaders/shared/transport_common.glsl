@@ -105,6 +105,7 @@ vec3 scattering_at(float c, uint o) {
 // smoothstep of the distance to the nearest face that fades, so that lit fog shows no hard-edged box.
 // Exactly 1 everywhere without a fade. It scales only the medium's share of the coefficients (thinned).
 float medium_density(vec3 p) {
+    if (!kMediumFade) return 1.0;
     vec3 nearest = min(p - vec3(0.0, params.medium_fade.y, 0.0), grid_dims() - p);
     float u = clamp(min(nearest.x, min(nearest.y, nearest.z)) * params.medium_fade.z, 0.0, 1.0);
     return params.medium_fade.x > 0.0 ? u * u * (3.0 - 2.0 * u) : 1.0;
@@ -124,6 +125,7 @@ float fade_integral(float u) {
 // nearest face changes (at most five times) and each piece integrates in closed form (fade_integral).
 // Exactly len without a fade.
 float medium_depth(vec3 p, vec3 d, float len) {
+    if (!kMediumFade) return len;
     // The dense box is convex: a segment that starts and ends in it lies in it.
     if (medium_density(p) == 1.0 && medium_density(p + len * d) == 1.0) return len;
     float fade = params.medium_fade.x;
