@@ -243,6 +243,15 @@ export function besideObject(placed, box, view, lit = null) {
   return best ? best.spot : spots[0];
 }
 
+// A light member as the daemon fills it in (protocol/README.md, lights): its type, power (luminance),
+// unit axis and position.
+function lamp(light) {
+  return {
+    type: light.type ?? 'spot', power: luminance(light.color ?? [1, 1, 1]) * (light.intensity ?? 20),
+    axis: normalize(light.direction ?? [-2, -3, -1]), position: light.position ?? [2, 3, 1],
+  };
+}
+
 // The light (luminance, W/m^2 on a surface facing it) that reaches point `p` of `doc`: each spot's inside
 // its cone, each point light's, by the inverse square, and the directional lights'; none of it where the
 // straight way from the light crosses `blocker` (a ball {center, radius} an object fills), so that the
@@ -255,19 +264,16 @@ export function lightAt(doc, p, blocker = null) {
   };
   let total = 0;
   for (const light of Object.values(doc.lights || {})) {
-    const type = light.type ?? 'spot';
-    const power = luminance(light.color ?? [1, 1, 1]) * (light.intensity ?? 20);
-    const axis = normalize(light.direction ?? [-2, -3, -1]);
+    const { type, power, axis, position } = lamp(light);
     if (type === 'directional') {
       if (!shadowed(p, scale(axis, -1), Infinity)) total += power;
       continue;
     }
-    const from = light.position ?? [2, 3, 1];
-    const to = sub(p, from);
+    const to = sub(p, position);
     const r = Math.max(1e-3, length(to));
     const d = scale(to, 1 / r);
     const cone = Math.cos(((light.cone_deg ?? 25) * Math.PI) / 180);
-    if ((type === 'point' || dot(d, axis) >= cone) && !shadowed(from, d, r)) total += power / (r * r);
+    if ((type === 'point' || dot(d, axis) >= cone) && !shadowed(position, d, r)) total += power / (r * r);
   }
   return total;
 }
@@ -379,10 +385,8 @@ export function lampIrradiance(doc) {
   const level = doc.floor?.enabled ? (doc.floor.height ?? -1) : (doc.camera?.target?.[1] ?? 0);
   let brightest = 0;
   for (const light of Object.values(doc.lights || {})) {
-    const type = light.type ?? 'spot';
-    const power = luminance(light.color ?? [1, 1, 1]) * (light.intensity ?? 20);
-    const axis = normalize(light.direction ?? [-2, -3, -1]);
-    const height = (light.position ?? [2, 3, 1])[1] - level;
+    const { type, power, axis, position } = lamp(light);
+    const height = position[1] - level;
     let irradiance = 0;
     if (type === 'directional') irradiance = power * Math.max(0, -axis[1]);
     else if (height > 0 && type === 'point') irradiance = power / (height * height);
