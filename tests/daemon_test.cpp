@@ -97,6 +97,37 @@ TEST(Daemon, TheWarmUpBuildsTheDefaultScenesVolumeBeforeTheFirstFrame) {
     expect_no_validation_errors(daemon);
 }
 
+// Last in the warm-up, the render thread compiles what a viewer's first preview of each example takes
+// when it is loaded (Renderer::warm_up_load) and says how many it warmed. An example this daemon cannot
+// render (over its photon limit) or read (not JSON) is passed over; nothing of the warm-up stays
+// resident, and the examples load and render as before.
+TEST(Daemon, TheWarmUpPreparesLoadingEachExample) {
+    TempDir dir;
+    const fs::path examples = dir.path() / "examples";
+    fs::create_directories(examples);
+    std::ofstream(examples / "cube.json")
+        << R"({"image": {"width": 64, "height": 48}, "photons": {"count": 4096}, "volume": {"resolution": 32},
+              "object": {"mesh": "cube", "scale": 0.5}})";
+    std::ofstream(examples / "many_photons.json") << R"({"photons": {"count": 2000000}})";
+    std::ofstream(examples / "broken.json") << "{";
+    Daemon daemon(dir.path() / "data", {"--examples-dir", examples.string(), "--max-photons", "1000000"});
+    auto client = daemon.client();
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    while (get_json(client, "/api/health")["warming_up"] != false) {
+        ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the warm-up did not end\n" << daemon.log();
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    EXPECT_NE(daemon.log().find("warmed up loading 1 of 3 examples"), std::string::npos) << daemon.log();
+    EXPECT_EQ(get_json(client, "/api/health")["scenes_resident"], 1) << daemon.log();
+    const json cube = get_json(client, "/api/examples/cube");
+    auto created = client.Post("/api/scenes?id=cube", cube.dump(), "application/json");
+    ASSERT_TRUE(created && created->status == 201) << (created ? created->body : "no answer");
+    auto frame = client.Get("/api/scenes/cube/frame.png?quality=interactive");
+    ASSERT_TRUE(frame && frame->status == 200) << (frame ? frame->body : "no answer");
+    EXPECT_TRUE(is_png(frame->body));
+    expect_no_validation_errors(daemon);
+}
+
 TEST(Daemon, WithoutAUsableDeviceHealthSaysWhyAndDocumentsStillWork) {
     TempDir dir;
     Daemon daemon(dir.path() / "data", {"--device", "no-such-gpu"});

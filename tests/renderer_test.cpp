@@ -366,6 +366,25 @@ TEST_F(RendererTest, AnObjectDragRebuildsItsVolumeOnACoarseLatticeUntilTheStill)
               pass_names(kView | kToneMap));
 }
 
+// What the budget measured of one document's photons does not hold for photons that scatter otherwise
+// (random walks turned on, another volume: an example loaded): that frame takes the fewest photons, and
+// frames whose photons scatter as the last frame's keep the budget's choice.
+TEST_F(RendererTest, PhotonsThatScatterOtherwiseStartFromTheFewest) {
+    // A sixty-fourth of the count, the budget's floor, is more than the fewest photons.
+    const SceneDocument doc = small({{"photons", {{"count", 1 << 19}}}});
+    ASSERT_GT(doc.photons.count * FrameBudget::kMinPhotonShare, FrameBudget::kMinPhotons);
+    const auto walks = protocol::apply_merge_patch(doc, {{"photons", {{"max_bounces", 4}}}});
+    Renderer renderer(*context);
+    // Nothing measured yet: the first frame takes the budget's largest share.
+    EXPECT_EQ(renderer.render("a", doc, no_assets, {Quality::interactive}).photons,
+              static_cast<uint32_t>(doc.photons.count * FrameBudget::kMaxPhotonShare));
+    EXPECT_EQ(renderer.render("a", walks, no_assets, {Quality::interactive}).photons, FrameBudget::kMinPhotons);
+    const auto brighter = protocol::apply_merge_patch(walks, {{"light", {{"intensity", 40}}}});
+    const FrameResult next = renderer.render("a", brighter, no_assets, {Quality::interactive});
+    EXPECT_EQ(pass_names(next.rerun), pass_names(kPhotons | kView | kToneMap));
+    EXPECT_GE(next.photons, static_cast<uint32_t>(doc.photons.count * FrameBudget::kMinPhotonShare));
+}
+
 // Issue 37: a light dragged less than a radiance voxel keeps half of the radiance grid's light from the
 // frames before it (kPhotonHistory) and adds its own photons, of a seed of their own: the frame is that
 // exponential moving average, as SceneGpu makes it from the two documents in turn. A light moved farther,
@@ -649,11 +668,14 @@ TEST_F(RendererTest, WarmUpKeepsNothingButThePipelines) {
     Renderer renderer(*context);
     const SceneDocument doc = small();
     for (Quality quality : {Quality::interactive, Quality::still}) renderer.warm_up(doc, no_assets, quality);
+    const auto cube = protocol::apply_merge_patch(doc, {{"objects", {{"object", nullptr}, {"box", {{"mesh", "cube"}}}}}});
+    renderer.warm_up_load(doc, cube, no_assets);
     EXPECT_EQ(renderer.resident_scenes(), 0u);
     // The scene's own first frame is whole: it builds every pass.
     EXPECT_EQ(renderer.render("scene", doc, no_assets).rerun, kAllPasses);
     const auto missing = protocol::apply_merge_patch(doc, {{"object", {{"mesh", "upload:nowhere"}}}});
     EXPECT_THROW(renderer.warm_up(missing, no_assets, Quality::interactive), RenderError);
+    EXPECT_THROW(renderer.warm_up_load(doc, missing, no_assets), RenderError);
     EXPECT_EQ(renderer.resident_scenes(), 1u);
 }
 

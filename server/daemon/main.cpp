@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <functional>
@@ -16,6 +17,7 @@
 
 #include "http/api_server.h"
 #include "http/daemon_config.h"
+#include "http/examples.h"
 #include "http/metrics.h"
 #include "http/service.h"
 #include "http/ws_server.h"
@@ -123,11 +125,13 @@ Device open_device(const http::DaemonConfig& config) {
 // While the first viewer's page loads, in the order its first frames need them: the pipelines of the
 // stored scenes' interactive frames (a few scenes; they share most pipelines), then the same scenes'
 // volumes (Renderer::prepare: most of a first frame's work; within the memory budget, evicting nothing),
-// then the still frames' pipelines. `default` first: the client opens it when the address names no
-// scene. Each step stops when a request waits, which then renders what is left. A scene that cannot
-// render now says so when asked for a frame.
-void warm_up_stored_scenes(scene::Renderer& renderer, const scene::Store& store, const scene::Assets& assets,
-                           const std::function<bool()>& waiting) {
+// then the still frames' pipelines, then those of each example's first preview when it is loaded into the
+// first of them (Renderer::warm_up_load: lavapipe compiles those again for a load's coarser lattice,
+// 0.5-1.5 s of the first load of most examples on two cores). `default` first: the client opens it when
+// the address names no scene. Each step stops when a request waits, which then renders what is left. A
+// scene or example that cannot render now says so when asked for a frame.
+void warm_up(scene::Renderer& renderer, const scene::Store& store, const scene::Assets& assets,
+             const http::DaemonConfig& config, const std::function<bool()>& waiting) {
     std::vector<scene::SceneSnapshot> scenes = store.list();
     std::stable_partition(scenes.begin(), scenes.end(),
                           [](const scene::SceneSnapshot& snapshot) { return snapshot.id == "default"; });
@@ -147,6 +151,27 @@ void warm_up_stored_scenes(scene::Renderer& renderer, const scene::Store& store,
             } catch (const scene::RenderError&) {
             }
         }
+    const protocol::Limits limits{config.max_resolution, config.max_photons, config.max_image};
+    const protocol::SceneDocument shown = scenes.empty() ? protocol::parse_scene(kFirstScene) : scenes.front().document;
+    const std::vector<std::string> examples = http::list_examples(config.examples_dir);
+    const auto start = std::chrono::steady_clock::now();
+    size_t warmed = 0;
+    for (const auto& name : examples) {
+        if (waiting()) return;
+        const http::ExampleFile example = http::read_example(config.examples_dir, name);
+        try {
+            if (example.status != 200) continue;
+            renderer.warm_up_load(shown, protocol::parse_scene(example.document, limits), assets);
+            ++warmed;
+        } catch (const protocol::ValidationError&) {
+            // Over this daemon's limits: loading it says so.
+        } catch (const scene::RenderError&) {
+            // Not renderable here (an upload it names is missing): loading it says why.
+        }
+    }
+    if (!examples.empty())
+        std::fprintf(stderr, "refractd: warmed up loading %zu of %zu examples in %.1f s\n", warmed, examples.size(),
+                     std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
 }
 
 // What the render queue's thread does with the device: render a frame, evict a scene, warm up, and
@@ -173,7 +198,7 @@ RenderQueueSetup render_queue_setup(const http::DaemonConfig& config, Device& de
         metrics.record_frame(frame);
     };
     setup.options.warm_up = [&](const std::function<bool()>& waiting) {
-        warm_up_stored_scenes(renderer, store, assets, waiting);
+        warm_up(renderer, store, assets, config, waiting);
     };
     setup.options.after_frame = [&] {
         http::Service* published = service.load();

@@ -123,9 +123,14 @@ void Daemon::start() {
     do {
         ws_port_ = free_port();
     } while (ws_port_ == port_);
+    // No examples (a folder that is not there): with the repository's, every daemon would warm up loading
+    // each of them while its test runs (seconds of both cores); a test of that names a folder of its own.
+    fs::path no_examples = data_dir_;
+    no_examples += ".no-examples";
     std::vector<std::string> args = {
         "--port",     std::to_string(port_), "--ws-port",         std::to_string(ws_port_),
-        "--data-dir", data_dir_.string(),    "--request-timeout", "120"};
+        "--data-dir", data_dir_.string(),    "--request-timeout", "120",
+        "--examples-dir", no_examples.string()};
     args.insert(args.end(), extra_args_.begin(), extra_args_.end());
     pid_ = spawn_refractd(args, log_path_);
 
