@@ -127,7 +127,8 @@ Device open_device(const http::DaemonConfig& config) {
 // volumes (Renderer::prepare: most of a first frame's work; within the memory budget, evicting nothing),
 // then the still frames' pipelines, then those of each example's first preview when it is loaded into the
 // first of them (Renderer::warm_up_load: lavapipe compiles those again for a load's coarser lattice,
-// 0.5-1.5 s of the first load of most examples on two cores). `default` first: the client opens it when
+// 0.5-1.5 s of the first load of most examples on two cores; loaded over another example, one may take
+// another lattice divisor and still compile some). `default` first: the client opens it when
 // the address names no scene. Each step stops when a request waits, which then renders what is left. A
 // scene or example that cannot render now says so when asked for a frame.
 void warm_up(scene::Renderer& renderer, const scene::Store& store, const scene::Assets& assets,

@@ -146,8 +146,9 @@ public:
     void warm_up(const protocol::SceneDocument& document, const Assets& assets, Quality quality);
     // Creates the pipelines of the first preview a viewer sees on loading `loaded` into a resident scene
     // that shows `before` (an example picked, a document imported): that preview builds the volume on a
-    // coarser lattice than a scene's first frame does (kLoadLatticeDivisor), and lavapipe compiles a
-    // shader again for the sizes of the images it samples (0.5-1.5 s of a load on two cores). Renders
+    // coarser lattice than a scene's first frame does (kLoadLatticeDivisor, or kDragLatticeDivisor where
+    // the objects keep their names), and lavapipe compiles a shader again for the state of the images it
+    // samples (0.5-1.5 s of a load on two cores). Renders
     // `before`, then `loaded` at its own volume resolution, both at the smallest image and photon count,
     // under a scene id of its own, keeps nothing of them but the pipelines, and rethrows what render() throws.
     void warm_up_load(const protocol::SceneDocument& before, const protocol::SceneDocument& loaded, const Assets& assets);
