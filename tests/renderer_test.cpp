@@ -817,6 +817,13 @@ TEST(FrameBudget, AFastDeviceGetsTheFullDocumentAndAHopelessOneTheFloor) {
     EXPECT_EQ(floor.width, 64u);   // 512 / 8
     EXPECT_EQ(floor.height, 32u);  // 256 / 8, and kMinSide
     EXPECT_EQ(floor.photons, static_cast<uint32_t>(doc.photons.count / 64));
+    // A view whose short side reaches kMinSide first keeps its aspect there: the long side stops too.
+    doc.image.width = 180;
+    doc.image.height = 100;
+    FrameBudget narrow;
+    const InteractiveSettings kept = settle(narrow, doc, {500.0, 1e-2, 1e-2}, 10.0, true);
+    EXPECT_EQ(kept.height, FrameBudget::kMinSide);
+    EXPECT_EQ(kept.width, 58u);  // 180 x 32 / 100, rounded
 }
 
 TEST(FrameBudget, KeepsTheResidentSettingsWhereChangingThemWouldRerunAPass) {

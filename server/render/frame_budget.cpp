@@ -7,10 +7,15 @@ namespace refract::scene {
 
 namespace {
 
+// The least scale that keeps `side` at its floor: kMinScale of it, and kMinSide pixels (or all of it).
+double least_scale(uint32_t side) {
+    return std::max(static_cast<double>(std::min(side, FrameBudget::kMinSide)) / side, FrameBudget::kMinScale);
+}
+
+// `side` at `scale`, which lies between the floors' least scale and 1: one scale for both sides, so that
+// a frame shrunk to its floor keeps the document's aspect (a side clamped alone reshaped it).
 uint32_t scaled_side(uint32_t side, double scale) {
-    const double floor = std::max(static_cast<double>(std::min(side, FrameBudget::kMinSide)),
-                                  std::ceil(side * FrameBudget::kMinScale));
-    return static_cast<uint32_t>(std::clamp(std::round(side * scale), floor, static_cast<double>(side)));
+    return static_cast<uint32_t>(std::clamp(std::round(side * scale), 1.0, static_cast<double>(side)));
 }
 
 // A frame's cost is split between the photon pass and the rest; the photon pass may take at most this
@@ -59,7 +64,9 @@ InteractiveSettings FrameBudget::choose(const protocol::SceneDocument& document,
         // The image's time scales with its pixels, i.e. with the square of the scale; what the photons
         // take of this frame is not the image's to spend.
         const double image_target = std::max(target - photon_ms, (1.0 - kPhotonBudgetShare) * target);
-        const double scale = image_ms_ > 0.0 ? std::sqrt(image_target / image_ms_) : kFirstScale;
+        const double wanted = image_ms_ > 0.0 ? std::sqrt(image_target / image_ms_) : kFirstScale;
+        const double scale = std::clamp(
+            wanted, std::max(least_scale(document.image.width), least_scale(document.image.height)), 1.0);
         settings.width = scaled_side(document.image.width, scale);
         settings.height = scaled_side(document.image.height, scale);
     }

@@ -33,7 +33,8 @@ struct InteractiveSettings {
 class FrameBudget {
 public:
     // The floor on resolution: an image side never shrinks below this fraction of the document's (nor
-    // below kMinSide pixels, nor above the document's own), so the budget never starves the image.
+    // below kMinSide pixels, nor above the document's own), so the budget never starves the image; both
+    // sides take one scale, so a frame keeps the document's aspect.
     static constexpr double kMinScale = 0.125;
     static constexpr uint32_t kMinSide = 32;
     // Photons per interactive frame, as a fraction of the document's count: at most a quarter (the
