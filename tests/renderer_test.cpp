@@ -826,6 +826,23 @@ TEST(FrameBudget, AFastDeviceGetsTheFullDocumentAndAHopelessOneTheFloor) {
     EXPECT_EQ(kept.width, 58u);  // 180 x 32 / 100, rounded
 }
 
+// A photon cost measured for one kind of photons (PhotonKind) sizes no other kind's frame: that frame
+// takes kMinPhotons, and its own measurement, taken whole, sizes the frames after it.
+TEST(FrameBudget, PhotonsOfAnotherKindStartFromTheFewestAndAreMeasuredAnew) {
+    SceneDocument doc;
+    doc.photons.count = 1u << 20;
+    const InteractiveSettings used{256, 256, doc.photons.count / 64};
+    FrameBudget budget;
+    budget.observe(doc, used, 1.0, 0.0, 40.0);  // cheap photons: the largest share
+    EXPECT_EQ(budget.choose(doc, true, true, &used, 100.0).photons, doc.photons.count / 4);
+    SceneDocument walks = doc;
+    walks.photons.max_bounces = 4;
+    const InteractiveSettings first = budget.choose(walks, true, true, &used, 100.0);
+    EXPECT_EQ(first.photons, FrameBudget::kMinPhotons);
+    budget.observe(walks, first, 400.0, 0.0, 40.0);  // dear ones: 400 ms for 4096, the floor's share next
+    EXPECT_EQ(budget.choose(walks, true, true, &first, 100.0).photons, doc.photons.count / 64);
+}
+
 TEST(FrameBudget, KeepsTheResidentSettingsWhereChangingThemWouldRerunAPass) {
     SceneDocument doc;
     FrameBudget budget;

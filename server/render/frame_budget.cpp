@@ -40,6 +40,12 @@ double corrected(double estimate, double measured_ms, double share) {
 
 }  // namespace
 
+FrameBudget::PhotonKind FrameBudget::photon_kind(const protocol::SceneDocument& document) {
+    PhotonKind kind{document.photons.max_bounces, {}};
+    for (const auto& [name, volume] : document.volumes) kind.volumes.emplace_back(name, volume.asset);
+    return kind;
+}
+
 InteractiveSettings FrameBudget::choose(const protocol::SceneDocument& document, bool photons_rerun, bool view_rerun,
                                         const InteractiveSettings* resident, double budget_ms) const {
     // What the viewer's size costs comes first; the passes share what is left, and never less than a
@@ -49,6 +55,10 @@ InteractiveSettings FrameBudget::choose(const protocol::SceneDocument& document,
     double photon_ms = 0.0;  // what this frame's photon pass is expected to take
     if (resident && !photons_rerun) {
         settings.photons = resident->photons;
+    } else if (photon_ms_ > 0.0 && !(photon_kind(document) == measured_)) {
+        settings.photons = std::min(document.photons.count, kMinPhotons);
+        if (document.photons.count > 0)  // the other kind's rate: a guess
+            photon_ms = photon_ms_ * settings.photons / document.photons.count;
     } else {
         const double share = photon_ms_ > 0.0
                                  ? std::clamp(kPhotonBudgetShare * target / photon_ms_, kMinPhotonShare, kMaxPhotonShare)
@@ -76,8 +86,13 @@ InteractiveSettings FrameBudget::choose(const protocol::SceneDocument& document,
 void FrameBudget::observe(const protocol::SceneDocument& document, const InteractiveSettings& used, double photon_ms,
                           double viewer_ms, double rest_ms) {
     viewer_ms_ = viewer_ms > 0.0 ? corrected(viewer_ms_, viewer_ms, 1.0) : 0.0;
-    if (photon_ms > 0.0 && used.photons > 0 && document.photons.count > 0)
+    if (photon_ms > 0.0 && used.photons > 0 && document.photons.count > 0) {
+        PhotonKind kind = photon_kind(document);
+        // Another kind's measurement is taken whole, not moved from the last kind's by kMaxStep.
+        if (!(kind == measured_)) photon_ms_ = 0.0;
         photon_ms_ = corrected(photon_ms_, photon_ms, static_cast<double>(used.photons) / document.photons.count);
+        measured_ = std::move(kind);
+    }
     if (rest_ms > 0.0 && used.width > 0 && used.height > 0) {
         const double pixels = static_cast<double>(used.width) * used.height;
         image_ms_ = corrected(image_ms_, rest_ms, pixels / (static_cast<double>(document.image.width) * document.image.height));

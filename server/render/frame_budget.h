@@ -7,6 +7,9 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "protocol/scene_document.h"
 
@@ -38,7 +41,8 @@ public:
     static constexpr double kMinScale = 0.125;
     static constexpr uint32_t kMinSide = 32;
     // Photons per interactive frame, as a fraction of the document's count: at most a quarter (the
-    // pre-budget interactive setting), at least 1/64 and never fewer than kMinPhotons.
+    // pre-budget interactive setting), at least 1/64 and never fewer than kMinPhotons; kMinPhotons for
+    // photons of another kind than those measured (PhotonKind), until they are measured.
     static constexpr double kMaxPhotonShare = 0.25;
     static constexpr double kMinPhotonShare = 1.0 / 64.0;
     static constexpr uint32_t kMinPhotons = 4096;
@@ -49,6 +53,17 @@ public:
     // resident state was rendered with, kept where changing them would rerun a pass the edit does not need.
     InteractiveSettings choose(const protocol::SceneDocument& document, bool photons_rerun, bool view_rerun,
                                const InteractiveSettings* resident, double budget_ms) const;
+
+    // What a photon's cost depends on beyond the document's sizes: how it may scatter (its random walks,
+    // the volumes it crosses, by name and asset). A photon cost measured for one kind says nothing of
+    // another's (the cumulus example's photons, up to four bounces in a dense cloud, took 0.7 s for a
+    // sixty-fourth of its count, loaded after one whose photons took 35 ms).
+    struct PhotonKind {
+        uint32_t max_bounces = 0;
+        std::vector<std::pair<std::string, std::string>> volumes;
+        bool operator==(const PhotonKind&) const = default;
+    };
+    static PhotonKind photon_kind(const protocol::SceneDocument& document);
 
     // Feeds back what a frame rendered with `used` cost: milliseconds in the photon pass (0 when it did
     // not run), what the viewer's full size costs whatever size was traced (`viewer_ms`: temporal reuse
@@ -64,6 +79,7 @@ private:
     double image_ms_ = 0.0;   // everything but the photon pass
     double photon_ms_ = 0.0;  // the photon pass
     double viewer_ms_ = 0.0;  // the frame's fixed part at the viewer's size, taken off the budget first
+    PhotonKind measured_;     // of the photons photon_ms_ measured: other kinds' frames take kMinPhotons
 };
 
 }  // namespace refract::scene

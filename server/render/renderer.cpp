@@ -191,14 +191,6 @@ bool other_objects(const protocol::SceneDocument& held, const protocol::SceneDoc
                        [](const auto& a, const auto& b) { return a.first == b.first; });
 }
 
-// Whether a photon of `next` scatters as one of `held` does (the same random walks through the same
-// volumes), so that what the budget measured of the one's photons holds for the other's.
-bool photons_alike(const protocol::SceneDocument& held, const protocol::SceneDocument& next) {
-    return held.photons.max_bounces == next.photons.max_bounces &&
-           std::equal(held.volumes.begin(), held.volumes.end(), next.volumes.begin(), next.volumes.end(),
-                      [](const auto& a, const auto& b) { return a.first == b.first && a.second.asset == b.second.asset; });
-}
-
 // Whether `a` and `b` are the same scene, seen through views that may differ.
 bool same_scene(const protocol::SceneDocument& a, const protocol::SceneDocument& b) {
     return a == protocol::seen_through(b, {a.image.width, a.image.height, a.camera});
@@ -442,11 +434,6 @@ FramePlan Renderer::Impl::plan(const ResidentScene* held, const FrameBudget& bud
             else if (would & kVoxelize) plan.settings.lattice_divisor = kDragLatticeDivisor;
             else plan.settings.lattice_divisor = resident.lattice_divisor;
         }
-        // Photons that scatter otherwise than those the budget measured cost what it cannot know (the
-        // cumulus example's, up to four times in a dense cloud, took 0.7 s for a sixty-fourth of its
-        // count, loaded after one whose photons took 35 ms): that frame takes the fewest, and measures them.
-        if (held && !photons_alike(held->document, requested))
-            plan.settings.photons = std::min(plan.settings.photons, FrameBudget::kMinPhotons);
         plan.document = with_settings(requested, plan.settings);
     }
     plan.stale = stale_against(held, plan.document, resolved);
