@@ -16,35 +16,47 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_RAW_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_SPREAD_FLUX_SHARES, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_SPREAD_FLOOR_SHARES, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
 };
 }  // namespace
 
 RadianceSpreadPass::RadianceSpreadPass(vk::Context& context) {
-    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && SPREAD_CONSTANT_FLOOR == 8 && CHANNELS_RGB == 0 &&
-                  CHANNELS_GREY == 1);
-    const char* names[] = {"radiance spread", "radiance spread (grey)", "floor map spread", "floor map spread (grey)"};
-    pipelines_.reserve(4);
-    for (uint32_t i = 0; i < 4; ++i) {
+    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && SPREAD_CONSTANT_FLOOR == 8 && SPREAD_CONSTANT_GATHER == 9 &&
+                  CHANNELS_RGB == 0 && CHANNELS_GREY == 1);
+    const char* names[] = {"radiance spread shares", "radiance spread shares (grey)", "floor map spread shares",
+                           "floor map spread shares (grey)", "radiance spread", "radiance spread (grey)",
+                           "floor map spread", "floor map spread (grey)"};
+    pipelines_.reserve(8);
+    for (uint32_t i = 0; i < 8; ++i) {
         // The coverage fetch, Fresnel, films, materials, field atlas, medium field and fade are never used here.
-        const std::array<uint32_t, 9> constants{i & 1u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, i >> 1};
+        const std::array<uint32_t, 10> constants{i & 1u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, (i >> 1) & 1u, i >> 2};
         pipelines_.emplace_back(context, radiance_spread_spv, kLayout, 0, names[i], constants);
     }
 }
 
 void RadianceSpreadPass::record(vk::CommandRecorder& recorder, const vk::Buffer& params, bool grey,
-                                const SpreadImages& raw, const SpreadImages& out) const {
+                                const SpreadImages& raw, const SpreadImages& shares, const SpreadImages& out) const {
     const vk::Binding bindings[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_RAW_RADIANCE, raw.radiance),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_RAW_FLUX, raw.flux),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, out.radiance),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, out.flux),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_RAW_FLOOR_MAP, raw.floor_map),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, out.floor_map)};
+                                    vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, out.floor_map),
+                                    vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_FLUX_SHARES, shares.flux),
+                                    vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, shares.radiance),
+                                    vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_FLOOR_SHARES, shares.floor_map)};
     const uint32_t variant = grey ? 1u : 0u;
     const auto voxel_groups = vk::linear_groups(out.flux.extent().count(), TRANSPORT_GROUP_SIZE);
-    pipelines_[variant].dispatch(recorder.get(), bindings, nullptr, 0, voxel_groups.x, voxel_groups.y);
     const auto texel_groups = vk::linear_groups(out.floor_map.extent().count(), TRANSPORT_GROUP_SIZE);
+    // Both jobs' shares, then both gathers: one barrier between the steps.
+    pipelines_[variant].dispatch(recorder.get(), bindings, nullptr, 0, voxel_groups.x, voxel_groups.y);
     pipelines_[variant + 2].dispatch(recorder.get(), bindings, nullptr, 0, texel_groups.x, texel_groups.y);
+    recorder.compute_barrier();
+    pipelines_[variant + 4].dispatch(recorder.get(), bindings, nullptr, 0, voxel_groups.x, voxel_groups.y);
+    pipelines_[variant + 6].dispatch(recorder.get(), bindings, nullptr, 0, texel_groups.x, texel_groups.y);
 }
 
 }  // namespace refract::passes

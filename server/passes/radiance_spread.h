@@ -22,12 +22,14 @@ struct SpreadImages {
 class RadianceSpreadPass {
 public:
     explicit RadianceSpreadPass(vk::Context& context);
-    // Reads `raw` (as the resolve left it) and writes `out`, of the same sizes.
+    // Reads `raw` (as the resolve left it) and writes `out`, of the same sizes; `shares` (rgba32f, the
+    // same sizes) holds what each source gives the voxels or texels it reaches, between the two steps.
     void record(vk::CommandRecorder& recorder, const vk::Buffer& params, bool grey, const SpreadImages& raw,
-                const SpreadImages& out) const;
+                const SpreadImages& shares, const SpreadImages& out) const;
 
 private:
-    std::vector<vk::ComputePipeline> pipelines_;  // coloured, grey
+    // By job (voxels, floor texels), step (shares, gather) and channels (coloured, grey).
+    std::vector<vk::ComputePipeline> pipelines_;
 };
 
 }  // namespace refract::passes

@@ -87,15 +87,21 @@ void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t phot
         radiance_ = vk::Image3D(ctx, colour_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "radiance grid (per channel)");
     }
     channels_ = channels;
-    // The resolve's own images, for the spread to read, at the same sizes.
+    // The resolve's own images, for the spread to read, and the spread's shares, at the same sizes.
     if (!adaptive_density) {
         raw_flux_ = {};
         raw_radiance_ = {};
+        flux_shares_ = {};
+        radiance_shares_ = {};
     } else if (!raw_flux_.get() || !(raw_flux_.extent() == radiance_dims) || !(raw_radiance_.extent() == colour_dims)) {
         raw_flux_ = {};
         raw_radiance_ = {};
+        flux_shares_ = {};
+        radiance_shares_ = {};
         raw_flux_ = vk::Image3D(ctx, radiance_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "resolved flux before the spread");
         raw_radiance_ = vk::Image3D(ctx, colour_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "resolved radiance before the spread");
+        flux_shares_ = vk::Image3D(ctx, radiance_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "spread flux shares");
+        radiance_shares_ = vk::Image3D(ctx, colour_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "spread radiance shares");
     }
     if (floor_texels != floor_texels_ || !floor_map_.get()) {
         floor_map_ = vk::Image3D(ctx, {floor_texels, floor_texels, 1}, VK_FORMAT_R16G16B16A16_SFLOAT, "floor caustic map");
@@ -103,9 +109,13 @@ void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t phot
     }
     if (!adaptive_density) {
         raw_floor_map_ = {};
+        floor_shares_ = {};
     } else if (!raw_floor_map_.get() || !(raw_floor_map_.extent() == floor_map_.extent())) {
         raw_floor_map_ = {};
+        floor_shares_ = {};
         raw_floor_map_ = vk::Image3D(ctx, floor_map_.extent(), VK_FORMAT_R16G16B16A16_SFLOAT, "floor map before the spread");
+        // rgba32f, unlike the map: a share is kept as the single-step spread computed it.
+        floor_shares_ = vk::Image3D(ctx, floor_map_.extent(), VK_FORMAT_R32G32B32A32_SFLOAT, "floor map spread shares");
     }
 }
 
@@ -225,7 +235,8 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
         field_upload_.reset();
     }
     if (stale & kPhotons && !(built & kPhotons)) {
-        for (const vk::Image3D* image : {&radiance_, &flux_, &floor_map_, &raw_radiance_, &raw_flux_, &raw_floor_map_})
+        for (const vk::Image3D* image : {&radiance_, &flux_, &floor_map_, &raw_radiance_, &raw_flux_, &raw_floor_map_,
+                                         &radiance_shares_, &flux_shares_, &floor_shares_})
             if (image->get()) recorder.init_image(*image);
     }
     if (!(stale & kPhotons)) return true;
@@ -261,7 +272,7 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
     }
     if (raw_flux_.get()) {
         kit_.radiance_spread.record(recorder, params_buffer(), grey(), {raw_radiance_, raw_flux_, raw_floor_map_},
-                                   {radiance_, flux_, floor_map_});
+                                   {radiance_shares_, flux_shares_, floor_shares_}, {radiance_, flux_, floor_map_});
         recorder.compute_barrier();
     }
     kit_.lit_pyramid.record(recorder, params_buffer(), flux_, accum_->lit_blocks, lattice.coarsened(lattice.light_factor));

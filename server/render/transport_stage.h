@@ -94,8 +94,10 @@ private:
     std::vector<vk::Buffer> params_buffers_;  // one per entry of light_params_
     vk::Buffer materials_;
     vk::Image3D radiance_, flux_, floor_map_;  // radiance_: per-channel fluence, coloured transport only
-    // Under adaptive density, what the resolve writes and the spread reads (else empty).
+    // Under adaptive density, what the resolve writes and the spread reads, and the spread's shares
+    // between its two steps (else empty).
     vk::Image3D raw_radiance_, raw_flux_, raw_floor_map_;
+    vk::Image3D radiance_shares_, flux_shares_, floor_shares_;
     passes::EnvironmentLight environment_light_;
     vk::Buffer environment_map_;
     std::optional<passes::EnvironmentSource> environment_source_;  // what the map was made of

@@ -85,6 +85,11 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_RAW_RADIANCE 24  // rgba32f, as TRANSPORT_BINDING_RADIANCE
 #define TRANSPORT_BINDING_RAW_FLUX 25      // rgba32f, as TRANSPORT_BINDING_FLUX
 #define TRANSPORT_BINDING_RAW_FLOOR_MAP 26  // rgba16f, as TRANSPORT_BINDING_FLOOR_MAP
+// The spread's shares (radiance_spread.comp): rgba32f, what each voxel or texel gives each one its box
+// reaches (the floor's: rgb, and its radius in w).
+#define TRANSPORT_BINDING_SPREAD_FLUX_SHARES 30
+#define TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES 31
+#define TRANSPORT_BINDING_SPREAD_FLOOR_SHARES 32
 // The medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): the scene's volumes resampled on a coarse copy of the
 // lattice (render/medium_field.h), trilinearly filtered; a texel of zeros where a scene has none.
 #define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27  // sampler3D rgba32f, bricks (below): rgb extinction per metre
@@ -112,9 +117,11 @@ REFRACT_SHADERS_BEGIN
 #define SPREAD_TRACKS 16.0f
 #define SPREAD_VOXEL_RADIUS 1
 #define SPREAD_TEXEL_RADIUS 2
-// One specialization per job, as the resolve's (after the transport constants): true for the dispatch
-// that spreads the floor map's texels (photon hits, (2r + 1)^2 texels), false for the radiance grid's voxels.
+// One specialization per job, as the resolve's (after the transport constants): true for the dispatches
+// that spread the floor map's texels (photon hits, (2r + 1)^2 texels), false for the radiance grid's
+// voxels; and per step: false for the first (each source's share and reach, once), true for the gather.
 #define SPREAD_CONSTANT_FLOOR TRANSPORT_CONSTANT_COUNT
+#define SPREAD_CONSTANT_GATHER (TRANSPORT_CONSTANT_COUNT + 1)
 #define DIRECT_MARGIN 2.0f       // voxels: a photon's ray lies between its texel's neighbours', not on one
 // Direct light treats a gradient of n (per voxel) and a coverage up to this as none: the smoothing
 // Gaussian's tails leave values of 1e-15 and so far from any object, which over a 1000-voxel path bend
