@@ -1235,7 +1235,8 @@ TEST_F(VolumeTest, AnObjectInAFieldAtlasHasTheFieldAndFrameItHasInADenseLattice)
 
 // The memory estimate the renderer budgets with covers what a scene holds once built, one object or
 // several (their field atlas rather than the lattice), and does not overstate it by more than the transient
-// buffers and the conservative per-voxel sums it adds (2x).
+// buffers and the conservative per-voxel sums it adds (2x); and it covers what an interactive light edit
+// after the still holds.
 TEST_F(VolumeTest, MemoryEstimateCoversWhatASceneHolds) {
     const SceneDocument one = protocol::parse_scene({{"image", {{"width", 64}, {"height", 64}}}, {"volume", {{"resolution", 64}}}});
     const SceneDocument three = objects_document({{"ball", {{"position", {-1.0, 0, 0}}, {"scale", 0.35}}},
@@ -1268,6 +1269,12 @@ TEST_F(VolumeTest, MemoryEstimateCoversWhatASceneHolds) {
                     static_cast<double>(held) / (1 << 20), static_cast<double>(estimate) / (1 << 20));
         EXPECT_GE(estimate, held);
         EXPECT_LE(estimate, 2 * held);
+        // An interactive light edit after it: a coarser radiance grid, and the adaptive density's images.
+        scene::RunOptions interactive;
+        interactive.radiance_factor = 3;
+        interactive.adaptive_density = true;
+        gpu.run(scene::kPhotons | scene::kView, *doc, worlds(*doc), nullptr, interactive);
+        EXPECT_GE(estimate, context().allocated_bytes() - before) << "after an interactive light edit";
     }
 }
 
