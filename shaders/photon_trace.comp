@@ -24,15 +24,6 @@ layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) buffer AccumFloor { uint
 layout(std430, binding = TRANSPORT_BINDING_PHOTON_EXITS) writeonly buffer Exits { PhotonExit exits[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIGHT_MAP) readonly buffer LightMap { float light_map[]; };
 
-uint hash(uint x) {
-    x ^= x >> 16u;
-    x *= 0x7feb352du;
-    x ^= x >> 15u;
-    x *= 0x846ca68bu;
-    x ^= x >> 16u;
-    return x;
-}
-
 float to_unit(uint x) { return float(x >> 8u) * (1.0 / 16777216.0); }
 
 // Per-photon random stream for stochastic rounding of fixed-point deposits: rounding up with probability
@@ -372,12 +363,12 @@ void main() {
             if (deposits && !in_direct) deposit(ray.p / radiance_factor, ray.d, len / radiance_factor, weight, kappa * radiance_factor, unbent);
             path_length += len;
             if (to_floor <= min(ds, to_exit)) {
-                weight *= exp(-kappa * to_floor) * residual_ratio(midpoint, ray.p, ray.d, to_floor, control, h, walking, ratio_rng);
+                weight *= exp(-kappa * to_floor) * residual_ratio(midpoint, ray.p, ray.d, to_floor, control, vec3(0.0), h, walking, ratio_rng);
                 ray.p += ray.d * to_floor;
                 outcome = 2.0;
                 break;
             }
-            weight *= exp(-kappa * len) * residual_ratio(midpoint, ray.p, ray.d, len, control, h, walking, ratio_rng);
+            weight *= exp(-kappa * len) * residual_ratio(midpoint, ray.p, ray.d, len, control, vec3(0.0), h, walking, ratio_rng);
             if (to_exit <= ds) {
                 ray.p += ray.d * to_exit;
                 outcome = 1.0;

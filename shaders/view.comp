@@ -122,6 +122,29 @@ vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
     return mix(vec3(len), (1.0 - attenuation) / kappa, greaterThan(kappa, vec3(1e-7)));
 }
 
+// The volumes' residual ratio tracking along an eye ray (residual_ratio): its random stream, and the
+// extinction at the last step's midpoint and that step's half length, from which the next step's control
+// takes its slope.
+struct EyeTrack {
+    uint rng;
+    vec3 sigma;
+    float half_len;  // 0: no step yet on this path
+};
+
+// The volumes' transmittance over an eye ray's step of `len` voxels from p along d beyond the Beer-Lambert
+// factor of their extinction `sigma` at its midpoint `at`: unbiased for the field whatever the control,
+// and the control line through the midpoint takes the slope from the last step's midpoint, so that what
+// is left to track is the field's curvature, not its gradient (the midpoint's constant alone left the
+// gradient, and its noise showed in the frames), at no fetch beyond the tentative points'. Steps end
+// where the field's interpolation cells do (field_step), so that no step straddles a kink of the field.
+vec3 eye_ratio(inout EyeTrack track, FieldSample at, vec3 sigma, vec3 p, vec3 d, float len, float h) {
+    vec3 slope = track.half_len > 0.0 ? (sigma - track.sigma) / (track.half_len + 0.5 * len) : vec3(0.0);
+    track.sigma = sigma;
+    track.half_len = 0.5 * len;
+    if (at.block.x == MEDIUM_NO_BRICK) return vec3(1.0);
+    return residual_ratio(at, p, d, len, sigma, slope, h, false, track.rng);
+}
+
 // What a ray leaving the scene along d sees: the image environment's map, else the sky's gradient (one
 // colour for a uniform environment).
 vec3 sky(vec3 d) {
@@ -189,6 +212,10 @@ void shade(uvec2 pixel) {
     // goes; the sky's is 0. Light that comes through or off the object takes the depth of the first
     // place the eye ray bends (its surface): what is seen through glass moves with the glass.
     float light_weight = 0.0, weighted_inverse_depth = 0.0, surface_inverse_depth = -1.0;
+    // The volumes' residual ratio tracking (eye_ratio): a stream per pixel, sample and photon seed, so
+    // refinement averages it as it averages the sub-pixel positions.
+    EyeTrack track = EyeTrack(hash(pixel.y * width + pixel.x ^ hash(floatBitsToUint(params.refinement.z) ^ hash(
+        floatBitsToUint(params.refinement.w) ^ hash(params.photon_info.y + 9u)))), vec3(0.0), 0.0);
     // One march and one floor_radiance call site for all paths: lavapipe runs every call (and its fetches)
     // for every pixel.
     for (uint path = 0u; path < kPaths; ++path) {
@@ -222,6 +249,7 @@ void shade(uvec2 pixel) {
                 break;
             }
             radiance_sum = vec3(0.0);
+            track.half_len = 0.0;  // a new path: no slope to take yet
             on_floor = false;
             marches = !straight;
         }
@@ -295,7 +323,8 @@ void shade(uvec2 pixel) {
                     vec3 kappa_here = thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density);
                     FieldSample at = field_at(x);
                     vec4 field_s = field_scattering(at);
-                    if (kMediumField) kappa_here += field_extinction(at) * h;
+                    vec3 field_sigma = field_extinction(at);
+                    if (kMediumField) kappa_here += field_sigma * h;
                     vec3 attenuation = whole ? step_attenuation : exp(-kappa_here * len);
                     vec3 path_length = whole ? step_path : transmitted_path(kappa_here, len, attenuation);
                     vec3 sigma_here = thinned(sigma_s, params.medium_scattering.rgb * h, scatter_coverage, density);
@@ -308,6 +337,7 @@ void shade(uvec2 pixel) {
                     }
                     if (field_emits()) radiance_sum += transmittance * field_emission(at) * h * path_length;
                     transmittance *= attenuation;
+                    if (kMediumField) transmittance *= eye_ratio(track, at, field_sigma, ray.p + t * ray.d, ray.d, len, h);
                     t += len;
                     ++steps;
                 }
@@ -322,7 +352,8 @@ void shade(uvec2 pixel) {
                 vec3 kappa_run = thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density);
                 vec3 x = ray.p + (0.5 * run) * ray.d;
                 FieldSample at = field_at(x);
-                if (kMediumField) kappa_run += field_extinction(at) * h;
+                vec3 field_sigma = field_extinction(at);
+                if (kMediumField) kappa_run += field_sigma * h;
                 vec3 attenuation = exp(-kappa_run * run);
                 if (field_emits()) {
                     // Unlit or not, what the volumes emit along the run reaches the eye (the run is a
@@ -335,6 +366,7 @@ void shade(uvec2 pixel) {
                         : 1.0 / max(length(to_world(x) - params.camera_position.xyz), 1e-6));
                 }
                 transmittance *= attenuation;
+                if (kMediumField) transmittance *= eye_ratio(track, at, field_sigma, ray.p, ray.d, run, h);
                 ++steps;
             }
             if (run >= to_end) {

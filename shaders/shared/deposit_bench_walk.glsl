@@ -3,20 +3,13 @@
 // about as often as neighbouring photons do. The variant defines deposit(voxel, weight).
 void deposit(uint voxel, vec3 w);
 
-uint bench_hash(uint x) {
-    x ^= x >> 16u;
-    x *= 0x7feb352du;
-    x ^= x >> 15u;
-    x *= 0x846ca68bu;
-    x ^= x >> 16u;
-    return x;
-}
+#include "hash.glsl"
 
 void walk() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= push.threads) return;
     // Neighbouring threads start near each other, as stratified photons do.
-    uint start = (bench_hash(i / 16u) + (i % 16u) * 128u) % push.voxels;
+    uint start = (hash(i / 16u) + (i % 16u) * 128u) % push.voxels;
     for (uint k = 0u; k < push.deposits_per_thread; ++k) {
         uint voxel = (start + k) % push.voxels;
         deposit(voxel, vec3(0.5, 0.25, 0.125));

@@ -5,6 +5,7 @@
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_buffer_reference_uvec2 : require
 #include "transport.h"
+#include "hash.glsl"
 
 // The frame parameters (a storage buffer: transport.h says why), read through a private copy: lavapipe
 // loads a buffer field inside divergent control flow (the passes' loops) lane by lane, a bounds-checked
@@ -223,12 +224,15 @@ float pcg_unit(inout uint state) {
 // The volumes' transmittance over a step of `len` voxels (of side h) from p along d beyond what the step's
 // Beer-Lambert factor took for them, their extinction `control` at its midpoint (`mid`): residual ratio
 // tracking (Novak et al. 2014), the product over tentative points at the rate of the block's majorant
-// of 1 - (sigma(x) - control) / majorant, whose mean is exp(-integral of (sigma - control)) however the
-// field varies along the step. So a step's transmittance is unbiased for the filtered field, and close
-// to 1 (little noise) where the field is near linear, as within a field voxel. `absorption`: sigma is
-// the extinction less the channels' mean scattering (what a walking photon's weight takes; its
-// scattering is delta-tracked), as `control` is then.
-vec3 residual_ratio(FieldSample mid, vec3 p, vec3 d, float len, vec3 control, float h, bool absorption, inout uint rng) {
+// of 1 - (sigma(x) - c(x)) / majorant, whose mean is exp(-integral of (sigma - c)) however the field
+// varies along the step. c is the line through `control` at the midpoint with `slope` (per metre per
+// voxel along the step): its integral over the step is the midpoint's, so the step's Beer-Lambert factor
+// stands, and the better c follows the field, the closer each factor is to 1 (the less noise). So a
+// step's transmittance is unbiased for the filtered field. `absorption`: sigma is the extinction less
+// the channels' mean scattering (what a walking photon's weight takes; its scattering is delta-tracked),
+// as `control` is then.
+vec3 residual_ratio(FieldSample mid, vec3 p, vec3 d, float len, vec3 control, vec3 slope, float h, bool absorption,
+                    inout uint rng) {
     float majorant = uintBitsToFloat(mid.block.y);  // per metre
     if (!kMediumField || mid.block.x == MEDIUM_NO_BRICK || !(majorant > 0.0)) return vec3(1.0);
     vec3 ratio = vec3(1.0);
@@ -242,7 +246,7 @@ vec3 residual_ratio(FieldSample mid, vec3 p, vec3 d, float len, vec3 control, fl
             vec4 s = field_scattering(at);
             sigma -= (s.r + s.g + s.b) * (1.0 / 3.0);
         }
-        ratio *= 1.0 - (sigma - control) / majorant;
+        ratio *= 1.0 - (sigma - control - slope * (t - 0.5 * len)) / majorant;
     }
     return ratio;
 }
@@ -310,7 +314,7 @@ float field_step(vec3 p, vec3 d, float ds) {
     float side = params.medium_field.w;
     vec3 f = p / side;  // field voxels
     uvec2 block = medium_block(clamp(f, vec3(0.0), params.medium_field.xyz - 0.5));
-    if (block.x != MEDIUM_NO_BRICK && uintBitsToFloat(block.y) > 0.0) return min(ds, side);
+    if (block.x != MEDIUM_NO_BRICK && uintBitsToFloat(block.y) > 0.0) return min(ds, cell_exit(f - 0.5, d, 1.0) * side + params.stepping.y);
     return min(ds, cell_exit(f, d, float(MEDIUM_FIELD_BLOCK)) * side + params.stepping.y);
 }
 
