@@ -607,6 +607,46 @@ TEST(MediumField, KeepsBricksOnlyWhereVolumesReach) {
     EXPECT_LE(big.brick_count, scene::kMaxMediumBricks);
 }
 
+// Each empty block of the map names the largest aligned cube of blocks around it that holds no brick (its
+// span k: rays cross that cube in one step), checked against the map itself: the cube of 2^k holds no
+// brick, and the cube of 2^(k+1) holds one (or would pass the field's every face).
+TEST(MediumField, EmptyBlocksNameTheLargestEmptyCubeAroundThem) {
+    const passes::GridGeometry lattice = passes::fit_grid(glm::vec3(-2.0f), glm::vec3(2.0f), 256);
+    std::map<std::string, protocol::DensityVolume> volumes{{"plume", {}}};
+    volumes["plume"].asset = "builtin.smoke";
+    volumes["plume"].position = {0.7, -0.4, 0.2};
+    const scene::Densities densities{{"plume", {volume::builtin_density("builtin.smoke", "density"), nullptr}}};
+    const scene::MediumField field = scene::resample_volumes(lattice, volumes, densities);
+    const glm::ivec3 dims(static_cast<int>(field.layout.dims.x), static_cast<int>(field.layout.dims.y),
+                          static_cast<int>(field.layout.dims.z));
+    const glm::ivec3 blocks = (dims + static_cast<int>(scene::kMediumFieldBlock) - 1) / static_cast<int>(scene::kMediumFieldBlock);
+    auto at = [&](glm::ivec3 b) { return field.blocks[static_cast<size_t>((b.z * blocks.y + b.y) * blocks.x + b.x)]; };
+    auto cube_holds_brick = [&](glm::ivec3 b, uint32_t k) {
+        const glm::ivec3 lo = (b >> static_cast<int>(k)) << static_cast<int>(k), hi = glm::min(lo + (1 << k), blocks);
+        for (int z = lo.z; z < hi.z; ++z)
+            for (int y = lo.y; y < hi.y; ++y)
+                for (int x = lo.x; x < hi.x; ++x)
+                    if (at({x, y, z}).x != MEDIUM_NO_BRICK) return true;
+        return false;
+    };
+    size_t empty = 0, spanning = 0;
+    for (int z = 0; z < blocks.z; ++z)
+        for (int y = 0; y < blocks.y; ++y)
+            for (int x = 0; x < blocks.x; ++x) {
+                const glm::uvec2 block = at({x, y, z});
+                if (block.x != MEDIUM_NO_BRICK) continue;
+                ++empty;
+                spanning += block.y > 0 ? 1 : 0;
+                ASSERT_FALSE(cube_holds_brick({x, y, z}, block.y)) << x << ", " << y << ", " << z;
+                if ((1 << (block.y + 1)) < 2 * std::max({blocks.x, blocks.y, blocks.z})) {
+                    ASSERT_TRUE(cube_holds_brick({x, y, z}, block.y + 1)) << x << ", " << y << ", " << z;
+                }
+            }
+    std::printf("smoke in a 256^3 lattice: %u bricks, %zu empty blocks, %zu of them in spans of 2^3 blocks or more\n",
+                field.layout.brick_count, empty, spanning);
+    EXPECT_GT(spanning, empty / 2);  // most empty blocks lie in cubes of 2^3 blocks or more
+}
+
 // The blackbody's colour against the CIE 1931 chromaticities of the Planckian locus (CIE 15:2004: the
 // illuminant A at 2856 K, x 0.44757, y 0.40745; 6500 K, x 0.3135, y 0.3237), within the colour-matching
 // fit's own error against the tabulated functions (about 0.002 in x and y); its brightness 1 at the

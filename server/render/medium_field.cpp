@@ -245,6 +245,33 @@ struct Interiors {
 
 constexpr size_t kBlockVoxels = size_t{kMediumFieldBlock} * kMediumFieldBlock * kMediumFieldBlock;
 
+// Marks each block of the map without a brick with the largest empty span it lies in: in its majorant's
+// place, k where the aligned cube of 2^k x 2^k x 2^k blocks around it holds no brick (blocks past the
+// field's faces hold none), so that a ray crosses that cube in one step, as an octree leaf of clear
+// space is crossed (field_step). A pyramid of occupancy, one level per k.
+void mark_empty_spans(std::vector<glm::uvec2>& map, glm::ivec3 blocks) {
+    std::vector<bool> occupied(map.size());
+    for (size_t i = 0; i < map.size(); ++i) occupied[i] = map[i].x != MEDIUM_NO_BRICK;
+    glm::ivec3 cells = blocks;
+    for (uint32_t k = 1; glm::any(glm::greaterThan(cells, glm::ivec3(1))); ++k) {
+        const glm::ivec3 parents = (cells + 1) / 2;
+        std::vector<bool> above(static_cast<size_t>(parents.x) * static_cast<size_t>(parents.y) * static_cast<size_t>(parents.z), false);
+        for (int z = 0; z < cells.z; ++z)
+            for (int y = 0; y < cells.y; ++y)
+                for (int x = 0; x < cells.x; ++x)
+                    if (occupied[linear({x, y, z}, cells)]) above[linear(glm::ivec3(x, y, z) / 2, parents)] = true;
+        for (int z = 0; z < blocks.z; ++z)
+            for (int y = 0; y < blocks.y; ++y)
+                for (int x = 0; x < blocks.x; ++x) {
+                    glm::uvec2& block = map[linear({x, y, z}, blocks)];
+                    if (block.x == MEDIUM_NO_BRICK && block.y == k - 1 && !above[linear(glm::ivec3(x, y, z) >> static_cast<int>(k), parents)])
+                        block.y = k;
+                }
+        occupied = std::move(above);
+        cells = parents;
+    }
+}
+
 // The bricks of `in` into `field` (its atlases and map of blocks), and the voxels that emit.
 std::vector<std::pair<glm::ivec3, glm::vec4>> lay_bricks(MediumField& field, const Interiors& in) {
     const glm::ivec3 dims = in.dims, blocks = in.blocks;
@@ -315,6 +342,7 @@ std::vector<std::pair<glm::ivec3, glm::vec4>> lay_bricks(MediumField& field, con
             if (volumes_emit) field.emission[at] = brick.emission[static_cast<size_t>(t)];
         }
     }
+    mark_empty_spans(field.blocks, blocks);
     return emitting;
 }
 

@@ -99,10 +99,10 @@ REFRACT_SHADERS_BEGIN
                                                 // per metre of path; one texel of zeros where none emits
 // The field is stored sparse: per block of MEDIUM_FIELD_BLOCK^3 field voxels a brick of MEDIUM_BRICK_SIDE^3
 // texels in each atlas above (the block and the voxel around it, so filtering is the dense field's),
-// found through the map of blocks (medium_blocks: uvec2 per block, x fastest: its brick, MEDIUM_NO_BRICK
-// where the block and the voxels around it hold nothing, and its majorant's float bits, the most
-// extinction its brick holds). Rays cross a block without a brick or with majorant 0 in one step, and
-// elsewhere step a field voxel at most.
+// found through the map of blocks (medium_blocks: uvec2 per block, x fastest: its brick and its
+// majorant's float bits, the most extinction its brick holds; or MEDIUM_NO_BRICK where the block and the
+// voxels around it hold nothing, and its empty span k: the aligned cube of 2^k blocks around it holds no
+// brick). Rays cross an empty span in one step, and elsewhere step through the field's cells.
 #define MEDIUM_FIELD_BLOCK 8
 #define MEDIUM_BRICK_SIDE 10
 #define MEDIUM_NO_BRICK 0xffffffffu

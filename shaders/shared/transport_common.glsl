@@ -305,17 +305,18 @@ float cell_exit(vec3 p, vec3 d, float size) {
     return max(min(t.x, min(t.y, t.z)), 0.0);
 }
 
-// A step of `ds` voxels from p along d cut to the medium field's voxel, over which its coefficients are
-// taken at the step's midpoint (exact per-step Beer-Lambert for what the trilinear field holds, to the
-// midpoint rule); where the field's block holds nothing (no brick, or majorant 0), cut to the block's
-// end instead (just past it).
+// A step of `ds` voxels from p along d through the medium field: where the field's block holds anything
+// (a brick with a majorant), cut where the ray next crosses a plane of texel centres, so that a step lies
+// within one of the trilinear field's cells (the midpoint rule and the tracking's control line then miss
+// only its curvature, not a kink); where it holds nothing, cut to the end of the largest empty cube of
+// blocks around it (its span in the map, mark_empty_spans), just past it: empty space in one step.
 float field_step(vec3 p, vec3 d, float ds) {
     if (!kMediumField) return ds;
     float side = params.medium_field.w;
     vec3 f = p / side;  // field voxels
     uvec2 block = medium_block(clamp(f, vec3(0.0), params.medium_field.xyz - 0.5));
-    if (block.x != MEDIUM_NO_BRICK && uintBitsToFloat(block.y) > 0.0) return min(ds, cell_exit(f - 0.5, d, 1.0) * side + params.stepping.y);
-    return min(ds, cell_exit(f, d, float(MEDIUM_FIELD_BLOCK)) * side + params.stepping.y);
+    if (block.x != MEDIUM_NO_BRICK) return min(ds, cell_exit(f - 0.5, d, 1.0) * side + params.stepping.y);
+    return min(ds, cell_exit(f, d, float(MEDIUM_FIELD_BLOCK << block.y)) * side + params.stepping.y);
 }
 
 // Ray-box slab test in voxel space: returns (t_enter, t_exit); t_enter > t_exit means a miss.
