@@ -819,6 +819,35 @@ TEST(FrameBudget, PhotonsAtTheirFloorLeaveTheImageWhatIsLeftOfTheBudget) {
     EXPECT_NEAR(double(s.width) / s.height, 768.0 / 482.0, 0.02);
 }
 
+// The scene's warm-up measures the photons at a quarter of the count, and a light drag then runs them at
+// their floor, a sixteenth of that: a cost proportional to the count took the floor's pass, mostly its
+// fixed part, for a sixteenth of the warm-up's, and the drag's first frames missed their budget until the
+// controller had crept up on it (at most kMaxStep a frame). Two measurements at counts that far apart
+// tell the parts apart: from the drag's second frame on, every frame lands within the passes' aim.
+TEST(FrameBudget, ALightDragLandsWithinItsBudgetFromItsSecondFrame) {
+    const SceneDocument doc = client_document(768, 482);
+    SimulatedDevice device = kSlowDevice;
+    device.fixed_ms = 0.0;  // the image's cost in proportion to its pixels: the photons' model is on trial
+    device.photon_fixed_ms = 35.0;
+    device.ms_per_photon = 0.4e-3;
+    FrameBudget budget;
+    const InteractiveSettings warm_up{384, 241, doc.photons.count / 4};
+    budget.observe(doc, warm_up, device.photons_ms(warm_up), 0.0, device.rest_ms(warm_up));
+    InteractiveSettings resident = warm_up;
+    for (int frame = 1; frame <= 6; ++frame) {
+        const InteractiveSettings used = budget.choose(doc, true, true, &resident, 100.0);
+        const double passes = device.rest_ms(used) + device.photons_ms(used);
+        std::printf("light drag, frame %d: %u x %u, %u photons, %.1f ms of passes\n", frame, used.width, used.height,
+                    used.photons, passes);
+        if (frame >= 2) {
+            EXPECT_LE(passes, 80.0 * 1.01) << "frame " << frame << ": the passes' aim, 80% of the budget";
+            EXPECT_GE(passes, 70.0) << "frame " << frame << ": the budget should be spent on resolution";
+        }
+        budget.observe(doc, used, device.photons_ms(used), 0.0, device.rest_ms(used));
+        resident = used;
+    }
+}
+
 TEST(FrameBudget, AFastDeviceGetsTheFullDocumentAndAHopelessOneTheFloor) {
     SceneDocument doc;
     doc.image.width = 512;

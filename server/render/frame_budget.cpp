@@ -35,6 +35,10 @@ constexpr double kHeadroom = 0.8;
 constexpr double kMaxStep = 1.5;
 // Before any measurement: half the document's side.
 constexpr double kFirstScale = 0.5;
+// Two photon measurements fit the fixed part and the part that scales only where their counts differ by
+// at least this factor: a frame's time varies by a few milliseconds, which between near counts would
+// make the slope anything.
+constexpr double kDistinctShares = 1.5;
 
 // The cost at the document's own size or count that `measured_ms` for `share` of it implies, moved from
 // `estimate` by at most kMaxStep.
@@ -60,17 +64,19 @@ InteractiveSettings FrameBudget::choose(const protocol::SceneDocument& document,
     double photon_ms = 0.0;  // what this frame's photon pass is expected to take
     if (resident && !photons_rerun) {
         settings.photons = resident->photons;
-    } else if (photon_ms_ > 0.0 && !(photon_kind(document) == measured_)) {
+    } else if (last_photon_share_ > 0.0 && !(photon_kind(document) == measured_)) {
         settings.photons = std::min(document.photons.count, kMinPhotons);
-        if (document.photons.count > 0)  // the other kind's rate: a guess
-            photon_ms = photon_ms_ * settings.photons / document.photons.count;
+        if (document.photons.count > 0)  // the other kind's cost: a guess
+            photon_ms = photon_cost(static_cast<double>(settings.photons) / document.photons.count);
     } else {
-        const double share = photon_ms_ > 0.0
-                                 ? std::clamp(kPhotonBudgetShare * target / photon_ms_, kMinPhotonShare, kMaxPhotonShare)
-                                 : kMaxPhotonShare;
+        double share = kMaxPhotonShare;
+        if (last_photon_share_ > 0.0)  // what the photons' half of the budget leaves past their fixed part
+            share = photon_ms_ > 0.0 ? std::clamp((kPhotonBudgetShare * target - photon_fixed_ms_) / photon_ms_,
+                                                  kMinPhotonShare, kMaxPhotonShare)
+                                     : kMaxPhotonShare;
         const double count = document.photons.count;
         settings.photons = static_cast<uint32_t>(std::min(count, std::max<double>(kMinPhotons, std::round(count * share))));
-        if (count > 0) photon_ms = photon_ms_ * settings.photons / count;
+        if (count > 0) photon_ms = photon_cost(settings.photons / count);
     }
     if (resident && !view_rerun) {
         settings.width = resident->width;
@@ -94,14 +100,36 @@ void FrameBudget::observe(const protocol::SceneDocument& document, const Interac
     if (photon_ms > 0.0 && used.photons > 0 && document.photons.count > 0) {
         PhotonKind kind = photon_kind(document);
         // Another kind's measurement is taken whole, not moved from the last kind's by kMaxStep.
-        if (!(kind == measured_)) photon_ms_ = 0.0;
-        photon_ms_ = corrected(photon_ms_, photon_ms, static_cast<double>(used.photons) / document.photons.count);
+        if (!(kind == measured_)) last_photon_share_ = 0.0;
+        fit_photons(static_cast<double>(used.photons) / document.photons.count, photon_ms);
         measured_ = std::move(kind);
     }
     if (rest_ms > 0.0 && used.width > 0 && used.height > 0) {
         const double pixels = static_cast<double>(used.width) * used.height;
         image_ms_ = corrected(image_ms_, rest_ms, pixels / (static_cast<double>(document.image.width) * document.image.height));
     }
+}
+
+// The photon model through this measurement (`ms` for `share` of the count): where the last one was at a
+// count kDistinctShares apart or more and cheaper, the line through both (its fixed part kept between 0
+// and `ms`); else both parts moved by the same factor, at most kMaxStep; the first is
+// taken for a cost proportional to the count, as nothing yet tells the parts apart.
+void FrameBudget::fit_photons(double share, double ms) {
+    const double apart = std::max(share, last_photon_share_) / std::min(share, last_photon_share_);
+    const double slope = (ms - last_photon_ms_) / (share - last_photon_share_);
+    if (last_photon_share_ > 0.0 && apart >= kDistinctShares && slope > 0.0) {
+        photon_fixed_ms_ = std::clamp(ms - slope * share, 0.0, ms);
+        photon_ms_ = (ms - photon_fixed_ms_) / share;
+    } else if (last_photon_share_ > 0.0) {
+        const double factor = std::clamp(ms / photon_cost(share), 1.0 / kMaxStep, kMaxStep);
+        photon_fixed_ms_ *= factor;
+        photon_ms_ *= factor;
+    } else {
+        photon_fixed_ms_ = 0.0;
+        photon_ms_ = ms / share;
+    }
+    last_photon_share_ = share;
+    last_photon_ms_ = ms;
 }
 
 }  // namespace refract::scene

@@ -1,8 +1,8 @@
 // Dynamic resolution for interactive frames: while a user drags, each frame's image size (and, when its
 // photons rerun anyway, their count) is chosen from what the scene's last interactive frames cost on
 // this device, so that a frame lands within a budget. A feedback controller, as game engines run
-// dynamic resolution: the model is only "time scales with pixels and photons", each frame's measurement
-// corrects it, and the next frame is sized for the passes it will run (a light drag's frames share the
+// dynamic resolution: the model is only "time scales with pixels, and with photons past a fixed part",
+// each frame's measurement corrects it, and the next frame is sized for the passes it will run (a light drag's frames share the
 // budget with the photon pass, a camera drag's give it all to the image).
 #pragma once
 
@@ -77,9 +77,19 @@ private:
     // measured it (0: not yet measured). Kept per pass rather than as a scale, so that the first frame
     // of a light drag after a camera drag (or the other way round) is sized for the passes it runs.
     double image_ms_ = 0.0;   // everything but the photon pass
-    double photon_ms_ = 0.0;  // the photon pass
     double viewer_ms_ = 0.0;  // the frame's fixed part at the viewer's size, taken off the budget first
-    PhotonKind measured_;     // of the photons photon_ms_ measured: other kinds' frames take kMinPhotons
+    // The photon pass as a fixed part (the light map, the resolve, the spread: the lattice's, whatever
+    // the count) plus a part that scales with the count, fitted through the last two measurements whose
+    // counts differ enough (fit_photons): a frame at the floor's 4096 photons costs most of what one at
+    // 2^16 does, which a cost proportional to the count took for a sixteenth.
+    double photon_fixed_ms_ = 0.0;
+    double photon_ms_ = 0.0;          // the part that scales, at the document's own count
+    double last_photon_share_ = 0.0;  // the last measurement's share of the count (0: none yet)
+    double last_photon_ms_ = 0.0;     // and what it took
+    PhotonKind measured_;             // of the photons measured: other kinds' frames take kMinPhotons
+
+    double photon_cost(double share) const { return photon_fixed_ms_ + photon_ms_ * share; }
+    void fit_photons(double share, double ms);
 };
 
 }  // namespace refract::scene
