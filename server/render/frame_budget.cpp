@@ -111,22 +111,21 @@ void FrameBudget::observe(const protocol::SceneDocument& document, const Interac
 }
 
 // The photon model through this measurement (`ms` for `share` of the count): where the last one was at a
-// count kDistinctShares apart or more and cheaper, the line through both (its fixed part kept between 0
-// and `ms`); else both parts moved by the same factor, at most kMaxStep; the first is
+// count kDistinctShares apart or more, the larger count the dearer, the line through both (its fixed part
+// kept between 0 and `ms`); else both parts moved by the same factor, at most kMaxStep; the first is
 // taken for a cost proportional to the count, as nothing yet tells the parts apart.
 void FrameBudget::fit_photons(double share, double ms) {
-    const double apart = std::max(share, last_photon_share_) / std::min(share, last_photon_share_);
-    const double slope = (ms - last_photon_ms_) / (share - last_photon_share_);
-    if (last_photon_share_ > 0.0 && apart >= kDistinctShares && slope > 0.0) {
+    if (last_photon_share_ <= 0.0) {
+        photon_fixed_ms_ = 0.0;
+        photon_ms_ = ms / share;
+    } else if (const double slope = (ms - last_photon_ms_) / (share - last_photon_share_);
+               std::max(share, last_photon_share_) >= kDistinctShares * std::min(share, last_photon_share_) && slope > 0.0) {
         photon_fixed_ms_ = std::clamp(ms - slope * share, 0.0, ms);
         photon_ms_ = (ms - photon_fixed_ms_) / share;
-    } else if (last_photon_share_ > 0.0) {
+    } else {
         const double factor = std::clamp(ms / photon_cost(share), 1.0 / kMaxStep, kMaxStep);
         photon_fixed_ms_ *= factor;
         photon_ms_ *= factor;
-    } else {
-        photon_fixed_ms_ = 0.0;
-        photon_ms_ = ms / share;
     }
     last_photon_share_ = share;
     last_photon_ms_ = ms;

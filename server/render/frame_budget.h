@@ -2,8 +2,8 @@
 // photons rerun anyway, their count) is chosen from what the scene's last interactive frames cost on
 // this device, so that a frame lands within a budget. A feedback controller, as game engines run
 // dynamic resolution: the model is only "time scales with pixels, and with photons past a fixed part",
-// each frame's measurement corrects it, and the next frame is sized for the passes it will run (a light drag's frames share the
-// budget with the photon pass, a camera drag's give it all to the image).
+// each frame's measurement corrects it, and the next frame is sized for the passes it will run (a light
+// drag's frames share the budget with the photon pass, a camera drag's give it all to the image).
 #pragma once
 
 #include <cstdint>
