@@ -232,7 +232,10 @@ void shade(uvec2 pixel) {
                 straight = next.straight;
                 if (straight) {
                     // The end of the path below looks up the floor or sky from here, as for a ray that
-                    // misses the grid.
+                    // misses the grid, dimmed by the medium it crosses on the way (its glow left out).
+                    float to_floor = (floor_on && ray.d.y < 0.0) ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
+                    float crossed = max(min(grid_interval(ray.p, ray.d).y, to_floor), 0.0);
+                    transmittance *= exp(-params.medium_extinction.rgb * h * medium_depth(ray.p, ray.d, crossed));
                     position = to_world(ray.p);
                     d = ray.d;
                 }
@@ -407,7 +410,7 @@ void shade(uvec2 pixel) {
                 float strongest_share = max(reflected_share.r, max(reflected_share.g, reflected_share.b));
                 if (channel_paths + pending_count < kPathsPerChannel && strongest_share >= 1e-3) {
                     pending[pending_count++] = PendingPath(mirrored, reflected_share, cutoff * mean_reflectance,
-                                                           strongest_share < FRESNEL_EYE_TRACED_SHARE);
+                                                           strongest_share < params.tone.w);
                     transmittance *= 1.0 - reflectance;
                     cutoff *= 1.0 - mean_reflectance;
                 } else if (mean_reflectance > 0.5) {

@@ -103,6 +103,8 @@ std::vector<BenchCase> standard_suite(bool gpu) {
                                                        {"image", {{"width", image}, {"height", image}}}}, scene::kView, "camera", scene::Quality::interactive);
     add("target light interactive", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", gpu ? 1 << 20 : 1 << 16}}},
                                                       {"image", {{"width", image}, {"height", image}}}}, scene::kPhotons | scene::kView, "light", scene::Quality::interactive);
+    add("target light drag", "ball_lens_fog", {{"volume", {{"resolution", 128}}}, {"photons", {{"count", 1 << 12}}},
+                                                      {"image", {{"width", 192}, {"height", 120}}}}, scene::kPhotons | scene::kView, "light", scene::Quality::interactive);
     add("target rebuild", "ball_lens_fog", {{"volume", {{"resolution", gpu ? 256 : 128}}}, {"photons", {{"count", gpu ? 1 << 22 : 1 << 18}}},
                                            {"image", {{"width", gpu ? 256 : 512}, {"height", gpu ? 256 : 512}}}},
         scene::kAllPasses, "full");

@@ -340,6 +340,7 @@ RunOptions run_options_for(Quality quality) {
     options.sampled_deposits = true;
     if (quality == Quality::interactive) {
         options.view_step = 2.0f;
+        options.traced_reflection_share = FRESNEL_PREVIEW_TRACED_SHARE;
         options.radiance_factor = 3;
         options.adaptive_view = true;
         options.adaptive_density = true;

@@ -57,6 +57,10 @@ struct RunOptions {
     float view_step = 1.0f;       // eye-ray step in scattering media (voxels); interactive frames use 2
     // The view step of reflected eye paths, in view steps (FRESNEL_REFLECTED_VIEW_STEP; 1: as the first).
     float reflected_view_step = FRESNEL_REFLECTED_VIEW_STEP;
+    // A reflected eye path whose share of the pixel's light is below this in every channel takes the floor
+    // or sky straight instead of being marched (FRESNEL_EYE_TRACED_SHARE; interactive frames take every
+    // reflection straight: FRESNEL_PREVIEW_TRACED_SHARE).
+    float traced_reflection_share = FRESNEL_EYE_TRACED_SHARE;
     uint32_t radiance_factor = 1; // scene voxels (passes::GridGeometry::light_factor lattice voxels each) per
                                   // radiance-grid voxel per axis; interactive: 3
     bool sampled_deposits = false; // photons deposit once per radiance voxel of path, not exactly per

@@ -309,7 +309,7 @@ void set_camera(shaders::TransportParams& p, const protocol::SceneDocument& docu
     p.camera_up = camera.up;
     p.image = glm::uvec4(document.image.width, document.image.height, 0u, 0u);
     p.tone = glm::vec4(std::exp2(static_cast<float>(document.image.exposure)), options.view_step,
-                       options.view_step * options.reflected_view_step, 0.0f);
+                       options.view_step * options.reflected_view_step, options.traced_reflection_share);
     // A light drag's frame joins the photons of the frames before it as an exponential moving average.
     const float batch_weight = options.photon_history > 0.0f ? 1.0f - options.photon_history
                                                              : 1.0f / static_cast<float>(options.photon_batch + 1);

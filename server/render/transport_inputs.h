@@ -9,6 +9,7 @@
 #include "passes/grid_geometry.h"
 #include "passes/transport_params.h"
 #include "protocol/scene_document.h"
+#include "fresnel.h"
 #include "temporal.h"
 #include "transport.h"
 
@@ -19,6 +20,7 @@ struct TransportOptions {
     float shell_step = 1.0f;   // voxels, where n varies (octree level 0)
     float view_step = 1.0f;    // voxels, eye-ray step where the medium scatters
     float reflected_view_step = 1.0f;  // the view step of reflected eye paths, in view steps
+    float traced_reflection_share = FRESNEL_EYE_TRACED_SHARE;  // below it a reflected eye path goes straight
     uint32_t max_level = 0;    // octree levels present
     uint32_t radiance_factor = 1;  // index-field voxels per radiance voxel along each axis (1 or 2)
     bool direct_light = true;  // unbent light in closed form (DirectLightPass) rather than by photons

@@ -13,13 +13,20 @@ REFRACT_SHADERS_BEGIN
 // the rest goes through. Total internal reflection needs no path (the ray equation turns the ray).
 #define FRESNEL_EYE_REFLECTIONS 3u
 // A reflected path whose share of the pixel's light is below this in every channel is not marched: it
-// takes the floor or sky straight along its direction from where it leaves the boundary. That drops what
-// the grid would still do to it (fog it would gather, refraction on the way out, further reflections),
-// so it errs by at most this share of the difference: 1% of a pixel's light. Only the second internal
+// takes the floor or sky straight along its direction from where it leaves the boundary, dimmed by the
+// medium along that line (medium_depth). That drops what else the grid would do to it (fog it would
+// gather, refraction on the way out, further reflections), so it errs by at most this share of the
+// difference: 1% of a pixel's light. Only the second internal
 // reflection is that faint through glass (T R^2, 0.15% at normal incidence; the front's R and the first
 // internal T R are 4%); in the default scene's still that path cost 17% of the eye-ray steps and about a
 // third of the viewing pass (a pixel's SIMD neighbours waited for its fourth march; docs/perf-log/2026-12-01-faint-reflections-and-b-spline-voxelizer.md).
 #define FRESNEL_EYE_TRACED_SHARE 0.01f
+// Interactive frames (run_options_for) take every reflected path straight: marched, they were a third of
+// an interactive view's time (the target camera's 134 -> 88 ms on two cores), and a drag's frame is sized
+// to its budget, so the time buys pixels. What a preview loses is the fog's glow in reflections and their
+// refraction on the way out: a few percent of the glass's pixels, gone in the still at release
+// (docs/perf-log/2026-12-05-previews-take-reflections-straight.md).
+#define FRESNEL_PREVIEW_TRACED_SHARE 2.0f
 // Reflected paths that are marched gather fog at this many times the view step: they carry a few percent
 // of a pixel's light (4% at normal incidence off glass), so the step's error in them is that share of a
 // step error already well under the photon noise, while tracing them was 45% of the viewing pass

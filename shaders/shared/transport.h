@@ -288,7 +288,9 @@ struct TransportParams {
     vec4 camera_up;
     uvec4 image;              // x: width, y: height, zw: unused
     vec4 tone;                // x: exposure multiplier (2^exposure), y: view step (voxels), z: the view step
-                              // of reflected eye paths (FRESNEL_REFLECTED_VIEW_STEP times y), w: unused
+                              // of reflected eye paths (FRESNEL_REFLECTED_VIEW_STEP times y), w: the share of
+                              // a pixel's light below which a reflected eye path goes straight
+                              // (FRESNEL_EYE_TRACED_SHARE, FRESNEL_PREVIEW_TRACED_SHARE)
     vec4 sky_zenith;          // rgb background above the horizon
     vec4 sky_horizon;         // rgb background at the horizon
     uvec4 flags;              // x: 1 = record each photon's exit state (tests)
