@@ -36,6 +36,12 @@ float unlit_cell(vec3 p) {
 
 const float kPi = 3.14159265358979;
 
+// How far along d from p (voxels) the floor's plane lies; 1e30 where there is no floor or d does not
+// descend.
+float to_floor_plane(vec3 p, vec3 d) {
+    return (floor_enabled() && d.y < 0.0) ? (p.y - floor_height_voxels()) / -d.y : 1e30;
+}
+
 // Irradiance straight from every light at a floor point (normal +y), without occlusion, over a pixel's
 // footprint there, the box with edges `along` and `across` (metres, on the floor): a spot's cone edge is
 // box-filtered across it (the share of the footprint inside the cone, by the angle off the spot's axis,
@@ -182,12 +188,11 @@ void shade(uvec2 pixel) {
     vec3 position = params.camera_position.xyz;  // world, where the straight part of the ray resumes
     bool floor_on = floor_enabled();
     float h = voxel_size();
-    float floor_y = floor_height_voxels();
     float view_step = params.tone.y;
 
     vec3 p = to_voxel(position);
     vec2 span = grid_interval(p, d);
-    float floor_t = (floor_on && d.y < 0.0) ? (p.y - floor_y) / -d.y : 1e30;
+    float floor_t = to_floor_plane(p, d);
     bool marches = span.x < span.y && span.x < floor_t;
     Ray ray = start_ray(p + d * (marches ? span.x + 1e-3 : 0.0), d);
     vec3 radiance_sum = vec3(0.0);
@@ -233,8 +238,7 @@ void shade(uvec2 pixel) {
                 if (straight) {
                     // The end of the path below looks up the floor or sky from here, as for a ray that
                     // misses the grid, dimmed by the medium it crosses on the way (its glow left out).
-                    float to_floor = (floor_on && ray.d.y < 0.0) ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
-                    float crossed = max(min(grid_interval(ray.p, ray.d).y, to_floor), 0.0);
+                    float crossed = max(min(grid_interval(ray.p, ray.d).y, to_floor_plane(ray.p, ray.d)), 0.0);
                     transmittance *= exp(-params.medium_extinction.rgb * h * medium_depth(ray.p, ray.d, crossed));
                     position = to_world(ray.p);
                     d = ray.d;
@@ -277,7 +281,7 @@ void shade(uvec2 pixel) {
             if (level == 0u && surface_inverse_depth < 0.0)
                 surface_inverse_depth = 1.0 / max(length(to_world(ray.p) - params.camera_position.xyz), 1e-6);
             float to_exit = grid_interval(ray.p, ray.d).y;
-            float to_floor = (floor_on && ray.d.y < 0.0) ? (ray.p.y - floor_y) / -ray.d.y : 1e30;
+            float to_floor = to_floor_plane(ray.p, ray.d);
             float to_end = min(to_exit, to_floor);
             // Refracting shells (level 0) take the photons' shell step, for the same refraction, and
             // gather once over it; lit fog in a leaf (n constant, the ray straight) gathers every view
