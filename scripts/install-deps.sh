@@ -37,6 +37,11 @@ if [ "${REFRACT_TEST_SERVICES:-0}" = "1" ]; then
   packages+=(postgresql haproxy python3-yaml)
 fi
 
+# A reference renderer only the benchmarks run (scripts/bench-povray.sh), not the tests.
+if [ "${REFRACT_BENCH_TOOLS:-0}" = "1" ]; then
+  packages+=(povray)
+fi
+
 if [ "${REFRACT_RUNTIME_ONLY:-0}" = "1" ]; then
   packages=("${runtime[@]}")
 fi
