@@ -20,7 +20,8 @@
 // Frames are observed on the page's WebSocket (header, then PNG), which works for any client
 // version; the client's window.refract hooks, where present, add when a frame was drawn.
 // $REFRACT_CHROMIUM overrides /usr/bin/chromium; $REFRACT_BENCH_LOG keeps the daemon's log there;
-// $REFRACT_BENCH_SHOTS names a folder for a screenshot halfway through each drag (LABEL-WHAT-mid-drag.png);
+// $REFRACT_BENCH_SHOTS names a folder for a screenshot halfway through each drag (LABEL-WHAT-mid-drag.png)
+// and, for the orbit and the light, the view as the RMSE compares it (LABEL-WHAT-last-shown.png, -refined.png);
 // $REFRACT_BENCH_QUERY is appended to the client's URL (temporal=1: previews by temporal reuse).
 
 import fs from 'node:fs';
@@ -245,6 +246,7 @@ async function drag(page, sceneId, size, what, refined = false) {
     // refined still shows; then what the canvas shows (at the viewport's size).
     await sleep(HOLD_MS);
     await page.evaluate(() => { window.__benchShown = canvasNow(); });
+    if (SHOTS) await page.locator('#view').screenshot({ path: path.join(SHOTS, `${LABEL}-${what}-last-shown.png`) });
   }
   const released = Date.now();
   await page.mouse.up();
@@ -282,6 +284,7 @@ async function drag(page, sceneId, size, what, refined = false) {
     const settled = await waitUntil(() => frames.find((f) => f.t >= still.t && isFull(f, size) &&
       f.revision === still.revision && (f.level ?? 0) >= REFINED_LEVEL), SETTLE_TIMEOUT_MS, `level ${REFINED_LEVEL}`);
     await sleep(150);  // drawn
+    if (SHOTS) await page.locator('#view').screenshot({ path: path.join(SHOTS, `${LABEL}-${what}-refined.png`) });
     result.rmse_vs_still = await page.evaluate(() => srgbRmse(window.__benchShown, canvasNow()));
     result.refined_level = settled.level;
     return [result, settled];
