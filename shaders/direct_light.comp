@@ -139,18 +139,32 @@ void store_sums(uint i, vec3 extent, vec3 fluence) {
     accum_flux.words[RADIANCE_FLUX_WORDS * i] = pack(kGreyTransport ? mean : q.b, mean);
 }
 
-// A voxel the direct light's edge crosses: the mean over 3^3 points.
+// A voxel the direct light's edge crosses: the mean over 3^3 points of the light that reaches each. The
+// fluence (1/r^2 through the medium, smooth across a voxel) is evaluated once, at the mean of the points
+// reached: exact wherever it varies linearly across the voxel. Evaluated at every point, it took two
+// thirds of the edges' time (23 ms of a still light edit in the default scene on two cores).
 void deposit_edge_voxel(uint i) {
     vec3 lo, extent;
     voxel_box(i, lo, extent);
-    vec3 sum = vec3(0.0);
+    vec3 mean_point = vec3(0.0);
+    uint reached = 0u;
     for (uint k = 0u; k < 27u; ++k) {
         vec3 p = lo + extent * ((vec3(k % 3u, (k / 3u) % 3u, k / 9u) + 0.5) * (1.0 / 3.0));
         float along;
         vec3 d;
-        if (direct_reaches(to_world(p), along, d)) sum += direct_fluence(p, along, d);
+        if (direct_reaches(to_world(p), along, d)) {
+            mean_point += p;
+            ++reached;
+        }
     }
-    store_sums(i, extent, sum * (1.0 / 27.0));
+    vec3 fluence = vec3(0.0);
+    if (reached > 0u) {
+        mean_point /= float(reached);
+        float along;
+        vec3 d = ray_through(to_world(mean_point), along);
+        fluence = direct_fluence(mean_point, along, d) * (float(reached) / 27.0);
+    }
+    store_sums(i, extent, fluence);
 }
 
 // The corners of the radiance voxels: (dims + 1) per axis, at index-field voxel points clamped to the
