@@ -98,7 +98,7 @@ function watchSockets(page) {
       frames.push({
         t, tHeader: head.tHeader, quality: m.quality ?? null, width: m.width ?? null, height: m.height ?? null,
         level: m.level ?? null, revision: m.revision ?? null, seq: m.seq ?? null, cached: Boolean(m.cached), bytes: payload.length,
-        passMs: sumTimings(m.timings), timings: m.timings ?? null,
+        passMs: sumTimings(m.timings), timings: m.timings ?? null, photons: m.photons ?? null,
       });
     });
     ws.on('framesent', ({ payload }) => {
@@ -445,7 +445,7 @@ async function main() {
     examples_first_frame_ms: examples.examples_first_frame_ms, examples_full_ms: examples.examples_full_ms,
     examples: examples.loads,
     frames: frames.map((f) => [f.t - navStart, f.quality, `${f.width}x${f.height}`, f.level, f.revision, f.seq,
-      f.passMs === null ? null : Math.round(f.passMs), roundTimings(f.timings), sinceAsked(f)]),
+      f.passMs === null ? null : Math.round(f.passMs), roundTimings(f.timings), sinceAsked(f), f.photons]),
     exposure: {
       first_pass_ms: edits[0].passMs, first_wall_ms: edits[0].wallMs,
       median_pass_ms: median(edits.map((e) => e.passMs)), median_wall_ms: median(edits.map((e) => e.wallMs)),
