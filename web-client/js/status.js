@@ -80,11 +80,13 @@ export function announce(text) {
 
 // ---- progress and stats ------------------------------------------------------------------------
 
-// Counts a frame drawn, for the frames per second of a stream of them: a pause of a second starts a new
-// measurement.
-export function noteFrame() {
+// Counts a frame drawn, for the frames per second of a stream of previews: a still frame or a pause of a
+// second starts a new measurement (refinement levels, about one a second, read as a drag's first seconds
+// at half its rate).
+export function noteFrame(quality) {
   const now = performance.now();
-  if (frameTimes.length && now - frameTimes[frameTimes.length - 1] > 1000) frameTimes = [];
+  if (quality !== 'interactive' || (frameTimes.length && now - frameTimes[frameTimes.length - 1] > 1000)) frameTimes = [];
+  if (quality !== 'interactive') return;
   frameTimes.push(now);
   while (frameTimes.length > 1 && now - frameTimes[0] > 3000) frameTimes.shift();
 }

@@ -66,7 +66,7 @@ export async function drawFrame(blob, meta, token, quality) {
   paintFrame();
   if (quality === 'interactive') hooks.lastInteractiveDraw = hooks.lastDraw;
   stage.classList.add('has-frame');
-  noteFrame();
+  noteFrame(quality);
   hooks.framesReceived++;
   hooks.lastRevision = typeof meta.revision === 'number' ? meta.revision : hooks.lastRevision;
   hooks.lastSeq = meta.seq ?? null;
