@@ -39,7 +39,7 @@ fi
 
 # A reference renderer only the benchmarks run (scripts/bench-povray.sh), not the tests.
 if [ "${REFRACT_BENCH_TOOLS:-0}" = "1" ]; then
-  packages+=(povray)
+  packages+=(povray python3)
 fi
 
 if [ "${REFRACT_RUNTIME_ONLY:-0}" = "1" ]; then
