@@ -6,11 +6,11 @@
 // where the direct light's closed form fills it. A low-photon frame then shows a smooth, slightly soft
 // beam instead of speckle, and the estimate sharpens by itself as photons grow. Each voxel's share is
 // divided by its box's voxels inside the grid, so the grid's sum is what the resolve left (energy kept).
-// Written as a gather (each voxel adds the boxes that reach it), so no atomics, in two steps: each
-// source's share and reach once, then each voxel's sum of the shares that reach it, in the order and
-// with the values one step would (the same bytes; 0.71x its time on lavapipe, where each voxel worked
-// out every neighbour's reach). The floor map's texels (the photons' hits: what the grid changes of the
-// floor's light) spread alike, in squares.
+// Written as a gather (each voxel adds the boxes that reach it), so no atomics: each source's share and
+// reach once, then, as every spreading box is the same 3^3 (SPREAD_VOXEL_RADIUS 1) clipped to the grid,
+// the shares' sum over each voxel's neighbourhood as three box sums of 3 along x, y and z (9 reads a
+// voxel instead of 27, in three dispatches). The floor map's texels (the photons' hits:
+// what the grid changes of the floor's light) spread alike, in squares whose radius varies, in one gather.
 #include "transport.h"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
@@ -26,7 +26,7 @@ layout(binding = TRANSPORT_BINDING_SPREAD_FLUX_SHARES, rgba32f) uniform image3D 
 layout(binding = TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, rgba32f) uniform image3D radiance_shares;
 layout(binding = TRANSPORT_BINDING_SPREAD_FLOOR_SHARES, rgba32f) uniform image3D floor_shares;
 layout(constant_id = SPREAD_CONSTANT_FLOOR) const bool kFloorMap = false;
-layout(constant_id = SPREAD_CONSTANT_GATHER) const bool kGather = false;
+layout(constant_id = SPREAD_CONSTANT_STEP) const uint kStep = SPREAD_STEP_SHARES;
 
 // The photon track length behind fluence `fluence` of radiance voxel v, in its voxel lengths, as photons
 // of the reference flux would lay it (the resolve's conversion backwards: radiance_resolve.comp).
@@ -82,61 +82,75 @@ void gather_floor_texel(uint i) {
     imageStore(floor_map, ivec3(t, 0), vec4(change, 0.0));
 }
 
-// Each voxel's share of its light for every voxel its box reaches, once. A voxel whose box is itself
-// keeps its light where the gather finds it (the output), and gives no share.
+// The radius of radiance voxel j's box, from the photon tracks behind its fluence.
+int voxel_radius(ivec3 j, vec4 source) { return spread_radius(tracks(source.w, j), 3, SPREAD_VOXEL_RADIUS); }
+
+// Each voxel's share of its light for every voxel its box reaches, once; none where its box is itself
+// (the last box sum adds that voxel's light in its own place).
 void voxel_share(uint i) {
     ivec3 dims = ivec3(params.radiance_grid.xyz);
     if (i >= uint(dims.x * dims.y * dims.z)) return;
     ivec3 j = ivec3(int(i) % dims.x, (int(i) / dims.x) % dims.y, int(i) / (dims.x * dims.y));
     vec4 source = imageLoad(raw_flux, j);
-    vec3 colour = kGreyTransport ? vec3(0.0) : imageLoad(raw_radiance, j).rgb;
-    int r = spread_radius(tracks(source.w, j), 3, SPREAD_VOXEL_RADIUS);
+    int r = voxel_radius(j, source);
     ivec3 box = min(j + r, dims - 1) - max(j - r, ivec3(0)) + 1;  // its box's voxels inside the grid
-    float share = 1.0 / float(box.x * box.y * box.z);
-    imageStore(flux_shares, j, r > 0 ? share * source : vec4(0.0));
-    imageStore(flux, j, r > 0 ? vec4(0.0) : source);
-    if (!kGreyTransport) {
-        imageStore(radiance_shares, j, vec4(r > 0 ? share * colour : vec3(0.0), 0.0));
-        imageStore(radiance, j, vec4(r > 0 ? vec3(0.0) : colour, 0.0));
+    float share = r > 0 ? 1.0 / float(box.x * box.y * box.z) : 0.0;
+    imageStore(flux_shares, j, share * source);
+    if (!kGreyTransport) imageStore(radiance_shares, j, vec4(share * imageLoad(raw_radiance, j).rgb, 0.0));
+}
+
+// The sums over voxel v and its neighbours along `axis` inside the grid: of the shares (`from_shares`) or
+// of the output, net flux and fluence, and per-channel fluence (coloured transport).
+void box_sums(ivec3 v, ivec3 axis, ivec3 dims, bool from_shares, out vec4 net, out vec3 colour) {
+    net = vec4(0.0);
+    colour = vec3(0.0);
+    for (int k = -SPREAD_VOXEL_RADIUS; k <= SPREAD_VOXEL_RADIUS; ++k) {
+        ivec3 j = v + k * axis;
+        if (any(lessThan(j, ivec3(0))) || any(greaterThanEqual(j, dims))) continue;
+        net += from_shares ? imageLoad(flux_shares, j) : imageLoad(flux, j);
+        if (!kGreyTransport) colour += (from_shares ? imageLoad(radiance_shares, j) : imageLoad(radiance, j)).rgb;
     }
 }
 
-// Every share that reaches the voxel, summed in the order the boxes are walked (SPREAD_VOXEL_RADIUS is
-// 1: every neighbour's box reaches it, or gives nothing); its own kept light in its own place.
+// One box sum along the step's axis, ping-ponging between the shares and the output: x from the shares
+// into the output, y back into the shares, z into the output with the voxel's own kept light added.
 void gather_voxel(uint i) {
     ivec3 dims = ivec3(params.radiance_grid.xyz);
     if (i >= uint(dims.x * dims.y * dims.z)) return;
     ivec3 v = ivec3(int(i) % dims.x, (int(i) / dims.x) % dims.y, int(i) / (dims.x * dims.y));
-    vec4 net = vec4(0.0);
-    vec3 colour = vec3(0.0);
-    ivec3 lo = max(v - SPREAD_VOXEL_RADIUS, ivec3(0)), hi = min(v + SPREAD_VOXEL_RADIUS, dims - 1);
-    for (int z = lo.z; z <= hi.z; ++z)
-        for (int y = lo.y; y <= hi.y; ++y)
-            for (int x = lo.x; x <= hi.x; ++x) {
-                ivec3 j = ivec3(x, y, z);
-                vec4 share = imageLoad(flux_shares, j);
-                vec3 colour_share = vec3(0.0);
-                if (!kGreyTransport && share != vec4(0.0)) colour_share = imageLoad(radiance_shares, j).rgb;
-                if (j == v) {
-                    share += imageLoad(flux, v);
-                    if (!kGreyTransport) colour_share += imageLoad(radiance, v).rgb;
-                }
-                net += share;
-                colour += colour_share;
-            }
+    // Chosen by branches: a ternary of vectors on the specialization constant compiled to the wrong axis
+    // on lavapipe (a specialization-constant select of vectors).
+    ivec3 axis = ivec3(0, 0, 1);
+    if (kStep == SPREAD_STEP_GATHER_X) axis = ivec3(1, 0, 0);
+    else if (kStep == SPREAD_STEP_GATHER_Y) axis = ivec3(0, 1, 0);
+    bool from_shares = kStep != SPREAD_STEP_GATHER_Y;
+    vec4 net;
+    vec3 colour;
+    box_sums(v, axis, dims, from_shares, net, colour);
+    if (kStep == SPREAD_STEP_GATHER_Y) {
+        imageStore(flux_shares, v, net);
+        if (!kGreyTransport) imageStore(radiance_shares, v, vec4(colour, 0.0));
+        return;
+    }
+    if (kStep == SPREAD_STEP_GATHER_Z) {
+        vec4 source = imageLoad(raw_flux, v);
+        bool kept = voxel_radius(v, source) == 0;
+        if (kept) net += source;
+        if (!kGreyTransport && kept) colour += imageLoad(raw_radiance, v).rgb;
+    }
     imageStore(flux, v, net);
     if (!kGreyTransport) imageStore(radiance, v, vec4(colour, 0.0));
 }
 
-// Two jobs, two steps each, one dispatch each (kFloorMap, kGather): lavapipe would run every branch's
-// code in every invocation.
+// Two jobs and their steps, one dispatch each (kFloorMap, kStep): lavapipe would run every branch's code
+// in every invocation.
 void main() {
     uint i = linear_invocation();
     if (kFloorMap) {
-        if (kGather) gather_floor_texel(i);
-        else floor_texel_share(i);
+        if (kStep == SPREAD_STEP_SHARES) floor_texel_share(i);
+        else gather_floor_texel(i);
     } else {
-        if (kGather) gather_voxel(i);
-        else voxel_share(i);
+        if (kStep == SPREAD_STEP_SHARES) voxel_share(i);
+        else gather_voxel(i);
     }
 }

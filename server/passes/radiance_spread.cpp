@@ -1,6 +1,7 @@
 #include "passes/radiance_spread.h"
 
 #include <array>
+#include <iterator>
 
 #include "radiance_spread_spv.h"
 #include "transport.h"
@@ -23,17 +24,26 @@ constexpr vk::BindingLayout kLayout[] = {
 }  // namespace
 
 RadianceSpreadPass::RadianceSpreadPass(vk::Context& context) {
-    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && SPREAD_CONSTANT_FLOOR == 8 && SPREAD_CONSTANT_GATHER == 9 &&
+    static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && SPREAD_CONSTANT_FLOOR == 8 && SPREAD_CONSTANT_STEP == 9 &&
                   CHANNELS_RGB == 0 && CHANNELS_GREY == 1);
-    const char* names[] = {"radiance spread shares", "radiance spread shares (grey)", "floor map spread shares",
-                           "floor map spread shares (grey)", "radiance spread", "radiance spread (grey)",
-                           "floor map spread", "floor map spread (grey)"};
-    pipelines_.reserve(8);
-    for (uint32_t i = 0; i < 8; ++i) {
-        // The coverage fetch, Fresnel, films, materials, field atlas, medium field and fade are never used here.
-        const std::array<uint32_t, 10> constants{i & 1u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, (i >> 1) & 1u, i >> 2};
-        pipelines_.emplace_back(context, radiance_spread_spv, kLayout, 0, names[i], constants);
-    }
+    struct Job {
+        const char* names[2];  // coloured, grey
+        uint32_t floor, step;
+    };
+    static constexpr Job kJobs[] = {
+        {{"radiance spread shares", "radiance spread shares (grey)"}, 0, SPREAD_STEP_SHARES},
+        {{"radiance spread along x", "radiance spread along x (grey)"}, 0, SPREAD_STEP_GATHER_X},
+        {{"radiance spread along y", "radiance spread along y (grey)"}, 0, SPREAD_STEP_GATHER_Y},
+        {{"radiance spread along z", "radiance spread along z (grey)"}, 0, SPREAD_STEP_GATHER_Z},
+        {{"floor map spread shares", "floor map spread shares (grey)"}, 1, SPREAD_STEP_SHARES},
+        {{"floor map spread", "floor map spread (grey)"}, 1, SPREAD_STEP_GATHER_X}};
+    pipelines_.reserve(2 * std::size(kJobs));
+    for (const Job& job : kJobs)
+        for (const uint32_t grey : {0u, 1u}) {
+            // The coverage fetch, Fresnel, films, materials, field atlas, medium field and fade are never used here.
+            const std::array<uint32_t, 10> constants{grey, 0u, 0u, 0u, 0u, 0u, 0u, 0u, job.floor, job.step};
+            pipelines_.emplace_back(context, radiance_spread_spv, kLayout, 0, job.names[grey], constants);
+        }
 }
 
 void RadianceSpreadPass::record(vk::CommandRecorder& recorder, const vk::Buffer& params, bool grey,
@@ -51,12 +61,17 @@ void RadianceSpreadPass::record(vk::CommandRecorder& recorder, const vk::Buffer&
     const uint32_t variant = grey ? 1u : 0u;
     const auto voxel_groups = vk::linear_groups(out.flux.extent().count(), TRANSPORT_GROUP_SIZE);
     const auto texel_groups = vk::linear_groups(out.floor_map.extent().count(), TRANSPORT_GROUP_SIZE);
-    // Both jobs' shares, then both gathers: one barrier between the steps.
-    pipelines_[variant].dispatch(recorder.get(), bindings, nullptr, 0, voxel_groups.x, voxel_groups.y);
-    pipelines_[variant + 2].dispatch(recorder.get(), bindings, nullptr, 0, texel_groups.x, texel_groups.y);
+    auto voxels = [&](uint32_t job) { pipelines_[2 * job + variant].dispatch(recorder.get(), bindings, nullptr, 0, voxel_groups.x, voxel_groups.y); };
+    auto texels = [&](uint32_t job) { pipelines_[2 * job + variant].dispatch(recorder.get(), bindings, nullptr, 0, texel_groups.x, texel_groups.y); };
+    voxels(0);
+    texels(4);
     recorder.compute_barrier();
-    pipelines_[variant + 4].dispatch(recorder.get(), bindings, nullptr, 0, voxel_groups.x, voxel_groups.y);
-    pipelines_[variant + 6].dispatch(recorder.get(), bindings, nullptr, 0, texel_groups.x, texel_groups.y);
+    voxels(1);
+    texels(5);
+    recorder.compute_barrier();
+    voxels(2);
+    recorder.compute_barrier();
+    voxels(3);
 }
 
 }  // namespace refract::passes

@@ -121,7 +121,11 @@ REFRACT_SHADERS_BEGIN
 // that spread the floor map's texels (photon hits, (2r + 1)^2 texels), false for the radiance grid's
 // voxels; and per step: false for the first (each source's share and reach, once), true for the gather.
 #define SPREAD_CONSTANT_FLOOR TRANSPORT_CONSTANT_COUNT
-#define SPREAD_CONSTANT_GATHER (TRANSPORT_CONSTANT_COUNT + 1)
+#define SPREAD_CONSTANT_STEP (TRANSPORT_CONSTANT_COUNT + 1)
+#define SPREAD_STEP_SHARES 0u
+#define SPREAD_STEP_GATHER_X 1u  // and the floor's whole gather
+#define SPREAD_STEP_GATHER_Y 2u
+#define SPREAD_STEP_GATHER_Z 3u
 #define DIRECT_MARGIN 2.0f       // voxels: a photon's ray lies between its texel's neighbours', not on one
 // Direct light treats a gradient of n (per voxel) and a coverage up to this as none: the smoothing
 // Gaussian's tails leave values of 1e-15 and so far from any object, which over a 1000-voxel path bend
