@@ -1,6 +1,6 @@
-// The frame of ball_in_fog.json for POV-Ray 3.7 (scripts/bench_povray.sh): a glass ball in a box of fog,
-// lit by a hard-edged spot light, with photons for the volume caustic behind the ball (media photons)
-// and the fog's single scattering by media sampling. POV-Ray is left-handed: z is the document's -z.
+// The frame of examples/ball_lens_fog.json without its sky, for POV-Ray 3.7 (scripts/bench-povray.sh):
+// a glass ball in a box of fog, lit by a hard-edged spot light, with photons for the volume caustic
+// behind the ball (media photons) and the fog's single scattering by media sampling. POV-Ray is left-handed: z is the document's -z.
 #version 3.7;
 global_settings {
   assumed_gamma 1.0
