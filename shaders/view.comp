@@ -18,11 +18,13 @@ layout(binding = TRANSPORT_BINDING_FLUX) uniform sampler3D flux;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
 layout(std430, binding = TRANSPORT_BINDING_HDR) buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
+layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) writeonly buffer Ends { vec4 ends[]; };
 layout(std430, binding = TRANSPORT_BINDING_REFINE) readonly buffer Refine {
     WorkListHeader refine;
     uint refine_pixels[];
 };
 layout(push_constant) uniform Push { ViewPush push; };
+#include "eye_ray_ends.glsl"
 
 // The side (voxels) of the largest cell of the lit pyramid that holds p and no light; 0 where p's block
 // is lit. Level 0 holds the count of unlit levels per block, so this is one lookup.
@@ -32,79 +34,6 @@ float unlit_cell(vec3 p) {
     uvec3 cells = lit_cells(params.lit_grid.xyz, 0u);
     uint unlit = lit_blocks[params.lit_offsets[0] + (b.z * cells.y + b.y) * cells.x + b.x];
     return unlit == 0u ? 0.0 : float(block << (unlit - 1u));
-}
-
-const float kPi = 3.14159265358979;
-
-// How far along d from p (voxels) the floor's plane lies; 1e30 where there is no floor or d does not
-// descend.
-float to_floor_plane(vec3 p, vec3 d) {
-    return (floor_enabled() && d.y < 0.0) ? (p.y - floor_height_voxels()) / -d.y : 1e30;
-}
-
-// Irradiance straight from every light at a floor point (normal +y), without occlusion, over a pixel's
-// footprint there, the box with edges `along` and `across` (metres, on the floor): a spot's cone edge is
-// box-filtered across it (the share of the footprint inside the cone, by the angle off the spot's axis,
-// which changes across the box by the box's extent along that angle's gradient), so the lit disc's rim
-// is not stair-stepped.
-vec3 direct_irradiance(vec3 x, vec3 along, vec3 across) {
-    vec3 irradiance = vec3(0.0);
-    for (uint k = 0u; k < params.light_set.x; ++k) {
-        LightParams light = params.lights[k];
-        if (light.type.x == LIGHT_DIRECTIONAL) {
-            irradiance += light.power.rgb * max(0.0, -light.direction.y);
-            continue;
-        }
-        vec3 l = light.position.xyz - x;
-        float r2 = dot(l, l);
-        vec3 to_light = l / sqrt(r2);
-        float inside = 1.0;
-        if (light.type.x == LIGHT_SPOT) {
-            float cos_off = clamp(dot(-to_light, light.direction.xyz), -1.0, 1.0);
-            float off_axis = acos(cos_off);
-            float rim = acos(clamp(light.position.w, -1.0, 1.0));
-            // The gradient of the off-axis angle at x: away from the axis, of size 1 / r.
-            vec3 away = cos_off * -to_light - light.direction.xyz;
-            vec3 gradient = away / max(length(away) * sqrt(r2), 1e-12);
-            float width = abs(dot(gradient, along)) + abs(dot(gradient, across));
-            inside = width > 1e-6 ? clamp((rim - off_axis) / width + 0.5, 0.0, 1.0) : (off_axis <= rim ? 1.0 : 0.0);
-        }
-        irradiance += inside * light.power.rgb * max(0.0, to_light.y) / r2;
-    }
-    return irradiance;
-}
-
-// The checker's square wave along one axis (+1 on even cells, -1 on odd ones, u in cells), averaged over
-// [u - w / 2, u + w / 2]: differences of its integral, a triangle wave. The box filter of the pixel's
-// footprint, exactly, so the checker does not alias into moire toward the horizon (TEMPORAL.md).
-float checker_integral(float u) { return 1.0 - abs(mod(u, 2.0) - 1.0); }
-float filtered_square(float u, float w) {
-    if (w < 1e-3) return mod(floor(u), 2.0) == 0.0 ? 1.0 : -1.0;
-    return (checker_integral(u + 0.5 * w) - checker_integral(u - 0.5 * w)) / w;
-}
-
-// The floor's radiance at x for an eye ray arriving along d that has come `distance` (metres) from the
-// eye: the checker filtered over the pixel's footprint there (its cone's width, stretched along the
-// ray's horizontal direction by 1 / |d.y|; the box around that ellipse).
-vec3 floor_radiance(vec3 x, vec3 d, float distance) {
-    // Unobstructed light plus what the grid changed (shadow, caustics; see photon_trace.comp).
-    vec2 m = (x.xz - params.floor_map.xy) / params.floor_map.z;
-    float across = distance * 2.0 * params.camera_position.w / float(params.image.y);  // metres
-    float along = across / max(abs(d.y), 1e-3);  // stretched along the ray's horizontal direction
-    vec2 u = length(d.xz) > 1e-6 ? normalize(d.xz) : vec2(1.0, 0.0);
-    vec3 irradiance = direct_irradiance(x, along * vec3(u.x, 0.0, u.y), across * vec3(-u.y, 0.0, u.x)) +
-                      params.environment_light.rgb;
-    if (all(greaterThanEqual(m, vec2(0.0))) && all(lessThanEqual(m, vec2(1.0))))
-        irradiance = max(irradiance + textureLod(floor_map, vec3(m, 0.5), 0.0).rgb, vec3(0.0));
-    vec3 albedo = params.floor_albedo.rgb;
-    if (params.floor_plane.w > 0.5) {
-        float cell = params.floor_plane.y;
-        vec2 w = sqrt(along * along * u * u + across * across * u.yx * u.yx) / cell;
-        vec2 c = x.xz / cell;
-        float dark = 0.5 - 0.5 * filtered_square(c.x, w.x) * filtered_square(c.y, w.y);
-        albedo *= mix(1.0, 0.35, dark);
-    }
-    return albedo * (1.0 / kPi) * irradiance;
 }
 
 // Fluence x phase at voxel point x for an eye ray travelling along d: what one unit of scattering
@@ -149,13 +78,6 @@ vec3 eye_ratio(inout EyeTrack track, FieldSample at, vec3 sigma, vec3 p, vec3 d,
     track.half_len = 0.5 * len;
     if (at.block.x == MEDIUM_NO_BRICK) return vec3(1.0);
     return residual_ratio(at, p, d, len, sigma, slope, h, false, track.rng);
-}
-
-// What a ray leaving the scene along d sees: the image environment's map, else the sky's gradient (one
-// colour for a uniform environment).
-vec3 sky(vec3 d) {
-    if (params.environment.w == 1u) return environment_radiance(d);
-    return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0));
 }
 
 // A reflection an eye ray still has to trace (fresnel.glsl): its transmittance carries the reflectance,
@@ -217,6 +139,8 @@ void shade(uvec2 pixel) {
     // goes; the sky's is 0. Light that comes through or off the object takes the depth of the first
     // place the eye ray bends (its surface): what is seen through glass moves with the glass.
     float light_weight = 0.0, weighted_inverse_depth = 0.0, surface_inverse_depth = -1.0;
+    // Where the eye ray ends, for the viewer's size (TRANSPORT_BINDING_VIEW_ENDS): by default all gathered.
+    vec3 end_front = vec3(0.0), end_transmittance = vec3(0.0);
     // The volumes' residual ratio tracking (eye_ratio): a stream per pixel, sample and photon seed, so
     // refinement averages it as it averages the sub-pixel positions.
     EyeTrack track = EyeTrack(hash(pixel.y * width + pixel.x ^ hash(floatBitsToUint(params.refinement.z) ^ hash(
@@ -431,13 +355,20 @@ void shade(uvec2 pixel) {
         if (split) continue;
         vec3 end = marches ? to_world(ray.p) : position;
         vec3 end_d = marches ? ray.d : d;
+        // A path that never met a refracting shell went straight from the eye: its end is where the
+        // pixel's own direction meets the floor or the sky, which view_upscale.comp finds again at the
+        // viewer's size.
+        if (path == 0u && surface_inverse_depth < 0.0) {
+            end_front = pixel_radiance;
+            end_transmittance = transmittance;
+        }
         if (any(greaterThan(transmittance, vec3(0.0)))) {
             // A ray that left the grid through its bottom face where the floor lies in that face ends on
             // the floor, whichever of the two the march's rounding found first.
             bool sees_floor = on_floor || (floor_on && end_d.y < 0.0 && end.y > params.floor_plane.x - 1e-3 * h);
             vec3 floor_point = on_floor ? end : end + end_d * ((end.y - params.floor_plane.x) / -end_d.y);
             float floor_distance = length(floor_point - params.camera_position.xyz);
-            vec3 seen = transmittance * (sees_floor ? floor_radiance(floor_point, end_d, floor_distance) : sky(end_d));
+            vec3 seen = transmittance * (sees_floor ? floor_radiance(floor_point, end_d, floor_distance, float(params.image.y)) : sky(end_d));
             pixel_radiance += seen;
             float share = (seen.r + seen.g + seen.b) * (1.0 / 3.0);
             light_weight += share;
@@ -451,6 +382,11 @@ void shade(uvec2 pixel) {
     float weight = params.refinement.y;
     float inverse_depth = light_weight > 0.0 ? weighted_inverse_depth / light_weight : 0.0;
     hdr[index] = weight < 1.0 ? mix(hdr[index], vec4(pixel_radiance, inverse_depth), weight) : vec4(pixel_radiance, inverse_depth);
+    if (push.ends != 0u) {
+        bool straight = any(greaterThan(end_transmittance, vec3(0.0)));
+        ends[2u * index] = vec4(straight ? end_front : pixel_radiance, straight ? 1.0 : 0.0);
+        ends[2u * index + 1u] = vec4(end_transmittance, 0.0);
+    }
 }
 
 // The queue runs through the image (or its coarse pixels) tile by tile (view_tiles.glsl). Listed pixels

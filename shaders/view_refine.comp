@@ -17,6 +17,8 @@ layout(std430, binding = TRANSPORT_BINDING_REFINE) buffer Refine {
     WorkListHeader refine;
     uint refine_pixels[];
 };
+layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) buffer Ends { vec4 ends[]; };
+layout(push_constant) uniform Push { uint write_ends; };  // 1: the frame's eye rays' ends are interpolated too
 
 uvec3 bytes_of(uint rgba) { return uvec3(rgba, rgba >> 8u, rgba >> 16u) & 0xffu; }
 
@@ -46,6 +48,15 @@ void main() {
     uint index = pixel.y * width + pixel.x;
     if (inside && !traced && agree) {
         hdr[index] = 0.25 * sum;
+        if (write_ends != 0u) {
+            vec4 gathered = vec4(0.0), transmittance = vec4(0.0);
+            for (int k = 0; k < 4; ++k) {
+                gathered += ends[2u * corner[k]];
+                transmittance += ends[2u * corner[k] + 1u];
+            }
+            ends[2u * index] = 0.25 * gathered;
+            ends[2u * index + 1u] = 0.25 * transmittance;
+        }
     }
     bool listed = inside && !traced && !agree;
     uvec4 ballot = subgroupBallot(listed);

@@ -114,8 +114,9 @@ TEST_F(DaemonViews, EachViewerSeesItsOwnViewAndNoneMakesARevision) {
     expect_no_validation_errors(daemon);
 }
 
-// A session that asks for temporal reuse (`"temporal": true`) gets its interactive frames at its view's
-// full size, however small a frame the budget traces; without it they come at the budget's size.
+// A session's interactive frames come at its view's full size however small a frame the budget traces:
+// upscaled, or with temporal reuse (`"temporal": true`) taken into its history. The header says how
+// large a frame was traced.
 TEST_F(DaemonViews, TemporalReuseSendsPreviewsAtTheViewersSize) {
     const std::string id = create_scene(client, "temporal");
     WsClient ws(daemon.ws_port(), ws_path(id));
@@ -125,13 +126,16 @@ TEST_F(DaemonViews, TemporalReuseSendsPreviewsAtTheViewersSize) {
     camera["position"][0] = -2.4;
     // A budget no frame of this size meets: the budget's size is smaller than the view.
     ws.send({{"seq", 2}, {"quality", "interactive"}, {"budget_ms", 10}, {"view", {{"width", 160}, {"height", 96}, {"camera", camera}}}});
-    const auto budgeted = png_size(ws.read_frame().second);
-    EXPECT_LT(budgeted.first, 160u);
+    auto [budgeted, budgeted_png] = ws.read_frame();
+    EXPECT_EQ(png_size(budgeted_png), (std::pair{160u, 96u}));
+    EXPECT_LT(budgeted["traced_width"].get<int>(), 160);
+    EXPECT_LT(budgeted["traced_height"].get<int>(), 96);
     camera["position"][0] = -2.3;
     ws.send({{"seq", 3}, {"quality", "interactive"}, {"temporal", true}, {"view", {{"width", 160}, {"height", 96}, {"camera", camera}}}});
     auto [header, png] = ws.read_frame();
     EXPECT_EQ(header["seq"], 3);
     EXPECT_EQ(png_size(png), (std::pair{160u, 96u}));
+    EXPECT_LT(header["traced_width"].get<int>(), 160);
     // The setting holds for the session: the next preview too.
     camera["position"][0] = -2.2;
     ws.send({{"seq", 4}, {"quality", "interactive"}, {"view", {{"width", 160}, {"height", 96}, {"camera", camera}}}});

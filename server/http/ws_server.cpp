@@ -687,7 +687,11 @@ private:
                            {"samples_per_pixel", frame.refinement.samples_per_pixel},
                            {"photons", frame.photons},
                            {"refine", refine_to_}};
-            if (quality == scene::Quality::interactive) header["budget_ms"] = options.budget_ms;
+            if (quality == scene::Quality::interactive) {
+                header["budget_ms"] = options.budget_ms;
+                header["traced_width"] = frame.traced_width;
+                header["traced_height"] = frame.traced_height;
+            }
             if (played) {
                 const bool last = played->index + 1 == played->frames;
                 header["play"] = {{"frame", played->index}, {"frames", played->frames}, {"time", played->time},

@@ -18,6 +18,7 @@ constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_REFINE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_VIEW_ENDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 constexpr auto kLayout = transport_layout(kOwnLayout);
 }  // namespace
@@ -27,7 +28,7 @@ ViewPass::ViewPass(vk::Context& context)
 
 bool ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, const vk::Image3D& radiance,
                       const vk::Image3D& flux, const vk::Image3D& floor_map, const ViewOutputs& out,
-                      uint32_t width, uint32_t height, bool adaptive, const BetweenParts& between,
+                      uint32_t width, uint32_t height, bool adaptive, bool ends, const BetweenParts& between,
                       PartPacer& pacer) const {
     // Only the view's counters restart (steps and its two pixel queues, adjacent): the photon pass's
     // counters belong to the last photon run.
@@ -50,7 +51,8 @@ bool ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, out.hdr),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, out.lit_blocks),
-                               vk::Binding::storage_buffer(TRANSPORT_BINDING_REFINE, out.refine)};
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_REFINE, out.refine),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_VIEW_ENDS, out.ends)};
     const auto bindings = transport_bindings(in, own);
     const vk::ComputePipeline& view = pipeline_(in.variant);
     if (!adaptive) {
@@ -64,17 +66,17 @@ bool ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
                 if (pacer.between(between, part)) return false;
                 part = pacer.next(largest);
             }
-            view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_ALL}, columns,
+            view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_ALL, ends ? 1u : 0u}, columns,
                           std::min(part, rows - first));
         }
         return true;
     }
-    view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_COARSE},
+    view.dispatch(recorder.get(), bindings, shaders::ViewPush{VIEW_PIXELS_COARSE, ends ? 1u : 0u},
                   vk::group_count((width + 1) / 2, VIEW_GROUP_SIZE), vk::group_count((height + 1) / 2, VIEW_GROUP_SIZE));
     recorder.compute_barrier();
-    refine_.record(recorder, in.params, out.hdr, out.refine, width, height);
+    refine_.record(recorder, in.params, out.hdr, out.refine, out.ends, ends, width, height);
     recorder.compute_barrier();
-    const shaders::ViewPush listed{VIEW_PIXELS_LISTED};
+    const shaders::ViewPush listed{VIEW_PIXELS_LISTED, ends ? 1u : 0u};
     view.dispatch_indirect(recorder.get(), bindings, &listed, sizeof(listed), out.refine,
                            offsetof(shaders::WorkListHeader, groups_x));
     return true;

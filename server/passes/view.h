@@ -12,6 +12,7 @@ struct ViewOutputs {
     const vk::Buffer& stats;  // PhotonStats; the view pass counts view_steps
     const vk::Buffer& lit_blocks;
     const vk::Buffer& refine;  // WorkListHeader + a pixel index per pixel (transport.h), for adaptive frames
+    const vk::Buffer& ends;  // 2 vec4 per pixel (TRANSPORT_BINDING_VIEW_ENDS), written with `ends`
 };
 
 class ViewPass {
@@ -21,10 +22,10 @@ public:
     // differ on screen; interpolate the rest (interactive frames; transport.h, VIEW_PIXELS_*). With
     // `between` (not adaptive), in parts of at most about kViewPart pixels sized by `pacer`,
     // `between` running between parts. False when `between` stopped the run: part of the pixels
-    // are traced.
+    // are traced. `ends`: also write where each eye ray ends (for ViewUpscalePass).
     bool record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const vk::Image3D& radiance,
                 const vk::Image3D& flux, const vk::Image3D& floor_map, const ViewOutputs& outputs,
-                uint32_t width, uint32_t height, bool adaptive, const BetweenParts& between,
+                uint32_t width, uint32_t height, bool adaptive, bool ends, const BetweenParts& between,
                 PartPacer& pacer) const;
 
 private:

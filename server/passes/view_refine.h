@@ -12,10 +12,11 @@ class ViewRefinePass {
 public:
     explicit ViewRefinePass(vk::Context& context);
     // Reads the coarse round's pixels of `hdr` (compared as they will look at the exposure in `params`)
-    // and writes the interpolated ones; appends the others to `refine` (header zeroed but for groups_y =
-    // groups_z = 1 beforehand).
+    // and writes the interpolated ones (and, with `ends`, their eye rays' ends alike); appends the others to
+    // `refine` (header zeroed but for groups_y = groups_z = 1 beforehand).
     void record(vk::CommandRecorder& recorder, const vk::Buffer& params, const vk::Buffer& hdr,
-                const vk::Buffer& refine, uint32_t width, uint32_t height) const;
+                const vk::Buffer& refine, const vk::Buffer& ends_buffer, bool ends, uint32_t width,
+                uint32_t height) const;
 
 private:
     vk::ComputePipeline pipeline_;

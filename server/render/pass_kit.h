@@ -12,6 +12,7 @@
 #include "passes/temporal_reuse.h"
 #include "passes/tone_map.h"
 #include "passes/view.h"
+#include "passes/view_upscale.h"
 #include "passes/voxelize.h"
 #include "vk/context.h"
 
@@ -29,6 +30,7 @@ struct PassKit {
     passes::RadianceSpreadPass radiance_spread;
     passes::LitPyramidPass lit_pyramid;
     passes::ViewPass view;
+    passes::ViewUpscalePass view_upscale;
     passes::ToneMapPass tone_map;
     passes::TemporalNeighbourhoodPass temporal_neighbourhood;
     passes::TemporalReusePass temporal_reuse;

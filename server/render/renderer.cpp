@@ -76,11 +76,11 @@ double volume_ms(const FrameResult& frame) {
 }
 
 // The milliseconds of an interactive frame spent at the viewer's size whatever size it traced: temporal
-// reuse and the encode of its full-size frame.
+// reuse or the upscale, and the encode of its full-size frame.
 double viewer_ms(const FrameResult& frame) {
     double ms = 0.0;
     for (const auto& t : frame.timings)
-        if (t.name == "temporal" || t.name == "encode") ms += t.host_ms;
+        if (t.name == "temporal" || t.name == "upscale" || t.name == "encode") ms += t.host_ms;
     return ms;
 }
 
@@ -214,9 +214,10 @@ struct ResidentScene {
     uint64_t stills = 0;  // still frames made, which number them for TemporalHistory::seeded_from
 };
 
-// Device memory the views of a scene hold beside its frame: parked frames and temporal histories.
+// Device memory the views of a scene hold beside its frame: parked frames, temporal histories and the
+// interactive frame at its viewer's size.
 int64_t view_bytes(const ResidentScene& held) {
-    int64_t bytes = 0;
+    int64_t bytes = held.gpu ? held.gpu->upscale_bytes() : 0;
     for (const ParkedView& view : held.parked) bytes += view.frame.bytes();
     for (const auto& [key, history] : held.histories) bytes += history->bytes();
     return bytes;
@@ -383,8 +384,9 @@ struct Renderer::Impl {
                    const ResolvedAssets& resolved, const RunOptions& frame_options,
                    const std::function<bool()>& give_way, FrameResult& frame);
     // The frame's levels and its PNG: an interactive frame with a viewer's `temporal` history is taken into
-    // it and sent at the viewer's size (`requested`'s).
-    void finish_frame(ResidentScene& resident, const FramePlan& plan, const RunOptions& frame_options,
+    // it, one traced smaller without one is upscaled (true), and either is sent at the viewer's size
+    // (`requested`'s).
+    bool finish_frame(ResidentScene& resident, const FramePlan& plan, const RunOptions& frame_options,
                       const protocol::SceneDocument& requested, TemporalHistory* temporal, FrameResult& frame);
     // Records what the resident state was built from.
     void keep(ResidentScene& resident, const protocol::SceneDocument& document, const ResolvedAssets& resolved,
@@ -609,6 +611,11 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
                                     ? &history_for(resident, impl_->kit, options.history, requested, resident.last_used)
                                     : nullptr;
     if (temporal) frame_options.view_jitter = temporal->next_jitter();
+    // Traced smaller than its viewer without a history: sent at the viewer's size all the same, its floor
+    // and sky found again for every pixel (passes::ViewUpscalePass).
+    frame_options.view_ends = quality == Quality::interactive && !temporal &&
+                              (plan.document.image.width != requested.image.width ||
+                               plan.document.image.height != requested.image.height);
     if (history) {
         frame_options.photon_history = kPhotonHistory;
         frame_options.history_frame = resident.history_frames;
@@ -618,8 +625,8 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
             frame.outcome = FrameResult::Outcome::superseded;  // the resident state is whole; only the frame was not made
             return frame;
         }
-        impl_->finish_frame(resident, plan, frame_options, requested, temporal, frame);
-        if (options.linear) frame.linear = resident.gpu->read_hdr();
+        const bool upscaled = impl_->finish_frame(resident, plan, frame_options, requested, temporal, frame);
+        if (options.linear) frame.linear = upscaled ? resident.gpu->read_viewer_hdr() : resident.gpu->read_hdr();
     } catch (...) {
         impl_->drop_after_failure(scene_id);
     }
@@ -628,7 +635,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     if (quality == Quality::still) ++resident.stills;
     if (quality == Quality::interactive) {
         const double photons = photon_ms(frame);
-        const double viewer = temporal ? viewer_ms(frame) : 0.0;
+        const double viewer = temporal || frame_options.view_ends ? viewer_ms(frame) : 0.0;
         resident.budget.observe(requested, plan.settings, photons, viewer,
                                 ms_since(start) - paused_ms - photons - volume_ms(frame) - viewer);
     }
@@ -637,7 +644,7 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     return frame;
 }
 
-void Renderer::Impl::finish_frame(ResidentScene& resident, const FramePlan& plan, const RunOptions& frame_options,
+bool Renderer::Impl::finish_frame(ResidentScene& resident, const FramePlan& plan, const RunOptions& frame_options,
                                   const protocol::SceneDocument& requested, TemporalHistory* temporal,
                                   FrameResult& frame) {
     frame.level = plan.level;
@@ -645,8 +652,8 @@ void Renderer::Impl::finish_frame(ResidentScene& resident, const FramePlan& plan
     // An interactive frame may be shaded from a still frame's refined grid.
     frame.refinement.photon_batches = resident.gpu->photon_batches(plan.document, frame_options);
     frame.photons = uint64_t{frame.refinement.photon_batches} * plan.document.photons.count;
-    frame.width = resident.gpu->width();
-    frame.height = resident.gpu->height();
+    frame.width = frame.traced_width = resident.gpu->width();
+    frame.height = frame.traced_height = resident.gpu->height();
     if (temporal) {
         const auto temporal_start = Clock::now();
         temporal->add(resident.gpu->hdr_buffer(), frame.width, frame.height, requested, (frame.rerun & kView) != 0);
@@ -654,10 +661,20 @@ void Renderer::Impl::finish_frame(ResidentScene& resident, const FramePlan& plan
         frame.width = temporal->width();
         frame.height = temporal->height();
     }
+    // A frame that only re-toned keeps the ends of the view before it, when that view kept them.
+    const bool upscaled = frame_options.view_ends && resident.gpu->has_view_ends();
+    if (upscaled) {
+        const auto upscale_start = Clock::now();
+        resident.gpu->upscale(requested.image.width, requested.image.height);
+        frame.timings.push_back({"upscale", 0.0, ms_since(upscale_start)});
+        frame.width = requested.image.width;
+        frame.height = requested.image.height;
+    }
     const auto encode_start = Clock::now();
-    const auto pixels = temporal ? temporal->read_ldr() : resident.gpu->read_ldr();
+    const auto pixels = temporal ? temporal->read_ldr() : upscaled ? resident.gpu->read_viewer_ldr() : resident.gpu->read_ldr();
     frame.png = image::encode_png(pixels, frame.width, frame.height);
     frame.timings.push_back({"encode", 0.0, ms_since(encode_start)});
+    return upscaled;
 }
 
 void Renderer::Impl::drop_after_failure(const std::string& scene_id) {

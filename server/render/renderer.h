@@ -93,7 +93,7 @@ struct FrameOptions {
     bool linear = false;
     // Interactive frames: the viewer (a WebSocket session) whose temporal history (render/temporal_history.h)
     // takes the frame in; the frame is then that history at the document's image size. Empty: none, the
-    // frame is at the budget's size.
+    // frame traced at the budget's size is upscaled to the document's (passes::ViewUpscalePass).
     std::string history;
 };
 
@@ -107,6 +107,9 @@ struct FrameResult {
     std::vector<uint8_t> png;
     std::vector<glm::vec4> linear;  // RGBA radiance before exposure, top row first; FrameOptions::linear only
     uint32_t width = 0, height = 0;
+    // The size its eye rays were traced at: an interactive frame's budget may trace fewer pixels than it
+    // is sent at (its floor and sky are found again at `width` x `height`: passes::ViewUpscalePass).
+    uint32_t traced_width = 0, traced_height = 0;
     PassSet rerun = 0;                // passes that ran for this frame
     std::vector<std::string> voxelized;  // the objects the voxelize pass ran for, by name
     std::vector<PassTiming> timings;  // one entry per pass that ran, plus "encode"

@@ -19,6 +19,7 @@ PassKit::PassKit(vk::Context& ctx)
       radiance_spread(ctx),
       lit_pyramid(ctx),
       view(ctx),
+      view_upscale(ctx),
       tone_map(ctx),
       temporal_neighbourhood(ctx),
       temporal_reuse(ctx),
@@ -116,7 +117,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     const bool whole = volume_.record(recording, stale, built_, volume_in, worlds, grid_asset, options.revoxelize,
                                       stats.voxelized) &&
                        transport_.record(recording, stale, built_, options, grid_, volume_, resolved) &&
-                       view_.record(recording, stale, options.adaptive_view, options.paced_parts, volume_, transport_);
+                       view_.record(recording, stale, options.adaptive_view, options.view_ends, options.paced_parts, volume_,
+                                    transport_);
     if (!whole) {
         gave_way(*recording.stopped(), stale, asked, mean_resident && !resolved);
         volume_.end_run();

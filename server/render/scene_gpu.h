@@ -67,6 +67,9 @@ struct RunOptions {
                                    // voxel crossed (photon_trace.comp); every frame run_options_for makes
                                    // (the exact estimator is the physics tests' reference)
     bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
+    // The viewing pass also keeps where its eye rays end, so that the frame can be brought to a larger
+    // viewer's size (SceneGpu::upscale): interactive frames traced smaller than their viewer.
+    bool view_ends = false;
     // Each radiance voxel's light spread over a box sized by the photons behind it (radiance_spread.comp):
     // smooth where photons are few; interactive.
     bool adaptive_density = false;
@@ -173,6 +176,13 @@ public:
     std::vector<glm::vec4> read_hdr() const { return view_.read_hdr(); }
     const vk::Buffer& hdr_buffer() const { return view_.hdr(); }  // what temporal reuse takes in
     std::vector<uint32_t> read_ldr() const { return view_.read_ldr(); }
+    // An interactive frame traced smaller than its viewer, brought to the viewer's size (ViewStage::upscale):
+    // possible once a run with RunOptions::view_ends left the frame's eye rays' ends.
+    bool has_view_ends() const { return view_.has_ends(); }
+    void upscale(uint32_t width, uint32_t height) { view_.upscale(width, height, volume_, transport_); }
+    std::vector<glm::vec4> read_viewer_hdr() const { return view_.read_viewer_hdr(); }
+    std::vector<uint32_t> read_viewer_ldr() const { return view_.read_viewer_ldr(); }
+    int64_t upscale_bytes() const { return view_.upscale_bytes(); }
     std::vector<shaders::PhotonExit> read_photon_exits() const { return transport_.read_photon_exits(); }
     // The last run's parameters: the first light's (which the viewing pass reads), and every light's.
     const shaders::TransportParams& params() const { return transport_.light_params().front(); }

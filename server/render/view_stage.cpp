@@ -2,13 +2,15 @@
 
 namespace refract::scene {
 
-ViewStage::ViewStage(PassKit& kit) : kit_(kit) {}
+ViewStage::ViewStage(PassKit& kit) : kit_(kit), upscale_recorder_(kit.context, "view upscale") {}
 
 void ViewStage::allocate(const FrameInputs::View& in) {
     if (in.width != width_ || in.height != height_) {
         hdr_ = {};
         ldr_ = {};
         refine_ = {};
+        ends_ = {};
+        ends_kept_ = false;
         width_ = in.width;
         height_ = in.height;
     }
@@ -26,15 +28,18 @@ void ViewStage::allocate(const FrameInputs::View& in) {
 }
 
 ViewStage::ParkedFrame ViewStage::park() {
+    ends_kept_ = false;
     ParkedFrame parked{width_, height_, std::move(hdr_)};
     hdr_ = {};
     return parked;
 }
 
 void ViewStage::restore(ParkedFrame parked) {
+    ends_kept_ = false;  // the parked image's rays are not these
     if (parked.width != width_ || parked.height != height_) {
         ldr_ = {};
         refine_ = {};
+        ends_ = {};
         width_ = parked.width;
         height_ = parked.height;
     }
@@ -42,16 +47,23 @@ void ViewStage::restore(ParkedFrame parked) {
     allocate({width_, height_});
 }
 
-bool ViewStage::record(FrameRecording& recording, PassSet stale, bool adaptive, bool paced, const VolumeStage& volume,
-                       const TransportStage& transport) {
+bool ViewStage::record(FrameRecording& recording, PassSet stale, bool adaptive, bool ends, bool paced,
+                       const VolumeStage& volume, const TransportStage& transport) {
     vk::CommandRecorder& recorder = recording.recorder();
     if (stale & kView) {
         recording.begin(kView);
+        const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+        if (ends && !ends_.get())
+            ends_ = vk::Buffer(kit_.context, uint64_t{width_} * height_ * 2 * sizeof(glm::vec4), usage,
+                               vk::MemoryUse::device, "view ends");
+        if (!no_ends_.get()) no_ends_ = vk::Buffer(kit_.context, 2 * sizeof(glm::vec4), usage, vk::MemoryUse::device, "no view ends");
+        ends_kept_ = false;  // until this view is whole
         const passes::PhotonAccumulators& accum = transport.accumulators();
         if (!kit_.view.record(recorder, transport.view_inputs(volume), transport.radiance(), transport.flux(),
-                              transport.floor_map(), {hdr_, accum.stats, accum.lit_blocks, refine_}, width_, height_,
-                              adaptive, recording.between_parts(kView), parts_.paced(paced)))
+                              transport.floor_map(), {hdr_, accum.stats, accum.lit_blocks, refine_, ends ? ends_ : no_ends_},
+                              width_, height_, adaptive, ends, recording.between_parts(kView), parts_.paced(paced)))
             return false;
+        ends_kept_ = ends;
         recorder.compute_barrier();
         recording.end();
     }
@@ -61,6 +73,39 @@ bool ViewStage::record(FrameRecording& recording, PassSet stale, bool adaptive, 
         recording.end();
     }
     return true;
+}
+
+void ViewStage::upscale(uint32_t width, uint32_t height, const VolumeStage& volume, const TransportStage& transport) {
+    if (width != viewer_width_ || height != viewer_height_) {
+        const uint64_t pixels = uint64_t{width} * height;
+        const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+        viewer_hdr_ = vk::Buffer(kit_.context, pixels * sizeof(glm::vec4), usage, vk::MemoryUse::readback, "viewer hdr");
+        viewer_ldr_ = vk::Buffer(kit_.context, pixels * sizeof(uint32_t), usage, vk::MemoryUse::readback, "viewer ldr");
+        viewer_width_ = width;
+        viewer_height_ = height;
+    }
+    upscale_recorder_.begin();
+    kit_.view_upscale.record(upscale_recorder_, transport.view_inputs(volume), transport.floor_map(),
+                             {ends_, viewer_hdr_, viewer_ldr_}, width, height);
+    upscale_recorder_.to_host_barrier();
+    upscale_recorder_.submit_and_wait();
+}
+
+int64_t ViewStage::upscale_bytes() const {
+    return static_cast<int64_t>(ends_.size()) + int64_t{viewer_width_} * viewer_height_ *
+                                                    int64_t{sizeof(glm::vec4) + sizeof(uint32_t)};
+}
+
+std::vector<glm::vec4> ViewStage::read_viewer_hdr() const {
+    std::vector<glm::vec4> out(size_t{viewer_width_} * viewer_height_);
+    viewer_hdr_.read(out.data(), out.size() * sizeof(glm::vec4));
+    return out;
+}
+
+std::vector<uint32_t> ViewStage::read_viewer_ldr() const {
+    std::vector<uint32_t> out(size_t{viewer_width_} * viewer_height_);
+    viewer_ldr_.read(out.data(), out.size() * sizeof(uint32_t));
+    return out;
 }
 
 std::vector<glm::vec4> ViewStage::read_hdr() const {

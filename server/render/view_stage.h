@@ -10,6 +10,7 @@
 #include "render/pass_kit.h"
 #include "render/transport_stage.h"
 #include "render/volume_stage.h"
+#include "vk/commands.h"
 
 namespace refract::scene {
 
@@ -33,9 +34,15 @@ public:
     // Puts a parked image back as the frame's, with the other buffers of its size.
     void restore(ParkedFrame parked);
     // Records the view and tone map when stale; false when the run stopped at a part.
-    // `paced`: parts sized by time (RunOptions::paced_parts).
-    bool record(FrameRecording& recording, PassSet stale, bool adaptive, bool paced, const VolumeStage& volume,
-                const TransportStage& transport);
+    // `paced`: parts sized by time (RunOptions::paced_parts). `ends`: the view also keeps where its eye
+    // rays end, for upscale().
+    bool record(FrameRecording& recording, PassSet stale, bool adaptive, bool ends, bool paced,
+                const VolumeStage& volume, const TransportStage& transport);
+    // Whether the frame's eye rays' ends are kept: its last view ran with `ends`.
+    bool has_ends() const { return ends_kept_; }
+    // The frame brought to a viewer's `width` x `height` (passes::ViewUpscalePass; has_ends()), in a
+    // submission of its own.
+    void upscale(uint32_t width, uint32_t height, const VolumeStage& volume, const TransportStage& transport);
 
     uint32_t width() const { return width_; }
     uint32_t height() const { return height_; }
@@ -43,11 +50,24 @@ public:
     const vk::Buffer& hdr() const { return hdr_; }
     std::vector<glm::vec4> read_hdr() const;
     std::vector<uint32_t> read_ldr() const;
+    // The last upscale()'s frame: its size, linear radiance and sRGB pixels.
+    uint32_t viewer_width() const { return viewer_width_; }
+    uint32_t viewer_height() const { return viewer_height_; }
+    std::vector<glm::vec4> read_viewer_hdr() const;
+    std::vector<uint32_t> read_viewer_ldr() const;
+    // Device memory of the ends and the upscaled frame, beside the frame's own.
+    int64_t upscale_bytes() const;
 
 private:
     PassKit& kit_;
     uint32_t width_ = 0, height_ = 0;
     vk::Buffer hdr_, ldr_, refine_;
+    vk::Buffer ends_;     // made with the first frame that keeps its ends
+    vk::Buffer no_ends_;  // bound in their place otherwise (nothing writes it)
+    bool ends_kept_ = false;
+    uint32_t viewer_width_ = 0, viewer_height_ = 0;
+    vk::Buffer viewer_hdr_, viewer_ldr_;
+    vk::CommandRecorder upscale_recorder_;
     passes::PartPacer parts_{1};  // the viewing pass's parts, in rows of tiles, sized by its last rate
 };
 

@@ -90,6 +90,13 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_SPREAD_FLUX_SHARES 30
 #define TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES 31
 #define TRANSPORT_BINDING_SPREAD_FLOOR_SHARES 32
+// Where an interactive frame's eye rays end (ViewPush::ends, view_upscale.comp): two vec4 per pixel, the
+// light gathered before the end (rgb; w 1 where the ray went straight) and the transmittance the end's
+// light comes through (rgb; 0 where the ray bent, reflected or was cut off: the pixel is all gathered).
+#define TRANSPORT_BINDING_VIEW_ENDS 33
+// The viewer's size (view_upscale.comp): vec4 linear radiance and uint sRGB per pixel.
+#define TRANSPORT_BINDING_VIEWER_HDR 34
+#define TRANSPORT_BINDING_VIEWER_LDR 35
 // The medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): the scene's volumes resampled on a coarse copy of the
 // lattice (render/medium_field.h), trilinearly filtered; a texel of zeros where a scene has none.
 #define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27  // sampler3D rgba32f, bricks (below): rgb extinction per metre
@@ -434,6 +441,12 @@ struct PhotonStats {
 #define VIEW_PIXELS_LISTED 2u
 struct ViewPush {
     uint pixels;  // VIEW_PIXELS_*
+    uint ends;    // 1: also write where each eye ray ends (TRANSPORT_BINDING_VIEW_ENDS)
+};
+
+// An interactive frame scaled to the viewer's size (view_upscale.comp): that size, in pixels.
+struct UpscalePush {
+    uvec2 viewer;
 };
 
 // Traced neighbours whose sRGB values differ by at most this many 8-bit levels in every channel are

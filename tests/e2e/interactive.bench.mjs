@@ -97,6 +97,7 @@ function watchSockets(page) {
       const m = head.meta;
       frames.push({
         t, tHeader: head.tHeader, quality: m.quality ?? null, width: m.width ?? null, height: m.height ?? null,
+        tracedWidth: m.traced_width ?? m.width ?? null,
         level: m.level ?? null, revision: m.revision ?? null, seq: m.seq ?? null, cached: Boolean(m.cached), bytes: payload.length,
         passMs: sumTimings(m.timings), timings: m.timings ?? null, photons: m.photons ?? null,
       });
@@ -278,6 +279,9 @@ async function drag(page, sceneId, size, what, refined = false) {
     still_level: still.level,
     viewport_width: size.width,
     displayed_width: median(interactive.map((f) => f.width)),
+    // The width the frames' eye rays were traced at (a daemon that sends previews at the viewer's size
+    // says so in traced_width; before, what was traced was what was sent).
+    traced_width: median(interactive.map((f) => f.tracedWidth)),
   };
   if (refined) {
     // Against the same state refined: the first frame of it at REFINED_LEVEL or above, once drawn.
@@ -445,7 +449,7 @@ async function main() {
     examples_first_frame_ms: examples.examples_first_frame_ms, examples_full_ms: examples.examples_full_ms,
     examples: examples.loads,
     frames: frames.map((f) => [f.t - navStart, f.quality, `${f.width}x${f.height}`, f.level, f.revision, f.seq,
-      f.passMs === null ? null : Math.round(f.passMs), roundTimings(f.timings), sinceAsked(f), f.photons]),
+      f.passMs === null ? null : Math.round(f.passMs), roundTimings(f.timings), sinceAsked(f), f.photons, f.tracedWidth]),
     exposure: {
       first_pass_ms: edits[0].passMs, first_wall_ms: edits[0].wallMs,
       median_pass_ms: median(edits.map((e) => e.passMs)), median_wall_ms: median(edits.map((e) => e.wallMs)),
@@ -468,7 +472,7 @@ function table(r) {
     ['light drag: frames/s', r.light.fps.toFixed(1), `${r.light.frames} frames in ${r.light.seconds.toFixed(1)} s, interactive ${r.light.interactive_size ?? '—'}`],
     ['light: first frame of the drag\'s edits', ms(r.light.first_answer_ms), `then ${r.light.steady_fps === null ? '—' : r.light.steady_fps.toFixed(1)} frames/s, interactive passes ${ms(r.light.interactive_pass_ms)}`],
     ['light release -> full-resolution still', ms(r.light.release_to_full_ms), `passes ${ms(r.light.still_pass_ms)}`],
-    ['orbit / light: frame width shown while dragging', `${r.orbit.displayed_width} / ${r.light.displayed_width}`, `the viewport's: ${r.orbit.viewport_width}`],
+    ['orbit / light: frame width shown while dragging', `${r.orbit.displayed_width} / ${r.light.displayed_width}`, `the viewport's: ${r.orbit.viewport_width}; traced ${r.orbit.traced_width} / ${r.light.traced_width}`],
     ['orbit / light: RMSE of the last drag frame vs refined', `${num(r.orbit.rmse_vs_still)} / ${num(r.light.rmse_vs_still)}`, `8-bit sRGB, against level ${REFINED_LEVEL}+`],
     ['object drag (Alt): frames/s', r.object.fps.toFixed(1), `${r.object.frames} frames in ${r.object.seconds.toFixed(1)} s, interactive ${r.object.interactive_size ?? '—'}`],
     ['object: first frame of the drag\'s edits', ms(r.object.first_answer_ms), `then ${r.object.steady_fps === null ? '—' : r.object.steady_fps.toFixed(1)} frames/s, interactive passes ${ms(r.object.interactive_pass_ms)}`],

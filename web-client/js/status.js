@@ -175,7 +175,9 @@ const passClass = (name) => `pass pass-${String(name).replace(/[^a-z_]/g, '')}`;
 
 // The strip under the image: the last frame, and the time each pass took (the last frame that ran any).
 export function showStats(meta, quality) {
-  const size = meta.width && meta.height ? `${meta.width}×${meta.height}` : '';
+  // A preview traced smaller than it is shown (its floor and sky drawn at full size) says so.
+  const traced = meta.traced_width && meta.traced_width !== meta.width ? ` (traced ${meta.traced_width}×${meta.traced_height})` : '';
+  const size = meta.width && meta.height ? `${meta.width}×${meta.height}${traced}` : '';
   const what = meta.play ? `Played frame ${meta.play.frame + 1}/${meta.play.frames}` : quality === 'interactive' ? 'Preview' : 'Still';
   const pushed = state.pushed ? ' (an edit made elsewhere)' : '';
   const parts = [`${what} ${size}`.trim() + pushed, `revision ${meta.revision ?? '—'}`];
