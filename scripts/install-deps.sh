@@ -13,7 +13,7 @@ packages=(
   build-essential cmake pkg-config git ca-certificates curl
   libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
   glslang-tools
-  libcpp-httplib-dev nlohmann-json3-dev libpng-dev libglm-dev libgtest-dev
+  libcpp-httplib-dev nlohmann-json3-dev libpng-dev zlib1g-dev libglm-dev libgtest-dev
   libboost1.81-dev
   libpq-dev  # the shared PostgreSQL store (refractd --store postgresql://...); no server needed to build
   libstb-dev libopenexr-dev  # environment maps: Radiance .hdr (stb_image, header only) and OpenEXR

@@ -1,5 +1,6 @@
-// Frame encoding: 8-bit RGB PNG through libpng (fast settings: a render service pays for encode time on
-// every frame) and float PFM for the linear radiance before exposure.
+// Frame encoding: 8-bit RGB PNG (fast settings: a render service pays for encode time on every frame),
+// deflated with zlib by hand in two pieces at once, read back through libpng; and float PFM for the
+// linear radiance before exposure.
 #pragma once
 
 #include <cstdint>
@@ -9,7 +10,8 @@
 
 namespace refract::image {
 
-// `rgba` is width*height packed RGBA8 (alpha ignored). Compression level 1, one filter (SUB).
+// `rgba` is width*height packed RGBA8 (alpha ignored). Compression level 1, one filter (SUB), the rows'
+// two halves deflated on two threads: the same bytes on any machine.
 std::vector<uint8_t> encode_png(std::span<const uint32_t> rgba, uint32_t width, uint32_t height);
 
 // Decodes an 8-bit RGB or RGBA PNG into packed RGBA8 (for tests and tools). Throws std::runtime_error.
