@@ -102,11 +102,8 @@ const uint kPaths = (kDispersive ? 1u : 0u) + (kDispersive ? 3u : 1u) * kPathsPe
 // for a path of its own.
 void shade(uvec2 pixel) {
     uint width = params.image.x, height = params.image.y;
-    float tan_half = params.camera_position.w;
-    float aspect = float(width) / float(height);
-    vec2 at = vec2(pixel) + 0.5 + params.refinement.zw;  // the sample's point in the pixel
-    vec2 ndc = vec2((2.0 * at.x / float(width) - 1.0) * aspect, 1.0 - 2.0 * at.y / float(height)) * tan_half;
-    vec3 d = normalize(params.camera_forward.xyz + ndc.x * params.camera_right.xyz + ndc.y * params.camera_up.xyz);
+    // Through the sample's point in the pixel.
+    vec3 d = eye_direction(image_plane_point(vec2(pixel) + 0.5 + params.refinement.zw, width, height));
     vec3 position = params.camera_position.xyz;  // world, where the straight part of the ray resumes
     bool floor_on = floor_enabled();
     float h = voxel_size();
@@ -384,7 +381,7 @@ void shade(uvec2 pixel) {
     hdr[index] = weight < 1.0 ? mix(hdr[index], vec4(pixel_radiance, inverse_depth), weight) : vec4(pixel_radiance, inverse_depth);
     if (push.ends != 0u) {
         bool straight = any(greaterThan(end_transmittance, vec3(0.0)));
-        ends[2u * index] = vec4(straight ? end_front : pixel_radiance, straight ? 1.0 : 0.0);
+        ends[2u * index] = vec4(straight ? end_front : pixel_radiance, 0.0);
         ends[2u * index + 1u] = vec4(end_transmittance, 0.0);
     }
 }

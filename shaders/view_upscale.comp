@@ -25,11 +25,9 @@ void main() {
     uint width = push.viewer.x, height = push.viewer.y;
     if (pixel.x >= width || pixel.y >= height) return;
     // The pixel's ray, as the viewing pass makes one for an image of this size (at the pixel's centre).
+    vec2 ndc = image_plane_point(vec2(pixel) + 0.5, width, height);
+    vec3 d = eye_direction(ndc);
     float tan_half = params.camera_position.w;
-    float aspect = float(width) / float(height);
-    vec2 ndc = vec2((2.0 * (float(pixel.x) + 0.5) / float(width) - 1.0) * aspect,
-                    1.0 - 2.0 * (float(pixel.y) + 0.5) / float(height)) * tan_half;
-    vec3 d = normalize(params.camera_forward.xyz + ndc.x * params.camera_right.xyz + ndc.y * params.camera_up.xyz);
     vec3 eye = params.camera_position.xyz;
     bool sees_floor = floor_enabled() && d.y < 0.0 && eye.y > params.floor_plane.x;
     vec3 end = vec3(0.0);

@@ -1,6 +1,17 @@
 #include "render/view_stage.h"
 
 namespace refract::scene {
+namespace {
+
+// A frame buffer the host reads directly (vk::MemoryUse::readback): a value per pixel.
+template <typename T>
+std::vector<T> read_mapped(const vk::Buffer& buffer, uint32_t width, uint32_t height) {
+    std::vector<T> out(size_t{width} * height);
+    buffer.read(out.data(), out.size() * sizeof(T));
+    return out;
+}
+
+}  // namespace
 
 ViewStage::ViewStage(PassKit& kit) : kit_(kit), upscale_recorder_(kit.context, "view upscale") {}
 
@@ -97,27 +108,15 @@ int64_t ViewStage::upscale_bytes() const {
 }
 
 std::vector<glm::vec4> ViewStage::read_viewer_hdr() const {
-    std::vector<glm::vec4> out(size_t{viewer_width_} * viewer_height_);
-    viewer_hdr_.read(out.data(), out.size() * sizeof(glm::vec4));
-    return out;
+    return read_mapped<glm::vec4>(viewer_hdr_, viewer_width_, viewer_height_);
 }
 
 std::vector<uint32_t> ViewStage::read_viewer_ldr() const {
-    std::vector<uint32_t> out(size_t{viewer_width_} * viewer_height_);
-    viewer_ldr_.read(out.data(), out.size() * sizeof(uint32_t));
-    return out;
+    return read_mapped<uint32_t>(viewer_ldr_, viewer_width_, viewer_height_);
 }
 
-std::vector<glm::vec4> ViewStage::read_hdr() const {
-    std::vector<glm::vec4> out(size_t{width_} * height_);
-    hdr_.read(out.data(), out.size() * sizeof(glm::vec4));
-    return out;
-}
+std::vector<glm::vec4> ViewStage::read_hdr() const { return read_mapped<glm::vec4>(hdr_, width_, height_); }
 
-std::vector<uint32_t> ViewStage::read_ldr() const {
-    std::vector<uint32_t> out(size_t{width_} * height_);
-    ldr_.read(out.data(), out.size() * sizeof(uint32_t));
-    return out;
-}
+std::vector<uint32_t> ViewStage::read_ldr() const { return read_mapped<uint32_t>(ldr_, width_, height_); }
 
 }  // namespace refract::scene

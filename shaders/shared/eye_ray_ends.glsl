@@ -84,3 +84,14 @@ vec3 sky(vec3 d) {
     if (params.environment.w == 1u) return environment_radiance(d);
     return mix(params.sky_horizon.rgb, params.sky_zenith.rgb, clamp(d.y, 0.0, 1.0));
 }
+
+// Where point `at` of a width x height image (pixels; a pixel's centre is its index + 0.5) lies on the
+// camera's image plane at distance 1, and the eye ray through it: the viewing pass's rays and the
+// upscale's are the same rays.
+vec2 image_plane_point(vec2 at, uint width, uint height) {
+    float aspect = float(width) / float(height);
+    return vec2((2.0 * at.x / float(width) - 1.0) * aspect, 1.0 - 2.0 * at.y / float(height)) * params.camera_position.w;
+}
+vec3 eye_direction(vec2 ndc) {
+    return normalize(params.camera_forward.xyz + ndc.x * params.camera_right.xyz + ndc.y * params.camera_up.xyz);
+}

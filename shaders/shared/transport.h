@@ -91,8 +91,8 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES 31
 #define TRANSPORT_BINDING_SPREAD_FLOOR_SHARES 32
 // Where an interactive frame's eye rays end (ViewPush::ends, view_upscale.comp): two vec4 per pixel, the
-// light gathered before the end (rgb; w 1 where the ray went straight) and the transmittance the end's
-// light comes through (rgb; 0 where the ray bent, reflected or was cut off: the pixel is all gathered).
+// light gathered before the end (rgb) and the transmittance the end's light comes through (rgb; 0 where
+// the ray bent, reflected or was cut off: the pixel is all gathered).
 #define TRANSPORT_BINDING_VIEW_ENDS 33
 // The viewer's size (view_upscale.comp): vec4 linear radiance and uint sRGB per pixel.
 #define TRANSPORT_BINDING_VIEWER_HDR 34
