@@ -1604,10 +1604,22 @@ TEST(DaemonHostile, FortySessionsPlayingAtSixtyFramesASecondAllGetFrames) {
     // the default 100 ms budget): more sessions than the render queue's 16 places wait at any time.
     create_scene(client, "shared", {{"image", {{"width", 512}, {"height", 512}}}, {"volume", {{"resolution", 32}}}});
     get_frame(client, "shared", "?quality=interactive");
-    auto timed = std::chrono::steady_clock::now();
-    auto res = client.Post("/api/scenes/shared/frame.png?quality=interactive", light_edit(9.0).dump(), kMergePatch);
-    ASSERT_TRUE(res && res->status == 200);
-    const double frame_s = seconds_since(timed);
+    // What one played frame costs, measured as the sessions below get theirs (the viewer's size, its PNG,
+    // the socket): the mean interval between frames of one session whose light changes every frame.
+    double frame_s = 0.0;
+    {
+        json play = idle_play(2, 20.0, 60);
+        play["keyframes"][0]["patch"] = light_edit(9.0);
+        play["keyframes"][1]["patch"] = light_edit(90.0);
+        WsClient ws(daemon.ws_port(), "/api/scenes/shared/ws", 25);
+        ws.send(play);
+        ws.read_frame();
+        const auto timed = std::chrono::steady_clock::now();
+        constexpr int kTimedFrames = 4;
+        for (int i = 0; i < kTimedFrames; ++i) ws.read_frame();
+        frame_s = seconds_since(timed) / kTimedFrames;
+        ws.send({{"type", "stop"}});
+    }
     // Taking turns, every session has a frame within a round of 40 frames; twice that, and 2 s, allowed.
     const double round_bound_s = 2.0 * 40.0 * frame_s + 2.0;
     std::vector<std::thread> sessions;
@@ -1638,8 +1650,12 @@ TEST(DaemonHostile, FortySessionsPlayingAtSixtyFramesASecondAllGetFrames) {
     }
     for (auto& session : sessions) session.join();
     ASSERT_EQ(served.load(), 40) << "every session gets played frames within 20 s";
-    EXPECT_LT(all_served_s.load(), round_bound_s) << "a frame takes " << frame_s << " s";
+    // Against the sanitized daemon no time is asserted (scripts/test.sh): its frames' cost varies too much.
+    if (!daemon_sanitized()) {
+        EXPECT_LT(all_served_s.load(), round_bound_s) << "a played frame takes " << frame_s << " s";
+    }
     RecordProperty("all_served_ms", static_cast<int>(all_served_s.load() * 1000));
+    RecordProperty("played_frame_ms", static_cast<int>(frame_s * 1000));
     expect_alive(daemon);
 }
 
