@@ -19,6 +19,8 @@ layout(std430, binding = TRANSPORT_BINDING_DIRECT_EDGES) buffer Edges {
     uint edge_voxels[];
 };
 layout(std430, binding = TRANSPORT_BINDING_DIRECT_REACH) buffer Reach { uint reach[]; };
+layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) buffer AccumFloor { uint accum_floor[]; };
+layout(std430, binding = TRANSPORT_BINDING_FLOOR_SHADOW) buffer FloorShadow { vec4 floor_shadow_taken[]; };
 
 const float kStraightOn = 1e30;  // a ray that leaves the grid without bending
 
@@ -240,6 +242,81 @@ void deposit_run(uint i) {
     }
 }
 
+// The floor's point at floor-map coordinates m (texel centres at whole m, as deposit_floor splats).
+vec3 floor_point(vec2 m) {
+    vec2 xz = params.floor_map.xy + (m + 0.5) * (params.floor_map.z / params.floor_map.w);
+    return vec3(xz.x, params.floor_plane.x, xz.y);
+}
+
+// Whether a light photon whose straight path lands at floor point x takes its flux away there (inside
+// the emitter, downward, entering the grid above the floor: photon_trace.comp) and its light-map texel's
+// traced ray meets a gradient of n or the object a voxel or more before x.
+bool in_floor_shadow(vec3 x) {
+    vec2 s;
+    float along;
+    vec3 d;
+    if (!emission_sample(x, s, along, d) || d.y >= 0.0) return false;
+    vec3 p = to_voxel(x) - d * along;  // where its ray starts: the light, or the emitter's plane
+    vec2 span = grid_interval(p, d);
+    if (span.x >= span.y || (p + d * (span.x + 1e-3)).y <= floor_height_voxels()) return false;
+    return traced[light_map_texel(s)] < along - 1.0;
+}
+
+// Light photons' emission samples per unit area of floor-map coordinates at floor point x: |ds/dm|.
+float samples_per_texel(vec3 x) {
+    float texel = params.floor_map.z / params.floor_map.w;
+    if (params.models.z == LIGHT_DIRECTIONAL) {
+        vec3 u = params.emit_u.xyz, v = params.emit_v.xyz;
+        return abs(u.x * v.z - u.z * v.x) / (dot(u, u) * dot(v, v)) * texel * texel;
+    }
+    // Uniform in solid angle over the cone: ds = dw / (2 pi (1 - cos)), dw = |cos| dA / r^2.
+    vec3 rel = x - params.emit_origin.xyz;
+    float r2 = dot(rel, rel);
+    return abs(rel.y) / (r2 * sqrt(r2) * kTwoPi * (1.0 - params.emit_axis.w)) * texel * texel;
+}
+
+// Floor-map texel i (DIRECT_MODE_FLOOR_CORNERS): whether its centre, a corner of four cells, is in the
+// floor's shadow, kept in floor_shadow_taken[i].w for the next step.
+void floor_corner(uint i) {
+    uint side = uint(params.floor_map.w);
+    if (i >= side * side || params.direct_light.z < 0.5) return;
+    floor_shadow_taken[i].w = in_floor_shadow(floor_point(vec2(i % side, i / side))) ? 1.0 : 0.0;
+}
+
+// Floor-map texel i (DIRECT_MODE_FLOOR_SHADOW): the flag of the cell whose low corner it is (a cell with a
+// corner off the map has none), and what the light's photons landing straight in the four flagged cells
+// around it would take away from its irradiance on average, added to the other lights'.
+void floor_shadow(uint i) {
+    uint side = uint(params.floor_map.w);
+    if (i >= side * side || params.direct_light.z < 0.5) return;  // the clear's zeros: no cell flagged, nothing taken
+    ivec2 t = ivec2(i % side, i / side);
+    bool corner[9];
+    for (int k = 0; k < 9; ++k) {
+        ivec2 c = t + ivec2(k % 3 - 1, k / 3 - 1);
+        bool on_map = all(greaterThanEqual(c, ivec2(0))) && all(lessThan(c, ivec2(side)));
+        corner[k] = on_map && floor_shadow_taken[c.y * int(side) + c.x].w > 0.5;
+    }
+    bool own = corner[4] && corner[5] && corner[7] && corner[8];
+    accum_floor[FLOOR_WORDS * i + FLOOR_SHADOW_WORD] = own ? 1u : 0u;
+    if (!corner[4]) return;  // a corner of every cell around it: none of them flagged
+    const float g = 0.5 / sqrt(3.0);  // two-point Gauss abscissae at 0.5 -+ g, each weighing a half
+    float removed = 0.0;  // in emission samples times bilinear weight
+    for (int b = 0; b < 2; ++b)
+        for (int a = 0; a < 2; ++a) {
+            if (!(corner[b * 3 + a] && corner[b * 3 + a + 1] && corner[b * 3 + a + 3] && corner[b * 3 + a + 4])) continue;
+            for (int k = 0; k < 4; ++k) {
+                vec2 f = vec2(0.5) + g * vec2((k & 1) == 1 ? 1.0 : -1.0, (k & 2) == 2 ? 1.0 : -1.0);
+                // t is the cell's corner (1 - a, 1 - b): its bilinear weight at f.
+                float weight = (a == 0 ? f.x : 1.0 - f.x) * (b == 0 ? f.y : 1.0 - f.y);
+                removed += 0.25 * weight * samples_per_texel(floor_point(vec2(t + ivec2(a - 1, b - 1)) + f));
+            }
+        }
+    // Each sample carries photon_flux.rgb; over the texel's area that is irradiance.
+    uint light_photons = params.photon_info.x - params.environment.z - params.volume_emission.x;
+    float texel = params.floor_map.z / params.floor_map.w;
+    floor_shadow_taken[i].rgb += removed * float(light_photons) * params.photon_flux.rgb / (texel * texel);
+}
+
 void main() {
     load_params();
     reach_radiance_sums(params.radiance_sums);
@@ -251,6 +328,10 @@ void main() {
         if (i < side * side) light_map[i] = light_map_value(uvec2(i % side, i / side));
     } else if (kMode == DIRECT_MODE_REACH) {
         mark_reach(i);
+    } else if (kMode == DIRECT_MODE_FLOOR_CORNERS) {
+        floor_corner(i);
+    } else if (kMode == DIRECT_MODE_FLOOR_SHADOW) {
+        floor_shadow(i);
     } else if (kMode == DIRECT_MODE_DEPOSIT || kMode == DIRECT_MODE_DEPOSIT_FULL) {
         deposit_run(i);
     } else {

@@ -195,6 +195,15 @@ void deposit_floor(vec3 x, vec3 weight, int sign) {
     if (sign > 0) atomicAdd(stats.floor_hits, 1u);
 }
 
+// Whether the floor-map cell where world point x splats is flagged as the floor's shadow.
+bool in_floor_shadow(vec3 x) {
+    float texels = params.floor_map.w;
+    ivec2 cell = ivec2(floor((x.xz - params.floor_map.xy) / params.floor_map.z * texels - 0.5));
+    int side = int(texels);
+    if (any(lessThan(cell, ivec2(0))) || any(greaterThanEqual(cell, ivec2(side)))) return false;
+    return accum_floor[FLOOR_WORDS * uint(cell.y * side + cell.x) + FLOOR_SHADOW_WORD] != 0u;
+}
+
 // Under dispersive transport (transport.h) a photon sample is one white path until its first step that
 // depends on the channel (channel_free), and from the start of that step one path per channel, each
 // carrying only its channel. What the white path deposited lay on its steps' straight starts, the same
@@ -249,9 +258,12 @@ void main() {
     if (floor_on && p.y <= floor_y) return;  // entered the grid below the floor
     atomicAdd(stats.photons_entered, 1u);
     // Light and environment photons take away from the floor what reaches it in closed form; nothing
-    // counts a volume's light there but its photons.
-    if (floor_on && direction.y < 0.0 && !from_volume)
-        deposit_floor(origin + direction * ((origin.y - params.floor_plane.x) / -direction.y), weight, -1);
+    // counts a volume's light there but its photons. In the floor's shadow the direct-light pass has
+    // taken away what the light's photons would on average (DIRECT_MODE_FLOOR_SHADOW).
+    if (floor_on && direction.y < 0.0 && !from_volume) {
+        vec3 landing = origin + direction * ((origin.y - params.floor_plane.x) / -direction.y);
+        if (from_environment || !in_floor_shadow(landing)) deposit_floor(landing, weight, -1);
+    }
 
     Ray ray = start_ray(p, direction);
     vec3 entry = to_world(p);

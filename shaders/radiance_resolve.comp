@@ -25,6 +25,10 @@ vec4 batch_mean(vec4 before, vec4 batch) {
 }
 
 layout(constant_id = RESOLVE_CONSTANT_FLOOR) const bool kFloorMap = false;
+layout(std430, binding = TRANSPORT_BINDING_FLOOR_SHADOW) readonly buffer FloorShadow { vec4 floor_shadow_taken[]; };
+// 1: the last light's resolve of a frame whose floor map is not spread after (transport.h,
+// DIRECT_MODE_FLOOR_SHADOW): the floor shadow's closed form, every light's, joins this batch.
+layout(push_constant) uniform Push { uint add_floor_shadow; };
 
 void resolve_voxel(uint i) {
     uvec3 dims = params.radiance_grid.xyz;
@@ -71,6 +75,7 @@ void resolve_floor_texel(uint texel) {
     uint at = FLOOR_WORDS * texel;
     vec3 irradiance = vec3(float(int(accum_floor[at])), float(int(accum_floor[at + 1u])),
                            float(int(accum_floor[at + 2u]))) * to_irradiance;
+    if (add_floor_shadow != 0u) irradiance -= floor_shadow_taken[texel].rgb;
     ivec3 t = ivec3(texel % side, texel / side, 0);
     // w: the sum of the photons' squared shares, for the adaptive density estimate (radiance_spread.comp),
     // kept within half-float range.

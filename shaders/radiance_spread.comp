@@ -10,7 +10,8 @@
 // reach once, then, as every spreading box is the same 3^3 (SPREAD_VOXEL_RADIUS 1) clipped to the grid,
 // the shares' sum over each voxel's neighbourhood as three box sums of 3 along x, y and z (9 reads a
 // voxel instead of 27, in three dispatches). The floor map's texels (the photons' hits:
-// what the grid changes of the floor's light) spread alike, in squares whose radius varies, in one gather.
+// what the grid changes of the floor's light) spread alike, in squares whose radius varies, in one gather,
+// and the floor shadow's closed form (transport.h, DIRECT_MODE_FLOOR_SHADOW) is added after.
 #include "transport.h"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
@@ -25,6 +26,7 @@ layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D
 layout(binding = TRANSPORT_BINDING_SPREAD_FLUX_SHARES, rgba32f) uniform image3D flux_shares;
 layout(binding = TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, rgba32f) uniform image3D radiance_shares;
 layout(binding = TRANSPORT_BINDING_SPREAD_FLOOR_SHARES, rgba32f) uniform image3D floor_shares;
+layout(std430, binding = TRANSPORT_BINDING_FLOOR_SHADOW) readonly buffer FloorShadow { vec4 floor_shadow_taken[]; };
 layout(constant_id = SPREAD_CONSTANT_FLOOR) const bool kFloorMap = false;
 layout(constant_id = SPREAD_CONSTANT_STEP) const uint kStep = SPREAD_STEP_SHARES;
 
@@ -79,6 +81,8 @@ void gather_floor_texel(uint i) {
             ivec2 apart = abs(t - ivec2(x, y));
             if (float(max(apart.x, apart.y)) <= share.w) change += share.rgb;
         }
+    // The floor shadow's closed form carries no noise: added after the spread, where it was computed.
+    change -= floor_shadow_taken[i].rgb;
     imageStore(floor_map, ivec3(t, 0), vec4(change, 0.0));
 }
 

@@ -15,18 +15,23 @@ constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_LIGHT_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_DIRECT_EDGES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_DIRECT_REACH, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_FLOOR_SHADOW, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 constexpr auto kLayout = transport_layout(kOwnLayout);
 static_assert(DIRECT_CONSTANT_MODE == TRANSPORT_CONSTANT_COUNT);
 constexpr uint32_t kTrace[] = {DIRECT_MODE_TRACE}, kMargin[] = {DIRECT_MODE_MARGIN}, kReach[] = {DIRECT_MODE_REACH},
                    kDeposit[] = {DIRECT_MODE_DEPOSIT}, kDepositFull[] = {DIRECT_MODE_DEPOSIT_FULL},
-                   kEdge[] = {DIRECT_MODE_EDGE};
+                   kEdge[] = {DIRECT_MODE_EDGE}, kFloorCorners[] = {DIRECT_MODE_FLOOR_CORNERS},
+                   kFloorShadow[] = {DIRECT_MODE_FLOOR_SHADOW};
 
 std::array<vk::Binding, kLayout.size()> bindings(const TransportInputs& in, const PhotonAccumulators& accum) {
     const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP_TRACED, accum.light_map_traced),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP, accum.light_map),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_DIRECT_EDGES, accum.direct_edges),
-                               vk::Binding::storage_buffer(TRANSPORT_BINDING_DIRECT_REACH, accum.direct_reach)};
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_DIRECT_REACH, accum.direct_reach),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_SHADOW, accum.floor_shadow)};
     return transport_bindings(in, own);
 }
 
@@ -52,7 +57,9 @@ DirectLightPass::DirectLightPass(vk::Context& context)
       reach_(context, direct_light_spv, kLayout, 0, "direct light (reach)", kReach),
       deposit_(context, direct_light_spv, kLayout, 0, "direct light", kDeposit),
       deposit_full_(context, direct_light_spv, kLayout, 0, "direct light (edge list full)", kDepositFull),
-      edge_(context, direct_light_spv, kLayout, 0, "direct light (edge voxels)", kEdge) {}
+      edge_(context, direct_light_spv, kLayout, 0, "direct light (edge voxels)", kEdge),
+      floor_corners_(context, direct_light_spv, kLayout, 0, "floor shadow (corners)", kFloorCorners),
+      floor_shadow_(context, direct_light_spv, kLayout, 0, "floor shadow", kFloorShadow) {}
 
 void DirectLightPass::record(vk::CommandRecorder& recorder, const TransportInputs& inputs,
                              const PhotonAccumulators& accum, uint32_t light_map_side, vk::Extent3 radiance_dims) const {
@@ -63,6 +70,7 @@ void DirectLightPass::record(vk::CommandRecorder& recorder, const TransportInput
     dispatch(trace_, recorder, inputs, accum, texels);
     recorder.compute_barrier();
     dispatch(margin_, recorder, inputs, accum, texels);
+    record_floor_shadow_after_trace(recorder, inputs, accum);
     recorder.compute_barrier();
     dispatch(reach_, recorder, inputs, accum, direct_reach_words(radiance_dims));
     recorder.compute_barrier();
@@ -72,6 +80,21 @@ void DirectLightPass::record(vk::CommandRecorder& recorder, const TransportInput
     recorder.compute_barrier();
     edge_(direct_variant(inputs.variant)).dispatch_indirect(recorder.get(), bindings(inputs, accum), nullptr, 0, accum.direct_edges,
                                            offsetof(shaders::WorkListHeader, groups_x));
+}
+
+void DirectLightPass::record_floor_shadow(vk::CommandRecorder& recorder, const TransportInputs& inputs,
+                                          const PhotonAccumulators& accum, uint32_t light_map_side) const {
+    dispatch(trace_, recorder, inputs, accum, uint64_t{light_map_side} * light_map_side);
+    recorder.compute_barrier();
+    record_floor_shadow_after_trace(recorder, inputs, accum);
+}
+
+void DirectLightPass::record_floor_shadow_after_trace(vk::CommandRecorder& recorder, const TransportInputs& inputs,
+                                                      const PhotonAccumulators& accum) const {
+    const uint64_t texels = accum.floor.size() / (FLOOR_WORDS * sizeof(uint32_t));
+    dispatch(floor_corners_, recorder, inputs, accum, texels);
+    recorder.compute_barrier();
+    dispatch(floor_shadow_, recorder, inputs, accum, texels);
 }
 
 }  // namespace refract::passes

@@ -29,6 +29,8 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
                             vk::MemoryUse::device, "radiance sums blue (grey: mean)+net flux");
     accum.floor = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * FLOOR_WORDS * sizeof(uint32_t), usage,
                              vk::MemoryUse::device, "floor flux sum");
+    accum.floor_shadow = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * 4 * sizeof(float), usage,
+                                    vk::MemoryUse::device, "floor shadow (closed form)");
     accum.stats = vk::Buffer(context, sizeof(shaders::PhotonStats), usage, vk::MemoryUse::readback, "photon stats");
     const uint64_t lit_cells = passes::lit_pyramid_offsets(dims)[LIT_LEVELS];
     // Every cell is written by the lit-pyramid pass (no clear); read back by the tests.
@@ -87,6 +89,7 @@ void clear_sums(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, 
 void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey) {
     recorder.fill(accum.stats, 0);
     recorder.fill(accum.exits, 0);
+    recorder.fill(accum.floor_shadow, 0);
     clear_sums(recorder, accum, grey);
     recorder.transfer_to_compute_barrier();
 }

@@ -12,7 +12,8 @@ namespace refract::passes {
 struct PhotonAccumulators {
     vk::Buffer red_green;             // packed 64-bit sums per voxel (shaders/shared/transport.h); one word when grey
     vk::Buffer flux;                  // RADIANCE_FLUX_WORDS packed 64-bit sums per voxel: blue (grey: mean) + net flux
-    vk::Buffer floor;                 // 3 uints per floor texel
+    vk::Buffer floor;                 // FLOOR_WORDS uints per floor texel: this light's
+    vk::Buffer floor_shadow;          // vec4 per floor texel: the floor shadow's closed form, the frame's lights
     vk::Buffer stats;                 // PhotonStats (host-readable)
     vk::Buffer exits;                 // PhotonExit per photon path when recorded (tests), else one entry
     vk::Buffer lit_blocks;            // the lit pyramid (transport.h), written by LitPyramidPass
@@ -33,8 +34,8 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
 
 // Zeroes the sums, counters and exits before a frame's direct light and photons add to them.
 void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey);
-// Clears the radiance and floor sums and the photon queue for the next light's photons; the statistics
-// and photon exits go on.
+// Clears the radiance and floor sums and the photon queue for the next light's photons; the statistics,
+// photon exits and the floor shadow's closed form go on.
 void clear_for_next_light(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey);
 
 class PhotonTracePass {

@@ -14,6 +14,7 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_FLOOR_SHADOW, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 }  // namespace
 
@@ -27,24 +28,26 @@ RadianceResolvePass::RadianceResolvePass(vk::Context& context) {
     for (uint32_t i = 0; i < 4; ++i) {
         // The coverage fetch, Fresnel, films, materials, field atlas, medium field and fade are never used here.
         const std::array<uint32_t, 9> constants{i & 1u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, i >> 1};
-        pipelines_.emplace_back(context, radiance_resolve_spv, kLayout, 0, names[i], constants);
+        pipelines_.emplace_back(context, radiance_resolve_spv, kLayout, sizeof(uint32_t), names[i], constants);
     }
 }
 
 void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer& params,
                                  const PhotonAccumulators& accum, bool grey, const vk::Image3D& radiance,
-                                 const vk::Image3D& flux, const vk::Image3D& floor_map) const {
+                                 const vk::Image3D& flux, const vk::Image3D& floor_map, bool add_floor_shadow) const {
     const vk::Binding bindings[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
                                     vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map)};
+                                    vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map),
+                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_SHADOW, accum.floor_shadow)};
+    const uint32_t push = add_floor_shadow ? 1u : 0u;
     const uint32_t variant = grey ? 1u : 0u;
     const auto voxel_groups = vk::linear_groups(flux.extent().count(), TRANSPORT_GROUP_SIZE);
-    pipelines_[variant].dispatch(recorder.get(), bindings, nullptr, 0, voxel_groups.x, voxel_groups.y);
+    pipelines_[variant].dispatch(recorder.get(), bindings, &push, sizeof(push), voxel_groups.x, voxel_groups.y);
     const auto texel_groups =
         vk::linear_groups(uint64_t{floor_map.extent().x} * floor_map.extent().y, TRANSPORT_GROUP_SIZE);
-    pipelines_[variant + 2].dispatch(recorder.get(), bindings, nullptr, 0, texel_groups.x, texel_groups.y);
+    pipelines_[variant + 2].dispatch(recorder.get(), bindings, &push, sizeof(push), texel_groups.x, texel_groups.y);
 }
 
 }  // namespace refract::passes

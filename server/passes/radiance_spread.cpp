@@ -20,6 +20,7 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_SPREAD_FLUX_SHARES, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_SPREAD_FLOOR_SHARES, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_FLOOR_SHADOW, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 }  // namespace
 
@@ -47,7 +48,8 @@ RadianceSpreadPass::RadianceSpreadPass(vk::Context& context) {
 }
 
 void RadianceSpreadPass::record(vk::CommandRecorder& recorder, const vk::Buffer& params, bool grey,
-                                const SpreadImages& raw, const SpreadImages& shares, const SpreadImages& out) const {
+                                const SpreadImages& raw, const SpreadImages& shares, const SpreadImages& out,
+                                const vk::Buffer& floor_shadow) const {
     const vk::Binding bindings[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_RAW_RADIANCE, raw.radiance),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_RAW_FLUX, raw.flux),
@@ -57,7 +59,8 @@ void RadianceSpreadPass::record(vk::CommandRecorder& recorder, const vk::Buffer&
                                     vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, out.floor_map),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_FLUX_SHARES, shares.flux),
                                     vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, shares.radiance),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_FLOOR_SHARES, shares.floor_map)};
+                                    vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_FLOOR_SHARES, shares.floor_map),
+                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_SHADOW, floor_shadow)};
     const uint32_t variant = grey ? 1u : 0u;
     const auto voxel_groups = vk::linear_groups(out.flux.extent().count(), TRANSPORT_GROUP_SIZE);
     const auto texel_groups = vk::linear_groups(out.floor_map.extent().count(), TRANSPORT_GROUP_SIZE);

@@ -23,9 +23,10 @@ class RadianceSpreadPass {
 public:
     explicit RadianceSpreadPass(vk::Context& context);
     // Reads `raw` (as the resolve left it) and writes `out`, of the same sizes; `shares` (rgba32f, the
-    // same sizes) holds what each source gives the voxels or texels it reaches, between the two steps.
+    // same sizes) holds what each source gives the voxels or texels it reaches, between the two steps;
+    // `floor_shadow` (PhotonAccumulators::floor_shadow) is added to the spread floor map.
     void record(vk::CommandRecorder& recorder, const vk::Buffer& params, bool grey, const SpreadImages& raw,
-                const SpreadImages& shares, const SpreadImages& out) const;
+                const SpreadImages& shares, const SpreadImages& out, const vk::Buffer& floor_shadow) const;
 
 private:
     // By job (voxels, floor texels), step (shares, gather) and channels (coloured, grey).

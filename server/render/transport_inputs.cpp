@@ -420,7 +420,11 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
         const float near = light.type.x == LIGHT_DIRECTIONAL
                                ? 0.0f
                                : (UNBENT_MIN_DISTANCE + 1.0f) * static_cast<float>(options.radiance_factor);
-        q.direct_light = glm::vec4(static_cast<float>(passes::light_map_texels(grid, std::max(photons, 1u))), near, 0.0f,
+        // The floor's shadow in closed form needs only the light map's traced runs: on wherever the light's
+        // photons reach a floor, fog or none.
+        const bool floor_shadow = options.direct_light && document.floor.enabled && photons > 0;
+        q.direct_light = glm::vec4(static_cast<float>(passes::light_map_texels(grid, std::max(photons, 1u))), near,
+                                   floor_shadow ? 1.0f : 0.0f,
                                    options.direct_light && scatters && photons > 0 && document.volumes.empty() ? 1.0f : 0.0f);
         per_light.push_back(q);
     }

@@ -257,6 +257,10 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
                                      lattice.coarsened(radiance_factor));
             recorder.compute_barrier();
             if (gap && gap()) return false;
+        } else if (light.direct_light.z > 0.5f) {
+            kit_.direct_light.record_floor_shadow(recorder, light_inputs, *accum_,
+                                                  static_cast<uint32_t>(light.direct_light.x));
+            recorder.compute_barrier();
         }
         if (!kit_.photon_trace.record(recorder, light_inputs, *accum_, light.photon_info.x, options.sampled_deposits,
                                       bounces_ > 0, recording.between_parts(kPhotons),
@@ -265,14 +269,16 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
         recorder.compute_barrier();
         const bool spread = raw_flux_.get() != VK_NULL_HANDLE;
         kit_.radiance_resolve.record(recorder, params_buffers_[i], *accum_, grey(), spread ? raw_radiance_ : radiance_,
-                                     spread ? raw_flux_ : flux_, spread ? raw_floor_map_ : floor_map_);
+                                     spread ? raw_flux_ : flux_, spread ? raw_floor_map_ : floor_map_,
+                                     !spread && i + 1 == light_params_.size());
         resolved = true;
         recorder.compute_barrier();
         if (gap && gap()) return false;
     }
     if (raw_flux_.get()) {
         kit_.radiance_spread.record(recorder, params_buffer(), grey(), {raw_radiance_, raw_flux_, raw_floor_map_},
-                                   {radiance_shares_, flux_shares_, floor_shares_}, {radiance_, flux_, floor_map_});
+                                   {radiance_shares_, flux_shares_, floor_shares_}, {radiance_, flux_, floor_map_},
+                                   accum_->floor_shadow);
         recorder.compute_barrier();
     }
     kit_.lit_pyramid.record(recorder, params_buffer(), flux_, accum_->lit_blocks, lattice.coarsened(lattice.light_factor));

@@ -39,8 +39,12 @@ REFRACT_SHADERS_BEGIN
 // stay within 12 degrees of the direction to its centre, and their mean is that direction to second order.
 #define UNBENT_MIN_DISTANCE 4.0f
 #define TRANSPORT_BINDING_ACCUM_FLOOR 10    // FLOOR_WORDS per texel: fixed-point signed floor flux change
-                                            // (rgb), then the sum of its squared shares (FLOOR_SQUARE_SCALE)
-#define FLOOR_WORDS 4u
+                                            // (rgb), the sum of its squared shares (FLOOR_SQUARE_SCALE),
+                                            // then whether the floor's shadow takes the light's flux
+                                            // away in closed form in the cell whose low corner the
+                                            // texel is (FLOOR_SHADOW_WORD, DIRECT_MODE_FLOOR_SHADOW)
+#define FLOOR_WORDS 5u
+#define FLOOR_SHADOW_WORD 4u
 // Fixed-point units of the floor map's sum of squared shares: each share (a photon's channel mean, relative
 // to the reference flux, times its bilinear weight) squared, in 1/1024ths. 2^21 photon events on one
 // texel stay within 2^31.
@@ -78,6 +82,21 @@ REFRACT_SHADERS_BEGIN
 #define DIRECT_MODE_EDGE 4u      // one invocation per listed voxel: the same on a finer rule
 #define DIRECT_MODE_DEPOSIT_FULL 5u  // DIRECT_MODE_DEPOSIT where the list may fill up (more radiance voxels
                                      // than one indirect dispatch takes): the voxels past it at once
+// The floor's shadow in closed form. Each light photon that enters the grid takes its flux away from
+// where its straight path would land on the floor (photon_trace.comp, deposit_floor), so the shadow of
+// a glass ball was a sum of a few hundred random removals: speckle wherever few photons are traced. A
+// floor-map cell (the square between four texel centres, where a landing splats bilinearly) is in the
+// shadow when the straight rays to its four corners all meet a gradient of n before the floor (the
+// light map's traced runs) and all would take flux away (inside the emitter, entering the grid above
+// the floor). There the photons take nothing away, and this pass takes away what they would have on
+// average: the emitter's photon density over the cell times their flux and bilinear weights, integrated
+// by two-point Gauss rules (exact for the weights times a density that varies smoothly across the cell).
+// Which cells take part only decides where the estimate is random; its expectation is the same. What
+// it takes away is kept apart from the photons' sums (TRANSPORT_BINDING_FLOOR_SHADOW, every light's
+// added), so that the adaptive density estimate spreads only what is random: the resolve adds it to a
+// still frame's floor map after the last light, the spread to an interactive frame's after spreading.
+#define DIRECT_MODE_FLOOR_CORNERS 6u  // one invocation per floor-map texel: is its centre in the shadow
+#define DIRECT_MODE_FLOOR_SHADOW 7u   // one per texel: the flag of its cell, and what it takes away
 #define TRANSPORT_BINDING_DIRECT_EDGES 22  // WorkListHeader + radiance voxels (DIRECT_MODE_EDGE)
 #define TRANSPORT_BINDING_DIRECT_REACH 23  // bits per radiance-voxel corner, rows of 32 along x (DIRECT_MODE_REACH)
 // The adaptive density estimate of interactive frames (radiance_spread.comp): the radiance grid as the
@@ -97,6 +116,10 @@ REFRACT_SHADERS_BEGIN
 // The viewer's size (view_upscale.comp): vec4 linear radiance and uint sRGB per pixel.
 #define TRANSPORT_BINDING_VIEWER_HDR 34
 #define TRANSPORT_BINDING_VIEWER_LDR 35
+// vec4 per floor-map texel: rgb, what the floor's shadow takes away from its irradiance in closed form
+// (W/m^2, the frame's lights together; DIRECT_MODE_FLOOR_SHADOW); w, whether its centre is in the shadow
+// (DIRECT_MODE_FLOOR_CORNERS, the light's).
+#define TRANSPORT_BINDING_FLOOR_SHADOW 36
 // The medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): the scene's volumes resampled on a coarse copy of the
 // lattice (render/medium_field.h), trilinearly filtered; a texel of zeros where a scene has none.
 #define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27  // sampler3D rgba32f, bricks (below): rgb extinction per metre
@@ -312,7 +335,8 @@ struct TransportParams {
                               // resolve, 1/3 as many for a photon to cross)
     uvec4 lit_offsets;        // where each level of the lit pyramid starts in the lit-blocks buffer
     vec4 direct_light;        // x: light-map texels per side; y: near, where direct light may begin (voxels
-                              // from a point or spot light); z: unused; w: 1 = direct light in closed form
+                              // from a point or spot light); z: 1 = the floor's shadow in closed form
+                              // (DIRECT_MODE_FLOOR_SHADOW); w: 1 = direct light in closed form
     vec4 dispersion;          // rgb: each channel's index contrast against the medium over the field's,
                               // n_c - n_medium = dispersion[c] (n - n_medium) (1 without dispersion); w: unused
     uvec4 radiance_sums;      // device addresses (low, high 32 bits) of the radiance sums: xy red | green,
