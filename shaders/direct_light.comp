@@ -252,14 +252,16 @@ vec3 floor_point(vec2 m) {
 // the emitter, downward, entering the grid above the floor: photon_trace.comp) and its light-map texel's
 // traced ray meets a gradient of n or the object a voxel or more before x.
 bool in_floor_shadow(vec3 x) {
-    vec2 s;
     float along;
-    vec3 d;
-    if (!emission_sample(x, s, along, d) || d.y >= 0.0) return false;
+    vec3 d = ray_through(x, along);
+    if (d.y >= 0.0) return false;
+    // The grid first: most of the floor map lies outside its shadow, and the test is cheaper than the
+    // emission sample's.
     vec3 p = to_voxel(x) - d * along;  // where its ray starts: the light, or the emitter's plane
     vec2 span = grid_interval(p, d);
     if (span.x >= span.y || (p + d * (span.x + 1e-3)).y <= floor_height_voxels()) return false;
-    return traced[light_map_texel(s)] < along - 1.0;
+    vec2 s;
+    return emission_sample(x, s, along, d) && traced[light_map_texel(s)] < along - 1.0;
 }
 
 // Light photons' emission samples per unit area of floor-map coordinates at floor point x: |ds/dm|.
