@@ -242,12 +242,6 @@ void deposit_run(uint i) {
     }
 }
 
-// The floor's point at floor-map coordinates m (texel centres at whole m, as deposit_floor splats).
-vec3 floor_point(vec2 m) {
-    vec2 xz = params.floor_map.xy + (m + 0.5) * (params.floor_map.z / params.floor_map.w);
-    return vec3(xz.x, params.floor_plane.x, xz.y);
-}
-
 // Whether a light photon whose straight path lands at floor point x takes its flux away there (inside
 // the emitter, downward, entering the grid above the floor: photon_trace.comp) and its light-map texel's
 // traced ray meets a gradient of n or the object a voxel or more before x.
@@ -282,7 +276,7 @@ float samples_per_texel(vec3 x) {
 void floor_corner(uint i) {
     uint side = uint(params.floor_map.w);
     if (i >= side * side || params.direct_light.z < 0.5) return;
-    floor_shadow_taken[i].w = in_floor_shadow(floor_point(vec2(i % side, i / side))) ? 1.0 : 0.0;
+    floor_shadow_taken[i].w = in_floor_shadow(floor_map_point(vec2(i % side, i / side))) ? 1.0 : 0.0;
 }
 
 // Floor-map texel i (DIRECT_MODE_FLOOR_SHADOW): the flag of the cell whose low corner it is (a cell with a
@@ -310,7 +304,7 @@ void floor_shadow(uint i) {
                 vec2 f = vec2(0.5) + g * vec2((k & 1) == 1 ? 1.0 : -1.0, (k & 2) == 2 ? 1.0 : -1.0);
                 // t is the cell's corner (1 - a, 1 - b): its bilinear weight at f.
                 float weight = (a == 0 ? f.x : 1.0 - f.x) * (b == 0 ? f.y : 1.0 - f.y);
-                removed += 0.25 * weight * samples_per_texel(floor_point(vec2(t + ivec2(a - 1, b - 1)) + f));
+                removed += 0.25 * weight * samples_per_texel(floor_map_point(vec2(t + ivec2(a - 1, b - 1)) + f));
             }
         }
     // Each sample carries photon_flux.rgb; over the texel's area that is irradiance.

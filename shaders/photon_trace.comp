@@ -171,7 +171,7 @@ void deposit(vec3 p, vec3 d, float len, vec3 weight, vec3 kappa, bool photon_unb
 // floor has no seam at the edge of the grid's shadow and no photon noise where nothing changed.
 void deposit_floor(vec3 x, vec3 weight, int sign) {
     float texels = params.floor_map.w;
-    vec2 m = (x.xz - params.floor_map.xy) / params.floor_map.z * texels - 0.5;
+    vec2 m = floor_map_coordinates(x);
     if (any(lessThan(m, vec2(-1.0))) || any(greaterThan(m, vec2(texels)))) return;
     ivec2 base = ivec2(floor(m));
     vec2 f = m - vec2(base);
@@ -196,10 +196,9 @@ void deposit_floor(vec3 x, vec3 weight, int sign) {
 }
 
 // Whether the floor-map cell where world point x splats is flagged as the floor's shadow.
-bool in_floor_shadow(vec3 x) {
-    float texels = params.floor_map.w;
-    ivec2 cell = ivec2(floor((x.xz - params.floor_map.xy) / params.floor_map.z * texels - 0.5));
-    int side = int(texels);
+bool floor_shadow_flagged(vec3 x) {
+    ivec2 cell = ivec2(floor(floor_map_coordinates(x)));
+    int side = int(params.floor_map.w);
     if (any(lessThan(cell, ivec2(0))) || any(greaterThanEqual(cell, ivec2(side)))) return false;
     return accum_floor[FLOOR_WORDS * uint(cell.y * side + cell.x) + FLOOR_SHADOW_WORD] != 0u;
 }
@@ -262,7 +261,7 @@ void main() {
     // taken away what the light's photons would on average (DIRECT_MODE_FLOOR_SHADOW).
     if (floor_on && direction.y < 0.0 && !from_volume) {
         vec3 landing = origin + direction * ((origin.y - params.floor_plane.x) / -direction.y);
-        if (from_environment || !in_floor_shadow(landing)) deposit_floor(landing, weight, -1);
+        if (from_environment || !floor_shadow_flagged(landing)) deposit_floor(landing, weight, -1);
     }
 
     Ray ray = start_ray(p, direction);

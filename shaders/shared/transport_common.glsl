@@ -408,3 +408,10 @@ void ray_step(inout Ray ray, float ds) {
 
 float floor_height_voxels() { return (params.floor_plane.x - params.grid_origin.y) / params.grid_origin.w; }
 bool floor_enabled() { return params.floor_plane.z > 0.5; }
+// The floor map's coordinates of world point x on the floor (texel centres at whole values: a landing
+// splats bilinearly between the four around it), and the floor's point at coordinates m.
+vec2 floor_map_coordinates(vec3 x) { return (x.xz - params.floor_map.xy) / params.floor_map.z * params.floor_map.w - 0.5; }
+vec3 floor_map_point(vec2 m) {
+    vec2 xz = params.floor_map.xy + (m + 0.5) * (params.floor_map.z / params.floor_map.w);
+    return vec3(xz.x, params.floor_plane.x, xz.y);
+}
