@@ -36,13 +36,14 @@ layout(push_constant) uniform Push { VoxelizePush push; };
 
 uint voxel_index(uvec3 v) { return (v.z * push.dims.y + v.y) * push.dims.x + v.x; }
 
-const uint kRays = VOXELIZE_SUBSAMPLES * VOXELIZE_SUBSAMPLES;
+layout(constant_id = VOXELIZE_CONSTANT_SUBSAMPLES) const uint kSubsamples = VOXELIZE_SUBSAMPLES;
+const uint kRays = kSubsamples * kSubsamples;
 
 // Where ray r of a column crosses its plane, from the column's corner (voxels). The small irrational
 // offsets keep rays off edges and vertices.
 vec2 ray_offset(uint r) {
-    return vec2((float(r % VOXELIZE_SUBSAMPLES) + 0.5) / float(VOXELIZE_SUBSAMPLES) + 1.3217e-4,
-                (float(r / VOXELIZE_SUBSAMPLES) + 0.5) / float(VOXELIZE_SUBSAMPLES) + 0.7731e-4);
+    return vec2((float(r % kSubsamples) + 0.5) / float(kSubsamples) + 1.3217e-4,
+                (float(r / kSubsamples) + 0.5) / float(kSubsamples) + 0.7731e-4);
 }
 
 void cast_rays() {

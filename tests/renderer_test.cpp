@@ -341,9 +341,11 @@ TEST_F(RendererTest, AnObjectDragRebuildsItsVolumeOnACoarseLatticeUntilTheStill)
     const FrameResult dragged = renderer.render("a", moved, no_assets, {Quality::interactive});
     EXPECT_EQ(pass_names(dragged.rerun), pass_names(kAllPasses));
 
-    // The frame is the interactive one of the document at 32 voxels, at the frame's size and photons.
+    // The frame is the interactive one of the document at 32 voxels, at the frame's size and photons, its
+    // object voxelized by a preview's rays.
     RunOptions coarse = run_options_for(Quality::interactive);
     coarse.radiance_factor = 2;
+    coarse.voxelize.subsamples = passes::VoxelizePass::kPreviewSubsamples;
     const auto reference_doc = protocol::apply_merge_patch(
         moved, {{"volume", {{"resolution", 32}}},
                 {"image", {{"width", dragged.width}, {"height", dragged.height}}},
@@ -364,6 +366,21 @@ TEST_F(RendererTest, AnObjectDragRebuildsItsVolumeOnACoarseLatticeUntilTheStill)
     const auto orbit = protocol::apply_merge_patch(camera, {{"camera", {{"position", {1.5, 1, 4}}}}});
     EXPECT_EQ(pass_names(renderer.render("a", orbit, no_assets, {Quality::interactive}).rerun),
               pass_names(kView | kToneMap));
+}
+
+// The drag's volume takes a preview's rays per voxel column. Where the document's resolution is at its
+// floor the drag's lattice is the document's own, and nothing in the document tells the still that the
+// resident coverage is the preview's: it voxelizes again all the same, by a still's rays.
+TEST_F(RendererTest, TheStillAfterAnObjectDragAtTheFloorResolutionVoxelizesAgain) {
+    const SceneDocument doc = small({{"volume", {{"resolution", protocol::kMinVolumeResolution}}},
+                                     {"photons", {{"count", 4096}}}});
+    const auto moved = protocol::apply_merge_patch(doc, {{"objects", {{"object", {{"position", {0.1, 0, 0}}}}}}});
+    Renderer renderer(*context), fresh(*context);
+    renderer.render("a", doc, no_assets);
+    renderer.render("a", moved, no_assets, {Quality::interactive});
+    const FrameResult released = renderer.render("a", moved, no_assets);
+    EXPECT_EQ(pass_names(released.rerun), pass_names(kAllPasses));
+    EXPECT_EQ(released.png, fresh.render("b", moved, no_assets).png);
 }
 
 // What the budget measured of one document's photons does not hold for photons that scatter otherwise

@@ -113,7 +113,9 @@ glm::dvec3 volume_centroid(const mesh::Mesh& m) {
 // If every surface element were misplaced by that much in the same direction the volume would change by
 // A h / (2S). (For an axis-aligned box this is the bound: each face's position is quantized to the ray
 // grid by the two axes parallel to it and exact on the third; the mean of the three moves it 2/3 of that.)
-double voxel_volume_tolerance(double area, double volume, double h) { return area * h / (2.0 * kSubsamples) / volume; }
+double voxel_volume_tolerance(double area, double volume, double h, double subsamples = kSubsamples) {
+    return area * h / (2.0 * subsamples) / volume;
+}
 
 std::vector<uint32_t> reference_levels(const std::vector<float>& n, vk::Extent3 dims, float epsilon, uint32_t max_level);
 
@@ -123,10 +125,12 @@ protected:
     static Volume build(const SceneDocument& doc, const mesh::Mesh& world, bool with_octree = false) {
         return build(doc, scene::WorldMeshes{{doc.objects.begin()->first, world}}, with_octree);
     }
-    static Volume build(const SceneDocument& doc, const scene::WorldMeshes& worlds, bool with_octree = false) {
+    static Volume build(const SceneDocument& doc, const scene::WorldMeshes& worlds, bool with_octree = false,
+                        uint32_t subsamples = passes::VoxelizePass::kSubsamples) {
         scene::SceneGpu gpu(kit());
         scene::RunOptions options;
         options.limit = scene::kVoxelize | scene::kIndexField | (with_octree ? scene::kOctree : 0u);
+        options.voxelize.subsamples = subsamples;
         gpu.run(scene::kAllPasses, doc, worlds, nullptr, options);
         Volume v;
         v.grid = gpu.grid();
@@ -197,6 +201,33 @@ TEST_F(VolumeTest, BuiltInShapesVoxelizeToTheirVolumeAt128) {
             EXPECT_NEAR(mesh_volume / c.analytic, 1.0, 2.0 * tessellation);
         }
         EXPECT_NEAR(filled / c.analytic, 1.0, tolerance + tessellation) << "analytic " << c.analytic;
+    }
+}
+
+// A preview's voxelization (an object drag's, a load's: passes::VoxelizePass::kPreviewSubsamples rays a
+// column side, on the drag's lattice of half the voxels per axis) keeps the volume within what its rays
+// resolve: the same bound with S and h of that frame. Against the still's rays on the same lattice, the
+// two differ by no more than their two bounds together.
+TEST_F(VolumeTest, APreviewsFewerRaysVoxelizeToTheVolumeTheyResolve) {
+    constexpr double kPreview = passes::VoxelizePass::kPreviewSubsamples;
+    for (const std::string mesh : {"sphere", "cube", "torus", "prism"}) {
+        SCOPED_TRACE(mesh);
+        const SceneDocument doc = volume_document(mesh, 64, 0.0);
+        const mesh::Mesh world = world_mesh(doc);
+        const Volume preview = build(doc, scene::WorldMeshes{{doc.objects.begin()->first, world}}, false,
+                                     passes::VoxelizePass::kPreviewSubsamples);
+        const Volume still = build(doc, world);
+        const double mesh_volume = mesh::signed_volume(world);
+        const double area = surface_area(world);
+        const double tolerance = voxel_volume_tolerance(area, mesh_volume, preview.h(), kPreview);
+        EXPECT_NEAR(preview.filled_volume() / mesh_volume, 1.0, tolerance);
+        EXPECT_NEAR(preview.filled_volume() / still.filled_volume(), 1.0,
+                    tolerance + voxel_volume_tolerance(area, mesh_volume, still.h()));
+        // Fewer rays: not the still's coverage (the test sees the preview's pipelines).
+        EXPECT_NE(preview.coverage, still.coverage);
+        std::cout << "[ info ] " << mesh << ": preview filled/mesh - 1 = " << preview.filled_volume() / mesh_volume - 1.0
+                  << ", still's rays " << still.filled_volume() / mesh_volume - 1.0 << " (tolerance " << tolerance
+                  << ")\n";
     }
 }
 

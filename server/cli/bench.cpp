@@ -396,7 +396,7 @@ CaseRuns run_case(vk::Context& context, int64_t memory_before, scene::SceneGpu& 
     CaseRuns measured;
     scene::RunOptions run_options = scene::run_options_for(c.quality);
     // A rebuild voxelizes every object again, though their coverage is resident.
-    run_options.revoxelize = c.move.is_null() && (c.edit & scene::kVoxelize);
+    run_options.voxelize.again = c.move.is_null() && (c.edit & scene::kVoxelize);
     scene_gpu.run(scene::kAllPasses, document, worlds, nullptr, run_options, nullptr,
                   densities);  // warm-up: builds everything once
     measured.memory = context.allocated_bytes() - memory_before;

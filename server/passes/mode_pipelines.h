@@ -15,10 +15,11 @@ namespace refract::passes {
 
 class ModePipelines {
 public:
-    // One pipeline per name; the i-th does job i: constant `constant_id` is i, any before it 0. Names are
-    // string literals (kept, not copied).
+    // One pipeline per name; the i-th does job i: constant `constant_id` is i, the others (from id 0) as
+    // `constants` gives them, 0 past its end. Names are string literals (kept, not copied).
     ModePipelines(vk::Context& context, std::span<const uint32_t> spirv, std::span<const vk::BindingLayout> layout,
-                  uint32_t push_constant_bytes, std::initializer_list<const char*> names, uint32_t constant_id);
+                  uint32_t push_constant_bytes, std::initializer_list<const char*> names, uint32_t constant_id,
+                  std::span<const uint32_t> constants = {});
     const vk::ComputePipeline& operator[](uint32_t mode) const { return pipelines_.at(mode); }
 
 private:

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "smooth_spv.h"
 #include "volume_build.h"
@@ -27,12 +28,25 @@ constexpr vk::BindingLayout kVoxelizeLayout[] = {
 };
 static_assert(VOXELIZE_MODE_CAST == 0 && VOXELIZE_MODE_GATHER_BOX == 1 && VOXELIZE_MODE_GATHER_SPLINE == 2 &&
               VOXELIZE_MODE_COMBINE == 3);
+
+
+ModePipelines voxelize_pipelines(vk::Context& context, uint32_t subsamples) {
+    static_assert(VOLUME_CONSTANT_MODE == 0 && VOXELIZE_CONSTANT_SUBSAMPLES == 1);
+    const uint32_t constants[] = {0u, subsamples};
+    return ModePipelines(context, voxelize_spv, kVoxelizeLayout, sizeof(VoxelizePush),
+                         {"voxelize cast", "voxelize gather (box)", "voxelize gather (spline)", "voxelize combine"},
+                         VOLUME_CONSTANT_MODE, constants);
+}
 }  // namespace
 
-VoxelizePass::VoxelizePass(vk::Context& context)
-    : context_(context),
-      voxelize_(context, voxelize_spv, kVoxelizeLayout, sizeof(VoxelizePush),
-                {"voxelize cast", "voxelize gather (box)", "voxelize gather (spline)", "voxelize combine"}, VOLUME_CONSTANT_MODE) {}
+VoxelizePass::VoxelizePass(vk::Context& context) : context_(context), voxelize_(voxelize_pipelines(context, kSubsamples)) {}
+
+const ModePipelines& VoxelizePass::voxelize(uint32_t subsamples) {
+    if (subsamples == kSubsamples) return voxelize_;
+    if (subsamples != kPreviewSubsamples) throw vk::Error("voxelize: " + std::to_string(subsamples) + " rays a column side is not built");
+    if (!preview_voxelize_) preview_voxelize_.emplace(voxelize_pipelines(context_, kPreviewSubsamples));
+    return *preview_voxelize_;
+}
 
 const vk::ComputePipeline& VoxelizePass::smooth(int radius) {
     static_assert(VOLUME_CONSTANT_MODE == 0 && SMOOTH_CONSTANT_RADIUS == 1);
@@ -97,8 +111,9 @@ void VoxelizePass::record_lattice_smoothing(vk::CommandRecorder& recorder, const
 
 VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::Mesh& mesh_world,
                                      const passes::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
-                                     const vk::Buffer& coverage) {
+                                     const vk::Buffer& coverage, uint32_t subsamples) {
     if (mesh_world.triangles.empty()) throw vk::Error("voxelize: the mesh has no triangles");
+    const ModePipelines& pipelines = voxelize(subsamples);
     const std::array<uint32_t, 3> dims{grid.dims.x, grid.dims.y, grid.dims.z};
     const VkDeviceSize voxel_bytes = grid.dims.count() * sizeof(float);
     const auto storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
@@ -159,7 +174,7 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
     uint64_t most_columns = 0;
     for (uint32_t axis = 0; axis < 3; ++axis)
         most_columns = std::max(most_columns, uint64_t{dims[(axis + 1) % 3]} * dims[(axis + 2) % 3]);
-    const uint64_t rays = most_columns * kSubsamples * kSubsamples;
+    const uint64_t rays = most_columns * subsamples * subsamples;
     uploads.intervals = vk::Buffer(context_, rays * VOXELIZE_MAX_INTERVALS * sizeof(glm::vec2), storage,
                                    vk::MemoryUse::device, "voxelize intervals");
     for (auto& counts : uploads.interval_counts)
@@ -199,15 +214,15 @@ VoxelizeUploads VoxelizePass::record(vk::CommandRecorder& recorder, const mesh::
                           (dims[ua] + kTileSize - 1) / kTileSize, 0};
         const auto groups = vk::linear_groups(uint64_t{dims[ua]} * dims[va], VOLUME_GROUP_SIZE);
         const auto axis_bindings = bindings(axis);
-        voxelize_[VOXELIZE_MODE_CAST].dispatch(cmd, std::span<const vk::Binding>(axis_bindings), push, groups.x, groups.y);
+        pipelines[VOXELIZE_MODE_CAST].dispatch(cmd, std::span<const vk::Binding>(axis_bindings), push, groups.x, groups.y);
         recorder.compute_barrier();
         // The next axis's cast overwrites the rays this gather reads: the barrier after it orders them.
-        voxelize_[gather].dispatch(cmd, std::span<const vk::Binding>(axis_bindings), push, groups.x, groups.y);
+        pipelines[gather].dispatch(cmd, std::span<const vk::Binding>(axis_bindings), push, groups.x, groups.y);
         recorder.compute_barrier();
     }
     const auto voxel_groups = vk::linear_groups(grid.dims.count(), VOLUME_GROUP_SIZE);
     VoxelizePush combine{glm::uvec4(dims[0], dims[1], dims[2], 0), 0, kTileSize, 1, 0};
-    voxelize_[VOXELIZE_MODE_COMBINE].dispatch(cmd, std::span<const vk::Binding>(bindings(0)), combine, voxel_groups.x, voxel_groups.y);
+    pipelines[VOXELIZE_MODE_COMBINE].dispatch(cmd, std::span<const vk::Binding>(bindings(0)), combine, voxel_groups.x, voxel_groups.y);
     recorder.compute_barrier();
     if (smoothing) record_lattice_smoothing(recorder, dims, rest, scratch, coverage);
     return uploads;

@@ -33,11 +33,12 @@ public:
     explicit VoxelizePass(vk::Context& context);
 
     // Records voxelization of `mesh_world` into `coverage` (float per voxel; `scratch` is the same size),
-    // filtered to a Gaussian of `sigma` voxels (0: each voxel's covered fraction). Returns the uploads the
-    // recorded commands use.
+    // filtered to a Gaussian of `sigma` voxels (0: each voxel's covered fraction), by `subsamples` x
+    // `subsamples` rays per voxel column and axis (kSubsamples, or kPreviewSubsamples for a preview).
+    // Returns the uploads the recorded commands use.
     VoxelizeUploads record(vk::CommandRecorder& recorder, const mesh::Mesh& mesh_world,
                            const passes::GridGeometry& grid, float sigma, const vk::Buffer& scratch,
-                           const vk::Buffer& coverage);
+                           const vk::Buffer& coverage, uint32_t subsamples = kSubsamples);
 
     // The Gaussian (sigma voxels, sampled on ceil(3 sigma) taps each side) left to the lattice once the
     // B-spline (variance 1/4 voxel^2) has filtered the surface. The shell keeps the width the voxel box
@@ -49,6 +50,9 @@ public:
     static double kernel_variance(double sigma);
 
     static constexpr uint32_t kSubsamples = VOXELIZE_SUBSAMPLES;  // S x S rays per voxel column and axis
+    // A preview's S: each axis resolves the surface to half a ray spacing, h / (2 S), so twice as coarsely;
+    // the object moves, and the still after it voxelizes at kSubsamples.
+    static constexpr uint32_t kPreviewSubsamples = VOXELIZE_PREVIEW_SUBSAMPLES;
     // Triangles are binned per tile of kTileSize^2 columns; each ray tests its tile's list. One column
     // per tile: every ray tests only triangles over its own column (sphere at 128^3: voxelize 700-750
     // -> 515 ms against 4 x 4 tiles; 28,496-triangle bunny 620-740 -> 320-330 ms), and binning stays
@@ -63,8 +67,12 @@ private:
     void record_lattice_smoothing(vk::CommandRecorder& recorder, const std::array<uint32_t, 3>& dims, float rest,
                                   const vk::Buffer& scratch, const vk::Buffer& coverage);
 
+    // The pipelines (by VOXELIZE_MODE_*) for S x S rays a column; a preview's compiled on first use.
+    const ModePipelines& voxelize(uint32_t subsamples);
+
     vk::Context& context_;
-    ModePipelines voxelize_;  // by VOXELIZE_MODE_*
+    ModePipelines voxelize_;  // kSubsamples
+    std::optional<ModePipelines> preview_voxelize_;  // kPreviewSubsamples
     std::array<std::optional<vk::ComputePipeline>, SMOOTH_MAX_RADIUS + 1> smooth_;
 };
 

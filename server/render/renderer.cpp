@@ -440,6 +440,9 @@ FramePlan Renderer::Impl::plan(const ResidentScene* held, const FrameBudget& bud
         plan.document = with_settings(requested, plan.settings);
     }
     plan.stale = stale_against(held, plan.document, resolved);
+    // A volume built on a coarse lattice took a preview's rays (render()): a still voxelizes again, also
+    // where the lattice did not change (a resolution at its floor).
+    if (asked.quality == Quality::still && held && held->lattice_divisor > 1) plan.stale |= kVoxelize;
     if (asked.quality == Quality::still) {
         plan.level = std::clamp(asked.level, 1u, kMaxRefinementLevel);
         if (held) plan_still_levels(plan, *held, asked);
@@ -596,6 +599,9 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     // frames have (in the scene's units).
     const uint32_t divisor = plan.settings.lattice_divisor;
     frame_options.radiance_factor = std::max(1u, (frame_options.radiance_factor + divisor / 2) / divisor);
+    // and a preview's rays per voxel column (the cast and gather a third of their time; plan() has the
+    // still after such a frame voxelize again).
+    if (divisor > 1) frame_options.voxelize.subsamples = passes::VoxelizePass::kPreviewSubsamples;
     if (quality == Quality::interactive && !(plan.stale & kPhotons))
         frame_options = resident.gpu->with_resident_photons(frame_options);
     // A light dragged a little keeps part of the last frames' photons: smooth light while it moves.

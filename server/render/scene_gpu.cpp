@@ -114,7 +114,7 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     FrameRecording recording(recorder_, timer_, options.give_way);
     RunStats stats;
     bool resolved = false;
-    const bool whole = volume_.record(recording, stale, built_, volume_in, worlds, grid_asset, options.revoxelize,
+    const bool whole = volume_.record(recording, stale, built_, volume_in, worlds, grid_asset, options.voxelize,
                                       stats.voxelized) &&
                        transport_.record(recording, stale, built_, options, grid_, volume_, resolved) &&
                        view_.record(recording, stale, options.adaptive_view, options.view_ends, options.paced_parts, volume_,

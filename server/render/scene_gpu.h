@@ -51,9 +51,9 @@ struct RunOptions {
     bool fixed_step = false;      // photons step one voxel everywhere (reference for the octree's gain)
     bool record_photon_exits = false;
     PassSet limit = kAllPasses;   // passes outside this set are not run (the CLI's voxelize and trace)
-    // The voxelize pass keeps each object's resident coverage while its world mesh, box and smoothing
-    // stay; set, it voxelizes every object again (what a benchmark of a whole rebuild measures).
-    bool revoxelize = false;
+    // The voxelize pass keeps each object's resident coverage while its world mesh, box, smoothing and
+    // rays stay (voxelize.again: every object anew).
+    VoxelizeOptions voxelize;
     float view_step = 1.0f;       // eye-ray step in scattering media (voxels); interactive frames use 2
     // The view step of reflected eye paths, in view steps (FRESNEL_REFLECTED_VIEW_STEP; 1: as the first).
     float reflected_view_step = FRESNEL_REFLECTED_VIEW_STEP;

@@ -123,7 +123,7 @@ void VolumeStage::allocate_field(FieldAtlas atlas) {
 }
 
 bool VolumeStage::record(FrameRecording& recording, PassSet stale, PassSet built, const FrameInputs::Volume& in,
-                         const WorldMeshes& worlds, const IndexGrid* grid_asset, bool revoxelize,
+                         const WorldMeshes& worlds, const IndexGrid* grid_asset, const VoxelizeOptions& voxelize,
                          std::vector<std::string>& voxelized) {
     // Grid values for the index-field pass: the imported field, or a placeholder it never reads.
     if (stale & kIndexField) {
@@ -140,7 +140,7 @@ bool VolumeStage::record(FrameRecording& recording, PassSet stale, PassSet built
     moved_ = {};
     if (stale & kVoxelize) {
         recording.begin(kVoxelize);
-        record_voxelize(recorder, in, worlds, grid_asset, revoxelize, voxelized);
+        record_voxelize(recorder, in, worlds, grid_asset, voxelize, voxelized);
         recorder.compute_barrier();
         recording.end();
         if ((stale & kIndexField) && recording.part(kIndexField)) return false;
@@ -197,8 +197,8 @@ void VolumeStage::record_imported(vk::CommandRecorder& recorder, const FrameInpu
 }
 
 void VolumeStage::record_voxelize(vk::CommandRecorder& recorder, const FrameInputs::Volume& in,
-                                  const WorldMeshes& worlds, const IndexGrid* grid_asset, bool revoxelize,
-                                  std::vector<std::string>& voxelized) {
+                                  const WorldMeshes& worlds, const IndexGrid* grid_asset,
+                                  const VoxelizeOptions& options, std::vector<std::string>& voxelized) {
     std::erase_if(objects_, [&](const auto& held) {
         return std::none_of(in.objects.begin(), in.objects.end(), [&](const auto& o) { return o.first == held.first; });
     });
@@ -207,13 +207,14 @@ void VolumeStage::record_voxelize(vk::CommandRecorder& recorder, const FrameInpu
         voxelized.push_back(in.objects.front().first);
         return;
     }
-    // Only the objects whose coverage no longer fits their world mesh, box or smoothing.
+    // Only the objects whose coverage no longer fits their world mesh, box, smoothing or rays.
     for (const auto& [name, box] : boxes_) {
         const mesh::Mesh& world = worlds.at(name);
         const size_t hash = mesh_hash(world);
         auto held = objects_.find(name);
-        if (!revoxelize && held != objects_.end() && held->second.mesh_hash == hash &&
-            held->second.smoothing == in.smoothing && held->second.box.box == box.box)
+        if (!options.again && held != objects_.end() && held->second.mesh_hash == hash &&
+            held->second.smoothing == in.smoothing && held->second.subsamples == options.subsamples &&
+            held->second.box.box == box.box)
             continue;
         if (held != objects_.end()) moved_ = joined(moved_, range_of(held->second.box));
         moved_ = joined(moved_, range_of(box));
@@ -221,6 +222,7 @@ void VolumeStage::record_voxelize(vk::CommandRecorder& recorder, const FrameInpu
         volume.box = box;
         volume.mesh_hash = hash;
         volume.smoothing = in.smoothing;
+        volume.subsamples = options.subsamples;
         voxelized.push_back(name);
         if (box.empty()) continue;  // outside the lattice: nothing to voxelize
         const VkDeviceSize bytes = box.box.dims.count() * sizeof(float);
@@ -228,7 +230,7 @@ void VolumeStage::record_voxelize(vk::CommandRecorder& recorder, const FrameInpu
             volume.coverage = vk::Buffer(kit_.context, bytes, kStorage, vk::MemoryUse::device, "coverage");
         scratch_.emplace_back(kit_.context, bytes, kStorage, vk::MemoryUse::device, "coverage scratch");
         uploads_.push_back(kit_.voxelize.record(recorder, world, box.box, static_cast<float>(in.smoothing),
-                                                scratch_.back(), volume.coverage));
+                                                scratch_.back(), volume.coverage, options.subsamples));
     }
 }
 

@@ -36,6 +36,15 @@ uint32_t object_apron(double sigma);
 std::map<std::string, passes::ObjectBox> object_boxes(const passes::GridGeometry& lattice, const WorldMeshes& worlds,
                                                       double sigma);
 
+// How a frame's voxelize pass runs (RunOptions::voxelize).
+struct VoxelizeOptions {
+    // Every object voxelized anew, even one whose coverage still fits (what a benchmark of a whole
+    // rebuild measures).
+    bool again = false;
+    // S x S rays per voxel column and axis; previews take passes::VoxelizePass::kPreviewSubsamples.
+    uint32_t subsamples = passes::VoxelizePass::kSubsamples;
+};
+
 class VolumeStage {
 public:
     explicit VolumeStage(PassKit& kit);
@@ -49,7 +58,7 @@ public:
     // Records the stale volume passes (`built`: what is resident and whole). False when the run stopped
     // at a part. `voxelized` gets the objects voxelized, by name.
     bool record(FrameRecording& recording, PassSet stale, PassSet built, const FrameInputs::Volume& in,
-                const WorldMeshes& worlds, const IndexGrid* grid_asset, bool revoxelize,
+                const WorldMeshes& worlds, const IndexGrid* grid_asset, const VoxelizeOptions& voxelize,
                 std::vector<std::string>& voxelized);
     // Releases what the run's recorded commands used (after they completed).
     void end_run();
@@ -71,7 +80,7 @@ public:
 private:
     void allocate_field(FieldAtlas atlas);
     void record_voxelize(vk::CommandRecorder& recorder, const FrameInputs::Volume& in, const WorldMeshes& worlds,
-                         const IndexGrid* grid_asset, bool revoxelize, std::vector<std::string>& voxelized);
+                         const IndexGrid* grid_asset, const VoxelizeOptions& options, std::vector<std::string>& voxelized);
     void record_imported(vk::CommandRecorder& recorder, const FrameInputs::Volume& in, const IndexGrid& grid_asset);
     void record_index_field(vk::CommandRecorder& recorder, const FrameInputs::Volume& in, bool resident);
     // The voxels the index field is composed over: the whole lattice, or where objects changed.
@@ -87,6 +96,7 @@ private:
         passes::ObjectBox box;
         size_t mesh_hash = 0;  // of the world mesh it was voxelized from
         double smoothing = 0.0;
+        uint32_t subsamples = 0;  // the rays a column side it was voxelized with
         vk::Buffer coverage;
     };
     std::map<std::string, ObjectVolume> objects_;
