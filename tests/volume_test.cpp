@@ -122,8 +122,9 @@ std::vector<uint32_t> reference_levels(const std::vector<float>& n, vk::Extent3 
 class VolumeTest : public testing::GpuTest {
 protected:
     // The volume of `doc` with its one object's world mesh replaced by `world`.
-    static Volume build(const SceneDocument& doc, const mesh::Mesh& world, bool with_octree = false) {
-        return build(doc, scene::WorldMeshes{{doc.objects.begin()->first, world}}, with_octree);
+    static Volume build(const SceneDocument& doc, const mesh::Mesh& world, bool with_octree = false,
+                        uint32_t subsamples = passes::VoxelizePass::kSubsamples) {
+        return build(doc, scene::WorldMeshes{{doc.objects.begin()->first, world}}, with_octree, subsamples);
     }
     static Volume build(const SceneDocument& doc, const scene::WorldMeshes& worlds, bool with_octree = false,
                         uint32_t subsamples = passes::VoxelizePass::kSubsamples) {
@@ -214,8 +215,7 @@ TEST_F(VolumeTest, APreviewsFewerRaysVoxelizeToTheVolumeTheyResolve) {
         SCOPED_TRACE(mesh);
         const SceneDocument doc = volume_document(mesh, 64, 0.0);
         const mesh::Mesh world = world_mesh(doc);
-        const Volume preview = build(doc, scene::WorldMeshes{{doc.objects.begin()->first, world}}, false,
-                                     passes::VoxelizePass::kPreviewSubsamples);
+        const Volume preview = build(doc, world, false, passes::VoxelizePass::kPreviewSubsamples);
         const Volume still = build(doc, world);
         const double mesh_volume = mesh::signed_volume(world);
         const double area = surface_area(world);

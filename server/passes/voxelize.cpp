@@ -29,7 +29,7 @@ constexpr vk::BindingLayout kVoxelizeLayout[] = {
 static_assert(VOXELIZE_MODE_CAST == 0 && VOXELIZE_MODE_GATHER_BOX == 1 && VOXELIZE_MODE_GATHER_SPLINE == 2 &&
               VOXELIZE_MODE_COMBINE == 3);
 
-
+// The voxelize pipelines for S x S rays a voxel column (VOXELIZE_CONSTANT_SUBSAMPLES).
 ModePipelines voxelize_pipelines(vk::Context& context, uint32_t subsamples) {
     static_assert(VOLUME_CONSTANT_MODE == 0 && VOXELIZE_CONSTANT_SUBSAMPLES == 1);
     const uint32_t constants[] = {0u, subsamples};
