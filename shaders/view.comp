@@ -1,5 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_shuffle : require
 // The viewing pass: one thread per pixel. Eye rays travel straight outside the grid and follow the ray
 // equation inside it, gathering single scattering (transmittance x scattering x phase x fluence) from
 // the radiance grid, then finish on the floor (lit analytically, plus the photons' floor map of what
@@ -95,6 +96,47 @@ struct PendingPath {
 const uint kPathsPerChannel = kFresnel ? 1u + FRESNEL_EYE_REFLECTIONS : 1u;
 const uint kPaths = (kDispersive ? 1u : 0u) + (kDispersive ? 3u : 1u) * kPathsPerChannel;
 
+// The footprint on the floor of a pixel whose path bent before it got there (glass magnifies or shrinks
+// the floor it shows, and a reflection's footprint grows at grazing incidence), from where its
+// neighbours' rays of the same kind landed: a ray differential by finite differences, as a fragment
+// shader's derivatives are differences across a quad. The pixels of a subgroup are a block of the image
+// (view_tiles.glsl: lanes 1 and 5 apart hold x neighbours, 2 and 10 apart y neighbours, whatever their
+// number); along each axis the nearer landing of the neighbours there counts (one across an edge of what
+// the glass shows lands far off). One axis alone gives the other edge as long, at
+// right angles. `along` and `across` as cone_footprint's; false where no neighbour lands alike. Every
+// invocation of the path's end calls it: it shuffles. Still frames only (params.image.z): the pixels of an
+// interactive frame's second round come in the order they were listed, which varies from run to run.
+bool neighbour_footprint(bool lands, vec3 x, uint kind, uvec2 pixel, out vec3 along, out vec3 across) {
+    uvec4 landing = subgroupBallot(lands);
+    uint lane = gl_SubgroupInvocationID;
+    vec3 edge[2] = vec3[2](vec3(0.0), vec3(0.0));
+    float edge_square[2] = float[2](1e30, 1e30);
+    const uint kApart[4] = uint[4](1u, 5u, 2u, 10u);
+    for (int k = 0; k < 4; ++k) {
+        uint other = lane ^ kApart[k];
+        uint id = other < gl_SubgroupSize ? other : lane;
+        vec3 other_x = subgroupShuffle(x, id);
+        uvec2 other_pixel = subgroupShuffle(pixel, id);
+        uint other_kind = subgroupShuffle(kind, id);
+        int axis = k / 2;
+        ivec2 apart = ivec2(other_pixel) - ivec2(pixel);
+        bool neighbour = apart[1 - axis] == 0 && abs(apart[axis]) == 1;
+        vec3 difference = other_x - x;
+        float square = dot(difference, difference);
+        if (lands && id != lane && subgroupBallotBitExtract(landing, id) && other_kind == kind && neighbour &&
+            square < edge_square[axis]) {
+            edge[axis] = difference;
+            edge_square[axis] = square;
+        }
+    }
+    if (edge_square[0] == 1e30 && edge_square[1] == 1e30) return false;
+    if (edge_square[0] == 1e30) edge[0] = vec3(edge[1].z, 0.0, -edge[1].x);
+    if (edge_square[1] == 1e30) edge[1] = vec3(-edge[0].z, 0.0, edge[0].x);
+    along = edge[0];
+    across = edge[1];
+    return true;
+}
+
 // Traces the eye ray of one pixel and writes its HDR and sRGB values. Under dispersive transport the ray
 // is one path until its first step that depends on the channel (channel_free), and from the start of that
 // step each channel follows its own path, bent by its own index, and brings back its own channel. Where
@@ -142,7 +184,10 @@ void shade(uvec2 pixel) {
     // refinement averages it as it averages the sub-pixel positions.
     EyeTrack track = EyeTrack(hash(pixel.y * width + pixel.x ^ hash(floatBitsToUint(params.refinement.z) ^ hash(
         floatBitsToUint(params.refinement.w) ^ hash(params.photon_info.y + 9u)))), vec3(0.0), 0.0);
-    // One march and one floor_radiance call site for all paths: lavapipe runs every call (and its fetches)
+    // What the path being traced is, for neighbour_footprint: 0 the eye's, else which reflection of which
+    // channel.
+    uint path_kind = 0u;
+    // One march and one floor_radiance_over call site for all paths: lavapipe runs every call (and its fetches)
     // for every pixel.
     for (uint path = 0u; path < kPaths; ++path) {
         bool split = false;
@@ -150,6 +195,7 @@ void shade(uvec2 pixel) {
             bool straight = false;
             if (kFresnel && pending_count > 0u) {
                 PendingPath next = pending[--pending_count];
+                path_kind = (next_channel << 4u) | (1u + pending_count);
                 view_step = params.tone.z;
                 ray = next.ray;
                 transmittance = next.transmittance;
@@ -166,6 +212,7 @@ void shade(uvec2 pixel) {
                 }
             } else if (kDispersive && parted && next_channel < 3u) {
                 uint c = next_channel++;
+                path_kind = next_channel << 4u;
                 ray_contrast = params.dispersion[c];
                 view_step = params.tone.y;
                 ray = split_ray;
@@ -365,7 +412,21 @@ void shade(uvec2 pixel) {
             bool sees_floor = on_floor || (floor_on && end_d.y < 0.0 && end.y > params.floor_plane.x - 1e-3 * h);
             vec3 floor_point = on_floor ? end : end + end_d * ((end.y - params.floor_plane.x) / -end_d.y);
             float floor_distance = length(floor_point - params.camera_position.xyz);
-            vec3 seen = transmittance * (sees_floor ? floor_radiance(floor_point, end_d, floor_distance, float(params.image.y)) : sky(end_d));
+            vec3 along, across;
+            vec2 checker_width;
+            cone_footprint(end_d, floor_distance, float(params.image.y), along, across, checker_width);
+            // A path that bent takes its footprint from its neighbours' landings instead, at most 16 times the
+            // cone's across: a neighbour farther off took another way through the glass (both neighbours on
+            // an axis can), and the spot's rim filter would light the floor far outside its cone.
+            bool bent = path_kind != 0u || surface_inverse_depth >= 0.0;
+            vec3 a, b;
+            if (neighbour_footprint(params.image.z != 0u && sees_floor && bent, floor_point, path_kind, pixel, a, b)) {
+                float reach = 16.0 * length(along);
+                along = a * min(1.0, reach / max(length(a), 1e-30));
+                across = b * min(1.0, reach / max(length(b), 1e-30));
+                checker_width = sqrt(along.xz * along.xz + across.xz * across.xz) / params.floor_plane.y;
+            }
+            vec3 seen = transmittance * (sees_floor ? floor_radiance_over(floor_point, along, across, checker_width) : sky(end_d));
             pixel_radiance += seen;
             float share = (seen.r + seen.g + seen.b) * (1.0 / 3.0);
             light_weight += share;

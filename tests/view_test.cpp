@@ -568,6 +568,61 @@ TEST_F(ViewTest, CheckerFloorIsBoxFilteredOverThePixelsFootprint) {
     EXPECT_GT(far, 200);
 }
 
+// Seen through glass, the checker is filtered over the footprint where the neighbouring pixels' rays land
+// (view.comp, neighbour_footprint), not the straight cone's: a ball lens shows the floor far below it
+// shrunk (inverted, beyond its focal length), so a pixel through it covers more cells than the cone says,
+// most toward its rim. The reference is the box mean of a 4 x 4 grid of samples in each pixel (the frame
+// at 4x the size: the same photons, so the same grid). Over the pixels seen wholly through the ball (all
+// 16 samples differ from the frame whose ball does not bend), the centre's sample filtered over its
+// neighbours' landings must be nearer that mean than the one filtered over the cone (interactive frames'
+// choice, RunOptions::neighbour_footprints).
+TEST_F(ViewTest, CheckerSeenThroughGlassIsFilteredOverWhereNeighbouringRaysLand) {
+    const json scene = {{"image", {{"width", 64}, {"height", 64}}},
+                        {"camera", {{"position", {0.0, 2.2, 2.4}}, {"target", {0.0, -0.2, 0.0}}, {"fov_deg", 40}}},
+                        {"lights", {{"light", {{"type", "directional"}, {"direction", {0.2, -1.0, 0.1}}, {"intensity", 2.0}}}}},
+                        {"objects", {{"object", {{"scale", 0.8}, {"fresnel", false}, {"extinction", {0, 0, 0}}, {"scattering", {0, 0, 0}}}}}},
+                        {"medium", {{"extinction", {0, 0, 0}}, {"scattering", {0, 0, 0}}}},
+                        {"floor", {{"enabled", true}, {"height", -6.0}, {"checker", true}, {"checker_size", 0.2}}},
+                        {"volume", {{"resolution", 48}}},
+                        {"photons", {{"count", 16384}}}};
+    auto render = [&](const json& j, uint32_t scale, bool neighbour_footprints) {
+        json sized = j;
+        sized["image"] = {{"width", 64 * scale}, {"height", 64 * scale}};
+        const SceneDocument doc = document(sized);
+        scene::RunOptions options;
+        options.neighbour_footprints = neighbour_footprints;
+        scene::SceneGpu gpu(kit());
+        gpu.run(scene::kAllPasses, doc, worlds(doc), nullptr, options);
+        return gpu.read_hdr();
+    };
+    json unbent = scene;  // the ball of the medium's index: every ray straight
+    unbent["objects"]["object"]["ior"] = 1.0;
+    const auto neighbours = render(scene, 1, true), cone = render(scene, 1, false);
+    const auto fine = render(scene, 4, false), fine_unbent = render(unbent, 4, false);
+    double neighbours_error = 0.0, cone_error = 0.0;
+    int through = 0;
+    for (uint32_t y = 0; y < 64; ++y)
+        for (uint32_t x = 0; x < 64; ++x) {
+            double sum = 0.0;
+            bool all_bent = true;
+            for (uint32_t j = 0; j < 4; ++j)
+                for (uint32_t i = 0; i < 4; ++i) {
+                    const size_t at = size_t{4 * y + j} * 256 + (4 * x + i);
+                    sum += grey(fine[at]);
+                    all_bent = all_bent && std::abs(grey(fine[at]) - grey(fine_unbent[at])) > 1e-6 * grey(fine[at]);
+                }
+            if (!all_bent) continue;
+            const size_t i = size_t{y} * 64 + x;
+            neighbours_error += std::pow(grey(neighbours[i]) - sum / 16.0, 2);
+            cone_error += std::pow(grey(cone[i]) - sum / 16.0, 2);
+            ++through;
+        }
+    std::printf("through the ball: %d pixels, squared error against the 4 x 4 mean %.4g (neighbours) and %.4g (cone)\n",
+                through, neighbours_error, cone_error);
+    ASSERT_GT(through, 1000);
+    EXPECT_LT(neighbours_error, cone_error);
+}
+
 // A spot's lit disc on the floor has a box-filtered rim too (view.comp, direct_irradiance): a pixel whose
 // footprint lies wholly inside the cone (or outside) shows the floor as a hard edge would, and one whose
 // footprint straddles the rim shows a share of it, strictly between: the rim is a ramp at most a pixel
@@ -1256,6 +1311,10 @@ TEST_F(ViewTest, DispersiveChannelsMatchTheirOwnIndex) {
                        {"photons", {{"count", 1 << 15}}}};
     scene::RunOptions options;
     options.direct_light = false;
+    // Neighbouring pixels' channels part at different paths of theirs, so which neighbours lend a bent path
+    // its footprint on the floor (view.comp, neighbour_footprint) is not the same as in a frame of one
+    // index: the floor is filtered over the straight cone in both, and what is compared is the index.
+    options.neighbour_footprints = false;
     auto frame = [&](const json& object, double octree_epsilon, uint32_t channels) {
         json j = base;
         j["object"] = object;

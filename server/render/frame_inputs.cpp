@@ -54,6 +54,7 @@ FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document,
     transport.view_step = options.view_step;
     transport.reflected_view_step = options.reflected_view_step;
     transport.traced_reflection_share = options.traced_reflection_share;
+    transport.neighbour_footprints = options.neighbour_footprints;
     transport.max_level = passes::octree_layout(grid.dims).max_level;
     transport.radiance_factor = options.radiance_factor * grid.light_factor;
     transport.direct_light = options.direct_light;

@@ -344,6 +344,7 @@ RunOptions run_options_for(Quality quality) {
         options.traced_reflection_share = FRESNEL_PREVIEW_TRACED_SHARE;
         options.radiance_factor = 3;
         options.adaptive_view = true;
+        options.neighbour_footprints = false;
         options.adaptive_density = true;
         options.bounce_cap = kInteractiveBounces;
     }

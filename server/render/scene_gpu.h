@@ -67,6 +67,11 @@ struct RunOptions {
                                    // voxel crossed (photon_trace.comp); every frame run_options_for makes
                                    // (the exact estimator is the physics tests' reference)
     bool adaptive_view = false;   // trace a quarter of the pixels, then only where they differ; interactive
+    // Eye paths that bent filter the floor they reach over where the neighbouring pixels' rays land
+    // (view.comp, neighbour_footprint); false: over the straight cone (interactive: an adaptive frame's
+    // traced pixels must be the bytes of a frame that traced them all, and its second round's neighbours
+    // are not its own).
+    bool neighbour_footprints = true;
     // The viewing pass also keeps where its eye rays end, so that the frame can be brought to a larger
     // viewer's size (SceneGpu::upscale): interactive frames traced smaller than their viewer.
     bool view_ends = false;

@@ -307,7 +307,7 @@ void set_camera(shaders::TransportParams& p, const protocol::SceneDocument& docu
     p.camera_forward = camera.forward;
     p.camera_right = camera.right;
     p.camera_up = camera.up;
-    p.image = glm::uvec4(document.image.width, document.image.height, 0u, 0u);
+    p.image = glm::uvec4(document.image.width, document.image.height, options.neighbour_footprints ? 1u : 0u, 0u);
     p.tone = glm::vec4(std::exp2(static_cast<float>(document.image.exposure)), options.view_step,
                        options.view_step * options.reflected_view_step, options.traced_reflection_share);
     // A light drag's frame joins the photons of the frames before it as an exponential moving average.

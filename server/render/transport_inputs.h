@@ -21,6 +21,7 @@ struct TransportOptions {
     float view_step = 1.0f;    // voxels, eye-ray step where the medium scatters
     float reflected_view_step = 1.0f;  // the view step of reflected eye paths, in view steps
     float traced_reflection_share = FRESNEL_EYE_TRACED_SHARE;  // below it a reflected eye path goes straight
+    bool neighbour_footprints = true;  // RunOptions::neighbour_footprints
     uint32_t max_level = 0;    // octree levels present
     uint32_t radiance_factor = 1;  // index-field voxels per radiance voxel along each axis (1 or 2)
     bool direct_light = true;  // unbent light in closed form (DirectLightPass) rather than by photons

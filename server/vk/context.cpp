@@ -142,14 +142,16 @@ uint32_t inspect_device(VkPhysicalDevice device, uint32_t index, DeviceInfo& inf
         // The radiance sums outgrow a storage buffer binding (maxStorageBufferRange, 128 MiB on
         // lavapipe) and are reached by device address instead.
         if (!features12.bufferDeviceAddress) info.missing.push_back("bufferDeviceAddress");
-        // The viewing pass hands out pixels a subgroup at a time (elect + broadcast).
+        // The viewing pass hands out pixels a subgroup at a time (elect + broadcast), and a still frame's
+        // eye paths take their footprint from their neighbours' in the subgroup (shuffle).
         VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
         VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
         properties2.pNext = &subgroup;
         vkGetPhysicalDeviceProperties2(device, &properties2);
-        const VkSubgroupFeatureFlags ops = VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_BALLOT_BIT;
+        const VkSubgroupFeatureFlags ops =
+            VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_BALLOT_BIT | VK_SUBGROUP_FEATURE_SHUFFLE_BIT;
         if (!(subgroup.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT) || (subgroup.supportedOperations & ops) != ops)
-            info.missing.push_back("subgroup basic + ballot operations in compute shaders");
+            info.missing.push_back("subgroup basic, ballot and shuffle operations in compute shaders");
     }
     info.suitable = info.missing.empty();
     return family;

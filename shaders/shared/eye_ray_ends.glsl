@@ -54,28 +54,42 @@ float filtered_square(float u, float w) {
     return (checker_integral(u + 0.5 * w) - checker_integral(u - 0.5 * w)) / w;
 }
 
-// The floor's radiance at x for an eye ray arriving along d that has come `distance` (metres) from the
-// eye, of an image `image_height` pixels tall: the checker filtered over the pixel's footprint there (its
-// cone's width, stretched along the ray's horizontal direction by 1 / |d.y|; the box around that ellipse).
-vec3 floor_radiance(vec3 x, vec3 d, float distance, float image_height) {
+// The floor's radiance at x over a pixel's footprint there: the box with edges `along` and `across`
+// (metres on the floor, conjugate half-axes of the footprint's ellipse), the checker filtered over the
+// box around that ellipse, `checker_width` (its extent along the floor's x and z, in cells).
+vec3 floor_radiance_over(vec3 x, vec3 along, vec3 across, vec2 checker_width) {
     // Unobstructed light plus what the grid changed (shadow, caustics; see photon_trace.comp).
     vec2 m = (x.xz - params.floor_map.xy) / params.floor_map.z;
-    float across = distance * 2.0 * params.camera_position.w / image_height;  // metres
-    float along = across / max(abs(d.y), 1e-3);  // stretched along the ray's horizontal direction
-    vec2 u = length(d.xz) > 1e-6 ? normalize(d.xz) : vec2(1.0, 0.0);
-    vec3 irradiance = direct_irradiance(x, along * vec3(u.x, 0.0, u.y), across * vec3(-u.y, 0.0, u.x)) +
-                      params.environment_light.rgb;
+    vec3 irradiance = direct_irradiance(x, along, across) + params.environment_light.rgb;
     if (all(greaterThanEqual(m, vec2(0.0))) && all(lessThanEqual(m, vec2(1.0))))
         irradiance = max(irradiance + textureLod(floor_map, vec3(m, 0.5), 0.0).rgb, vec3(0.0));
     vec3 albedo = params.floor_albedo.rgb;
     if (params.floor_plane.w > 0.5) {
-        float cell = params.floor_plane.y;
-        vec2 w = sqrt(along * along * u * u + across * across * u.yx * u.yx) / cell;
-        vec2 c = x.xz / cell;
-        float dark = 0.5 - 0.5 * filtered_square(c.x, w.x) * filtered_square(c.y, w.y);
+        vec2 c = x.xz / params.floor_plane.y;
+        float dark = 0.5 - 0.5 * filtered_square(c.x, checker_width.x) * filtered_square(c.y, checker_width.y);
         albedo *= mix(1.0, 0.35, dark);
     }
     return albedo * (1.0 / kPi) * irradiance;
+}
+
+// A pixel's footprint on the floor for an eye ray arriving along d that has come `distance` (metres)
+// straight from the eye, of an image `image_height` pixels tall: its cone's width, stretched along the
+// ray's horizontal direction by 1 / |d.y|; the checker's width over the box around that ellipse.
+void cone_footprint(vec3 d, float distance, float image_height, out vec3 along, out vec3 across, out vec2 checker_width) {
+    float a = distance * 2.0 * params.camera_position.w / image_height;  // metres
+    float l = a / max(abs(d.y), 1e-3);  // stretched along the ray's horizontal direction
+    vec2 u = length(d.xz) > 1e-6 ? normalize(d.xz) : vec2(1.0, 0.0);
+    checker_width = sqrt(l * l * u * u + a * a * u.yx * u.yx) / params.floor_plane.y;
+    along = l * vec3(u.x, 0.0, u.y);
+    across = a * vec3(-u.y, 0.0, u.x);
+}
+
+// The floor's radiance at x for an eye ray arriving along d straight from the eye (cone_footprint).
+vec3 floor_radiance(vec3 x, vec3 d, float distance, float image_height) {
+    vec3 along, across;
+    vec2 w;
+    cone_footprint(d, distance, image_height, along, across, w);
+    return floor_radiance_over(x, along, across, w);
 }
 
 // What a ray leaving the scene along d sees: the image environment's map, else the sky's gradient (one

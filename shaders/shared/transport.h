@@ -320,7 +320,8 @@ struct TransportParams {
     vec4 camera_forward;
     vec4 camera_right;
     vec4 camera_up;
-    uvec4 image;              // x: width, y: height, zw: unused
+    uvec4 image;              // x: width, y: height, z: 1 = eye paths that bent filter the floor over where
+                              // their neighbours land (view.comp, neighbour_footprint); w: unused
     vec4 tone;                // x: exposure multiplier (2^exposure), y: view step (voxels), z: the view step
                               // of reflected eye paths (FRESNEL_REFLECTED_VIEW_STEP times y), w: the share of
                               // a pixel's light below which a reflected eye path goes straight
