@@ -102,10 +102,10 @@ const uint kPaths = (kDispersive ? 1u : 0u) + (kDispersive ? 3u : 1u) * kPathsPe
 // shader's derivatives are differences across a quad. The pixels of a subgroup are a block of the image
 // (view_tiles.glsl: lanes 1 and 5 apart hold x neighbours, 2 and 10 apart y neighbours, whatever their
 // number); along each axis the nearer landing of the neighbours there counts (one across an edge of what
-// the glass shows lands far off). One axis alone gives the other edge as long, at
-// right angles. `along` and `across` as cone_footprint's; false where no neighbour lands alike. Every
-// invocation of the path's end calls it: it shuffles. Still frames only (params.image.z): the pixels of an
-// interactive frame's second round come in the order they were listed, which varies from run to run.
+// the glass shows lands far off). One axis alone gives the other edge as long, at right angles. `along`
+// and `across` as cone_footprint's; false where no neighbour lands alike. Every invocation of the path's
+// end calls it: it shuffles. Still frames only (params.image.z): the pixels of an interactive frame's
+// second round come in the order they were listed, which varies from run to run.
 bool neighbour_footprint(bool lands, vec3 x, uint kind, uvec2 pixel, out vec3 along, out vec3 across) {
     uvec4 landing = subgroupBallot(lands);
     uint lane = gl_SubgroupInvocationID;
