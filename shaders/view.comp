@@ -415,9 +415,9 @@ void shade(uvec2 pixel) {
             vec3 along, across;
             vec2 checker_width;
             cone_footprint(end_d, floor_distance, float(params.image.y), along, across, checker_width);
-            // A path that bent takes its footprint from its neighbours' landings instead, at most 16 times the
-            // cone's across: a neighbour farther off took another way through the glass (both neighbours on
-            // an axis can), and the spot's rim filter would light the floor far outside its cone.
+            // A path that bent takes its footprint from its neighbours' landings instead, each edge at most 16
+            // times the cone's longer one: a neighbour farther off took another way through the glass (both
+            // neighbours on an axis can), and the spot's rim filter would light the floor far outside its cone.
             bool bent = path_kind != 0u || surface_inverse_depth >= 0.0;
             vec3 a, b;
             if (neighbour_footprint(params.image.z != 0u && sees_floor && bent, floor_point, path_kind, pixel, a, b)) {
