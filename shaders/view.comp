@@ -163,6 +163,9 @@ void shade(uvec2 pixel) {
     float cutoff = 1e-3;
     bool on_floor = false;
     uint march_steps = 0u;
+    // A last-in, first-out stack whose top is pending[0]: a push or pop shifts the entries by constant
+    // indices. Indexed by a count that differs between lanes, lavapipe addressed the array lane by lane on
+    // every march step, whichever lanes pushed (a quarter of a still's view in the default scene).
     PendingPath pending[FRESNEL_EYE_REFLECTIONS];
     uint pending_count = 0u;
     uint channel_paths = 1u;  // paths the channel being traced has begun
@@ -194,7 +197,10 @@ void shade(uvec2 pixel) {
         if (path > 0u) {
             bool straight = false;
             if (kFresnel && pending_count > 0u) {
-                PendingPath next = pending[--pending_count];
+                PendingPath next = pending[0];
+                pending[0] = pending[1];
+                pending[1] = pending[2];
+                --pending_count;
                 path_kind = (next_channel << 4u) | (1u + pending_count);
                 view_step = params.tone.z;
                 ray = next.ray;
@@ -381,8 +387,10 @@ void shade(uvec2 pixel) {
                 // to the stronger side, so none is lost (a white furnace stays white).
                 float strongest_share = max(reflected_share.r, max(reflected_share.g, reflected_share.b));
                 if (channel_paths + pending_count < kPathsPerChannel && strongest_share >= 1e-3) {
-                    pending[pending_count++] = PendingPath(mirrored, reflected_share, cutoff * mean_reflectance,
-                                                           strongest_share < params.tone.w);
+                    pending[2] = pending[1];
+                    pending[1] = pending[0];
+                    pending[0] = PendingPath(mirrored, reflected_share, cutoff * mean_reflectance, strongest_share < params.tone.w);
+                    ++pending_count;
                     transmittance *= 1.0 - reflectance;
                     cutoff *= 1.0 - mean_reflectance;
                 } else if (mean_reflectance > 0.5) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "fresnel.h"
 #include "transport.h"
 #include "view_spv.h"
 
@@ -10,6 +11,10 @@
 namespace refract::passes {
 
 namespace {
+// view.comp keeps a pixel's pending reflections in a stack whose pushes and pops shift three entries by
+// constant indices.
+static_assert(FRESNEL_EYE_REFLECTIONS == 3u);
+
 constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
