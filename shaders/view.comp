@@ -83,9 +83,11 @@ vec3 eye_ratio(inout EyeTrack track, FieldSample at, vec3 sigma, vec3 p, vec3 d,
 
 // A reflection an eye ray still has to trace (fresnel.glsl): its transmittance carries the reflectance,
 // so everything it gathers is weighted. A faint one (FRESNEL_EYE_TRACED_SHARE) is not marched: it takes
-// the floor or sky straight along its direction.
+// the floor or sky straight along its direction. Where it starts, not the whole Ray: the field there
+// is fetched again when it is traced (the stack's entries are carried through every march step).
 struct PendingPath {
-    Ray ray;
+    vec3 p;
+    vec3 d;
     vec3 transmittance;
     float cutoff;  // see shade
     bool straight;
@@ -203,7 +205,7 @@ void shade(uvec2 pixel) {
                 --pending_count;
                 path_kind = (next_channel << 4u) | (1u + pending_count);
                 view_step = params.tone.z;
-                ray = next.ray;
+                ray = start_ray(next.p, next.d);
                 transmittance = next.transmittance;
                 cutoff = next.cutoff;
                 ++channel_paths;
@@ -389,7 +391,7 @@ void shade(uvec2 pixel) {
                 if (channel_paths + pending_count < kPathsPerChannel && strongest_share >= 1e-3) {
                     pending[2] = pending[1];
                     pending[1] = pending[0];
-                    pending[0] = PendingPath(mirrored, reflected_share, cutoff * mean_reflectance, strongest_share < params.tone.w);
+                    pending[0] = PendingPath(before.p, reflected, reflected_share, cutoff * mean_reflectance, strongest_share < params.tone.w);
                     ++pending_count;
                     transmittance *= 1.0 - reflectance;
                     cutoff *= 1.0 - mean_reflectance;
