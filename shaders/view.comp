@@ -167,7 +167,7 @@ void shade(uvec2 pixel) {
     uint march_steps = 0u;
     // A last-in, first-out stack whose top is pending[0]: a push or pop shifts the entries by constant
     // indices. Indexed by a count that differs between lanes, lavapipe addressed the array lane by lane on
-    // every march step, whichever lanes pushed (a quarter of a still's view in the default scene).
+    // every march step, whichever lanes pushed (a fifth of a still's view in the default scene).
     PendingPath pending[FRESNEL_EYE_REFLECTIONS];
     uint pending_count = 0u;
     uint channel_paths = 1u;  // paths the channel being traced has begun
@@ -391,7 +391,8 @@ void shade(uvec2 pixel) {
                 if (channel_paths + pending_count < kPathsPerChannel && strongest_share >= 1e-3) {
                     pending[2] = pending[1];
                     pending[1] = pending[0];
-                    pending[0] = PendingPath(before.p, reflected, reflected_share, cutoff * mean_reflectance, strongest_share < params.tone.w);
+                    pending[0] = PendingPath(before.p, reflected, reflected_share, cutoff * mean_reflectance,
+                                             strongest_share < params.tone.w);
                     ++pending_count;
                     transmittance *= 1.0 - reflectance;
                     cutoff *= 1.0 - mean_reflectance;
