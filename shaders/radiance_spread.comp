@@ -1,5 +1,7 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_EXT_shader_atomic_int64 : require
 // Adaptive density estimation for interactive frames (TEMPORAL.md): each radiance voxel's light is
 // spread evenly over a box of (2r + 1)^3 voxels around it, r chosen from the photon tracks behind its
 // fluence (transport.h, SPREAD_*): wide where few photons passed, the voxel alone where many did or
@@ -9,9 +11,10 @@
 // Written as a gather (each voxel adds the boxes that reach it), so no atomics: each source's share and
 // reach once, then, as every spreading box is the same 3^3 (SPREAD_VOXEL_RADIUS 1) clipped to the grid,
 // the shares' sum over each voxel's neighbourhood as three box sums of 3 along x, y and z (9 reads a
-// voxel instead of 27, in three dispatches). The floor map's texels (the photons' hits:
-// what the grid changes of the floor's light) spread alike, in squares whose radius varies, in one gather,
-// and the floor shadow's closed form (transport.h, DIRECT_MODE_FLOOR_SHADOW) is added after.
+// voxel instead of 27, in three dispatches). The floor map's texels (the photons' hits: what the grid
+// changes of the floor's light) spread in squares sized by their own hits and the photons around them,
+// up to 17 x 17 texels, through running sums (floor_texel_scatter), and the floor shadow's closed form
+// (transport.h, DIRECT_MODE_FLOOR_SHADOW) is added after.
 #include "transport.h"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
@@ -25,7 +28,7 @@ layout(binding = TRANSPORT_BINDING_RAW_FLOOR_MAP, rgba16f) uniform readonly imag
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D floor_map;
 layout(binding = TRANSPORT_BINDING_SPREAD_FLUX_SHARES, rgba32f) uniform image3D flux_shares;
 layout(binding = TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, rgba32f) uniform image3D radiance_shares;
-layout(binding = TRANSPORT_BINDING_SPREAD_FLOOR_SHARES, rgba32f) uniform image3D floor_shares;
+layout(std430, binding = TRANSPORT_BINDING_SPREAD_FLOOR_SUMS) buffer FloorSums { int64_t floor_sums[]; };
 layout(std430, binding = TRANSPORT_BINDING_FLOOR_SHADOW) readonly buffer FloorShadow { vec4 floor_shadow_taken[]; };
 layout(constant_id = SPREAD_CONSTANT_FLOOR) const bool kFloorMap = false;
 layout(constant_id = SPREAD_CONSTANT_STEP) const uint kStep = SPREAD_STEP_SHARES;
@@ -42,9 +45,9 @@ float tracks(float fluence, ivec3 v) {
 
 // The radius of the box (dimensions 3: voxels) or square (2: texels) that holds SPREAD_TRACKS tracks or
 // hits at n per voxel or texel, at most `most`.
-int spread_radius(float n, int dimensions, int most) {
+int spread_radius(float n, float dimensions, int most) {
     for (int r = 0; r < most; ++r)
-        if (pow(float(2 * r + 1), float(dimensions)) * n >= SPREAD_TRACKS) return r;
+        if (pow(float(2 * r + 1), dimensions) * n >= SPREAD_TRACKS) return r;
     return most;
 }
 
@@ -57,37 +60,118 @@ float effective_hits(vec4 source) {
     return source.w > 0.0 ? shares * shares / source.w : 0.0;
 }
 
-// Each texel's share of its source for every texel its square reaches, and the square's radius, once:
-// the gather reads them instead of working out every neighbour's radius again.
-void floor_texel_share(uint i) {
+// The floor map's sums (TRANSPORT_BINDING_SPREAD_FLOOR_SUMS): plane p's cell (x, y), 0 <= x, y <= side.
+uint floor_cell(uint plane, int x, int y) {
+    int cells = int(params.floor_map.w) + 1;
+    return plane * uint(cells * cells) + uint(y * cells + x);
+}
+
+// A light value of the floor map in the sums' fixed point, and back: units of one photon of the
+// reference flux landing in one texel.
+float floor_unit() {
+    float texel = params.floor_map.z / params.floor_map.w;
+    return params.photon_flux.w / (texel * texel);
+}
+
+// Each texel's photon events (the sum of its photons' squared shares: about one per photon of the
+// reference flux) into the events plane, one cell down and right, so that the plane's running sums along
+// x and then y leave in cell (i, j) the events of the texels x < i, y < j (a summed-area table).
+void floor_texel_events(uint i) {
+    int side = int(params.floor_map.w);
+    if (i >= uint(side * side)) return;
+    ivec2 t = ivec2(int(i) % side, int(i) / side);
+    float events = imageLoad(raw_floor_map, ivec3(t, 0)).w;
+    int64_t units = int64_t(events * SPREAD_EVENT_UNITS + 0.5);
+    floor_sums[floor_cell(SPREAD_FLOOR_EVENTS, t.x + 1, t.y + 1)] = units;
+}
+
+// Running sums along x (rows: `along_x`) or y of planes [first, first + planes) in place: thread k takes
+// plane first + k / (side + 1), line k % (side + 1).
+void running_sums(uint k, uint first, uint planes, bool along_x) {
+    int cells = int(params.floor_map.w) + 1;
+    if (k >= planes * uint(cells)) return;
+    uint plane = first + k / uint(cells);
+    int line = int(k % uint(cells));
+    int64_t sum = 0;
+    for (int c = 0; c < cells; ++c) {
+        uint at = along_x ? floor_cell(plane, c, line) : floor_cell(plane, line, c);
+        sum += floor_sums[at];
+        floor_sums[at] = sum;
+    }
+}
+
+// The photon events of the texels in [lo, hi] (inclusive), from the summed-area table.
+int64_t events_in(ivec2 lo, ivec2 hi) {
+    uint plane = SPREAD_FLOOR_EVENTS;
+    return floor_sums[floor_cell(plane, hi.x + 1, hi.y + 1)] - floor_sums[floor_cell(plane, lo.x, hi.y + 1)] -
+           floor_sums[floor_cell(plane, hi.x + 1, lo.y)] + floor_sums[floor_cell(plane, lo.x, lo.y)];
+}
+
+// Texel j's light spread evenly over a square of (2r + 1)^2 texels around it (clipped to the map). Its
+// own effective hits set r as a voxel's tracks do (at most SPREAD_TEXEL_RADIUS), and r grows, up to
+// SPREAD_SPARSE_TEXEL_RADIUS, until the square holds SPREAD_SPARSE_EVENTS photon events: a lone hit (a
+// photon the glass reflected off into the dark) reaches out to its neighbours and spreads wide and faint
+// instead of standing out as a speck, while where hits are merely few (a shadow's edge) the square stays
+// as small as the hit's own count makes it. Added as the square's four corners (+, -, -, +) to the light
+// planes, whose running sums along x and y then make the squares: every texel's light lands, in fixed
+// point, whatever the squares' sizes.
+const int64_t kSparseEvents = int64_t(SPREAD_SPARSE_EVENTS * SPREAD_EVENT_UNITS);
+int floor_texel_radius(ivec2 j, vec4 source) {
+    int side = int(params.floor_map.w);
+    int r = spread_radius(effective_hits(source), 2.0, SPREAD_TEXEL_RADIUS);
+    while (r < SPREAD_SPARSE_TEXEL_RADIUS) {
+        if (events_in(max(j - r, ivec2(0)), min(j + r, ivec2(side - 1))) >= kSparseEvents) break;
+        ++r;
+    }
+    return r;
+}
+
+// Whether texel j keeps its light (r = 0): floor_column adds it in place, with no corners.
+bool keeps_light(ivec2 j, vec4 source) {
+    if (source.rgb == vec3(0.0)) return false;
+    return effective_hits(source) >= SPREAD_TRACKS && events_in(j, j) >= kSparseEvents;
+}
+
+void floor_texel_scatter(uint i) {
     int side = int(params.floor_map.w);
     if (i >= uint(side * side)) return;
     ivec2 j = ivec2(int(i) % side, int(i) / side);
     vec4 source = imageLoad(raw_floor_map, ivec3(j, 0));
-    int r = spread_radius(effective_hits(source), 2, SPREAD_TEXEL_RADIUS);
-    ivec2 square = min(j + r, ivec2(side - 1)) - max(j - r, ivec2(0)) + 1;
-    imageStore(floor_shares, ivec3(j, 0), vec4(source.rgb / float(square.x * square.y), float(r)));
+    if (source.rgb == vec3(0.0) || keeps_light(j, source)) return;
+    int r = floor_texel_radius(j, source);
+    ivec2 lo = max(j - r, ivec2(0)), hi = min(j + r, ivec2(side - 1)) + 1;
+    ivec2 square = hi - lo;
+    vec3 share = source.rgb / (floor_unit() * float(square.x * square.y)) * SPREAD_FLOOR_UNITS;
+    for (uint c = 0u; c < 3u; ++c) {
+        int64_t q = int64_t(round(share[c]));
+        atomicAdd(floor_sums[floor_cell(c, lo.x, lo.y)], q);
+        atomicAdd(floor_sums[floor_cell(c, hi.x, lo.y)], -q);
+        atomicAdd(floor_sums[floor_cell(c, lo.x, hi.y)], -q);
+        atomicAdd(floor_sums[floor_cell(c, hi.x, hi.y)], q);
+    }
 }
 
-void gather_floor_texel(uint i) {
+// Column x of the spread map: the light planes' running sums along y (after those along x), each
+// texel's light, with the floor shadow's closed form, which carries no noise, added where it was
+// computed.
+void floor_column(uint x) {
     int side = int(params.floor_map.w);
-    if (i >= uint(side * side)) return;
-    ivec2 t = ivec2(int(i) % side, int(i) / side);
-    vec3 change = vec3(0.0);
-    ivec2 lo = max(t - SPREAD_TEXEL_RADIUS, ivec2(0)), hi = min(t + SPREAD_TEXEL_RADIUS, ivec2(side - 1));
-    for (int y = lo.y; y <= hi.y; ++y)
-        for (int x = lo.x; x <= hi.x; ++x) {
-            vec4 share = imageLoad(floor_shares, ivec3(x, y, 0));
-            ivec2 apart = abs(t - ivec2(x, y));
-            if (float(max(apart.x, apart.y)) <= share.w) change += share.rgb;
-        }
-    // The floor shadow's closed form carries no noise: added after the spread, where it was computed.
-    change -= floor_shadow_taken[i].rgb;
-    imageStore(floor_map, ivec3(t, 0), vec4(change, 0.0));
+    if (x >= uint(side)) return;
+    i64vec3 sum = i64vec3(0);
+    float to_light = floor_unit() / SPREAD_FLOOR_UNITS;
+    for (int y = 0; y < side; ++y) {
+        for (uint c = 0u; c < 3u; ++c) sum[c] += floor_sums[floor_cell(c, int(x), y)];
+        vec4 source = imageLoad(raw_floor_map, ivec3(int(x), y, 0));
+        vec3 kept = keeps_light(ivec2(int(x), y), source) ? source.rgb : vec3(0.0);
+        vec3 change = vec3(sum) * to_light + kept - floor_shadow_taken[uint(y * side) + x].rgb;
+        imageStore(floor_map, ivec3(int(x), y, 0), vec4(change, 0.0));
+    }
 }
 
 // The radius of radiance voxel j's box, from the photon tracks behind its fluence.
-int voxel_radius(ivec3 j, vec4 source) { return spread_radius(tracks(source.w, j), 3, SPREAD_VOXEL_RADIUS); }
+int voxel_radius(ivec3 j, vec4 source) {
+    return spread_radius(tracks(source.w, j), 3.0, SPREAD_VOXEL_RADIUS);
+}
 
 // Each voxel's share of its light for every voxel its box reaches, once; none where its box is itself
 // (the last box sum adds that voxel's light in its own place).
@@ -151,8 +235,12 @@ void gather_voxel(uint i) {
 void main() {
     uint i = linear_invocation();
     if (kFloorMap) {
-        if (kStep == SPREAD_STEP_SHARES) floor_texel_share(i);
-        else gather_floor_texel(i);
+        if (kStep == SPREAD_FLOOR_STEP_EVENTS) floor_texel_events(i);
+        else if (kStep == SPREAD_FLOOR_STEP_EVENT_ROWS) running_sums(i, SPREAD_FLOOR_EVENTS, 1u, true);
+        else if (kStep == SPREAD_FLOOR_STEP_EVENT_COLUMNS) running_sums(i, SPREAD_FLOOR_EVENTS, 1u, false);
+        else if (kStep == SPREAD_FLOOR_STEP_SCATTER) floor_texel_scatter(i);
+        else if (kStep == SPREAD_FLOOR_STEP_ROWS) running_sums(i, 0u, 3u, true);
+        else floor_column(i);
     } else {
         if (kStep == SPREAD_STEP_SHARES) voxel_share(i);
         else gather_voxel(i);

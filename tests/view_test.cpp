@@ -10,17 +10,18 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
+#include <glm/glm.hpp>
+#include <glm/gtc/packing.hpp>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <string>
 #include <vector>
 
-#include <glm/glm.hpp>
-#include <nlohmann/json.hpp>
-
 #include "gpu_fixture.h"
 #include "passes/transport_params.h"
-#include "render/renderer.h"
 #include "phase.h"
+#include "render/read_back.h"
+#include "render/renderer.h"
 
 namespace refract {
 namespace {
@@ -516,6 +517,121 @@ TEST_F(ViewTest, AdaptiveDensityKeepsTheGridsTotalAndQuietsSparsePhotons) {
     const auto [spread_a, spread_b] = sparse(spread1, spread2);
     ASSERT_GT(raw_a.size(), 100u);
     EXPECT_LT(seed_difference(spread_a, spread_b, 3), seed_difference(raw_a, raw_b, 3));
+}
+
+// The floor map's spread on a map made by hand (64 x 64 texels of 1 m, photons of reference flux 1, so a
+// texel's light is in photons per texel): each source texel's square is known from the rule in
+// transport.h (SPREAD_TEXEL_RADIUS, SPREAD_SPARSE_TEXEL_RADIUS, SPREAD_SPARSE_EVENTS), and the map the
+// pass writes must be the sum of the squares to the map's half-float rounding (2^-11 of each texel, and
+// the fixed point's 2^-20 of a photon). A lone hit in the open spreads over 17 x 17 texels, one in a
+// corner over what of its square lies on the map; a block dense enough keeps its light; a faint hit
+// beside that block reaches out only as far as the block's events; the floor shadow's closed form is
+// added where it was computed, not spread. The map's total is the sources' less the shadow.
+TEST_F(ViewTest, FloorSpreadReachesOutFromLoneHitsAndKeepsDenseLight) {
+    constexpr int kSide = 64;
+    struct Source {
+        glm::ivec2 at;
+        glm::vec3 light;
+        float events;
+    };
+    std::vector<Source> sources = {{{20, 30}, {0.5f, 1.0f, 1.5f}, 0.5f},
+                                   {{2, 60}, {1.0f, 0.5f, 0.25f}, 0.75f},
+                                   {{42, 10}, {0.5f, 0.5f, 0.5f}, 0.5f}};
+    // The dense block: effective hits 8^2 / 4 = 16 (SPREAD_TRACKS) and 4 events each.
+    for (int y = 5; y < 15; ++y)
+        for (int x = 45; x < 55; ++x) sources.push_back({{x, y}, glm::vec3(8.0f), 4.0f});
+    // Each source's square by the rule, worked by hand: the lone hits reach the widest radius; the faint
+    // hit's own count (0.5) asks for r = 2 at most, its 5 x 5 square (x 40-44) holds only its own 0.5
+    // events, and the 7 x 7 (x 39-45) takes in the block's column x = 45 (7 texels, 28 events).
+    auto radius = [](const Source& s) {
+        return s.events == 4.0f ? 0 : s.at == glm::ivec2(42, 10) ? 3 : SPREAD_SPARSE_TEXEL_RADIUS;
+    };
+    const glm::ivec2 shadow_at{60, 60};
+    const glm::vec3 shadow_taken{0.25f, 0.5f, 0.75f};
+
+    std::vector<uint16_t> raw(4 * kSide * kSide, 0);
+    auto texel_of = [](glm::ivec2 t) { return static_cast<size_t>(t.y * kSide + t.x); };
+    std::vector<glm::vec4> shadow(kSide * kSide, glm::vec4(0.0f));
+    shadow[texel_of(shadow_at)] = glm::vec4(shadow_taken, 0.0f);
+    std::vector<glm::dvec3> expected(kSide * kSide, glm::dvec3(0.0));
+    glm::dvec3 total(0.0);
+    for (const Source& s : sources) {
+        const size_t texel = texel_of(s.at);
+        for (glm::length_t c = 0; c < 3; ++c)
+            raw[4 * texel + static_cast<size_t>(c)] = glm::packHalf1x16(s.light[c]);
+        raw[4 * texel + 3] = glm::packHalf1x16(s.events);
+        const int r = radius(s);
+        const glm::ivec2 lo = glm::max(s.at - r, glm::ivec2(0)),
+                         hi = glm::min(s.at + r, glm::ivec2(kSide - 1));
+        const double area = static_cast<double>((hi.x - lo.x + 1) * (hi.y - lo.y + 1));
+        for (int y = lo.y; y <= hi.y; ++y)
+            for (int x = lo.x; x <= hi.x; ++x) expected[texel_of({x, y})] += glm::dvec3(s.light) / area;
+        total += glm::dvec3(s.light);
+    }
+    expected[texel_of(shadow_at)] -= glm::dvec3(shadow_taken);
+    total -= glm::dvec3(shadow_taken);
+
+    vk::Context& ctx = context();
+    shaders::TransportParams p{};
+    p.floor_map = glm::vec4(0.0f, 0.0f, static_cast<float>(kSide), static_cast<float>(kSide));
+    p.photon_flux = glm::vec4(1.0f);
+    p.grid_origin = glm::vec4(0.0f, 0.0f, 0.0f, 1.0f);
+    p.grid_dims = glm::uvec4(1u);
+    p.radiance_grid = glm::uvec4(1u);
+    vk::Buffer params(ctx, sizeof(p), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUse::upload,
+                      "test params");
+    params.write(&p, sizeof(p));
+    vk::Buffer raw_upload(ctx, raw.size() * sizeof(uint16_t), VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                          vk::MemoryUse::upload, "test raw map");
+    raw_upload.write(raw.data(), raw.size() * sizeof(uint16_t));
+    vk::Buffer floor_shadow(ctx, shadow.size() * sizeof(glm::vec4), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                            vk::MemoryUse::upload, "test floor shadow");
+    floor_shadow.write(shadow.data(), shadow.size() * sizeof(glm::vec4));
+    vk::Buffer sums(ctx, passes::floor_spread_bytes(kSide),
+                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                    vk::MemoryUse::device, "test spread sums");
+    const vk::Extent3 one{1, 1, 1}, map{kSide, kSide, 1};
+    auto image = [&](vk::Extent3 extent, VkFormat format) {
+        return vk::Image3D(ctx, extent, format, "test image");
+    };
+    vk::Image3D raw_radiance = image(one, VK_FORMAT_R32G32B32A32_SFLOAT),
+                raw_flux = image(one, VK_FORMAT_R32G32B32A32_SFLOAT),
+                radiance = image(one, VK_FORMAT_R32G32B32A32_SFLOAT),
+                flux = image(one, VK_FORMAT_R32G32B32A32_SFLOAT),
+                radiance_shares = image(one, VK_FORMAT_R32G32B32A32_SFLOAT),
+                flux_shares = image(one, VK_FORMAT_R32G32B32A32_SFLOAT),
+                raw_map = image(map, VK_FORMAT_R16G16B16A16_SFLOAT),
+                out_map = image(map, VK_FORMAT_R16G16B16A16_SFLOAT);
+    vk::run_once(ctx, [&](vk::CommandRecorder& r) {
+        for (const vk::Image3D* i :
+             {&raw_radiance, &raw_flux, &radiance, &flux, &radiance_shares, &flux_shares, &raw_map, &out_map})
+            r.init_image(*i);
+        const float zero[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+        for (const vk::Image3D* i : {&raw_radiance, &raw_flux}) r.clear(*i, zero);
+        r.copy(raw_upload, raw_map);
+        r.transfer_to_compute_barrier();
+        kit().radiance_spread.record(r, params, true, {raw_radiance, raw_flux, raw_map},
+                                     {radiance_shares, flux_shares, sums}, {radiance, flux, out_map},
+                                     floor_shadow);
+        r.compute_barrier();
+    });
+    const std::vector<uint16_t> out = scene::read_image<uint16_t>(ctx, out_map);
+    glm::dvec3 out_total(0.0);
+    size_t wrong = 0;
+    for (size_t t = 0; t < expected.size(); ++t)
+        for (glm::length_t c = 0; c < 3; ++c) {
+            const double got = glm::unpackHalf1x16(out[4 * t + static_cast<size_t>(c)]);
+            out_total[c] += got;
+            const double want = expected[t][c];
+            if (std::abs(got - want) > std::abs(want) * std::ldexp(1.0, -11) + std::ldexp(1.0, -20) * 4.0) {
+                if (++wrong <= 5)
+                    ADD_FAILURE() << "texel " << t % kSide << ", " << t / kSide << " channel " << c << ": "
+                                  << got << " against " << want;
+            }
+        }
+    EXPECT_EQ(wrong, 0u);
+    for (glm::length_t c = 0; c < 3; ++c)
+        EXPECT_NEAR(out_total[c], total[c], 1e-3 * total[c]) << "channel " << c;
 }
 
 // The checker floor is box-filtered over each pixel's footprint (view.comp, floor_radiance), so toward

@@ -19,10 +19,14 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_SPREAD_FLUX_SHARES, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
-    {TRANSPORT_BINDING_SPREAD_FLOOR_SHARES, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_SPREAD_FLOOR_SUMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_FLOOR_SHADOW, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 }  // namespace
+
+uint64_t floor_spread_bytes(uint32_t side) {
+    return uint64_t{SPREAD_FLOOR_PLANES} * (uint64_t{side} + 1) * (uint64_t{side} + 1) * sizeof(int64_t);
+}
 
 RadianceSpreadPass::RadianceSpreadPass(vk::Context& context) {
     static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && SPREAD_CONSTANT_FLOOR == 8 && SPREAD_CONSTANT_STEP == 9 &&
@@ -36,8 +40,12 @@ RadianceSpreadPass::RadianceSpreadPass(vk::Context& context) {
         {{"radiance spread along x", "radiance spread along x (grey)"}, 0, SPREAD_STEP_GATHER_X},
         {{"radiance spread along y", "radiance spread along y (grey)"}, 0, SPREAD_STEP_GATHER_Y},
         {{"radiance spread along z", "radiance spread along z (grey)"}, 0, SPREAD_STEP_GATHER_Z},
-        {{"floor map spread shares", "floor map spread shares (grey)"}, 1, SPREAD_STEP_SHARES},
-        {{"floor map spread", "floor map spread (grey)"}, 1, SPREAD_STEP_GATHER_X}};
+        {{"floor spread events", "floor spread events (grey)"}, 1, SPREAD_FLOOR_STEP_EVENTS},
+        {{"floor events along x", "floor events along x (grey)"}, 1, SPREAD_FLOOR_STEP_EVENT_ROWS},
+        {{"floor events along y", "floor events along y (grey)"}, 1, SPREAD_FLOOR_STEP_EVENT_COLUMNS},
+        {{"floor spread squares", "floor spread squares (grey)"}, 1, SPREAD_FLOOR_STEP_SCATTER},
+        {{"floor spread along x", "floor spread along x (grey)"}, 1, SPREAD_FLOOR_STEP_ROWS},
+        {{"floor spread along y", "floor spread along y (grey)"}, 1, SPREAD_FLOOR_STEP_COLUMNS}};
     pipelines_.reserve(2 * std::size(kJobs));
     for (const Job& job : kJobs)
         for (const uint32_t grey : {0u, 1u}) {
@@ -48,33 +56,38 @@ RadianceSpreadPass::RadianceSpreadPass(vk::Context& context) {
 }
 
 void RadianceSpreadPass::record(vk::CommandRecorder& recorder, const vk::Buffer& params, bool grey,
-                                const SpreadImages& raw, const SpreadImages& shares, const SpreadImages& out,
+                                const SpreadImages& raw, const SpreadShares& shares, const SpreadImages& out,
                                 const vk::Buffer& floor_shadow) const {
-    const vk::Binding bindings[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_RAW_RADIANCE, raw.radiance),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_RAW_FLUX, raw.flux),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, out.radiance),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, out.flux),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_RAW_FLOOR_MAP, raw.floor_map),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, out.floor_map),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_FLUX_SHARES, shares.flux),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, shares.radiance),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_FLOOR_SHARES, shares.floor_map),
-                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_SHADOW, floor_shadow)};
+    const vk::Binding bindings[] = {
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
+        vk::Binding::storage_image(TRANSPORT_BINDING_RAW_RADIANCE, raw.radiance),
+        vk::Binding::storage_image(TRANSPORT_BINDING_RAW_FLUX, raw.flux),
+        vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, out.radiance),
+        vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, out.flux),
+        vk::Binding::storage_image(TRANSPORT_BINDING_RAW_FLOOR_MAP, raw.floor_map),
+        vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, out.floor_map),
+        vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_FLUX_SHARES, shares.flux),
+        vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, shares.radiance),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_SPREAD_FLOOR_SUMS, shares.floor_sums),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_SHADOW, floor_shadow)};
     const uint32_t variant = grey ? 1u : 0u;
-    const auto voxel_groups = vk::linear_groups(out.flux.extent().count(), TRANSPORT_GROUP_SIZE);
-    const auto texel_groups = vk::linear_groups(out.floor_map.extent().count(), TRANSPORT_GROUP_SIZE);
-    auto voxels = [&](uint32_t job) { pipelines_[2 * job + variant].dispatch(recorder.get(), bindings, nullptr, 0, voxel_groups.x, voxel_groups.y); };
-    auto texels = [&](uint32_t job) { pipelines_[2 * job + variant].dispatch(recorder.get(), bindings, nullptr, 0, texel_groups.x, texel_groups.y); };
-    voxels(0);
-    texels(4);
-    recorder.compute_barrier();
-    voxels(1);
-    texels(5);
-    recorder.compute_barrier();
-    voxels(2);
-    recorder.compute_barrier();
-    voxels(3);
+    const uint32_t side = out.floor_map.extent().x;
+    auto run = [&](uint32_t job, uint64_t items) {
+        const auto groups = vk::linear_groups(items, TRANSPORT_GROUP_SIZE);
+        pipelines_[2 * job + variant].dispatch(recorder.get(), bindings, nullptr, 0, groups.x, groups.y);
+    };
+    const uint64_t voxels = out.flux.extent().count(), texels = out.floor_map.extent().count(),
+                   lines = side + 1;
+    recorder.fill(shares.floor_sums, 0);
+    recorder.transfer_to_compute_barrier();
+    // The voxels' four steps (jobs 0-3) and the texels' six (jobs 4-9) side by side: threads per texel,
+    // per line of the events plane, per line of the three light planes, per column of the map.
+    const uint64_t texel_items[] = {texels, lines, lines, texels, 3 * lines, side};
+    for (uint32_t step = 0; step < 6; ++step) {
+        if (step < 4) run(step, voxels);
+        run(4 + step, texel_items[step]);
+        if (step < 5) recorder.compute_barrier();
+    }
 }
 
 }  // namespace refract::passes

@@ -19,17 +19,27 @@ struct SpreadImages {
     const vk::Image3D& floor_map;
 };
 
+// Between the spread's steps: what each voxel gives the voxels its box reaches (rgba32f images of the
+// resolve's sizes), and the floor map's sums (floor_spread_bytes; transport.h, SPREAD_FLOOR_PLANES).
+struct SpreadShares {
+    const vk::Image3D& radiance;
+    const vk::Image3D& flux;
+    const vk::Buffer& floor_sums;
+};
+
+// The bytes of the floor map's spread sums for a map of `side` x `side` texels.
+uint64_t floor_spread_bytes(uint32_t side);
+
 class RadianceSpreadPass {
 public:
     explicit RadianceSpreadPass(vk::Context& context);
-    // Reads `raw` (as the resolve left it) and writes `out`, of the same sizes; `shares` (rgba32f, the
-    // same sizes) holds what each source gives the voxels or texels it reaches, between the two steps;
+    // Reads `raw` (as the resolve left it) and writes `out`, of the same sizes, through `shares`;
     // `floor_shadow` (PhotonAccumulators::floor_shadow) is added to the spread floor map.
     void record(vk::CommandRecorder& recorder, const vk::Buffer& params, bool grey, const SpreadImages& raw,
-                const SpreadImages& shares, const SpreadImages& out, const vk::Buffer& floor_shadow) const;
+                const SpreadShares& shares, const SpreadImages& out, const vk::Buffer& floor_shadow) const;
 
 private:
-    // By job (voxels, floor texels), step (shares, gather) and channels (coloured, grey).
+    // By job (voxels, floor texels), step and channels (coloured, grey).
     std::vector<vk::ComputePipeline> pipelines_;
 };
 

@@ -109,13 +109,14 @@ void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t phot
     }
     if (!adaptive_density) {
         raw_floor_map_ = {};
-        floor_shares_ = {};
+        floor_spread_sums_ = {};
     } else if (!raw_floor_map_.get() || !(raw_floor_map_.extent() == floor_map_.extent())) {
         raw_floor_map_ = {};
-        floor_shares_ = {};
+        floor_spread_sums_ = {};
         raw_floor_map_ = vk::Image3D(ctx, floor_map_.extent(), VK_FORMAT_R16G16B16A16_SFLOAT, "floor map before the spread");
-        // rgba32f, unlike the map: a share is kept as the single-step spread computed it.
-        floor_shares_ = vk::Image3D(ctx, floor_map_.extent(), VK_FORMAT_R32G32B32A32_SFLOAT, "floor map spread shares");
+        floor_spread_sums_ = vk::Buffer(ctx, passes::floor_spread_bytes(floor_texels),
+                                        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                        vk::MemoryUse::device, "floor map spread sums");
     }
 }
 
@@ -235,8 +236,8 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
         field_upload_.reset();
     }
     if (stale & kPhotons && !(built & kPhotons)) {
-        for (const vk::Image3D* image : {&radiance_, &flux_, &floor_map_, &raw_radiance_, &raw_flux_, &raw_floor_map_,
-                                         &radiance_shares_, &flux_shares_, &floor_shares_})
+        for (const vk::Image3D* image : {&radiance_, &flux_, &floor_map_, &raw_radiance_, &raw_flux_,
+                                         &raw_floor_map_, &radiance_shares_, &flux_shares_})
             if (image->get()) recorder.init_image(*image);
     }
     if (!(stale & kPhotons)) return true;
@@ -276,9 +277,10 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
         if (gap && gap()) return false;
     }
     if (raw_flux_.get()) {
-        kit_.radiance_spread.record(recorder, params_buffer(), grey(), {raw_radiance_, raw_flux_, raw_floor_map_},
-                                   {radiance_shares_, flux_shares_, floor_shares_}, {radiance_, flux_, floor_map_},
-                                   accum_->floor_shadow);
+        kit_.radiance_spread.record(recorder, params_buffer(), grey(),
+                                    {raw_radiance_, raw_flux_, raw_floor_map_},
+                                    {radiance_shares_, flux_shares_, floor_spread_sums_},
+                                    {radiance_, flux_, floor_map_}, accum_->floor_shadow);
         recorder.compute_barrier();
     }
     kit_.lit_pyramid.record(recorder, params_buffer(), flux_, accum_->lit_blocks, lattice.coarsened(lattice.light_factor));

@@ -97,7 +97,8 @@ private:
     // Under adaptive density, what the resolve writes and the spread reads, and the spread's shares
     // between its two steps (else empty).
     vk::Image3D raw_radiance_, raw_flux_, raw_floor_map_;
-    vk::Image3D radiance_shares_, flux_shares_, floor_shares_;
+    vk::Image3D radiance_shares_, flux_shares_;
+    vk::Buffer floor_spread_sums_;
     passes::EnvironmentLight environment_light_;
     vk::Buffer environment_map_;
     std::optional<passes::EnvironmentSource> environment_source_;  // what the map was made of

@@ -104,11 +104,17 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_RAW_RADIANCE 24  // rgba32f, as TRANSPORT_BINDING_RADIANCE
 #define TRANSPORT_BINDING_RAW_FLUX 25      // rgba32f, as TRANSPORT_BINDING_FLUX
 #define TRANSPORT_BINDING_RAW_FLOOR_MAP 26  // rgba16f, as TRANSPORT_BINDING_FLOOR_MAP
-// The spread's shares (radiance_spread.comp): rgba32f, what each voxel or texel gives each one its box
-// reaches (the floor's: rgb, and its radius in w).
+// The spread's shares (radiance_spread.comp): rgba32f, what each voxel gives each one its box reaches.
 #define TRANSPORT_BINDING_SPREAD_FLUX_SHARES 30
 #define TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES 31
-#define TRANSPORT_BINDING_SPREAD_FLOOR_SHARES 32
+// The floor map's spread sums: SPREAD_FLOOR_PLANES planes of (side + 1)^2 int64 cells, x fastest: red,
+// green and blue (the squares' corners, then their running sums; SPREAD_FLOOR_UNITS), then the texels'
+// photon events (a summed-area table; SPREAD_EVENT_UNITS).
+#define TRANSPORT_BINDING_SPREAD_FLOOR_SUMS 32
+#define SPREAD_FLOOR_PLANES 4u
+#define SPREAD_FLOOR_EVENTS 3u
+#define SPREAD_FLOOR_UNITS 1048576.0f  // per photon of the reference flux in one texel: 2^20
+#define SPREAD_EVENT_UNITS 65536.0f    // per photon event (a squared share of 1): 2^16
 // Where an interactive frame's eye rays end (ViewPush::ends, view_upscale.comp): two vec4 per pixel, the
 // light gathered before the end (rgb) and the transmittance the end's light comes through (rgb; 0 where
 // the ray bent, reflected or was cut off: the pixel is all gathered).
@@ -141,21 +147,35 @@ REFRACT_SHADERS_BEGIN
 // A voxel whose photon tracks (in voxel lengths of photons of the reference flux) number fewer than
 // SPREAD_TRACKS spreads its light evenly over the smallest box of (2r + 1)^3 voxels that would hold that
 // many at its density, r at most SPREAD_VOXEL_RADIUS: about a quarter relative noise where photons are
-// few, the voxel itself where they are many. A floor-map texel likewise over (2r + 1)^2 texels, r at
-// most SPREAD_TEXEL_RADIUS. (A voxel radius of 2 read 125 voxels for each: a third of an interactive
-// light edit's photon time on two cores.)
+// few, the voxel itself where they are many. (A voxel radius of 2 read 125 voxels for each: a third of
+// an interactive light edit's photon time on two cores.) A floor-map texel likewise over (2r + 1)^2
+// texels by its own effective hits, r at most SPREAD_TEXEL_RADIUS, and wider, up to
+// SPREAD_SPARSE_TEXEL_RADIUS, until the square holds SPREAD_SPARSE_EVENTS photon events (about two
+// photons' landings or removals): a lone hit spreads to its nearest neighbours, wide and faint. Waiting
+// for SPREAD_TRACKS events instead blurred the shadow's sharp edge, where hits are few per texel (the
+// light drag's frame 7.8 -> 9.8 8-bit RMSE against its still; 4 events: 8.2).
 #define SPREAD_TRACKS 16.0f
 #define SPREAD_VOXEL_RADIUS 1
 #define SPREAD_TEXEL_RADIUS 2
+#define SPREAD_SPARSE_TEXEL_RADIUS 8
+#define SPREAD_SPARSE_EVENTS 2.0f
 // One specialization per job, as the resolve's (after the transport constants): true for the dispatches
-// that spread the floor map's texels (photon hits, (2r + 1)^2 texels), false for the radiance grid's
-// voxels; and per step: false for the first (each source's share and reach, once), true for the gather.
+// that spread the floor map's texels, false for the radiance grid's voxels; and the job's step. Voxels:
+// each source's share and reach once, then box sums along x, y and z. Texels: their photon events, the
+// events' running sums along x then y, the squares' corners, their running sums along x, then along y into
+// the map.
 #define SPREAD_CONSTANT_FLOOR TRANSPORT_CONSTANT_COUNT
 #define SPREAD_CONSTANT_STEP (TRANSPORT_CONSTANT_COUNT + 1)
 #define SPREAD_STEP_SHARES 0u
-#define SPREAD_STEP_GATHER_X 1u  // and the floor's whole gather
+#define SPREAD_STEP_GATHER_X 1u
 #define SPREAD_STEP_GATHER_Y 2u
 #define SPREAD_STEP_GATHER_Z 3u
+#define SPREAD_FLOOR_STEP_EVENTS 0u
+#define SPREAD_FLOOR_STEP_EVENT_ROWS 1u
+#define SPREAD_FLOOR_STEP_EVENT_COLUMNS 2u
+#define SPREAD_FLOOR_STEP_SCATTER 3u
+#define SPREAD_FLOOR_STEP_ROWS 4u
+#define SPREAD_FLOOR_STEP_COLUMNS 5u
 #define DIRECT_MARGIN 2.0f       // voxels: a photon's ray lies between its texel's neighbours', not on one
 // Direct light treats a gradient of n (per voxel) and a coverage up to this as none: the smoothing
 // Gaussian's tails leave values of 1e-15 and so far from any object, which over a 1000-voxel path bend
