@@ -1,7 +1,5 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
-#extension GL_EXT_shader_atomic_int64 : require
 // Adaptive density estimation for interactive frames (TEMPORAL.md): each radiance voxel's light is
 // spread evenly over a box of (2r + 1)^3 voxels around it, r chosen from the photon tracks behind its
 // fluence (transport.h, SPREAD_*): wide where few photons passed, the voxel alone where many did or
@@ -28,7 +26,7 @@ layout(binding = TRANSPORT_BINDING_RAW_FLOOR_MAP, rgba16f) uniform readonly imag
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D floor_map;
 layout(binding = TRANSPORT_BINDING_SPREAD_FLUX_SHARES, rgba32f) uniform image3D flux_shares;
 layout(binding = TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, rgba32f) uniform image3D radiance_shares;
-layout(std430, binding = TRANSPORT_BINDING_SPREAD_FLOOR_SUMS) buffer FloorSums { int64_t floor_sums[]; };
+layout(std430, binding = TRANSPORT_BINDING_SPREAD_FLOOR_SUMS) buffer FloorSums { ivec4 floor_sums[]; };
 layout(std430, binding = TRANSPORT_BINDING_FLOOR_SHADOW) readonly buffer FloorShadow { vec4 floor_shadow_taken[]; };
 layout(constant_id = SPREAD_CONSTANT_FLOOR) const bool kFloorMap = false;
 layout(constant_id = SPREAD_CONSTANT_STEP) const uint kStep = SPREAD_STEP_SHARES;
@@ -60,11 +58,8 @@ float effective_hits(vec4 source) {
     return source.w > 0.0 ? shares * shares / source.w : 0.0;
 }
 
-// The floor map's sums (TRANSPORT_BINDING_SPREAD_FLOOR_SUMS): plane p's cell (x, y), 0 <= x, y <= side.
-uint floor_cell(uint plane, int x, int y) {
-    int cells = int(params.floor_map.w) + 1;
-    return plane * uint(cells * cells) + uint(y * cells + x);
-}
+// The floor map's sums (TRANSPORT_BINDING_SPREAD_FLOOR_SUMS): cell (x, y), 0 <= x, y <= side.
+uint floor_cell(int x, int y) { return uint(y * (int(params.floor_map.w) + 1) + x); }
 
 // A light value of the floor map in the sums' fixed point, and back: units of one photon of the
 // reference flux landing in one texel.
@@ -73,38 +68,38 @@ float floor_unit() {
     return params.photon_flux.w / (texel * texel);
 }
 
-// Each texel's photon events (the sum of its photons' squared shares: about one per photon of the
-// reference flux) into the events plane, one cell down and right, so that the plane's running sums along
-// x and then y leave in cell (i, j) the events of the texels x < i, y < j (a summed-area table).
-void floor_texel_events(uint i) {
-    int side = int(params.floor_map.w);
-    if (i >= uint(side * side)) return;
-    ivec2 t = ivec2(int(i) % side, int(i) / side);
-    float events = imageLoad(raw_floor_map, ivec3(t, 0)).w;
-    int64_t units = int64_t(events * SPREAD_EVENT_UNITS + 0.5);
-    floor_sums[floor_cell(SPREAD_FLOOR_EVENTS, t.x + 1, t.y + 1)] = units;
+// Cell c of the sums as the spread starts: no light (the squares' corners are added next), and texel
+// c - 1's photon events (the sum of its photons' squared shares: about one per photon of the reference
+// flux), none on the first row and column, so that the running sums of the events along x and then y
+// leave in cell (i, j) the events of the texels x < i, y < j (a summed-area table).
+void floor_cell_start(uint i) {
+    int cells = int(params.floor_map.w) + 1;
+    if (i >= uint(cells * cells)) return;
+    ivec2 c = ivec2(int(i) % cells, int(i) / cells);
+    float events = c.x > 0 && c.y > 0 ? imageLoad(raw_floor_map, ivec3(c - 1, 0)).w : 0.0;
+    floor_sums[i] = ivec4(0, 0, 0, int(events * SPREAD_EVENT_UNITS + 0.5));
 }
 
-// Running sums along x (rows: `along_x`) or y of planes [first, first + planes) in place: thread k takes
-// plane first + k / (side + 1), line k % (side + 1).
-void running_sums(uint k, uint first, uint planes, bool along_x) {
+// Running sums in place along x (`along_x`) or y, thread k taking line k, of the light (xyz) or the
+// events (w). Sums wrap around 2^32 as they please: the differences taken of them are exact.
+void running_sums(uint k, bool along_x, bool light) {
     int cells = int(params.floor_map.w) + 1;
-    if (k >= planes * uint(cells)) return;
-    uint plane = first + k / uint(cells);
-    int line = int(k % uint(cells));
-    int64_t sum = 0;
+    if (k >= uint(cells)) return;
+    int line = int(k);
+    ivec4 sum = ivec4(0);
     for (int c = 0; c < cells; ++c) {
-        uint at = along_x ? floor_cell(plane, c, line) : floor_cell(plane, line, c);
-        sum += floor_sums[at];
-        floor_sums[at] = sum;
+        uint at = along_x ? floor_cell(c, line) : floor_cell(line, c);
+        ivec4 cell = floor_sums[at];
+        sum += cell;
+        if (light) floor_sums[at].xyz = sum.xyz;
+        else floor_sums[at].w = sum.w;
     }
 }
 
 // The photon events of the texels in [lo, hi] (inclusive), from the summed-area table.
-int64_t events_in(ivec2 lo, ivec2 hi) {
-    uint plane = SPREAD_FLOOR_EVENTS;
-    return floor_sums[floor_cell(plane, hi.x + 1, hi.y + 1)] - floor_sums[floor_cell(plane, lo.x, hi.y + 1)] -
-           floor_sums[floor_cell(plane, hi.x + 1, lo.y)] + floor_sums[floor_cell(plane, lo.x, lo.y)];
+int events_in(ivec2 lo, ivec2 hi) {
+    return floor_sums[floor_cell(hi.x + 1, hi.y + 1)].w - floor_sums[floor_cell(lo.x, hi.y + 1)].w -
+           floor_sums[floor_cell(hi.x + 1, lo.y)].w + floor_sums[floor_cell(lo.x, lo.y)].w;
 }
 
 // Texel j's light spread evenly over a square of (2r + 1)^2 texels around it (clipped to the map). Its
@@ -112,10 +107,10 @@ int64_t events_in(ivec2 lo, ivec2 hi) {
 // SPREAD_SPARSE_TEXEL_RADIUS, until the square holds SPREAD_SPARSE_EVENTS photon events: a lone hit (a
 // photon the glass reflected off into the dark) reaches out to its neighbours and spreads wide and faint
 // instead of standing out as a speck, while where hits are merely few (a shadow's edge) the square stays
-// as small as the hit's own count makes it. Added as the square's four corners (+, -, -, +) to the light
-// planes, whose running sums along x and y then make the squares: every texel's light lands, in fixed
+// as small as the hit's own count makes it. Added as the square's four corners (+, -, -, +) to the sums'
+// light, whose running sums along x and y then make the squares: every texel's light lands, in fixed
 // point, whatever the squares' sizes.
-const int64_t kSparseEvents = int64_t(SPREAD_SPARSE_EVENTS * SPREAD_EVENT_UNITS);
+const int kSparseEvents = int(SPREAD_SPARSE_EVENTS * SPREAD_EVENT_UNITS);
 int floor_texel_radius(ivec2 j, vec4 source) {
     int side = int(params.floor_map.w);
     int r = spread_radius(effective_hits(source), 2.0, SPREAD_TEXEL_RADIUS);
@@ -126,7 +121,7 @@ int floor_texel_radius(ivec2 j, vec4 source) {
     return r;
 }
 
-// Whether texel j keeps its light (r = 0): floor_column adds it in place, with no corners.
+// Whether texel j keeps its light (r = 0): floor_texel_light adds it in place, with no corners.
 bool keeps_light(ivec2 j, vec4 source) {
     if (source.rgb == vec3(0.0)) return false;
     return effective_hits(source) >= SPREAD_TRACKS && events_in(j, j) >= kSparseEvents;
@@ -142,30 +137,29 @@ void floor_texel_scatter(uint i) {
     ivec2 lo = max(j - r, ivec2(0)), hi = min(j + r, ivec2(side - 1)) + 1;
     ivec2 square = hi - lo;
     vec3 share = source.rgb / (floor_unit() * float(square.x * square.y)) * SPREAD_FLOOR_UNITS;
-    for (uint c = 0u; c < 3u; ++c) {
-        int64_t q = int64_t(round(share[c]));
-        atomicAdd(floor_sums[floor_cell(c, lo.x, lo.y)], q);
-        atomicAdd(floor_sums[floor_cell(c, hi.x, lo.y)], -q);
-        atomicAdd(floor_sums[floor_cell(c, lo.x, hi.y)], -q);
-        atomicAdd(floor_sums[floor_cell(c, hi.x, hi.y)], q);
+    ivec3 q = ivec3(round(share));
+    uint corners[4] =
+        uint[4](floor_cell(lo.x, lo.y), floor_cell(hi.x, lo.y), floor_cell(lo.x, hi.y), floor_cell(hi.x, hi.y));
+    for (uint k = 0u; k < 4u; ++k) {
+        ivec3 signed_q = k == 1u || k == 2u ? -q : q;
+        atomicAdd(floor_sums[corners[k]].x, signed_q.x);
+        atomicAdd(floor_sums[corners[k]].y, signed_q.y);
+        atomicAdd(floor_sums[corners[k]].z, signed_q.z);
     }
 }
 
-// Column x of the spread map: the light planes' running sums along y (after those along x), each
-// texel's light, with the floor shadow's closed form, which carries no noise, added where it was
+// Texel t of the spread map: the light's running sums (along x, then y) at its cell, with its own
+// light where it keeps it, and the floor shadow's closed form, which carries no noise, added where it was
 // computed.
-void floor_column(uint x) {
+void floor_texel_light(uint i) {
     int side = int(params.floor_map.w);
-    if (x >= uint(side)) return;
-    i64vec3 sum = i64vec3(0);
-    float to_light = floor_unit() / SPREAD_FLOOR_UNITS;
-    for (int y = 0; y < side; ++y) {
-        for (uint c = 0u; c < 3u; ++c) sum[c] += floor_sums[floor_cell(c, int(x), y)];
-        vec4 source = imageLoad(raw_floor_map, ivec3(int(x), y, 0));
-        vec3 kept = keeps_light(ivec2(int(x), y), source) ? source.rgb : vec3(0.0);
-        vec3 change = vec3(sum) * to_light + kept - floor_shadow_taken[uint(y * side) + x].rgb;
-        imageStore(floor_map, ivec3(int(x), y, 0), vec4(change, 0.0));
-    }
+    if (i >= uint(side * side)) return;
+    ivec2 t = ivec2(int(i) % side, int(i) / side);
+    ivec3 sum = floor_sums[floor_cell(t.x, t.y)].xyz;
+    vec4 source = imageLoad(raw_floor_map, ivec3(t, 0));
+    vec3 kept = keeps_light(t, source) ? source.rgb : vec3(0.0);
+    vec3 change = vec3(sum) * (floor_unit() / SPREAD_FLOOR_UNITS) + kept - floor_shadow_taken[i].rgb;
+    imageStore(floor_map, ivec3(t, 0), vec4(change, 0.0));
 }
 
 // The radius of radiance voxel j's box, from the photon tracks behind its fluence.
@@ -235,12 +229,13 @@ void gather_voxel(uint i) {
 void main() {
     uint i = linear_invocation();
     if (kFloorMap) {
-        if (kStep == SPREAD_FLOOR_STEP_EVENTS) floor_texel_events(i);
-        else if (kStep == SPREAD_FLOOR_STEP_EVENT_ROWS) running_sums(i, SPREAD_FLOOR_EVENTS, 1u, true);
-        else if (kStep == SPREAD_FLOOR_STEP_EVENT_COLUMNS) running_sums(i, SPREAD_FLOOR_EVENTS, 1u, false);
+        if (kStep == SPREAD_FLOOR_STEP_START) floor_cell_start(i);
+        else if (kStep == SPREAD_FLOOR_STEP_EVENT_ROWS) running_sums(i, true, false);
+        else if (kStep == SPREAD_FLOOR_STEP_EVENT_COLUMNS) running_sums(i, false, false);
         else if (kStep == SPREAD_FLOOR_STEP_SCATTER) floor_texel_scatter(i);
-        else if (kStep == SPREAD_FLOOR_STEP_ROWS) running_sums(i, 0u, 3u, true);
-        else floor_column(i);
+        else if (kStep == SPREAD_FLOOR_STEP_ROWS) running_sums(i, true, true);
+        else if (kStep == SPREAD_FLOOR_STEP_COLUMNS) running_sums(i, false, true);
+        else floor_texel_light(i);
     } else {
         if (kStep == SPREAD_STEP_SHARES) voxel_share(i);
         else gather_voxel(i);

@@ -523,7 +523,7 @@ TEST_F(ViewTest, AdaptiveDensityKeepsTheGridsTotalAndQuietsSparsePhotons) {
 // texel's light is in photons per texel): each source texel's square is known from the rule in
 // transport.h (SPREAD_TEXEL_RADIUS, SPREAD_SPARSE_TEXEL_RADIUS, SPREAD_SPARSE_EVENTS), and the map the
 // pass writes must be the sum of the squares to the map's half-float rounding (2^-11 of each texel, and
-// the fixed point's 2^-20 of a photon). A lone hit in the open spreads over 17 x 17 texels, one in a
+// the fixed point's 2^-16 of a photon). A lone hit in the open spreads over 17 x 17 texels, one in a
 // corner over what of its square lies on the map; a block dense enough keeps its light; a faint hit
 // beside that block reaches out only as far as the block's events; the floor shadow's closed form is
 // added where it was computed, not spread. The map's total is the sources' less the shadow.
@@ -623,7 +623,7 @@ TEST_F(ViewTest, FloorSpreadReachesOutFromLoneHitsAndKeepsDenseLight) {
             const double got = glm::unpackHalf1x16(out[4 * t + static_cast<size_t>(c)]);
             out_total[c] += got;
             const double want = expected[t][c];
-            if (std::abs(got - want) > std::abs(want) * std::ldexp(1.0, -11) + std::ldexp(1.0, -20) * 4.0) {
+            if (std::abs(got - want) > std::abs(want) * std::ldexp(1.0, -11) + std::ldexp(1.0, -16) * 4.0) {
                 if (++wrong <= 5)
                     ADD_FAILURE() << "texel " << t % kSide << ", " << t / kSide << " channel " << c << ": "
                                   << got << " against " << want;

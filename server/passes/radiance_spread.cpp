@@ -25,7 +25,7 @@ constexpr vk::BindingLayout kLayout[] = {
 }  // namespace
 
 uint64_t floor_spread_bytes(uint32_t side) {
-    return uint64_t{SPREAD_FLOOR_PLANES} * (uint64_t{side} + 1) * (uint64_t{side} + 1) * sizeof(int64_t);
+    return (uint64_t{side} + 1) * (uint64_t{side} + 1) * 4 * sizeof(int32_t);
 }
 
 RadianceSpreadPass::RadianceSpreadPass(vk::Context& context) {
@@ -40,12 +40,13 @@ RadianceSpreadPass::RadianceSpreadPass(vk::Context& context) {
         {{"radiance spread along x", "radiance spread along x (grey)"}, 0, SPREAD_STEP_GATHER_X},
         {{"radiance spread along y", "radiance spread along y (grey)"}, 0, SPREAD_STEP_GATHER_Y},
         {{"radiance spread along z", "radiance spread along z (grey)"}, 0, SPREAD_STEP_GATHER_Z},
-        {{"floor spread events", "floor spread events (grey)"}, 1, SPREAD_FLOOR_STEP_EVENTS},
+        {{"floor spread start", "floor spread start (grey)"}, 1, SPREAD_FLOOR_STEP_START},
         {{"floor events along x", "floor events along x (grey)"}, 1, SPREAD_FLOOR_STEP_EVENT_ROWS},
         {{"floor events along y", "floor events along y (grey)"}, 1, SPREAD_FLOOR_STEP_EVENT_COLUMNS},
         {{"floor spread squares", "floor spread squares (grey)"}, 1, SPREAD_FLOOR_STEP_SCATTER},
         {{"floor spread along x", "floor spread along x (grey)"}, 1, SPREAD_FLOOR_STEP_ROWS},
-        {{"floor spread along y", "floor spread along y (grey)"}, 1, SPREAD_FLOOR_STEP_COLUMNS}};
+        {{"floor spread along y", "floor spread along y (grey)"}, 1, SPREAD_FLOOR_STEP_COLUMNS},
+        {{"floor spread light", "floor spread light (grey)"}, 1, SPREAD_FLOOR_STEP_LIGHT}};
     pipelines_.reserve(2 * std::size(kJobs));
     for (const Job& job : kJobs)
         for (const uint32_t grey : {0u, 1u}) {
@@ -76,17 +77,15 @@ void RadianceSpreadPass::record(vk::CommandRecorder& recorder, const vk::Buffer&
         const auto groups = vk::linear_groups(items, TRANSPORT_GROUP_SIZE);
         pipelines_[2 * job + variant].dispatch(recorder.get(), bindings, nullptr, 0, groups.x, groups.y);
     };
-    const uint64_t voxels = out.flux.extent().count(), texels = out.floor_map.extent().count(),
-                   lines = side + 1;
-    recorder.fill(shares.floor_sums, 0);
-    recorder.transfer_to_compute_barrier();
-    // The voxels' four steps (jobs 0-3) and the texels' six (jobs 4-9) side by side: threads per texel,
-    // per line of the events plane, per line of the three light planes, per column of the map.
-    const uint64_t texel_items[] = {texels, lines, lines, texels, 3 * lines, side};
-    for (uint32_t step = 0; step < 6; ++step) {
+    const uint64_t voxels = out.flux.extent().count(), texels = out.floor_map.extent().count();
+    // The voxels' four steps (jobs 0-3) and the texels' seven (jobs 4-10) side by side: threads per cell of
+    // the sums, per line, per line, per texel, per line, per line, per texel.
+    const uint64_t cells = uint64_t{side + 1} * (side + 1), lines = side + 1;
+    const uint64_t texel_items[] = {cells, lines, lines, texels, lines, lines, texels};
+    for (uint32_t step = 0; step < 7; ++step) {
         if (step < 4) run(step, voxels);
         run(4 + step, texel_items[step]);
-        if (step < 5) recorder.compute_barrier();
+        if (step < 6) recorder.compute_barrier();
     }
 }
 

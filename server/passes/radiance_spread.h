@@ -20,7 +20,8 @@ struct SpreadImages {
 };
 
 // Between the spread's steps: what each voxel gives the voxels its box reaches (rgba32f images of the
-// resolve's sizes), and the floor map's sums (floor_spread_bytes; transport.h, SPREAD_FLOOR_PLANES).
+// resolve's sizes), and the floor map's sums (floor_spread_bytes; transport.h,
+// TRANSPORT_BINDING_SPREAD_FLOOR_SUMS).
 struct SpreadShares {
     const vk::Image3D& radiance;
     const vk::Image3D& flux;

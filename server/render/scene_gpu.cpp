@@ -38,9 +38,9 @@ int64_t estimate_scene_bytes(const passes::GridGeometry& grid, uint64_t field_vo
     const int64_t lattice = int64_t{passes::lit_pyramid_offsets(grid.coarsened(grid.light_factor))[LIT_LEVELS]} * 4 +
                             static_cast<int64_t>(grid.dims.count() / (FIELD_CELL * FIELD_CELL * FIELD_CELL)) * 4;
     // Per floor-map texel: its sums (FLOOR_WORDS words) and the map (8); and for interactive frames' adaptive
-    // density the map before the spread (8) and the spread's sums (SPREAD_FLOOR_PLANES x 8).
+    // density the map before the spread (8) and the spread's sums (16).
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) *
-                          (4 * FLOOR_WORDS + 8 + 8 + SPREAD_FLOOR_PLANES * 8);
+                          (4 * FLOOR_WORDS + 8 + 8 + 16);
     const int64_t light_map = int64_t{passes::light_map_capacity(grid)} * passes::light_map_capacity(grid) * 2 * 4;
     // Per pixel: HDR (16), sRGB (4), a slot in the refinement list (4).
     return static_cast<int64_t>(field_voxels) * per_field_voxel + static_cast<int64_t>(object_voxels) * per_object_voxel +

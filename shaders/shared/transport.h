@@ -107,14 +107,12 @@ REFRACT_SHADERS_BEGIN
 // The spread's shares (radiance_spread.comp): rgba32f, what each voxel gives each one its box reaches.
 #define TRANSPORT_BINDING_SPREAD_FLUX_SHARES 30
 #define TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES 31
-// The floor map's spread sums: SPREAD_FLOOR_PLANES planes of (side + 1)^2 int64 cells, x fastest: red,
-// green and blue (the squares' corners, then their running sums; SPREAD_FLOOR_UNITS), then the texels'
-// photon events (a summed-area table; SPREAD_EVENT_UNITS).
+// The floor map's spread sums: an ivec4 per cell of (side + 1)^2, x fastest: red, green and blue (the
+// squares' corners, then their running sums; SPREAD_FLOOR_UNITS), and the texels' photon events (a
+// summed-area table; SPREAD_EVENT_UNITS). One load or store a cell where a plane each took four.
 #define TRANSPORT_BINDING_SPREAD_FLOOR_SUMS 32
-#define SPREAD_FLOOR_PLANES 4u
-#define SPREAD_FLOOR_EVENTS 3u
-#define SPREAD_FLOOR_UNITS 1048576.0f  // per photon of the reference flux in one texel: 2^20
-#define SPREAD_EVENT_UNITS 65536.0f    // per photon event (a squared share of 1): 2^16
+#define SPREAD_FLOOR_UNITS 65536.0f  // per photon of the reference flux in one texel: 2^16
+#define SPREAD_EVENT_UNITS 4096.0f   // per photon event (a squared share of 1): 2^12
 // Where an interactive frame's eye rays end (ViewPush::ends, view_upscale.comp): two vec4 per pixel, the
 // light gathered before the end (rgb) and the transmittance the end's light comes through (rgb; 0 where
 // the ray bent, reflected or was cut off: the pixel is all gathered).
@@ -161,21 +159,22 @@ REFRACT_SHADERS_BEGIN
 #define SPREAD_SPARSE_EVENTS 2.0f
 // One specialization per job, as the resolve's (after the transport constants): true for the dispatches
 // that spread the floor map's texels, false for the radiance grid's voxels; and the job's step. Voxels:
-// each source's share and reach once, then box sums along x, y and z. Texels: their photon events, the
-// events' running sums along x then y, the squares' corners, their running sums along x, then along y into
-// the map.
+// each source's share and reach once, then box sums along x, y and z. Texels: the sums' start (the
+// photon events), the events' running sums along x then y, the squares' corners, their running sums along
+// x then y, each texel's light into the map.
 #define SPREAD_CONSTANT_FLOOR TRANSPORT_CONSTANT_COUNT
 #define SPREAD_CONSTANT_STEP (TRANSPORT_CONSTANT_COUNT + 1)
 #define SPREAD_STEP_SHARES 0u
 #define SPREAD_STEP_GATHER_X 1u
 #define SPREAD_STEP_GATHER_Y 2u
 #define SPREAD_STEP_GATHER_Z 3u
-#define SPREAD_FLOOR_STEP_EVENTS 0u
+#define SPREAD_FLOOR_STEP_START 0u
 #define SPREAD_FLOOR_STEP_EVENT_ROWS 1u
 #define SPREAD_FLOOR_STEP_EVENT_COLUMNS 2u
 #define SPREAD_FLOOR_STEP_SCATTER 3u
 #define SPREAD_FLOOR_STEP_ROWS 4u
 #define SPREAD_FLOOR_STEP_COLUMNS 5u
+#define SPREAD_FLOOR_STEP_LIGHT 6u
 #define DIRECT_MARGIN 2.0f       // voxels: a photon's ray lies between its texel's neighbours', not on one
 // Direct light treats a gradient of n (per voxel) and a coverage up to this as none: the smoothing
 // Gaussian's tails leave values of 1e-15 and so far from any object, which over a 1000-voxel path bend
