@@ -43,9 +43,9 @@ float tracks(float fluence, ivec3 v) {
 
 // The radius of the box (dimensions 3: voxels) or square (2: texels) that holds SPREAD_TRACKS tracks or
 // hits at n per voxel or texel, at most `most`.
-int spread_radius(float n, float dimensions, int most) {
+int spread_radius(float n, int dimensions, int most) {
     for (int r = 0; r < most; ++r)
-        if (pow(float(2 * r + 1), dimensions) * n >= SPREAD_TRACKS) return r;
+        if (pow(float(2 * r + 1), float(dimensions)) * n >= SPREAD_TRACKS) return r;
     return most;
 }
 
@@ -113,7 +113,7 @@ int events_in(ivec2 lo, ivec2 hi) {
 const int kSparseEvents = int(SPREAD_SPARSE_EVENTS * SPREAD_EVENT_UNITS);
 int floor_texel_radius(ivec2 j, vec4 source) {
     int side = int(params.floor_map.w);
-    int r = spread_radius(effective_hits(source), 2.0, SPREAD_TEXEL_RADIUS);
+    int r = spread_radius(effective_hits(source), 2, SPREAD_TEXEL_RADIUS);
     while (r < SPREAD_SPARSE_TEXEL_RADIUS) {
         if (events_in(max(j - r, ivec2(0)), min(j + r, ivec2(side - 1))) >= kSparseEvents) break;
         ++r;
@@ -163,9 +163,7 @@ void floor_texel_light(uint i) {
 }
 
 // The radius of radiance voxel j's box, from the photon tracks behind its fluence.
-int voxel_radius(ivec3 j, vec4 source) {
-    return spread_radius(tracks(source.w, j), 3.0, SPREAD_VOXEL_RADIUS);
-}
+int voxel_radius(ivec3 j, vec4 source) { return spread_radius(tracks(source.w, j), 3, SPREAD_VOXEL_RADIUS); }
 
 // Each voxel's share of its light for every voxel its box reaches, once; none where its box is itself
 // (the last box sum adds that voxel's light in its own place).

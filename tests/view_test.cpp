@@ -587,8 +587,7 @@ TEST_F(ViewTest, FloorSpreadReachesOutFromLoneHitsAndKeepsDenseLight) {
     vk::Buffer floor_shadow(ctx, shadow.size() * sizeof(glm::vec4), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                             vk::MemoryUse::upload, "test floor shadow");
     floor_shadow.write(shadow.data(), shadow.size() * sizeof(glm::vec4));
-    vk::Buffer sums(ctx, passes::floor_spread_bytes(kSide),
-                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+    vk::Buffer sums(ctx, passes::floor_spread_bytes(kSide), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                     vk::MemoryUse::device, "test spread sums");
     const vk::Extent3 one{1, 1, 1}, map{kSide, kSide, 1};
     auto image = [&](vk::Extent3 extent, VkFormat format) {

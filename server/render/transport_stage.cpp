@@ -114,9 +114,9 @@ void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t phot
         raw_floor_map_ = {};
         floor_spread_sums_ = {};
         raw_floor_map_ = vk::Image3D(ctx, floor_map_.extent(), VK_FORMAT_R16G16B16A16_SFLOAT, "floor map before the spread");
-        floor_spread_sums_ = vk::Buffer(ctx, passes::floor_spread_bytes(floor_texels),
-                                        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                        vk::MemoryUse::device, "floor map spread sums");
+        floor_spread_sums_ =
+            vk::Buffer(ctx, passes::floor_spread_bytes(floor_texels), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                       vk::MemoryUse::device, "floor map spread sums");
     }
 }
 
