@@ -19,7 +19,7 @@ layout(binding = TRANSPORT_BINDING_FLUX) uniform sampler3D flux;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
 layout(std430, binding = TRANSPORT_BINDING_HDR) buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
-layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) writeonly buffer Ends { vec4 ends[]; };
+layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) writeonly buffer Ends { ViewEnd ends[]; };
 layout(std430, binding = TRANSPORT_BINDING_REFINE) readonly buffer Refine {
     WorkListHeader refine;
     uint refine_pixels[];
@@ -184,7 +184,11 @@ void shade(uvec2 pixel) {
     // place the eye ray bends (its surface): what is seen through glass moves with the glass.
     float light_weight = 0.0, weighted_inverse_depth = 0.0, surface_inverse_depth = -1.0;
     // Where the eye ray ends, for the viewer's size (TRANSPORT_BINDING_VIEW_ENDS): by default all gathered.
+    // A straight ray's light before its end and the transmittance to it; a bent one's last leg.
     vec3 end_front = vec3(0.0), end_transmittance = vec3(0.0);
+    uint bent_end = VIEW_END_GATHERED;
+    vec3 bent_through = vec3(0.0), bent_landing = vec3(0.0), bent_seen = vec3(0.0);
+    float bent_reach = 0.0;
     // The volumes' residual ratio tracking (eye_ratio): a stream per pixel, sample and photon seed, so
     // refinement averages it as it averages the sub-pixel positions.
     EyeTrack track = EyeTrack(hash(pixel.y * width + pixel.x ^ hash(floatBitsToUint(params.refinement.z) ^ hash(
@@ -430,15 +434,22 @@ void shade(uvec2 pixel) {
             // times the cone's longer one: a neighbour farther off took another way through the glass (both
             // neighbours on an axis can), and the spot's rim filter would light the floor far outside its cone.
             bool bent = path_kind != 0u || surface_inverse_depth >= 0.0;
+            float reach = 16.0 * length(along);
             vec3 a, b;
             if (neighbour_footprint(params.image.z != 0u && sees_floor && bent, floor_point, path_kind, pixel, a, b)) {
-                float reach = 16.0 * length(along);
                 along = a * min(1.0, reach / max(length(a), 1e-30));
                 across = b * min(1.0, reach / max(length(b), 1e-30));
                 checker_width = sqrt(along.xz * along.xz + across.xz * across.xz) / params.floor_plane.y;
             }
             vec3 seen = transmittance * (sees_floor ? floor_radiance_over(floor_point, along, across, checker_width) : sky(end_d));
             pixel_radiance += seen;
+            if (path == 0u && surface_inverse_depth >= 0.0) {
+                bent_end = sees_floor ? VIEW_END_BENT_FLOOR : VIEW_END_BENT_SKY;
+                bent_through = transmittance;
+                bent_landing = sees_floor ? floor_point : end_d;
+                bent_reach = reach;
+                bent_seen = seen;
+            }
             float share = (seen.r + seen.g + seen.b) * (1.0 / 3.0);
             light_weight += share;
             weighted_inverse_depth += share * (surface_inverse_depth >= 0.0 ? surface_inverse_depth
@@ -452,9 +463,14 @@ void shade(uvec2 pixel) {
     float inverse_depth = light_weight > 0.0 ? weighted_inverse_depth / light_weight : 0.0;
     hdr[index] = weight < 1.0 ? mix(hdr[index], vec4(pixel_radiance, inverse_depth), weight) : vec4(pixel_radiance, inverse_depth);
     if (push.ends != 0u) {
-        bool straight = any(greaterThan(end_transmittance, vec3(0.0)));
-        ends[2u * index] = vec4(straight ? end_front : pixel_radiance, 0.0);
-        ends[2u * index + 1u] = vec4(end_transmittance, 0.0);
+        ViewEnd end;
+        end.kind = any(greaterThan(end_transmittance, vec3(0.0))) ? VIEW_END_STRAIGHT : bent_end;
+        bool straight = end.kind == VIEW_END_STRAIGHT;
+        end.gathered = straight ? end_front : pixel_radiance - bent_seen;
+        end.through = straight ? end_transmittance : bent_through;
+        end.reach = bent_reach;
+        end.landing = vec4(bent_landing, 0.0);
+        ends[index] = end;
     }
 }
 

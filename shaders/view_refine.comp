@@ -17,7 +17,7 @@ layout(std430, binding = TRANSPORT_BINDING_REFINE) buffer Refine {
     WorkListHeader refine;
     uint refine_pixels[];
 };
-layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) buffer Ends { vec4 ends[]; };
+layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) buffer Ends { ViewEnd ends[]; };
 layout(push_constant) uniform Push { uint write_ends; };  // 1: the frame's eye rays' ends are interpolated too
 
 uvec3 bytes_of(uint rgba) { return uvec3(rgba, rgba >> 8u, rgba >> 16u) & 0xffu; }
@@ -49,13 +49,24 @@ void main() {
     if (inside && !traced && agree) {
         hdr[index] = 0.25 * sum;
         if (write_ends != 0u) {
-            vec4 gathered = vec4(0.0), transmittance = vec4(0.0);
+            // Ends of one kind (and bent legs that landed near each other) are interpolated; a pixel
+            // between different ends takes the interpolated light, all gathered.
+            ViewEnd end = ViewEnd(vec3(0.0), ends[corner[0]].kind, vec3(0.0), 0.0, vec4(0.0));
             for (int k = 0; k < 4; ++k) {
-                gathered += ends[2u * corner[k]];
-                transmittance += ends[2u * corner[k] + 1u];
+                ViewEnd e = ends[corner[k]];
+                end.gathered += 0.25 * e.gathered;
+                end.through += 0.25 * e.through;
+                end.reach += 0.25 * e.reach;
+                end.landing += 0.25 * e.landing;
+                if (e.kind != end.kind) end.kind = VIEW_END_GATHERED;
             }
-            ends[2u * index] = 0.25 * gathered;
-            ends[2u * index + 1u] = 0.25 * transmittance;
+            for (int k = 0; k < 4; ++k)
+                if (end.kind == VIEW_END_BENT_FLOOR &&
+                    distance(ends[corner[k]].landing, end.landing) > end.reach)
+                    end.kind = VIEW_END_GATHERED;
+            if (end.kind == VIEW_END_GATHERED)
+                end = ViewEnd(0.25 * sum.rgb, VIEW_END_GATHERED, vec3(0.0), 0.0, vec4(0.0));
+            ends[index] = end;
         }
     }
     bool listed = inside && !traced && !agree;

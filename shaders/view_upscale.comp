@@ -1,43 +1,43 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_shuffle : require
 // An interactive frame at the viewer's size from a frame traced smaller (mixed resolution, as real-time
 // renderers draw fog at a fraction of the screen's size): one thread per pixel of the viewer's image.
 // What the traced eye rays gathered along the way (fog, glass, the volumes) and the transmittance to
 // their ends change smoothly and are interpolated between the traced pixels; the end itself, the floor
 // (its checker, the lit disc's rim, the floor map) or the sky, is found again for each pixel along its
-// own straight ray, at the viewer's size. Where the traced rays bent (the object) their transmittance
-// to a straight end is 0, and the pixel is their light, interpolated.
+// own straight ray, at the viewer's size. Where the traced rays bent (the object), what they see through
+// it is found again along their last leg, interpolated where the four around the pixel took one way
+// through the glass: the checker seen through the glass is as sharp as the one seen past it.
 #include "transport_common.glsl"
 #include "environment.glsl"
 #include "tone_map.glsl"
 
 layout(local_size_x = VIEW_GROUP_SIZE, local_size_y = VIEW_GROUP_SIZE) in;
 layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
-layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) readonly buffer Ends { vec4 ends[]; };
+layout(std430, binding = TRANSPORT_BINDING_HDR) readonly buffer Hdr { vec4 hdr[]; };  // the traced frame
+layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) readonly buffer Ends { ViewEnd ends[]; };
 layout(std430, binding = TRANSPORT_BINDING_VIEWER_HDR) writeonly buffer ViewerHdr { vec4 viewer_hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_VIEWER_LDR) writeonly buffer ViewerLdr { uint viewer_ldr[]; };
 layout(push_constant) uniform Push { UpscalePush push; };
+// Whether the traced pixels a subgroup's viewer pixels fall between are few enough for each lane to load
+// one and hand it to the others (UPSCALE_SHARED_CORNERS_MAX_SCALE): a load per lane instead of four,
+// where loads are most of the pass (lavapipe loads a lane at a time).
+layout(constant_id = UPSCALE_CONSTANT_SHARED_CORNERS) const bool kSharedCorners = false;
 #include "eye_ray_ends.glsl"
 
 void main() {
     load_params();
-    uvec2 pixel = gl_GlobalInvocationID.xy;
     uint width = push.viewer.x, height = push.viewer.y;
-    if (pixel.x >= width || pixel.y >= height) return;
+    // Lanes past the image's edge stay, to hand on what they load.
+    bool inside = gl_GlobalInvocationID.x < width && gl_GlobalInvocationID.y < height;
+    uvec2 pixel = min(gl_GlobalInvocationID.xy, uvec2(width, height) - 1u);
     // The pixel's ray, as the viewing pass makes one for an image of this size (at the pixel's centre).
     vec2 ndc = image_plane_point(vec2(pixel) + 0.5, width, height);
     vec3 d = eye_direction(ndc);
     float tan_half = params.camera_position.w;
     vec3 eye = params.camera_position.xyz;
-    bool sees_floor = floor_enabled() && d.y < 0.0 && eye.y > params.floor_plane.x;
-    vec3 end = vec3(0.0);
-    if (sees_floor) {
-        vec3 floor_point = eye + d * ((eye.y - params.floor_plane.x) / -d.y);
-        end = floor_radiance(floor_point, d, length(floor_point - eye), float(height));
-    } else {
-        end = sky(d);
-    }
-
     // Where that direction falls among the traced pixels' samples (their sub-pixel offset included): the
     // traced frame's aspect rounds differently from the viewer's, so by direction, not by pixel ratio.
     uint traced_w = params.image.x, traced_h = params.image.y;
@@ -50,13 +50,79 @@ void main() {
     vec2 f = at - vec2(lo);
     uint corner[4] = uint[4](lo.y * traced_w + lo.x, lo.y * traced_w + hi.x, hi.y * traced_w + lo.x, hi.y * traced_w + hi.x);
     float weight[4] = float[4]((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);
-    vec3 gathered = vec3(0.0), transmittance = vec3(0.0);
-    for (int k = 0; k < 4; ++k) {
-        gathered += weight[k] * ends[2u * corner[k]].rgb;
-        transmittance += weight[k] * ends[2u * corner[k] + 1u].rgb;
+    ViewEnd corners[4];
+    vec3 traced[4];
+    if (kSharedCorners && gl_SubgroupSize >= 8u) {
+        // The subgroup's traced pixels, a rectangle of them: lane i loads its i-th, row by row.
+        uvec2 origin = uvec2(subgroupMin(lo.x), subgroupMin(lo.y));
+        uint columns = subgroupMax(hi.x) - origin.x + 1u;
+        uvec2 mine = min(origin + uvec2(gl_SubgroupInvocationID % columns, gl_SubgroupInvocationID / columns),
+                         uvec2(traced_w, traced_h) - 1u);
+        ViewEnd loaded = ends[mine.y * traced_w + mine.x];
+        vec3 loaded_light = hdr[mine.y * traced_w + mine.x].rgb;
+        uvec2 at_corner[4] = uvec2[4](lo, uvec2(hi.x, lo.y), uvec2(lo.x, hi.y), hi);
+        for (int k = 0; k < 4; ++k) {
+            uint lane = (at_corner[k].y - origin.y) * columns + (at_corner[k].x - origin.x);
+            corners[k] = ViewEnd(subgroupShuffle(loaded.gathered, lane), subgroupShuffle(loaded.kind, lane),
+                                 subgroupShuffle(loaded.through, lane), subgroupShuffle(loaded.reach, lane),
+                                 subgroupShuffle(loaded.landing, lane));
+            traced[k] = subgroupShuffle(loaded_light, lane);
+        }
+    } else {
+        for (int k = 0; k < 4; ++k) {
+            corners[k] = ends[corner[k]];
+            traced[k] = hdr[corner[k]].rgb;
+        }
     }
-    vec3 radiance = gathered + transmittance * end;
+    bool straight = false;
+    vec3 landing = vec3(0.0);
+    float reach = 0.0;
+    for (int k = 0; k < 4; ++k) {
+        straight = straight || (corners[k].kind == VIEW_END_STRAIGHT && weight[k] > 0.0);
+        landing += weight[k] * corners[k].landing.xyz;
+        reach += weight[k] * corners[k].reach;
+    }
+    // The bent legs around the pixel took one way through the glass when all four end alike and, on the
+    // floor, land within reach of each other: the pixel's own leg is then their interpolation.
+    uint bent = corners[0].kind;
+    for (int k = 0; k < 4; ++k) {
+        vec3 apart = corners[k].landing.xyz - landing;
+        if (corners[k].kind != bent || (bent == VIEW_END_BENT_FLOOR && dot(apart, apart) > reach * reach))
+            bent = VIEW_END_GATHERED;
+    }
+    bool follows_leg = !straight && (bent == VIEW_END_BENT_FLOOR || bent == VIEW_END_BENT_SKY);
+
+    // The end the pixel sees, its own straight ray's or its bent leg's: one floor lookup either way. A
+    // leg's footprint is the change of the landings across the traced pixels, scaled to the viewer's
+    // pixel (within twice the reach, which the landings keep to).
+    bool sees_floor = follows_leg ? bent == VIEW_END_BENT_FLOOR
+                                  : floor_enabled() && d.y < 0.0 && eye.y > params.floor_plane.x;
+    vec3 floor_point = follows_leg ? landing : eye + d * ((eye.y - params.floor_plane.x) / -d.y);
+    vec3 to_floor = floor_point - eye;
+    float distance_to_floor = length(to_floor);
+    vec3 along, across;
+    vec2 checker_width;
+    cone_footprint(to_floor / distance_to_floor, distance_to_floor, float(height), along, across,
+                   checker_width);
+    if (follows_leg) {
+        float scale = float(traced_w) / float(width);
+        vec3 l0 = corners[0].landing.xyz, l1 = corners[1].landing.xyz, l2 = corners[2].landing.xyz,
+             l3 = corners[3].landing.xyz;
+        vec3 dx = 0.5 * scale * (l1 - l0 + l3 - l2), dy = 0.5 * scale * (l2 - l0 + l3 - l1);
+        along = hi.x > lo.x ? dx : along;
+        across = hi.y > lo.y ? dy : across;
+        checker_width = sqrt(along.xz * along.xz + across.xz * across.xz) / params.floor_plane.y;
+    }
+    vec3 end = sees_floor ? floor_radiance_over(floor_point, along, across, checker_width)
+                          : sky(follows_leg ? normalize(landing) : d);
+
+    vec3 radiance = vec3(0.0);
+    for (int k = 0; k < 4; ++k) {
+        bool own_end = corners[k].kind == VIEW_END_STRAIGHT || follows_leg;
+        radiance += weight[k] * (own_end ? corners[k].gathered + corners[k].through * end : traced[k]);
+    }
     uint index = pixel.y * width + pixel.x;
+    if (!inside) return;
     viewer_hdr[index] = vec4(radiance, 0.0);  // no inverse depth: nothing reprojects a viewer's frame
     viewer_ldr[index] = srgb8(radiance, params.tone.x);
 }

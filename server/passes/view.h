@@ -12,7 +12,7 @@ struct ViewOutputs {
     const vk::Buffer& stats;  // PhotonStats; the view pass counts view_steps
     const vk::Buffer& lit_blocks;
     const vk::Buffer& refine;  // WorkListHeader + a pixel index per pixel (transport.h), for adaptive frames
-    const vk::Buffer& ends;  // 2 vec4 per pixel (TRANSPORT_BINDING_VIEW_ENDS), written with `ends`
+    const vk::Buffer& ends;  // a shaders::ViewEnd per pixel (TRANSPORT_BINDING_VIEW_ENDS), with `ends`
 };
 
 class ViewPass {

@@ -8,6 +8,7 @@ namespace refract::passes {
 namespace {
 constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_HDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_VIEW_ENDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_VIEWER_HDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_VIEWER_LDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -15,18 +16,34 @@ constexpr vk::BindingLayout kOwnLayout[] = {
 constexpr auto kLayout = transport_layout(kOwnLayout);
 }  // namespace
 
-ViewUpscalePass::ViewUpscalePass(vk::Context& context)
-    : pipeline_(context, view_upscale_spv, kLayout, sizeof(shaders::UpscalePush), "view upscale") {}
+// The transport constants at their defaults (the pass reads none of them), then whether lanes share loads.
+static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && TRANSPORT_CONSTANT_COVERAGE_FETCH == 1 &&
+              TRANSPORT_CONSTANT_MEDIUM_FADE == 7 && UPSCALE_CONSTANT_SHARED_CORNERS == 8 &&
+              CHANNELS_RGB == 0);
+constexpr uint32_t kSharedCorners[] = {CHANNELS_RGB, 1u, 0u, 0u, 0u, 0u, 0u, 1u, 1u};
+constexpr uint32_t kOwnCorners[] = {CHANNELS_RGB, 1u, 0u, 0u, 0u, 0u, 0u, 1u, 0u};
 
-void ViewUpscalePass::record(vk::CommandRecorder& recorder, const TransportInputs& in, const vk::Image3D& floor_map,
-                             const UpscaleBuffers& buffers, uint32_t width, uint32_t height) const {
+ViewUpscalePass::ViewUpscalePass(vk::Context& context)
+    : shared_corners_(context, view_upscale_spv, kLayout, sizeof(shaders::UpscalePush), "view upscale",
+                      kSharedCorners),
+      own_corners_(context, view_upscale_spv, kLayout, sizeof(shaders::UpscalePush), "view upscale",
+                   kOwnCorners) {}
+
+void ViewUpscalePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
+                             const vk::Image3D& floor_map, const UpscaleBuffers& buffers, glm::uvec2 traced,
+                             uint32_t width, uint32_t height) const {
     const vk::Binding own[] = {vk::Binding::sampled_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map, in.sampler),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, buffers.traced_hdr),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_VIEW_ENDS, buffers.ends),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_VIEWER_HDR, buffers.viewer_hdr),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_VIEWER_LDR, buffers.viewer_ldr)};
     const shaders::UpscalePush push{glm::uvec2(width, height)};
-    pipeline_.dispatch(recorder.get(), transport_bindings(in, own), push, vk::group_count(width, VIEW_GROUP_SIZE),
-                       vk::group_count(height, VIEW_GROUP_SIZE));
+    const bool shared =
+        static_cast<float>(traced.x) <= UPSCALE_SHARED_CORNERS_MAX_SCALE * static_cast<float>(width) &&
+        static_cast<float>(traced.y) <= UPSCALE_SHARED_CORNERS_MAX_SCALE * static_cast<float>(height);
+    (shared ? shared_corners_ : own_corners_)
+        .dispatch(recorder.get(), transport_bindings(in, own), push, vk::group_count(width, VIEW_GROUP_SIZE),
+                  vk::group_count(height, VIEW_GROUP_SIZE));
 }
 
 }  // namespace refract::passes

@@ -1,7 +1,8 @@
 // Pass 6c (view upscale): an interactive frame traced smaller than its viewer's image, brought to the
 // viewer's size (shaders/view_upscale.comp): the light gathered along the traced eye rays and their
-// transmittance interpolated, the floor or sky at their straight ends evaluated for every pixel, then
-// tone-mapped. Reads what the viewing pass wrote with ViewPush::ends.
+// transmittance interpolated, the floor or sky at their straight ends, or at the ends of their last legs
+// out of the glass, evaluated for every pixel, then tone-mapped. Reads what the viewing pass wrote with
+// ViewPush::ends.
 #pragma once
 
 #include "passes/transport_pipeline.h"
@@ -11,6 +12,7 @@
 namespace refract::passes {
 
 struct UpscaleBuffers {
+    const vk::Buffer& traced_hdr;  // the traced frame (TRANSPORT_BINDING_HDR)
     const vk::Buffer& ends;        // where its eye rays end (TRANSPORT_BINDING_VIEW_ENDS)
     const vk::Buffer& viewer_hdr;  // vec4 per viewer pixel (w: 0, no inverse depth)
     const vk::Buffer& viewer_ldr;  // sRGB RGBA8 per viewer pixel
@@ -19,12 +21,15 @@ struct UpscaleBuffers {
 class ViewUpscalePass {
 public:
     explicit ViewUpscalePass(vk::Context& context);
-    // Over width x height viewer pixels; the traced frame's size, camera and exposure are the params'.
+    // Over width x height viewer pixels from a frame traced at `traced` (the params' image size, whose
+    // camera and exposure it takes).
     void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const vk::Image3D& floor_map,
-                const UpscaleBuffers& buffers, uint32_t width, uint32_t height) const;
+                const UpscaleBuffers& buffers, glm::uvec2 traced, uint32_t width, uint32_t height) const;
 
 private:
-    vk::ComputePipeline pipeline_;  // one for every transport variant: it reads none of their constants
+    // One for every transport variant (it reads none of their constants); with the lanes sharing the
+    // traced pixels' loads, and without, for traced frames above UPSCALE_SHARED_CORNERS_MAX_SCALE.
+    vk::ComputePipeline shared_corners_, own_corners_;
 };
 
 }  // namespace refract::passes

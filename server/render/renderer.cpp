@@ -727,6 +727,14 @@ void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& as
     FrameOptions options;
     options.quality = quality;
     render(scene.id, reduced, assets, options);
+    // That frame came at its own size; a drag's are traced a fraction of their viewer's, whose upscale
+    // takes a pipeline of its own (the lanes share the traced pixels they load).
+    constexpr uint32_t kViewerScale = 4;
+    static_assert(1.0f / kViewerScale <= UPSCALE_SHARED_CORNERS_MAX_SCALE);
+    std::lock_guard lock(impl_->mutex);
+    const auto it = impl_->scenes.find(scene.id);
+    if (it != impl_->scenes.end() && it->second.gpu->has_view_ends())
+        it->second.gpu->upscale(kViewerScale * reduced.image.width, kViewerScale * reduced.image.height);
 }
 
 void Renderer::warm_up_load(const protocol::SceneDocument& before, const protocol::SceneDocument& loaded,

@@ -65,9 +65,11 @@ bool ViewStage::record(FrameRecording& recording, PassSet stale, bool adaptive, 
         recording.begin(kView);
         const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
         if (ends && !ends_.get())
-            ends_ = vk::Buffer(kit_.context, uint64_t{width_} * height_ * 2 * sizeof(glm::vec4), usage,
+            ends_ = vk::Buffer(kit_.context, uint64_t{width_} * height_ * sizeof(shaders::ViewEnd), usage,
                                vk::MemoryUse::device, "view ends");
-        if (!no_ends_.get()) no_ends_ = vk::Buffer(kit_.context, 2 * sizeof(glm::vec4), usage, vk::MemoryUse::device, "no view ends");
+        if (!no_ends_.get())
+            no_ends_ = vk::Buffer(kit_.context, sizeof(shaders::ViewEnd), usage, vk::MemoryUse::device,
+                                  "no view ends");
         ends_kept_ = false;  // until this view is whole
         const passes::PhotonAccumulators& accum = transport.accumulators();
         if (!kit_.view.record(recorder, transport.view_inputs(volume), transport.radiance(), transport.flux(),
@@ -97,7 +99,8 @@ void ViewStage::upscale(uint32_t width, uint32_t height, const VolumeStage& volu
     }
     upscale_recorder_.begin();
     kit_.view_upscale.record(upscale_recorder_, transport.view_inputs(volume), transport.floor_map(),
-                             {ends_, viewer_hdr_, viewer_ldr_}, width, height);
+                             {hdr_, ends_, viewer_hdr_, viewer_ldr_}, glm::uvec2(width_, height_), width,
+                             height);
     upscale_recorder_.to_host_barrier();
     upscale_recorder_.submit_and_wait();
 }

@@ -113,9 +113,7 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_SPREAD_FLOOR_SUMS 32
 #define SPREAD_FLOOR_UNITS 65536.0f  // per photon of the reference flux in one texel: 2^16
 #define SPREAD_EVENT_UNITS 4096.0f   // per photon event (a squared share of 1): 2^12
-// Where an interactive frame's eye rays end (ViewPush::ends, view_upscale.comp): two vec4 per pixel, the
-// light gathered before the end (rgb) and the transmittance the end's light comes through (rgb; 0 where
-// the ray bent, reflected or was cut off: the pixel is all gathered).
+// Where an interactive frame's eye rays end (ViewPush::ends, view_upscale.comp): a ViewEnd per pixel.
 #define TRANSPORT_BINDING_VIEW_ENDS 33
 // The viewer's size (view_upscale.comp): vec4 linear radiance and uint sRGB per pixel.
 #define TRANSPORT_BINDING_VIEWER_HDR 34
@@ -488,10 +486,36 @@ struct ViewPush {
     uint ends;    // 1: also write where each eye ray ends (TRANSPORT_BINDING_VIEW_ENDS)
 };
 
+// How a traced pixel's light ends (ViewEnd::kind). A straight ray's end, the floor or the sky, is where
+// the viewer pixel's own ray meets it; a bent ray's last leg, from the glass to the floor or the sky, is
+// interpolated between traced pixels whose legs took one way through the glass and followed again
+// (view_upscale.comp); elsewhere the viewer's pixel takes the traced pixels' light.
+#define VIEW_END_GATHERED 0u    // none: the pixel is all gathered light (cut off, or parted by channel)
+#define VIEW_END_STRAIGHT 1u    // straight from the eye to the floor or the sky
+#define VIEW_END_BENT_FLOOR 2u  // bent by the object, then straight to `landing` on the floor
+#define VIEW_END_BENT_SKY 3u    // bent by the object, then out along `landing` (a direction) to the sky
+struct ViewEnd {
+    vec3 gathered;  // light gathered before the end (rgb): fog, glass, volumes, reflections
+    uint kind;      // VIEW_END_*
+    vec3 through;   // the transmittance the end's light comes through (0 for VIEW_END_GATHERED)
+    // A bent floor end: how far from its landing a neighbouring leg may land and still have taken the
+    // same way through the glass, 16 times the traced pixel's footprint there (view.comp's rule for the
+    // neighbours that give a bent ray its footprint).
+    float reach;
+    vec4 landing;  // xyz: a bent end's floor point (world) or direction to the sky; w: 0 (std430 pads it)
+};
+
 // An interactive frame scaled to the viewer's size (view_upscale.comp): that size, in pixels.
 struct UpscalePush {
     uvec2 viewer;
 };
+// The upscale's lanes share the traced pixels they fall between (view_upscale.comp, kSharedCorners) where
+// the traced frame is at most this fraction of the viewer's size along each axis: a subgroup of 8 lanes
+// holds a row of 8 viewer pixels (the workgroup's invocations in order), which then fall between at most
+// 4 x 2 traced pixels (7 pixel steps of 2/7 cross 2 traced columns); 16 and more lanes hold whole rows,
+// 4 x 3 traced pixels for 16 and 32 lanes, 4 x 4 for 64, never more than the lanes.
+#define UPSCALE_SHARED_CORNERS_MAX_SCALE (2.0f / 7.0f)
+#define UPSCALE_CONSTANT_SHARED_CORNERS TRANSPORT_CONSTANT_COUNT
 
 // Traced neighbours whose sRGB values differ by at most this many 8-bit levels in every channel are
 // interpolated; 4 levels keeps 99% of the interpolated pixels within 3 levels of the traced value in
@@ -522,6 +546,7 @@ static_assert(sizeof(refract::shaders::Material) == 80);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
 static_assert(sizeof(refract::shaders::PhotonExit) == 80);
+static_assert(sizeof(refract::shaders::ViewEnd) == 48);  // std430: a vec3 and a uint in each 16 bytes
 #endif
 
 #endif
