@@ -21,10 +21,10 @@ layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) readonly buffer Ends { Vie
 layout(std430, binding = TRANSPORT_BINDING_VIEWER_HDR) writeonly buffer ViewerHdr { vec4 viewer_hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_VIEWER_LDR) writeonly buffer ViewerLdr { uint viewer_ldr[]; };
 layout(push_constant) uniform Push { UpscalePush push; };
-// Whether the traced pixels a subgroup's viewer pixels fall between are few enough for each lane to load
-// one and hand it to the others (UPSCALE_SHARED_CORNERS_MAX_SCALE): a load per lane instead of four,
-// where loads are most of the pass (lavapipe loads a lane at a time).
-layout(constant_id = UPSCALE_CONSTANT_SHARED_CORNERS) const bool kSharedCorners = false;
+// How many of the traced pixels a subgroup's viewer pixels fall between each lane loads and hands to the
+// others (upscale_shared_loads in transport.h): one or two loads a lane instead of four, where loads are
+// most of the pass (lavapipe loads a lane at a time); 0: each lane loads its own four.
+layout(constant_id = UPSCALE_CONSTANT_SHARED_LOADS) const uint kSharedLoads = 0u;
 #include "eye_ray_ends.glsl"
 
 void main() {
@@ -52,21 +52,31 @@ void main() {
     float weight[4] = float[4]((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);
     ViewEnd corners[4];
     vec3 traced[4];
-    if (kSharedCorners && gl_SubgroupSize >= 8u) {
-        // The subgroup's traced pixels, a rectangle of them: lane i loads its i-th, row by row.
+    if (kSharedLoads > 0u && gl_SubgroupSize >= 8u) {
+        // The subgroup's traced pixels, a rectangle of them: lane i loads its i-th, row by row, and the
+        // subgroup's size on from it.
         uvec2 origin = uvec2(subgroupMin(lo.x), subgroupMin(lo.y));
         uint columns = subgroupMax(hi.x) - origin.x + 1u;
-        uvec2 mine = min(origin + uvec2(gl_SubgroupInvocationID % columns, gl_SubgroupInvocationID / columns),
-                         uvec2(traced_w, traced_h) - 1u);
-        ViewEnd loaded = ends[mine.y * traced_w + mine.x];
-        vec3 loaded_light = hdr[mine.y * traced_w + mine.x].rgb;
         uvec2 at_corner[4] = uvec2[4](lo, uvec2(hi.x, lo.y), uvec2(lo.x, hi.y), hi);
-        for (int k = 0; k < 4; ++k) {
-            uint lane = (at_corner[k].y - origin.y) * columns + (at_corner[k].x - origin.x);
-            corners[k] = ViewEnd(subgroupShuffle(loaded.gathered, lane), subgroupShuffle(loaded.kind, lane),
-                                 subgroupShuffle(loaded.through, lane), subgroupShuffle(loaded.reach, lane),
-                                 subgroupShuffle(loaded.landing, lane));
-            traced[k] = subgroupShuffle(loaded_light, lane);
+        for (uint load = 0u; load < kSharedLoads; ++load) {
+            uint i = load * gl_SubgroupSize + gl_SubgroupInvocationID;
+            uvec2 mine = min(origin + uvec2(i % columns, i / columns), uvec2(traced_w, traced_h) - 1u);
+            ViewEnd loaded = ends[mine.y * traced_w + mine.x];
+            vec3 loaded_light = hdr[mine.y * traced_w + mine.x].rgb;
+            for (int k = 0; k < 4; ++k) {
+                uint entry = (at_corner[k].y - origin.y) * columns + (at_corner[k].x - origin.x);
+                uint lane = entry % gl_SubgroupSize;
+                ViewEnd handed = ViewEnd(subgroupShuffle(loaded.gathered, lane),
+                                         subgroupShuffle(loaded.kind, lane),
+                                         subgroupShuffle(loaded.through, lane),
+                                         subgroupShuffle(loaded.reach, lane),
+                                         subgroupShuffle(loaded.landing, lane));
+                vec3 handed_light = subgroupShuffle(loaded_light, lane);
+                if (entry / gl_SubgroupSize == load) {
+                    corners[k] = handed;
+                    traced[k] = handed_light;
+                }
+            }
         }
     } else {
         for (int k = 0; k < 4; ++k) {

@@ -1,5 +1,8 @@
 #include "passes/view_upscale.h"
 
+#include <algorithm>
+#include <array>
+
 #include "transport.h"
 #include "view_upscale_spv.h"
 
@@ -14,20 +17,23 @@ constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_VIEWER_LDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 constexpr auto kLayout = transport_layout(kOwnLayout);
+
+// The transport constants at their defaults (the pass reads none of them), then the loads a lane shares.
+static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && TRANSPORT_CONSTANT_COVERAGE_FETCH == 1 &&
+              TRANSPORT_CONSTANT_MEDIUM_FADE == 7 && UPSCALE_CONSTANT_SHARED_LOADS == 8 && CHANNELS_RGB == 0);
+std::array<uint32_t, 9> constants(uint32_t shared_loads) {
+    return {CHANNELS_RGB, 1u, 0u, 0u, 0u, 0u, 0u, 1u, shared_loads};
+}
+constexpr uint32_t kSharedLoadsVariants = 3;  // upscale_shared_loads: 0, 1, 2
+
 }  // namespace
 
-// The transport constants at their defaults (the pass reads none of them), then whether lanes share loads.
-static_assert(TRANSPORT_CONSTANT_CHANNELS == 0 && TRANSPORT_CONSTANT_COVERAGE_FETCH == 1 &&
-              TRANSPORT_CONSTANT_MEDIUM_FADE == 7 && UPSCALE_CONSTANT_SHARED_CORNERS == 8 &&
-              CHANNELS_RGB == 0);
-constexpr uint32_t kSharedCorners[] = {CHANNELS_RGB, 1u, 0u, 0u, 0u, 0u, 0u, 1u, 1u};
-constexpr uint32_t kOwnCorners[] = {CHANNELS_RGB, 1u, 0u, 0u, 0u, 0u, 0u, 1u, 0u};
-
-ViewUpscalePass::ViewUpscalePass(vk::Context& context)
-    : shared_corners_(context, view_upscale_spv, kLayout, sizeof(shaders::UpscalePush), "view upscale",
-                      kSharedCorners),
-      own_corners_(context, view_upscale_spv, kLayout, sizeof(shaders::UpscalePush), "view upscale",
-                   kOwnCorners) {}
+ViewUpscalePass::ViewUpscalePass(vk::Context& context) {
+    pipelines_.reserve(kSharedLoadsVariants);
+    for (uint32_t shared_loads = 0; shared_loads < kSharedLoadsVariants; ++shared_loads)
+        pipelines_.emplace_back(context, view_upscale_spv, kLayout, sizeof(shaders::UpscalePush),
+                                "view upscale", constants(shared_loads));
+}
 
 void ViewUpscalePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
                              const vk::Image3D& floor_map, const UpscaleBuffers& buffers, glm::uvec2 traced,
@@ -38,12 +44,11 @@ void ViewUpscalePass::record(vk::CommandRecorder& recorder, const TransportInput
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_VIEWER_HDR, buffers.viewer_hdr),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_VIEWER_LDR, buffers.viewer_ldr)};
     const shaders::UpscalePush push{glm::uvec2(width, height)};
-    const bool shared =
-        static_cast<float>(traced.x) <= UPSCALE_SHARED_CORNERS_MAX_SCALE * static_cast<float>(width) &&
-        static_cast<float>(traced.y) <= UPSCALE_SHARED_CORNERS_MAX_SCALE * static_cast<float>(height);
-    (shared ? shared_corners_ : own_corners_)
-        .dispatch(recorder.get(), transport_bindings(in, own), push, vk::group_count(width, VIEW_GROUP_SIZE),
-                  vk::group_count(height, VIEW_GROUP_SIZE));
+    const float scale = std::max(static_cast<float>(traced.x) / static_cast<float>(width),
+                                 static_cast<float>(traced.y) / static_cast<float>(height));
+    pipelines_[shaders::upscale_shared_loads(scale)].dispatch(recorder.get(), transport_bindings(in, own),
+                                                              push, vk::group_count(width, VIEW_GROUP_SIZE),
+                                                              vk::group_count(height, VIEW_GROUP_SIZE));
 }
 
 }  // namespace refract::passes

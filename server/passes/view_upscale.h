@@ -5,6 +5,8 @@
 // ViewPush::ends.
 #pragma once
 
+#include <vector>
+
 #include "passes/transport_pipeline.h"
 #include "vk/commands.h"
 #include "vk/pipeline.h"
@@ -27,9 +29,9 @@ public:
                 const UpscaleBuffers& buffers, glm::uvec2 traced, uint32_t width, uint32_t height) const;
 
 private:
-    // One for every transport variant (it reads none of their constants); with the lanes sharing the
-    // traced pixels' loads, and without, for traced frames above UPSCALE_SHARED_CORNERS_MAX_SCALE.
-    vk::ComputePipeline shared_corners_, own_corners_;
+    // One for every transport variant (it reads none of their constants), by the loads each lane shares
+    // with its subgroup (upscale_shared_loads: 0, 1, 2).
+    std::vector<vk::ComputePipeline> pipelines_;
 };
 
 }  // namespace refract::passes

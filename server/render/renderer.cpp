@@ -728,13 +728,14 @@ void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& as
     options.quality = quality;
     render(scene.id, reduced, assets, options);
     // That frame came at its own size; a drag's are traced a fraction of their viewer's, whose upscale
-    // takes a pipeline of its own (the lanes share the traced pixels they load).
-    constexpr uint32_t kViewerScale = 4;
-    static_assert(1.0f / kViewerScale <= UPSCALE_SHARED_CORNERS_MAX_SCALE);
+    // shares the traced pixels' loads across a subgroup, a pipeline for each share (upscale_shared_loads:
+    // two loads a lane at half the viewer's size, one at a quarter), which lavapipe compiles at its first
+    // dispatch.
     std::lock_guard lock(impl_->mutex);
     const auto it = impl_->scenes.find(scene.id);
-    if (it != impl_->scenes.end() && it->second.gpu->has_view_ends())
-        it->second.gpu->upscale(kViewerScale * reduced.image.width, kViewerScale * reduced.image.height);
+    if (it == impl_->scenes.end() || !it->second.gpu->has_view_ends()) return;
+    for (const uint32_t viewer_scale : {2u, 4u})
+        it->second.gpu->upscale(viewer_scale * reduced.image.width, viewer_scale * reduced.image.height);
 }
 
 void Renderer::warm_up_load(const protocol::SceneDocument& before, const protocol::SceneDocument& loaded,

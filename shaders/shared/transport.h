@@ -509,13 +509,16 @@ struct ViewEnd {
 struct UpscalePush {
     uvec2 viewer;
 };
-// The upscale's lanes share the traced pixels they fall between (view_upscale.comp, kSharedCorners) where
-// the traced frame is at most this fraction of the viewer's size along each axis: a subgroup of 8 lanes
-// holds a row of 8 viewer pixels (the workgroup's invocations in order), which then fall between at most
-// 4 x 2 traced pixels (7 pixel steps of 2/7 cross 2 traced columns); 16 and more lanes hold whole rows,
-// 4 x 3 traced pixels for 16 and 32 lanes, 4 x 4 for 64, never more than the lanes.
-#define UPSCALE_SHARED_CORNERS_MAX_SCALE (2.0f / 7.0f)
-#define UPSCALE_CONSTANT_SHARED_CORNERS TRANSPORT_CONSTANT_COUNT
+// How many traced pixels each lane of the upscale loads for its subgroup (view_upscale.comp,
+// kSharedLoads), for a traced frame `scale` of the viewer's size along each axis: a subgroup of 8 lanes
+// holds a row of 8 viewer pixels (the workgroup's invocations in order), which fall between at most
+// (ceil(7 scale) + 2) x 2 traced pixels: 4 x 2 up to 2/7, one a lane; 6 x 2 up to 1/2, two a lane.
+// Subgroups of 16 to 64 lanes hold whole rows and need fewer: 6 x 3, 6 x 4, 6 x 6 up to 1/2. Above
+// 1/2, each lane loads its own four (0).
+#define UPSCALE_CONSTANT_SHARED_LOADS TRANSPORT_CONSTANT_COUNT
+REFRACT_INLINE uint upscale_shared_loads(float scale) {
+    return scale <= 2.0f / 7.0f ? 1u : scale <= 0.5f ? 2u : 0u;
+}
 
 // Traced neighbours whose sRGB values differ by at most this many 8-bit levels in every channel are
 // interpolated; 4 levels keeps 99% of the interpolated pixels within 3 levels of the traced value in
