@@ -184,10 +184,12 @@ void shade(uvec2 pixel) {
     // place the eye ray bends (its surface): what is seen through glass moves with the glass.
     float light_weight = 0.0, weighted_inverse_depth = 0.0, surface_inverse_depth = -1.0;
     // Where the eye ray ends, for the viewer's size (TRANSPORT_BINDING_VIEW_ENDS): by default all gathered.
-    // A straight ray's light before its end and the transmittance to it; a bent one's last leg.
+    // A straight ray's light before its end and the transmittance to it; a bent one's last leg, from the
+    // end of its last shell step (leg_start, voxels).
     vec3 end_front = vec3(0.0), end_transmittance = vec3(0.0);
     uint bent_end = VIEW_END_GATHERED;
-    vec3 bent_through = vec3(0.0), bent_landing = vec3(0.0), bent_seen = vec3(0.0);
+    vec3 bent_through = vec3(0.0), bent_start = vec3(0.0), bent_direction = vec3(0.0), bent_seen = vec3(0.0);
+    vec3 leg_start = vec3(0.0);
     float bent_reach = 0.0;
     // The volumes' residual ratio tracking (eye_ratio): a stream per pixel, sample and photon seed, so
     // refinement averages it as it averages the sub-pixel positions.
@@ -404,6 +406,7 @@ void shade(uvec2 pixel) {
                     ray = mirrored;
                 }
             }
+            if (level == 0u) leg_start = ray.p;
             if (max(transmittance.r, max(transmittance.g, transmittance.b)) < cutoff) {
                 transmittance = vec3(0.0);
                 break;
@@ -444,10 +447,13 @@ void shade(uvec2 pixel) {
             vec3 seen = transmittance * (sees_floor ? floor_radiance_over(floor_point, along, across, checker_width) : sky(end_d));
             pixel_radiance += seen;
             if (path == 0u && surface_inverse_depth >= 0.0) {
-                bent_end = sees_floor ? VIEW_END_BENT_FLOOR : VIEW_END_BENT_SKY;
+                bent_end = VIEW_END_BENT;
                 bent_through = transmittance;
-                bent_landing = sees_floor ? floor_point : end_d;
-                bent_reach = reach;
+                bent_start = to_world(leg_start);
+                bent_direction = end_d;
+                // 16 footprints of the traced pixel's cone where the leg starts.
+                float cone = 2.0 * params.camera_position.w / float(params.image.y);  // a pixel's, radians
+                bent_reach = 16.0 * cone * length(bent_start - params.camera_position.xyz);
                 bent_seen = seen;
             }
             float share = (seen.r + seen.g + seen.b) * (1.0 / 3.0);
@@ -469,7 +475,8 @@ void shade(uvec2 pixel) {
         end.gathered = straight ? end_front : pixel_radiance - bent_seen;
         end.through = straight ? end_transmittance : bent_through;
         end.reach = bent_reach;
-        end.landing = vec4(bent_landing, 0.0);
+        end.leg_start = bent_start;
+        end.leg_direction = pack_direction(bent_direction);
         ends[index] = end;
     }
 }

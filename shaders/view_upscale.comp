@@ -70,7 +70,8 @@ void main() {
                                          subgroupShuffle(loaded.kind, lane),
                                          subgroupShuffle(loaded.through, lane),
                                          subgroupShuffle(loaded.reach, lane),
-                                         subgroupShuffle(loaded.landing, lane));
+                                         subgroupShuffle(loaded.leg_start, lane),
+                                         subgroupShuffle(loaded.leg_direction, lane));
                 vec3 handed_light = subgroupShuffle(loaded_light, lane);
                 if (entry / gl_SubgroupSize == load) {
                     corners[k] = handed;
@@ -84,47 +85,62 @@ void main() {
             traced[k] = hdr[corner[k]].rgb;
         }
     }
-    bool straight = false;
-    vec3 landing = vec3(0.0);
+    // The bent legs around the pixel took one way through the glass when all four are bent and start
+    // within reach of their interpolation: the pixel's own leg is then their interpolation, and it meets
+    // the floor or the sky as its own (so the horizon seen through the glass is the viewer's pixels', too).
+    // Their directions may differ as much as they do: near the rim of a ball lens neighbouring legs turn
+    // fast, and following them there came closer to the still than the traced light (docs/interactive.md).
+    bool straight = false, all_bent = true;
+    vec3 start = vec3(0.0), leg = vec3(0.0), directions[4];
     float reach = 0.0;
     for (int k = 0; k < 4; ++k) {
         straight = straight || (corners[k].kind == VIEW_END_STRAIGHT && weight[k] > 0.0);
-        landing += weight[k] * corners[k].landing.xyz;
+        all_bent = all_bent && corners[k].kind == VIEW_END_BENT;
+        directions[k] = unpack_direction(corners[k].leg_direction);
+        start += weight[k] * corners[k].leg_start;
+        leg += weight[k] * directions[k];
         reach += weight[k] * corners[k].reach;
     }
-    // The bent legs around the pixel took one way through the glass when all four end alike and, on the
-    // floor, land within reach of each other: the pixel's own leg is then their interpolation.
-    uint bent = corners[0].kind;
+    leg = normalize(leg);
+    bool follows_leg = all_bent;
     for (int k = 0; k < 4; ++k) {
-        vec3 apart = corners[k].landing.xyz - landing;
-        if (corners[k].kind != bent || (bent == VIEW_END_BENT_FLOOR && dot(apart, apart) > reach * reach))
-            bent = VIEW_END_GATHERED;
+        vec3 apart = corners[k].leg_start - start;
+        follows_leg = follows_leg && dot(apart, apart) <= reach * reach;
     }
-    bool follows_leg = !straight && (bent == VIEW_END_BENT_FLOOR || bent == VIEW_END_BENT_SKY);
 
     // The end the pixel sees, its own straight ray's or its bent leg's: one floor lookup either way. A
-    // leg's footprint is the change of the landings across the traced pixels, scaled to the viewer's
-    // pixel (within twice the reach, which the landings keep to).
-    bool sees_floor = follows_leg ? bent == VIEW_END_BENT_FLOOR
-                                  : floor_enabled() && d.y < 0.0 && eye.y > params.floor_plane.x;
-    vec3 floor_point = follows_leg ? landing : eye + d * ((eye.y - params.floor_plane.x) / -d.y);
-    vec3 to_floor = floor_point - eye;
-    float distance_to_floor = length(to_floor);
+    // leg's footprint on the floor is the change of the four legs' landings across the traced pixels,
+    // scaled to the viewer's pixel, where all four land (the straight cone's where not), each edge at most
+    // 16 cones long (as the viewing pass bounds a bent ray's).
+    vec3 from = follows_leg ? start : eye, toward = follows_leg ? leg : d;
+    bool sees_floor = floor_enabled() && toward.y < 0.0 && from.y > params.floor_plane.x;
+    float to_plane = (from.y - params.floor_plane.x) / -toward.y;
+    vec3 floor_point = from + toward * to_plane;
+    float distance_to_floor = length(floor_point - eye);
     vec3 along, across;
     vec2 checker_width;
-    cone_footprint(to_floor / distance_to_floor, distance_to_floor, float(height), along, across,
+    cone_footprint(normalize(floor_point - eye), distance_to_floor, float(height), along, across,
                    checker_width);
-    if (follows_leg) {
+    if (follows_leg && sees_floor) {
+        // The landing's change across the traced pixels: of start + to_plane leg, to first order.
         float scale = float(traced_w) / float(width);
-        vec3 l0 = corners[0].landing.xyz, l1 = corners[1].landing.xyz, l2 = corners[2].landing.xyz,
-             l3 = corners[3].landing.xyz;
-        vec3 dx = 0.5 * scale * (l1 - l0 + l3 - l2), dy = 0.5 * scale * (l2 - l0 + l3 - l1);
-        along = hi.x > lo.x ? dx : along;
-        across = hi.y > lo.y ? dy : across;
+        vec3 s0 = corners[0].leg_start, s1 = corners[1].leg_start, s2 = corners[2].leg_start,
+             s3 = corners[3].leg_start;
+        vec3 changes[2] = vec3[2](0.5 * (s1 - s0 + s3 - s2), 0.5 * (s2 - s0 + s3 - s1));
+        vec3 turns[2] = vec3[2](0.5 * (directions[1] - directions[0] + directions[3] - directions[2]),
+                                0.5 * (directions[2] - directions[0] + directions[3] - directions[1]));
+        float longest = 16.0 * length(along);
+        vec3 edge[2];
+        for (int axis = 0; axis < 2; ++axis) {
+            float change_to_plane = (changes[axis].y + to_plane * turns[axis].y) / -toward.y;
+            vec3 e = scale * (changes[axis] + to_plane * turns[axis] + change_to_plane * toward);
+            edge[axis] = e * min(1.0, longest / max(length(e), 1e-30));
+        }
+        along = hi.x > lo.x ? edge[0] : along;
+        across = hi.y > lo.y ? edge[1] : across;
         checker_width = sqrt(along.xz * along.xz + across.xz * across.xz) / params.floor_plane.y;
     }
-    vec3 end = sees_floor ? floor_radiance_over(floor_point, along, across, checker_width)
-                          : sky(follows_leg ? normalize(landing) : d);
+    vec3 end = sees_floor ? floor_radiance_over(floor_point, along, across, checker_width) : sky(toward);
 
     vec3 radiance = vec3(0.0);
     for (int k = 0; k < 4; ++k) {

@@ -171,10 +171,14 @@ TEST_F(UpscaleTest, TheFloorAtTheViewersSizeIsTheStillFrames) {
 }
 
 // Through the glass the viewer sees the floor along the traced rays' last legs, interpolated between the
-// traced pixels and followed again for each of the viewer's pixels: inside the ball's disc (away from
-// its rim, where neighbouring rays take different ways through the glass and the pixel keeps what its
-// traced neighbours saw) the upscaled frame is at most half as far from the still of the viewer's size
-// as the traced frame scaled up bilinearly, which is what the upscale did there before.
+// traced pixels as rays (where each leaves the glass, and its direction) and followed again for each of
+// the viewer's pixels to the floor or the sky: inside the ball's disc (away from its rim, where
+// neighbouring rays take different ways through the glass and the pixel keeps what its traced neighbours
+// saw) the upscaled frame is at most a quarter as far from the still of the viewer's size as the traced
+// frame scaled up bilinearly, which is what the upscale did there before it followed legs. The ball
+// shows the horizon upside down; where the legs were followed only between traced pixels that all saw
+// the floor (or all the sky), that line kept the traced pixels' light, and this came to 0.30 of the
+// bilinear frame's distance.
 TEST_F(UpscaleTest, ThroughGlassTheFloorIsFollowedAlongTheRaysLastLegs) {
     const json scene = {
         {"camera", {{"position", {0.0, 0.6, 3.0}}, {"target", {0.0, 0.0, 0.0}}, {"fov_deg", 40}}},
@@ -199,7 +203,7 @@ TEST_F(UpscaleTest, ThroughGlassTheFloorIsFollowedAlongTheRaysLastLegs) {
         "inside the sphere (%zu pixels) against the still at %ux%u: upscaled %.3f, scaled up bilinearly "
         "%.3f\n",
         reference.size(), W, H, followed, blurred);
-    EXPECT_LT(followed, 0.5 * blurred);
+    EXPECT_LT(followed, 0.25 * blurred);
 }
 
 // The renderer sends an interactive frame at the viewer's size whatever size its budget traced, and keeps

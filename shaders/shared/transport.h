@@ -487,23 +487,38 @@ struct ViewPush {
 };
 
 // How a traced pixel's light ends (ViewEnd::kind). A straight ray's end, the floor or the sky, is where
-// the viewer pixel's own ray meets it; a bent ray's last leg, from the glass to the floor or the sky, is
-// interpolated between traced pixels whose legs took one way through the glass and followed again
-// (view_upscale.comp); elsewhere the viewer's pixel takes the traced pixels' light.
-#define VIEW_END_GATHERED 0u    // none: the pixel is all gathered light (cut off, or parted by channel)
-#define VIEW_END_STRAIGHT 1u    // straight from the eye to the floor or the sky
-#define VIEW_END_BENT_FLOOR 2u  // bent by the object, then straight to `landing` on the floor
-#define VIEW_END_BENT_SKY 3u    // bent by the object, then out along `landing` (a direction) to the sky
+// the viewer pixel's own ray meets it; a bent ray's last leg, the straight line it leaves the glass on, is
+// interpolated between traced pixels whose legs took one way through the glass and followed again to
+// the floor or the sky (view_upscale.comp); elsewhere the viewer's pixel takes the traced pixels' light.
+#define VIEW_END_GATHERED 0u  // none: the pixel is all gathered light (cut off, or parted by channel)
+#define VIEW_END_STRAIGHT 1u  // straight from the eye to the floor or the sky
+#define VIEW_END_BENT 2u      // bent by the object, then straight along its last leg to the floor or the sky
 struct ViewEnd {
     vec3 gathered;  // light gathered before the end (rgb): fog, glass, volumes, reflections
     uint kind;      // VIEW_END_*
     vec3 through;   // the transmittance the end's light comes through (0 for VIEW_END_GATHERED)
-    // A bent floor end: how far from its landing a neighbouring leg may land and still have taken the
-    // same way through the glass, 16 times the traced pixel's footprint there (view.comp's rule for the
-    // neighbours that give a bent ray its footprint).
+    // A bent end: how far from its leg a neighbouring leg may start and still have taken the same way
+    // through the glass, 16 times the traced pixel's footprint there (view.comp's rule for the
+    // neighbours that give a bent ray's floor its footprint).
     float reach;
-    vec4 landing;  // xyz: a bent end's floor point (world) or direction to the sky; w: 0 (std430 pads it)
+    vec3 leg_start;      // a bent end: where its last leg leaves the glass (the last shell step's end), world
+    uint leg_direction;  // and the leg's direction, octahedral in two 16-bit snorms (pack_direction)
 };
+#ifndef __cplusplus
+// A unit direction in 32 bits, octahedral (the sphere folded onto the octahedron |x| + |y| + |z| = 1, its
+// lower half unfolded around the y axis): within 1e-4 radians, a tenth of a viewer pixel's cone.
+uint pack_direction(vec3 d) {
+    vec2 p = d.xz / (abs(d.x) + abs(d.y) + abs(d.z));
+    if (d.y < 0.0) p = (1.0 - abs(p.yx)) * vec2(p.x >= 0.0 ? 1.0 : -1.0, p.y >= 0.0 ? 1.0 : -1.0);
+    return packSnorm2x16(p);
+}
+vec3 unpack_direction(uint packed) {
+    vec2 p = unpackSnorm2x16(packed);
+    vec3 d = vec3(p.x, 1.0 - abs(p.x) - abs(p.y), p.y);
+    if (d.y < 0.0) d.xz = (1.0 - abs(d.zx)) * vec2(d.x >= 0.0 ? 1.0 : -1.0, d.z >= 0.0 ? 1.0 : -1.0);
+    return normalize(d);
+}
+#endif
 
 // An interactive frame scaled to the viewer's size (view_upscale.comp): that size, in pixels.
 struct UpscalePush {
