@@ -190,7 +190,6 @@ void shade(uvec2 pixel) {
     uint bent_end = VIEW_END_GATHERED;
     vec3 bent_through = vec3(0.0), bent_start = vec3(0.0), bent_direction = vec3(0.0), bent_seen = vec3(0.0);
     vec3 leg_start = vec3(0.0);
-    float bent_reach = 0.0;
     // The volumes' residual ratio tracking (eye_ratio): a stream per pixel, sample and photon seed, so
     // refinement averages it as it averages the sub-pixel positions.
     EyeTrack track = EyeTrack(hash(pixel.y * width + pixel.x ^ hash(floatBitsToUint(params.refinement.z) ^ hash(
@@ -451,9 +450,6 @@ void shade(uvec2 pixel) {
                 bent_through = transmittance;
                 bent_start = to_world(leg_start);
                 bent_direction = end_d;
-                // 16 footprints of the traced pixel's cone where the leg starts.
-                float cone = 2.0 * params.camera_position.w / float(params.image.y);  // a pixel's, radians
-                bent_reach = 16.0 * cone * length(bent_start - params.camera_position.xyz);
                 bent_seen = seen;
             }
             float share = (seen.r + seen.g + seen.b) * (1.0 / 3.0);
@@ -474,9 +470,8 @@ void shade(uvec2 pixel) {
         bool straight = end.kind == VIEW_END_STRAIGHT;
         end.gathered = straight ? end_front : pixel_radiance - bent_seen;
         end.through = straight ? end_transmittance : bent_through;
-        end.reach = bent_reach;
-        end.leg_start = bent_start;
         end.leg_direction = pack_direction(bent_direction);
+        end.leg_start = vec4(bent_start, 0.0);
         ends[index] = end;
     }
 }

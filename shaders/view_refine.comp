@@ -51,26 +51,26 @@ void main() {
         if (write_ends != 0u) {
             // Ends of one kind (and bent legs that start near each other, the upscale's rule)
             // are interpolated; a pixel between different ends takes the interpolated light, all gathered.
-            ViewEnd end = ViewEnd(vec3(0.0), ends[corner[0]].kind, vec3(0.0), 0.0, vec3(0.0), 0u);
+            ViewEnd end = ViewEnd(vec3(0.0), ends[corner[0]].kind, vec3(0.0), 0u, vec4(0.0));
             vec3 leg = vec3(0.0);
             for (int k = 0; k < 4; ++k) {
                 ViewEnd e = ends[corner[k]];
                 end.gathered += 0.25 * e.gathered;
                 end.through += 0.25 * e.through;
-                end.reach += 0.25 * e.reach;
                 end.leg_start += 0.25 * e.leg_start;
                 leg += unpack_direction(e.leg_direction);
                 if (e.kind != end.kind) end.kind = VIEW_END_GATHERED;
             }
             leg = normalize(leg);
             end.leg_direction = pack_direction(leg);
+            float reach = leg_reach(end.leg_start.xyz, params.camera_position, height);
             for (int k = 0; k < 4; ++k) {
-                vec3 apart = ends[corner[k]].leg_start - end.leg_start;
-                if (end.kind == VIEW_END_BENT && dot(apart, apart) > end.reach * end.reach)
+                vec3 apart = ends[corner[k]].leg_start.xyz - end.leg_start.xyz;
+                if (end.kind == VIEW_END_BENT && dot(apart, apart) > reach * reach)
                     end.kind = VIEW_END_GATHERED;
             }
             if (end.kind == VIEW_END_GATHERED)
-                end = ViewEnd(0.25 * sum.rgb, VIEW_END_GATHERED, vec3(0.0), 0.0, vec3(0.0), 0u);
+                end = ViewEnd(0.25 * sum.rgb, VIEW_END_GATHERED, vec3(0.0), 0u, vec4(0.0));
             ends[index] = end;
         }
     }

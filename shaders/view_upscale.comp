@@ -51,7 +51,7 @@ void main() {
     uint corner[4] = uint[4](lo.y * traced_w + lo.x, lo.y * traced_w + hi.x, hi.y * traced_w + lo.x, hi.y * traced_w + hi.x);
     float weight[4] = float[4]((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);
     ViewEnd corners[4];
-    vec3 traced[4];
+    vec3 traced[4], directions[4];  // the traced light, and the legs' directions unpacked
     if (kSharedLoads > 0u && gl_SubgroupSize >= 8u) {
         // The subgroup's traced pixels, a rectangle of them: lane i loads its i-th, row by row, and the
         // subgroup's size on from it.
@@ -63,19 +63,20 @@ void main() {
             uvec2 mine = min(origin + uvec2(i % columns, i / columns), uvec2(traced_w, traced_h) - 1u);
             ViewEnd loaded = ends[mine.y * traced_w + mine.x];
             vec3 loaded_light = hdr[mine.y * traced_w + mine.x].rgb;
+            vec3 loaded_direction = unpack_direction(loaded.leg_direction);  // once a lane, not a corner
             for (int k = 0; k < 4; ++k) {
                 uint entry = (at_corner[k].y - origin.y) * columns + (at_corner[k].x - origin.x);
                 uint lane = entry % gl_SubgroupSize;
                 ViewEnd handed = ViewEnd(subgroupShuffle(loaded.gathered, lane),
                                          subgroupShuffle(loaded.kind, lane),
-                                         subgroupShuffle(loaded.through, lane),
-                                         subgroupShuffle(loaded.reach, lane),
-                                         subgroupShuffle(loaded.leg_start, lane),
-                                         subgroupShuffle(loaded.leg_direction, lane));
+                                         subgroupShuffle(loaded.through, lane), 0u,
+                                         vec4(subgroupShuffle(loaded.leg_start.xyz, lane), 0.0));
                 vec3 handed_light = subgroupShuffle(loaded_light, lane);
+                vec3 handed_direction = subgroupShuffle(loaded_direction, lane);
                 if (entry / gl_SubgroupSize == load) {
                     corners[k] = handed;
                     traced[k] = handed_light;
+                    directions[k] = handed_direction;
                 }
             }
         }
@@ -83,6 +84,7 @@ void main() {
         for (int k = 0; k < 4; ++k) {
             corners[k] = ends[corner[k]];
             traced[k] = hdr[corner[k]].rgb;
+            directions[k] = unpack_direction(corners[k].leg_direction);
         }
     }
     // The bent legs around the pixel took one way through the glass when all four are bent and start
@@ -91,20 +93,18 @@ void main() {
     // Their directions may differ as much as they do: near the rim of a ball lens neighbouring legs turn
     // fast, and following them there came closer to the still than the traced light (docs/interactive.md).
     bool straight = false, all_bent = true;
-    vec3 start = vec3(0.0), leg = vec3(0.0), directions[4];
-    float reach = 0.0;
+    vec3 start = vec3(0.0), leg = vec3(0.0);
     for (int k = 0; k < 4; ++k) {
         straight = straight || (corners[k].kind == VIEW_END_STRAIGHT && weight[k] > 0.0);
         all_bent = all_bent && corners[k].kind == VIEW_END_BENT;
-        directions[k] = unpack_direction(corners[k].leg_direction);
-        start += weight[k] * corners[k].leg_start;
+        start += weight[k] * corners[k].leg_start.xyz;
         leg += weight[k] * directions[k];
-        reach += weight[k] * corners[k].reach;
     }
     leg = normalize(leg);
+    float reach = leg_reach(start, params.camera_position, traced_h);
     bool follows_leg = all_bent;
     for (int k = 0; k < 4; ++k) {
-        vec3 apart = corners[k].leg_start - start;
+        vec3 apart = corners[k].leg_start.xyz - start;
         follows_leg = follows_leg && dot(apart, apart) <= reach * reach;
     }
 
@@ -124,8 +124,8 @@ void main() {
     if (follows_leg && sees_floor) {
         // The landing's change across the traced pixels: of start + to_plane leg, to first order.
         float scale = float(traced_w) / float(width);
-        vec3 s0 = corners[0].leg_start, s1 = corners[1].leg_start, s2 = corners[2].leg_start,
-             s3 = corners[3].leg_start;
+        vec3 s0 = corners[0].leg_start.xyz, s1 = corners[1].leg_start.xyz, s2 = corners[2].leg_start.xyz,
+             s3 = corners[3].leg_start.xyz;
         vec3 changes[2] = vec3[2](0.5 * (s1 - s0 + s3 - s2), 0.5 * (s2 - s0 + s3 - s1));
         vec3 turns[2] = vec3[2](0.5 * (directions[1] - directions[0] + directions[3] - directions[2]),
                                 0.5 * (directions[2] - directions[0] + directions[3] - directions[1]));

@@ -494,15 +494,11 @@ struct ViewPush {
 #define VIEW_END_STRAIGHT 1u  // straight from the eye to the floor or the sky
 #define VIEW_END_BENT 2u      // bent by the object, then straight along its last leg to the floor or the sky
 struct ViewEnd {
-    vec3 gathered;  // light gathered before the end (rgb): fog, glass, volumes, reflections
-    uint kind;      // VIEW_END_*
-    vec3 through;   // the transmittance the end's light comes through (0 for VIEW_END_GATHERED)
-    // A bent end: how far from its leg a neighbouring leg may start and still have taken the same way
-    // through the glass, 16 times the traced pixel's footprint there (view.comp's rule for the
-    // neighbours that give a bent ray's floor its footprint).
-    float reach;
-    vec3 leg_start;      // a bent end: where its last leg leaves the glass (the last shell step's end), world
-    uint leg_direction;  // and the leg's direction, octahedral in two 16-bit snorms (pack_direction)
+    vec3 gathered;       // light gathered before the end (rgb): fog, glass, volumes, reflections
+    uint kind;           // VIEW_END_*
+    vec3 through;        // the transmittance the end's light comes through (0 for VIEW_END_GATHERED)
+    uint leg_direction;  // a bent end: its last leg's direction, octahedral (pack_direction)
+    vec4 leg_start;      // xyz: where that leg leaves the glass (the last shell step's end), world; w: 0
 };
 #ifndef __cplusplus
 // A unit direction in 32 bits, octahedral (the sphere folded onto the octahedron |x| + |y| + |z| = 1, its
@@ -517,6 +513,12 @@ vec3 unpack_direction(uint packed) {
     vec3 d = vec3(p.x, 1.0 - abs(p.x) - abs(p.y), p.y);
     if (d.y < 0.0) d.xz = (1.0 - abs(d.zx)) * vec2(d.x >= 0.0 ? 1.0 : -1.0, d.z >= 0.0 ? 1.0 : -1.0);
     return normalize(d);
+}
+// How far from a bent leg's start a neighbouring leg may start and still have taken the same way
+// through the glass: 16 times the cone of a pixel of an image `image_height` tall there (view.comp's
+// rule for the neighbours that give a bent ray's floor its footprint).
+float leg_reach(vec3 start, vec4 camera_position, uint image_height) {
+    return 16.0 * 2.0 * camera_position.w / float(image_height) * length(start - camera_position.xyz);
 }
 #endif
 
