@@ -188,7 +188,8 @@ void shade(uvec2 pixel) {
     // end of its last shell step (leg_start, voxels).
     vec3 end_front = vec3(0.0), end_transmittance = vec3(0.0);
     uint bent_end = VIEW_END_GATHERED;
-    vec3 bent_through = vec3(0.0), bent_start = vec3(0.0), bent_direction = vec3(0.0), bent_seen = vec3(0.0);
+    vec3 bent_through = vec3(0.0), bent_start = vec3(0.0), bent_seen = vec3(0.0);
+    vec3 bent_direction = vec3(0.0, 1.0, 0.0);  // a unit vector even where unused, for pack_direction
     vec3 leg_start = vec3(0.0);
     // The volumes' residual ratio tracking (eye_ratio): a stream per pixel, sample and photon seed, so
     // refinement averages it as it averages the sub-pixel positions.

@@ -52,20 +52,20 @@ void main() {
             // Ends of one kind (and bent legs that start near each other, the upscale's rule)
             // are interpolated; a pixel between different ends takes the interpolated light, all gathered.
             ViewEnd end = ViewEnd(vec3(0.0), ends[corner[0]].kind, vec3(0.0), 0u, vec4(0.0));
-            vec3 leg = vec3(0.0);
+            vec3 leg = vec3(0.0), starts[4];
             for (int k = 0; k < 4; ++k) {
                 ViewEnd e = ends[corner[k]];
                 end.gathered += 0.25 * e.gathered;
                 end.through += 0.25 * e.through;
-                end.leg_start += 0.25 * e.leg_start;
+                starts[k] = e.leg_start.xyz;
+                end.leg_start.xyz += 0.25 * starts[k];
                 leg += unpack_direction(e.leg_direction);
                 if (e.kind != end.kind) end.kind = VIEW_END_GATHERED;
             }
-            leg = normalize(leg);
-            end.leg_direction = pack_direction(leg);
+            end.leg_direction = pack_direction(normalize(leg));
             float reach = leg_reach(end.leg_start.xyz, params.camera_position, height);
             for (int k = 0; k < 4; ++k) {
-                vec3 apart = ends[corner[k]].leg_start.xyz - end.leg_start.xyz;
+                vec3 apart = starts[k] - end.leg_start.xyz;
                 if (end.kind == VIEW_END_BENT && dot(apart, apart) > reach * reach)
                     end.kind = VIEW_END_GATHERED;
             }

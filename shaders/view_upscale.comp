@@ -8,8 +8,8 @@
 // their ends change smoothly and are interpolated between the traced pixels; the end itself, the floor
 // (its checker, the lit disc's rim, the floor map) or the sky, is found again for each pixel along its
 // own straight ray, at the viewer's size. Where the traced rays bent (the object), what they see through
-// it is found again along their last leg, interpolated where the four around the pixel took one way
-// through the glass: the checker seen through the glass is as sharp as the one seen past it.
+// it is found again along their last legs, interpolated as rays where the four around the pixel took one
+// way through the glass: the checker and the horizon seen through the glass are as sharp as past it.
 #include "transport_common.glsl"
 #include "environment.glsl"
 #include "tone_map.glsl"
@@ -92,10 +92,9 @@ void main() {
     // the floor or the sky as its own (so the horizon seen through the glass is the viewer's pixels', too).
     // Their directions may differ as much as they do: near the rim of a ball lens neighbouring legs turn
     // fast, and following them there came closer to the still than the traced light (docs/interactive.md).
-    bool straight = false, all_bent = true;
+    bool all_bent = true;
     vec3 start = vec3(0.0), leg = vec3(0.0);
     for (int k = 0; k < 4; ++k) {
-        straight = straight || (corners[k].kind == VIEW_END_STRAIGHT && weight[k] > 0.0);
         all_bent = all_bent && corners[k].kind == VIEW_END_BENT;
         start += weight[k] * corners[k].leg_start.xyz;
         leg += weight[k] * directions[k];
@@ -109,9 +108,9 @@ void main() {
     }
 
     // The end the pixel sees, its own straight ray's or its bent leg's: one floor lookup either way. A
-    // leg's footprint on the floor is the change of the four legs' landings across the traced pixels,
-    // scaled to the viewer's pixel, where all four land (the straight cone's where not), each edge at most
-    // 16 cones long (as the viewing pass bounds a bent ray's).
+    // leg's footprint on the floor is the change of its landing across the traced pixels (to first order
+    // in the four legs' starts and directions), scaled to the viewer's pixel, each edge at most 16 cones
+    // long (as the viewing pass bounds a bent ray's).
     vec3 from = follows_leg ? start : eye, toward = follows_leg ? leg : d;
     bool sees_floor = floor_enabled() && toward.y < 0.0 && from.y > params.floor_plane.x;
     float to_plane = (from.y - params.floor_plane.x) / -toward.y;
@@ -122,7 +121,6 @@ void main() {
     cone_footprint(normalize(floor_point - eye), distance_to_floor, float(height), along, across,
                    checker_width);
     if (follows_leg && sees_floor) {
-        // The landing's change across the traced pixels: of start + to_plane leg, to first order.
         float scale = float(traced_w) / float(width);
         vec3 s0 = corners[0].leg_start.xyz, s1 = corners[1].leg_start.xyz, s2 = corners[2].leg_start.xyz,
              s3 = corners[3].leg_start.xyz;
