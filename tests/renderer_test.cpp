@@ -435,6 +435,56 @@ TEST_F(RendererTest, ALightDraggedALittleKeepsAShareOfTheLastFramesPhotons) {
               fresh.render("d", brighter, no_assets, {Quality::interactive}).png);
 }
 
+// Issue 37: a light drag's frames, traced smaller than their viewer, take each viewer pixel's own eye
+// ray from the still frame before them (their outline and what their glass shows at the viewer's size)
+// while nothing but the light has changed since that still's view; after any other change of the eye
+// rays (the camera, the object) they take their traced pixels' until a still frame of the new view, and
+// a still whose view gave way keeps none.
+TEST_F(RendererTest, ALightDragTakesItsEyeRaysFromTheStillBeforeIt) {
+    // Two parts of the viewing pass: a still frame may give way between them.
+    const SceneDocument doc = small({{"image", {{"width", 512}, {"height", passes::kViewPart / 256}}}});
+    const auto light_at = [](const SceneDocument& d, double x) {
+        return protocol::apply_merge_patch(d, {{"lights", {{"light", {{"position", {x, 3.0, 1.0}}}}}}});
+    };
+    const auto camera_at = [](const SceneDocument& d, double x) {
+        return protocol::apply_merge_patch(d, {{"camera", {{"position", {x, 1.0, 4.0}}}}});
+    };
+    FrameOptions drag{Quality::interactive};
+    drag.budget_ms = 1.0;  // the budget's floor: traced smaller than the viewer
+    Renderer renderer(*context);
+    renderer.render("a", doc, no_assets);
+    const FrameResult lit = renderer.render("a", light_at(doc, 1.0), no_assets, drag);
+    ASSERT_LT(lit.traced_width, lit.width);
+    EXPECT_EQ(lit.width, doc.image.width);
+    EXPECT_TRUE(lit.still_eye_rays);
+    EXPECT_TRUE(renderer.render("a", light_at(doc, 0.5), no_assets, drag).still_eye_rays);
+    const SceneDocument turned = camera_at(doc, 1.0);
+    EXPECT_FALSE(renderer.render("a", turned, no_assets, drag).still_eye_rays);
+    EXPECT_FALSE(renderer.render("a", light_at(turned, 1.5), no_assets, drag).still_eye_rays);
+    // Back in the still's view: its eye rays again.
+    EXPECT_TRUE(renderer.render("a", light_at(doc, 2.5), no_assets, drag).still_eye_rays);
+    // Nor does the exposure change them.
+    renderer.render("a", protocol::apply_merge_patch(light_at(doc, 2.5), {{"image", {{"exposure", 1.0}}}}),
+                    no_assets);
+    EXPECT_TRUE(renderer.render("a", light_at(doc, 1.0), no_assets, drag).still_eye_rays);
+
+    renderer.render("a", turned, no_assets);
+    EXPECT_TRUE(renderer.render("a", light_at(turned, 2.5), no_assets, drag).still_eye_rays);
+    EXPECT_FALSE(renderer.render("a", light_at(doc, 2.5), no_assets, drag).still_eye_rays);
+    const auto moved = protocol::apply_merge_patch(turned, {{"object", {{"position", {0.1, 0.0, 0.0}}}}});
+    EXPECT_FALSE(renderer.render("a", moved, no_assets, drag).still_eye_rays);
+
+    const SceneDocument far = camera_at(doc, 2.0);
+    renderer.render("a", far, no_assets);
+    FrameOptions giving_way;
+    giving_way.give_way = [] { return true; };
+    giving_way.paced_parts = false;
+    const SceneDocument farther = camera_at(doc, 3.0);
+    EXPECT_EQ(renderer.render("a", farther, no_assets, giving_way).outcome, FrameResult::Outcome::superseded);
+    EXPECT_FALSE(renderer.render("a", light_at(farther, 1.0), no_assets, drag).still_eye_rays);
+    EXPECT_FALSE(renderer.render("a", light_at(far, 1.0), no_assets, drag).still_eye_rays);
+}
+
 TEST_F(RendererTest, ADragThatInterruptsRefinementKeepsAWholeRadianceGrid) {
     const auto give_way = [] { return true; };
     const SceneDocument wide = small({{"image", {{"width", 512}, {"height", passes::kViewPart / 256}}}});

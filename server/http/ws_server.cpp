@@ -691,6 +691,7 @@ private:
                 header["budget_ms"] = options.budget_ms;
                 header["traced_width"] = frame.traced_width;
                 header["traced_height"] = frame.traced_height;
+                header["still_eye_rays"] = frame.still_eye_rays;
             }
             if (played) {
                 const bool last = played->index + 1 == played->frames;

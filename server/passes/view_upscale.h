@@ -2,7 +2,7 @@
 // viewer's size (shaders/view_upscale.comp): the light gathered along the traced eye rays and their
 // transmittance interpolated, the floor or sky at their straight ends, or at the ends of their last legs
 // out of the glass, evaluated for every pixel, then tone-mapped. Reads what the viewing pass wrote with
-// ViewPush::ends.
+// ViewPush::ends; in a light drag, each viewer pixel's own end from the still frame before it.
 #pragma once
 
 #include <vector>
@@ -18,6 +18,9 @@ struct UpscaleBuffers {
     const vk::Buffer& ends;        // where its eye rays end (TRANSPORT_BINDING_VIEW_ENDS)
     const vk::Buffer& viewer_hdr;  // vec4 per viewer pixel (w: 0, no inverse depth)
     const vk::Buffer& viewer_ldr;  // sRGB RGBA8 per viewer pixel
+    // Where a still frame of this view left each viewer pixel's eye ray (TRANSPORT_BINDING_STILL_ENDS), or
+    // nullptr: the eye rays have changed since (anything but the light).
+    const vk::Buffer* still_ends = nullptr;
 };
 
 class ViewUpscalePass {
@@ -30,7 +33,7 @@ public:
 
 private:
     // One for every transport variant (it reads none of their constants), by the loads each lane shares
-    // with its subgroup (upscale_shared_loads: 0, 1, 2).
+    // with its subgroup (upscale_shared_loads: 0, 1, 2), without and then with a still frame's ends.
     std::vector<vk::ComputePipeline> pipelines_;
 };
 

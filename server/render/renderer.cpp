@@ -1,11 +1,12 @@
 #include "render/renderer.h"
 
 #include <algorithm>
-#include <limits>
 #include <chrono>
+#include <limits>
 #include <list>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 
 #include "image/png.h"
@@ -191,6 +192,28 @@ bool other_objects(const protocol::SceneDocument& held, const protocol::SceneDoc
                        [](const auto& a, const auto& b) { return a.first == b.first; });
 }
 
+// What a frame's eye rays are: its document and assets but for what only lights them (the lights, the
+// photons, the exposure), at the viewer's size. A light drag's frames whose eye rays are a still frame's
+// take each viewer pixel's own eye ray from that still (RunOptions::still_ends).
+struct EyeRays {
+    protocol::SceneDocument document;
+    std::map<std::string, std::shared_ptr<const mesh::Mesh>> meshes;
+    std::shared_ptr<const IndexGrid> grid;
+    Densities densities;
+
+    bool operator==(const EyeRays&) const = default;
+};
+
+EyeRays eye_rays(protocol::SceneDocument document, const ResolvedAssets& resolved, uint32_t width,
+                 uint32_t height) {
+    document.lights.clear();
+    document.photons = {};
+    document.image.exposure = 0.0;
+    document.image.width = width;
+    document.image.height = height;
+    return {std::move(document), resolved.meshes, resolved.grid, resolved.densities};
+}
+
 // Whether `a` and `b` are the same scene, seen through views that may differ.
 bool same_scene(const protocol::SceneDocument& a, const protocol::SceneDocument& b) {
     return a == protocol::seen_through(b, {a.image.width, a.image.height, a.camera});
@@ -212,7 +235,15 @@ struct ResidentScene {
     std::vector<ParkedView> parked;  // least recently rendered first
     std::map<std::string, std::unique_ptr<TemporalHistory>> histories;  // by FrameOptions::history
     uint64_t stills = 0;  // still frames made, which number them for TemporalHistory::seeded_from
+    // The eye rays of the still frame whose ends the scene keeps (SceneGpu::has_still_ends).
+    std::optional<EyeRays> still_ends;
 };
+
+// Whether `held` keeps the ends of a still frame whose eye rays were `rays` (at the viewer's size).
+bool keeps_still_ends(const ResidentScene& held, const EyeRays& rays) {
+    return held.still_ends == rays &&
+           held.gpu->has_still_ends(rays.document.image.width, rays.document.image.height);
+}
 
 // Device memory the views of a scene hold beside its frame: parked frames, temporal histories and the
 // interactive frame at its viewer's size.
@@ -287,6 +318,12 @@ struct FramePlan {
     uint32_t level = 1;           // the refinement level the frame holds
     uint32_t resident_level = 0;  // the level whose linear frame (or, with the view stale, photons) is resident
 };
+
+// The first refinement step a frame of `plan` runs: level 1 (the frame itself), or the resident level
+// where its passes are stale.
+uint32_t first_step(const FramePlan& plan) {
+    return plan.stale != 0 && plan.resident_level > 0 ? plan.resident_level : plan.resident_level + 1;
+}
 
 // The passes `next` reruns over what `held` holds (everything when nothing is held).
 PassSet stale_against(const ResidentScene* held, const protocol::SceneDocument& next, const ResolvedAssets& resolved) {
@@ -387,8 +424,10 @@ struct Renderer::Impl {
     // The frame's levels and its PNG: an interactive frame with a viewer's `temporal` history is taken into
     // it, one traced smaller without one is upscaled (true), and either is sent at the viewer's size
     // (`requested`'s).
+    // `still_ends`: the scene keeps the ends of a still frame with the same eye rays as this one.
     bool finish_frame(ResidentScene& resident, const FramePlan& plan, const RunOptions& frame_options,
-                      const protocol::SceneDocument& requested, TemporalHistory* temporal, FrameResult& frame);
+                      const protocol::SceneDocument& requested, TemporalHistory* temporal, bool still_ends,
+                      FrameResult& frame);
     // Records what the resident state was built from.
     void keep(ResidentScene& resident, const protocol::SceneDocument& document, const ResolvedAssets& resolved,
               uint32_t level, uint32_t lattice_divisor);
@@ -491,11 +530,11 @@ bool Renderer::Impl::run_steps(ResidentScene& resident, const FramePlan& plan, c
                                const std::function<bool()>& give_way, FrameResult& frame) {
     uint64_t photon_steps = 0;
     // The first step runs the stale passes: level 1's, or those of the resident level.
-    const uint32_t first = plan.stale != 0 && plan.resident_level > 0 ? plan.resident_level : plan.resident_level + 1;
-    for (uint32_t step = first; step <= plan.level; ++step) {
+    for (uint32_t step = first_step(plan); step <= plan.level; ++step) {
         // Level 1 is the frame itself; each level after it adds one photon batch (rerunning the view at
         // pixel centres) until the batches are all in, then one jittered eye-ray sample per pixel.
         RunOptions run_options = frame_options;
+        run_options.still_ends = frame_options.still_ends && step == first_step(plan);
         PassSet passes = plan.stale;
         if (step > std::max(plan.resident_level, 1u)) {
             const Refinement now = refinement_at(step), before = refinement_at(step - 1);
@@ -627,12 +666,25 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
         frame_options.photon_history = kPhotonHistory;
         frame_options.history_frame = resident.history_frames;
     }
+    // A still frame keeps its eye rays' ends for the light drags after it (its first step's view writes
+    // them), where they fit: past kStillEndsMaxPixels such drags take their traced pixels' ends alone.
+    frame_options.still_ends =
+        quality == Quality::still &&
+        uint64_t{requested.image.width} * requested.image.height <= kStillEndsMaxPixels;
+    const EyeRays rays = eye_rays(plan.document, resolved, requested.image.width, requested.image.height);
+    const bool still_ends = frame_options.view_ends && keeps_still_ends(resident, rays);
+    // Which eye rays the kept ends are is known again once the view that writes them is whole (the first
+    // step's, at the pixels' centres).
+    const bool writes_still_ends = frame_options.still_ends && (plan.stale & kView);
+    if (writes_still_ends) resident.still_ends.reset();
     try {
         if (!impl_->run_steps(resident, plan, worlds, resolved, frame_options, give_way, frame)) {
             frame.outcome = FrameResult::Outcome::superseded;  // the resident state is whole; only the frame was not made
             return frame;
         }
-        const bool upscaled = impl_->finish_frame(resident, plan, frame_options, requested, temporal, frame);
+        if (writes_still_ends) resident.still_ends = rays;
+        const bool upscaled =
+            impl_->finish_frame(resident, plan, frame_options, requested, temporal, still_ends, frame);
         if (options.linear) frame.linear = upscaled ? resident.gpu->read_viewer_hdr() : resident.gpu->read_hdr();
     } catch (...) {
         impl_->drop_after_failure(scene_id);
@@ -651,9 +703,9 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     return frame;
 }
 
-bool Renderer::Impl::finish_frame(ResidentScene& resident, const FramePlan& plan, const RunOptions& frame_options,
-                                  const protocol::SceneDocument& requested, TemporalHistory* temporal,
-                                  FrameResult& frame) {
+bool Renderer::Impl::finish_frame(ResidentScene& resident, const FramePlan& plan,
+                                  const RunOptions& frame_options, const protocol::SceneDocument& requested,
+                                  TemporalHistory* temporal, bool still_ends, FrameResult& frame) {
     frame.level = plan.level;
     frame.refinement = refinement_at(plan.level);
     // An interactive frame may be shaded from a still frame's refined grid.
@@ -672,7 +724,8 @@ bool Renderer::Impl::finish_frame(ResidentScene& resident, const FramePlan& plan
     const bool upscaled = frame_options.view_ends && resident.gpu->has_view_ends();
     if (upscaled) {
         const auto upscale_start = Clock::now();
-        resident.gpu->upscale(requested.image.width, requested.image.height);
+        resident.gpu->upscale(requested.image.width, requested.image.height, still_ends);
+        frame.still_eye_rays = still_ends;
         frame.timings.push_back({"upscale", 0.0, ms_since(upscale_start)});
         frame.width = requested.image.width;
         frame.height = requested.image.height;

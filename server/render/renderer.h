@@ -110,6 +110,9 @@ struct FrameResult {
     // The size its eye rays were traced at: an interactive frame's budget may trace fewer pixels than it
     // is sent at (its floor and sky are found again at `width` x `height`: passes::ViewUpscalePass).
     uint32_t traced_width = 0, traced_height = 0;
+    // Traced smaller, its viewer pixels' own eye rays were a still frame's of the same view (nothing but
+    // the light changed since): its outline and what its glass shows are at the viewer's size.
+    bool still_eye_rays = false;
     PassSet rerun = 0;                // passes that ran for this frame
     std::vector<std::string> voxelized;  // the objects the voxelize pass ran for, by name
     std::vector<PassTiming> timings;  // one entry per pass that ran, plus "encode"

@@ -7,6 +7,16 @@
 #include "render/transport_inputs.h"
 
 namespace refract::scene {
+namespace {
+
+// Where the view leaves its eye rays' ends: a still's only from its first sample (at the pixels' centres,
+// where the upscale's rays go).
+ViewStage::Ends view_ends(const RunOptions& options) {
+    if (options.view_ends) return ViewStage::Ends::traced;
+    return options.still_ends && options.view_sample == 0 ? ViewStage::Ends::still : ViewStage::Ends::none;
+}
+
+}  // namespace
 
 PassKit::PassKit(vk::Context& ctx)
     : context(ctx),
@@ -42,10 +52,15 @@ int64_t estimate_scene_bytes(const passes::GridGeometry& grid, uint64_t field_vo
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) *
                           (4 * FLOOR_WORDS + 8 + 8 + 16);
     const int64_t light_map = int64_t{passes::light_map_capacity(grid)} * passes::light_map_capacity(grid) * 2 * 4;
-    // Per pixel: HDR (16), sRGB (4), a slot in the refinement list (4).
-    return static_cast<int64_t>(field_voxels) * per_field_voxel + static_cast<int64_t>(object_voxels) * per_object_voxel +
+    // Per pixel: HDR (16), sRGB (4), a slot in the refinement list (4); a still frame's eye rays' ends
+    // (RunOptions::still_ends) where they are kept.
+    const int64_t pixels = int64_t{width} * height;
+    const int64_t per_pixel =
+        24 + (static_cast<uint64_t>(pixels) <= kStillEndsMaxPixels ? int64_t{sizeof(shaders::ViewEnd)} : 0);
+    return static_cast<int64_t>(field_voxels) * per_field_voxel +
+           static_cast<int64_t>(object_voxels) * per_object_voxel +
            static_cast<int64_t>(radiance_voxels) * per_radiance_voxel + lattice + floor + light_map +
-           int64_t{width} * height * 24;
+           pixels * per_pixel;
 }
 
 int64_t estimate_environment_bytes(const image::EnvironmentMap* image) {
@@ -115,11 +130,11 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     FrameRecording recording(recorder_, timer_, options.give_way);
     RunStats stats;
     bool resolved = false;
-    const bool whole = volume_.record(recording, stale, built_, volume_in, worlds, grid_asset, options.voxelize,
-                                      stats.voxelized) &&
+    const bool whole = volume_.record(recording, stale, built_, volume_in, worlds, grid_asset,
+                                      options.voxelize, stats.voxelized) &&
                        transport_.record(recording, stale, built_, options, grid_, volume_, resolved) &&
-                       view_.record(recording, stale, options.adaptive_view, options.view_ends, options.paced_parts, volume_,
-                                    transport_);
+                       view_.record(recording, stale, options.adaptive_view, view_ends(options),
+                                    options.paced_parts, volume_, transport_);
     if (!whole) {
         gave_way(*recording.stopped(), stale, asked, mean_resident && !resolved);
         volume_.end_run();

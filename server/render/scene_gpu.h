@@ -47,6 +47,10 @@ struct RunStats {
     }
 };
 
+// The most pixels a still frame keeps its eye rays' ends for (RunOptions::still_ends): 48 bytes each,
+// 96 MiB at this many (1920 x 1080 fits).
+inline constexpr uint64_t kStillEndsMaxPixels = uint64_t{1} << 21;
+
 struct RunOptions {
     bool fixed_step = false;      // photons step one voxel everywhere (reference for the octree's gain)
     bool record_photon_exits = false;
@@ -75,6 +79,10 @@ struct RunOptions {
     // The viewing pass also keeps where its eye rays end, so that the frame can be brought to a larger
     // viewer's size (SceneGpu::upscale): interactive frames traced smaller than their viewer.
     bool view_ends = false;
+    // A still frame's first sample also keeps where its eye rays end, at its own size, for the light drags
+    // after it (ViewStage::Ends::still): their frames, traced smaller, take each viewer pixel's own eye
+    // ray from it while nothing but the light changes (SceneGpu::upscale).
+    bool still_ends = false;
     // Each radiance voxel's light spread over a box sized by the photons behind it (radiance_spread.comp):
     // smooth where photons are few; interactive.
     bool adaptive_density = false;
@@ -184,7 +192,12 @@ public:
     // An interactive frame traced smaller than its viewer, brought to the viewer's size (ViewStage::upscale):
     // possible once a run with RunOptions::view_ends left the frame's eye rays' ends.
     bool has_view_ends() const { return view_.has_ends(); }
-    void upscale(uint32_t width, uint32_t height) { view_.upscale(width, height, volume_, transport_); }
+    // Whether a still frame's eye rays' ends are kept for a viewer of this size (RunOptions::still_ends).
+    bool has_still_ends(uint32_t width, uint32_t height) const { return view_.has_still_ends(width, height); }
+    // `still_ends`: the caller knows the still frame that kept them saw the same eye rays (has_still_ends).
+    void upscale(uint32_t width, uint32_t height, bool still_ends = false) {
+        view_.upscale(width, height, still_ends, volume_, transport_);
+    }
     std::vector<glm::vec4> read_viewer_hdr() const { return view_.read_viewer_hdr(); }
     std::vector<uint32_t> read_viewer_ldr() const { return view_.read_viewer_ldr(); }
     int64_t upscale_bytes() const { return view_.upscale_bytes(); }

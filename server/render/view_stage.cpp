@@ -58,25 +58,40 @@ void ViewStage::restore(ParkedFrame parked) {
     allocate({width_, height_});
 }
 
-bool ViewStage::record(FrameRecording& recording, PassSet stale, bool adaptive, bool ends, bool paced,
+bool ViewStage::record(FrameRecording& recording, PassSet stale, bool adaptive, Ends ends, bool paced,
                        const VolumeStage& volume, const TransportStage& transport) {
     vk::CommandRecorder& recorder = recording.recorder();
     if (stale & kView) {
         recording.begin(kView);
         const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-        if (ends && !ends_.get())
-            ends_ = vk::Buffer(kit_.context, uint64_t{width_} * height_ * sizeof(shaders::ViewEnd), usage,
-                               vk::MemoryUse::device, "view ends");
+        const uint64_t ends_bytes = uint64_t{width_} * height_ * sizeof(shaders::ViewEnd);
+        if (ends == Ends::traced && !ends_.get())
+            ends_ = vk::Buffer(kit_.context, ends_bytes, usage, vk::MemoryUse::device, "view ends");
+        if (ends == Ends::still && still_ends_.size() != ends_bytes) {
+            still_ends_ = {};  // the old one first: both need not fit at once
+            still_ends_ =
+                vk::Buffer(kit_.context, ends_bytes, usage, vk::MemoryUse::device, "still frame's view ends");
+        }
         if (!no_ends_.get())
             no_ends_ = vk::Buffer(kit_.context, sizeof(shaders::ViewEnd), usage, vk::MemoryUse::device,
                                   "no view ends");
         ends_kept_ = false;  // until this view is whole
+        if (ends == Ends::still) still_ends_kept_ = false;
         const passes::PhotonAccumulators& accum = transport.accumulators();
+        const vk::Buffer& written = ends == Ends::traced  ? ends_
+                                    : ends == Ends::still ? still_ends_
+                                                          : no_ends_;
         if (!kit_.view.record(recorder, transport.view_inputs(volume), transport.radiance(), transport.flux(),
-                              transport.floor_map(), {hdr_, accum.stats, accum.lit_blocks, refine_, ends ? ends_ : no_ends_},
-                              width_, height_, adaptive, ends, recording.between_parts(kView), parts_.paced(paced)))
+                              transport.floor_map(), {hdr_, accum.stats, accum.lit_blocks, refine_, written},
+                              width_, height_, adaptive, ends != Ends::none, recording.between_parts(kView),
+                              parts_.paced(paced)))
             return false;
-        ends_kept_ = ends;
+        ends_kept_ = ends == Ends::traced;
+        if (ends == Ends::still) {
+            still_ends_kept_ = true;
+            still_ends_width_ = width_;
+            still_ends_height_ = height_;
+        }
         recorder.compute_barrier();
         recording.end();
     }
@@ -88,7 +103,8 @@ bool ViewStage::record(FrameRecording& recording, PassSet stale, bool adaptive, 
     return true;
 }
 
-void ViewStage::upscale(uint32_t width, uint32_t height, const VolumeStage& volume, const TransportStage& transport) {
+void ViewStage::upscale(uint32_t width, uint32_t height, bool still_ends, const VolumeStage& volume,
+                        const TransportStage& transport) {
     if (width != viewer_width_ || height != viewer_height_) {
         const uint64_t pixels = uint64_t{width} * height;
         const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
@@ -99,15 +115,16 @@ void ViewStage::upscale(uint32_t width, uint32_t height, const VolumeStage& volu
     }
     upscale_recorder_.begin();
     kit_.view_upscale.record(upscale_recorder_, transport.view_inputs(volume), transport.floor_map(),
-                             {hdr_, ends_, viewer_hdr_, viewer_ldr_}, glm::uvec2(width_, height_), width,
-                             height);
+                             {hdr_, ends_, viewer_hdr_, viewer_ldr_,
+                              still_ends && has_still_ends(width, height) ? &still_ends_ : nullptr},
+                             glm::uvec2(width_, height_), width, height);
     upscale_recorder_.to_host_barrier();
     upscale_recorder_.submit_and_wait();
 }
 
 int64_t ViewStage::upscale_bytes() const {
-    return static_cast<int64_t>(ends_.size()) + int64_t{viewer_width_} * viewer_height_ *
-                                                    int64_t{sizeof(glm::vec4) + sizeof(uint32_t)};
+    return static_cast<int64_t>(ends_.size() + still_ends_.size()) +
+           int64_t{viewer_width_} * viewer_height_ * int64_t{sizeof(glm::vec4) + sizeof(uint32_t)};
 }
 
 std::vector<glm::vec4> ViewStage::read_viewer_hdr() const {

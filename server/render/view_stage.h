@@ -33,16 +33,26 @@ public:
     ParkedFrame park();
     // Puts a parked image back as the frame's, with the other buffers of its size.
     void restore(ParkedFrame parked);
+    // Where the viewing pass leaves its eye rays' ends (ViewEnd per pixel): nowhere; for upscale(), an
+    // interactive frame traced smaller than its viewer; or apart, a still frame's at the viewer's size,
+    // kept for the upscales of the light drags after it (has_still_ends()).
+    enum class Ends { none, traced, still };
     // Records the view and tone map when stale; false when the run stopped at a part.
-    // `paced`: parts sized by time (RunOptions::paced_parts). `ends`: the view also keeps where its eye
-    // rays end, for upscale().
-    bool record(FrameRecording& recording, PassSet stale, bool adaptive, bool ends, bool paced,
+    // `paced`: parts sized by time (RunOptions::paced_parts).
+    bool record(FrameRecording& recording, PassSet stale, bool adaptive, Ends ends, bool paced,
                 const VolumeStage& volume, const TransportStage& transport);
-    // Whether the frame's eye rays' ends are kept: its last view ran with `ends`.
+    // Whether the frame's eye rays' ends are kept: its last view ran with Ends::traced.
     bool has_ends() const { return ends_kept_; }
+    // Whether a still frame's ends are kept for a viewer of `width` x `height`: its last view with
+    // Ends::still was whole (which view it was, the caller knows).
+    bool has_still_ends(uint32_t width, uint32_t height) const {
+        return still_ends_kept_ && still_ends_width_ == width && still_ends_height_ == height;
+    }
     // The frame brought to a viewer's `width` x `height` (passes::ViewUpscalePass; has_ends()), in a
-    // submission of its own.
-    void upscale(uint32_t width, uint32_t height, const VolumeStage& volume, const TransportStage& transport);
+    // submission of its own; with `still_ends` (has_still_ends()), each viewer pixel's eye ray is the
+    // still frame's.
+    void upscale(uint32_t width, uint32_t height, bool still_ends, const VolumeStage& volume,
+                 const TransportStage& transport);
 
     uint32_t width() const { return width_; }
     uint32_t height() const { return height_; }
@@ -65,6 +75,9 @@ private:
     vk::Buffer ends_;     // made with the first frame that keeps its ends
     vk::Buffer no_ends_;  // bound in their place otherwise (nothing writes it)
     bool ends_kept_ = false;
+    vk::Buffer still_ends_;  // Ends::still, whatever size the frame has since
+    uint32_t still_ends_width_ = 0, still_ends_height_ = 0;
+    bool still_ends_kept_ = false;
     uint32_t viewer_width_ = 0, viewer_height_ = 0;
     vk::Buffer viewer_hdr_, viewer_ldr_;
     vk::CommandRecorder upscale_recorder_;

@@ -118,6 +118,9 @@ REFRACT_SHADERS_BEGIN
 // The viewer's size (view_upscale.comp): vec4 linear radiance and uint sRGB per pixel.
 #define TRANSPORT_BINDING_VIEWER_HDR 34
 #define TRANSPORT_BINDING_VIEWER_LDR 35
+// The ends of a still frame's eye rays at the viewer's size (ViewEnd per pixel), for the interactive
+// frames of a light drag, whose eye rays are the still's (view_upscale.comp, UPSCALE_CONSTANT_STILL_ENDS).
+#define TRANSPORT_BINDING_STILL_ENDS 37
 // vec4 per floor-map texel: rgb, what the floor's shadow takes away from its irradiance in closed form
 // (W/m^2, the frame's lights together; DIRECT_MODE_FLOOR_SHADOW); w, whether its centre is in the shadow
 // (DIRECT_MODE_FLOOR_CORNERS, the light's).
@@ -533,6 +536,9 @@ struct UpscalePush {
 // Subgroups of 16 to 64 lanes hold whole rows and need fewer: 6 x 3, 6 x 4, 6 x 6 up to 1/2. Above
 // 1/2, each lane loads its own four (0).
 #define UPSCALE_CONSTANT_SHARED_LOADS TRANSPORT_CONSTANT_COUNT
+// Whether the upscale reads each viewer pixel's own eye ray from a still frame of the same view
+// (TRANSPORT_BINDING_STILL_ENDS; view_upscale.comp, kStillEnds).
+#define UPSCALE_CONSTANT_STILL_ENDS (TRANSPORT_CONSTANT_COUNT + 1)
 REFRACT_INLINE uint upscale_shared_loads(float scale) {
     return scale <= 2.0f / 7.0f ? 1u : scale <= 0.5f ? 2u : 0u;
 }
