@@ -668,9 +668,8 @@ FrameResult Renderer::render(const std::string& scene_id, const protocol::SceneD
     }
     // A still frame keeps its eye rays' ends for the light drags after it (its first step's view writes
     // them), where they fit: past kStillEndsMaxPixels such drags take their traced pixels' ends alone.
-    frame_options.still_ends =
-        quality == Quality::still &&
-        uint64_t{requested.image.width} * requested.image.height <= kStillEndsMaxPixels;
+    const uint64_t pixels = uint64_t{requested.image.width} * requested.image.height;
+    frame_options.still_ends = quality == Quality::still && pixels <= kStillEndsMaxPixels;
     const EyeRays rays = eye_rays(plan.document, resolved, requested.image.width, requested.image.height);
     const bool still_ends = frame_options.view_ends && keeps_still_ends(resident, rays);
     // Which eye rays the kept ends are is known again once the view that writes them is whole (the first
@@ -780,6 +779,23 @@ void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& as
     FrameOptions options;
     options.quality = quality;
     render(scene.id, reduced, assets, options);
+    if (quality == Quality::still) {
+        // The light drags after a still frame are upscaled by the variant that takes each viewer pixel's
+        // eye ray from the still's ends, a pipeline for each share of loads as below: a still at a viewer's
+        // size, then a drag's frame traced at the budget's least.
+        for (const uint32_t viewer_scale : {2u, 4u}) {
+            protocol::SceneDocument viewed = reduced;
+            viewed.image.width *= viewer_scale;
+            viewed.image.height *= viewer_scale;
+            render(scene.id, viewed, assets, options);
+            for (auto& [name, light] : viewed.lights) light.position[1] += 0.5;
+            FrameOptions drag;
+            drag.quality = Quality::interactive;
+            drag.budget_ms = 1.0;
+            render(scene.id, viewed, assets, drag);
+        }
+        return;
+    }
     // That frame came at its own size; a drag's are traced a fraction of their viewer's, whose upscale
     // shares the traced pixels' loads across a subgroup, a pipeline for each share (upscale_shared_loads:
     // two loads a lane at half the viewer's size, one at a quarter), which lavapipe compiles at its first

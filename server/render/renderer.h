@@ -148,8 +148,9 @@ public:
     // Creates the pipelines that frames of `document` use at `quality`: they are compiled on first use
     // (LLVM on lavapipe: 0.2-0.3 s for a scene's set), which would otherwise fall on its first frame.
     // Renders a reduced copy of `document` (the smallest image, volume and photon count) under a scene id
-    // of its own (an interactive one also upscaled, as a drag's frames are), keeps nothing of it but the
-    // pipelines, and rethrows what render() throws.
+    // of its own (an interactive one also upscaled, as a drag's frames are; a still one followed by the
+    // frame of a light drag after it), keeps nothing of it but the pipelines, and rethrows what render()
+    // throws.
     void warm_up(const protocol::SceneDocument& document, const Assets& assets, Quality quality);
     // Creates the pipelines of the first preview a viewer sees on loading `loaded` into a resident scene
     // that shows `before` (an example picked, a document imported): that preview builds the volume on a
