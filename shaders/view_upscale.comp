@@ -29,6 +29,9 @@ layout(constant_id = UPSCALE_CONSTANT_SHARED_LOADS) const uint kSharedLoads = 0u
 // A light drag's frames: each viewer pixel's own eye ray is the still frame's before it
 // (TRANSPORT_BINDING_STILL_ENDS), and the traced pixels give only the light gathered before its end.
 layout(constant_id = UPSCALE_CONSTANT_STILL_ENDS) const bool kStillEnds = false;
+// The frame has one light (most scenes): the floor's light reads it by a constant index.
+layout(constant_id = UPSCALE_CONSTANT_ONE_LIGHT) const bool kOneLight = false;
+#define EYE_RAY_ENDS_ONE_LIGHT
 #include "eye_ray_ends.glsl"
 
 // One edge of a bent leg's footprint on the floor: how its landing moves when its start moves by `change`

@@ -27,13 +27,15 @@ class ViewUpscalePass {
 public:
     explicit ViewUpscalePass(vk::Context& context);
     // Over width x height viewer pixels from a frame traced at `traced` (the params' image size, whose
-    // camera and exposure it takes).
+    // camera and exposure it takes); `one_light`: the params hold exactly one light.
     void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const vk::Image3D& floor_map,
-                const UpscaleBuffers& buffers, glm::uvec2 traced, uint32_t width, uint32_t height) const;
+                const UpscaleBuffers& buffers, glm::uvec2 traced, uint32_t width, uint32_t height,
+                bool one_light) const;
 
 private:
     // One for every transport variant (it reads none of their constants), by the loads each lane shares
-    // with its subgroup (upscale_shared_loads: 0, 1, 2), without and then with a still frame's ends.
+    // with its subgroup (upscale_shared_loads: 0, 1, 2), without and then with a still frame's ends, for
+    // any number of lights and then for one.
     std::vector<vk::ComputePipeline> pipelines_;
 };
 

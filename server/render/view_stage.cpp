@@ -117,7 +117,8 @@ void ViewStage::upscale(uint32_t width, uint32_t height, bool still_ends, const 
     kit_.view_upscale.record(upscale_recorder_, transport.view_inputs(volume), transport.floor_map(),
                              {hdr_, ends_, viewer_hdr_, viewer_ldr_,
                               still_ends && has_still_ends(width, height) ? &still_ends_ : nullptr},
-                             glm::uvec2(width_, height_), width, height);
+                             glm::uvec2(width_, height_), width, height,
+                             transport.light_params().front().light_set.x == 1);
     upscale_recorder_.to_host_barrier();
     upscale_recorder_.submit_and_wait();
 }

@@ -539,6 +539,8 @@ struct UpscalePush {
 // Whether the upscale reads each viewer pixel's own eye ray from a still frame of the same view
 // (TRANSPORT_BINDING_STILL_ENDS; view_upscale.comp, kStillEnds).
 #define UPSCALE_CONSTANT_STILL_ENDS (TRANSPORT_CONSTANT_COUNT + 1)
+// Whether the frame has exactly one light (view_upscale.comp, kOneLight).
+#define UPSCALE_CONSTANT_ONE_LIGHT (TRANSPORT_CONSTANT_COUNT + 2)
 REFRACT_INLINE uint upscale_shared_loads(float scale) {
     return scale <= 2.0f / 7.0f ? 1u : scale <= 0.5f ? 2u : 0u;
 }
