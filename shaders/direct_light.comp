@@ -88,10 +88,13 @@ float light_map_value(uvec2 t) {
 }
 
 // Whether photons leave the light at world point x to this pass; then `along` is how far x lies along its
-// ray (voxels) and d the ray's direction.
+// ray (voxels) and d the ray's direction. Outside the photons' part of the emitter no ray meets a gradient
+// of n or an object, so the light reaches every point above the floor there.
 bool direct_reaches(vec3 x, out float along, out vec3 d) {
     vec2 s;
-    return emission_sample(x, s, along, d) && along >= params.direct_light.y && along < light_map[light_map_texel(s)];
+    if (!emission_sample(x, s, along, d) || along < params.direct_light.y) return false;
+    if (!in_photon_part(s, d)) return !floor_enabled() || x.y > params.floor_plane.x;
+    return along < light_map[light_map_texel(s)];
 }
 
 // The direct light's fluence rate (rgb, W/m^2) at voxel point p, `along` voxels down its ray along d: the
@@ -255,20 +258,23 @@ bool in_floor_shadow(vec3 x) {
     vec2 span = grid_interval(p, d);
     if (span.x >= span.y || (p + d * (span.x + 1e-3)).y <= floor_height_voxels()) return false;
     vec2 s;
-    return emission_sample(x, s, along, d) && traced[light_map_texel(s)] < along - 1.0;
+    return emission_sample(x, s, along, d) && in_photon_part(s, d) &&
+           traced[light_map_texel(s)] < along - 1.0;
 }
 
-// Light photons' emission samples per unit area of floor-map coordinates at floor point x: |ds/dm|.
+// Light photons' samples per unit area of floor-map coordinates at floor point x (in the photons' part
+// of the emitter): |ds/dm| over that part's share of the emission square.
 float samples_per_texel(vec3 x) {
     float texel = params.floor_map.z / params.floor_map.w;
+    float per_texel = texel * texel * photon_samples_per_emission_sample();
     if (params.models.z == LIGHT_DIRECTIONAL) {
         vec3 u = params.emit_u.xyz, v = params.emit_v.xyz;
-        return abs(u.x * v.z - u.z * v.x) / (dot(u, u) * dot(v, v)) * texel * texel;
+        return abs(u.x * v.z - u.z * v.x) / (dot(u, u) * dot(v, v)) * per_texel;
     }
     // Uniform in solid angle over the cone: ds = dw / (2 pi (1 - cos)), dw = |cos| dA / r^2.
     vec3 rel = x - params.emit_origin.xyz;
     float r2 = dot(rel, rel);
-    return abs(rel.y) / (r2 * sqrt(r2) * kTwoPi * (1.0 - params.emit_axis.w)) * texel * texel;
+    return abs(rel.y) / (r2 * sqrt(r2) * kTwoPi * (1.0 - params.emit_axis.w)) * per_texel;
 }
 
 // Floor-map texel i (DIRECT_MODE_FLOOR_CORNERS): whether its centre, a corner of four cells, is in the
@@ -310,7 +316,10 @@ void floor_shadow(uint i) {
     // Each sample carries photon_flux.rgb; over the texel's area that is irradiance.
     uint light_photons = params.photon_info.x - params.environment.z - params.volume_emission.x;
     float texel = params.floor_map.z / params.floor_map.w;
-    floor_shadow_taken[i].rgb += removed * float(light_photons) * params.photon_flux.rgb / (texel * texel);
+    // What the medium lets through to the texel's centre stands for its cells' (it changes over metres).
+    vec3 through = straight_transmittance(floor_map_point(vec2(t)));
+    floor_shadow_taken[i].rgb += removed * float(light_photons) * params.photon_flux.rgb * through /
+                                 (texel * texel);
 }
 
 void main() {

@@ -775,10 +775,18 @@ TEST_F(EnergyTest, ExtinctionFollowsBeerLambert) {
         const auto radiance = gpu->read_radiance();
         const auto dims = gpu->grid().dims;
         const double h = gpu->grid().voxel_size;
+        const auto irradiance = gpu->read_floor_irradiance();
+        const uint32_t side = gpu->floor_map_side();
+        const glm::vec4 centre = irradiance[size_t{side / 2} * side + side / 2];  // under the beam's middle
         for (int c = 0; c < 3; ++c) {
-            // Landed flux: the map's change plus the unobstructed flux it was taken from (the whole beam).
+            // The floor's closed form takes the light through the medium (Beer-Lambert over the dense box's
+            // height), and the photons' map holds what they change of it: nothing, as every one goes
+            // straight, if their weights fall as the closed form says: within 1% of the beam's landed flux
+            // (which the map held before the closed form took the medium).
             const double expected = E * 2.4 * 2.4 * std::exp(-kappa[c] * H);
-            const double measured = floor_flux(*gpu, c) + E * 2.4 * 2.4;
+            const double change = floor_flux(*gpu, c);
+            EXPECT_NEAR(static_cast<double>(centre[c]), E * std::exp(-kappa[c] * H),
+                        0.01 * E * std::exp(-kappa[c] * H));
             double worst = 0.0;
             for (uint32_t y = 0; y < dims.y; ++y) {
                 double sum = 0.0;
@@ -790,9 +798,11 @@ TEST_F(EnergyTest, ExtinctionFollowsBeerLambert) {
                 worst = std::max(worst, std::abs(mean / layer - 1.0));
             }
             const char* kind = channels == CHANNELS_GREY ? "grey" : channels == CHANNELS_RGB ? "coloured" : "dispersive";
-            std::printf("beer-lambert, kappa %.2f (%s transport): floor %.5f W, expected %.5f W; worst layer error %.4f\n",
-                        kappa[c], kind, measured, expected, worst);
-            EXPECT_NEAR(measured, expected, 0.01 * expected);
+            std::printf(
+                "beer-lambert, kappa %.2f (%s transport): floor %.5f W, the photons' change %+.5f W; worst "
+                "layer error %.4f\n",
+                kappa[c], kind, expected, change, worst);
+            EXPECT_NEAR(change, 0.0, 0.01 * expected);
             EXPECT_LT(worst, 0.01);
         }
     }
@@ -1030,19 +1040,30 @@ TEST_F(EnergyTest, ThreeLightsSharePhotonsByPowerAndAddUp) {
     const auto& per_light = trio->light_params();
     ASSERT_EQ(per_light.size(), 3u);
     EXPECT_EQ(trio->channels(), uint32_t{CHANNELS_RGB});  // lights of different colours cannot share one fluence
-    // Shares in proportion to power: the same flux per photon (each channel's mean) to the rounding of the
-    // share (half a photon of the smallest).
-    uint32_t smallest = ~0u, total = 0;
+    // Shares of the count in proportion to power: the photons each light sends over its emitter (those it
+    // traces, over their part's share of the emitter: emission.glsl) add up to the document's count, to
+    // the rounding of each share and each traced count up (a photon, over that part's share), and each
+    // carries the same flux (each channel's mean), to a photon of the smallest in each rounding.
+    const auto part_share = [](const shaders::TransportParams& p) {
+        if (p.photon_part.w < 0.5f) return 1.0;
+        if (p.models.z == LIGHT_DIRECTIONAL)
+            return static_cast<double>(p.photon_rect.z - p.photon_rect.x) *
+                   static_cast<double>(p.photon_rect.w - p.photon_rect.y);
+        return (1.0 - static_cast<double>(p.photon_cone.w)) / (1.0 - static_cast<double>(p.emit_axis.w));
+    };
+    uint32_t smallest = ~0u;
+    double sent = 0.0, slack = 0.5;
     for (const auto& p : per_light) {
         smallest = std::min(smallest, p.photon_info.x);
-        total += p.photon_info.x;
+        sent += static_cast<double>(p.photon_info.x) / part_share(p);
+        slack += 0.5 + 1.0 / part_share(p);
     }
-    EXPECT_NEAR(static_cast<double>(total), double{1 << 16}, 1.5);
+    EXPECT_NEAR(sent, double{1 << 16}, slack);
     const auto mean_flux = [](const shaders::TransportParams& p) {
         return (static_cast<double>(p.photon_flux.x) + static_cast<double>(p.photon_flux.y) + static_cast<double>(p.photon_flux.z)) / 3.0;
     };
     for (const auto& p : per_light)
-        EXPECT_NEAR(mean_flux(p) / mean_flux(per_light[0]), 1.0, 1.0 / smallest) << "light " << p.light_set.y;
+        EXPECT_NEAR(mean_flux(p) / mean_flux(per_light[0]), 1.0, 2.0 / smallest) << "light " << p.light_set.y;
 
     const auto together = trio->read_radiance();
     // document.lights is ordered by name: blue, green, red.
@@ -1051,7 +1072,8 @@ TEST_F(EnergyTest, ThreeLightsSharePhotonsByPowerAndAddUp) {
         const auto [name, c] = channel_of[k];
         json alone = base;
         alone["lights"] = {{name, lights[name]}};
-        alone["photons"]["count"] = per_light[k].photon_info.x;
+        alone["photons"]["count"] =
+            std::lround(static_cast<double>(per_light[k].photon_info.x) / part_share(per_light[k]));
         const auto single = photons(protocol::parse_scene(alone));
         ASSERT_EQ(single->grid(), trio->grid());
         const auto own = single->read_radiance();

@@ -43,8 +43,10 @@ FrameInputs::Transport photon_settings(const protocol::SceneDocument& document, 
     return in;
 }
 
-FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document, const passes::GridGeometry& grid,
-                                        const passes::EnvironmentLight& environment, const MediumEmission& emitted,
+FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document,
+                                        const passes::GridGeometry& grid,
+                                        const passes::EnvironmentLight& environment,
+                                        const MediumEmission& emitted, const std::vector<glm::vec4>& bending,
                                         const RunOptions& options) {
     FrameInputs::Transport in = photon_settings(document, options);
     in.fresnel = fresnel_reflects(document);
@@ -58,6 +60,8 @@ FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document,
     transport.max_level = passes::octree_layout(grid.dims).max_level;
     transport.radiance_factor = options.radiance_factor * grid.light_factor;
     transport.direct_light = options.direct_light;
+    // A run that records every photon's exit (a lens's focus, tested) traces the whole emitter's photons.
+    if (options.photon_part && !options.record_photon_exits) transport.bending = bending;
     transport.photon_batch = options.photon_batch;
     transport.photon_history = options.photon_history;
     transport.history_frame = options.history_frame;

@@ -60,9 +60,12 @@ FrameInputs::Volume volume_inputs(const protocol::SceneDocument& document);
 FrameInputs::Transport photon_settings(const protocol::SceneDocument& document, const RunOptions& options);
 
 // The transport's inputs over the lattice `grid`, lit by `environment` (made of environment_source) and
-// by what the volumes emit (the medium field's, made of the document's volumes on `grid`).
-FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document, const passes::GridGeometry& grid,
-                                        const passes::EnvironmentLight& environment, const MediumEmission& emitted,
+// by what the volumes emit (the medium field's, made of the document's volumes on `grid`); `bending`:
+// where n may vary (VolumeStage::bending), where the lights' photons go.
+FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document,
+                                        const passes::GridGeometry& grid,
+                                        const passes::EnvironmentLight& environment,
+                                        const MediumEmission& emitted, const std::vector<glm::vec4>& bending,
                                         const RunOptions& options);
 
 }  // namespace refract::scene

@@ -122,7 +122,8 @@ RunStats SceneGpu::run(PassSet stale, const protocol::SceneDocument& document, c
     const image::EnvironmentMap* image = document.environment.type == protocol::EnvironmentKind::image ? environment : nullptr;
     transport_.prepare_environment(environment_source(document, image));
     transport_.prepare_medium_field(document.volumes, grid_, densities);
-    transport_.prepare(transport_inputs(document, grid_, transport_.environment(), transport_.medium_emission(), options),
+    transport_.prepare(transport_inputs(document, grid_, transport_.environment(),
+                                        transport_.medium_emission(), volume_.bending(), options),
                        stale, options, grid_, volume_);
 
     // One submission for every stale pass (with give_way: one per volume pass and per part of the photons

@@ -54,6 +54,10 @@ inline constexpr uint64_t kStillEndsMaxPixels = uint64_t{1} << 21;
 struct RunOptions {
     bool fixed_step = false;      // photons step one voxel everywhere (reference for the octree's gain)
     bool record_photon_exits = false;
+    // Each light traces photons only along the rays that may meet an object (emit_photon_ray), where the
+    // direct light's closed form takes the others' light whole; false: over its whole emitter (the
+    // reference for that estimate; also whenever photon exits are recorded).
+    bool photon_part = true;
     PassSet limit = kAllPasses;   // passes outside this set are not run (the CLI's voxelize and trace)
     // The voxelize pass keeps each object's resident coverage while its world mesh, box, smoothing and
     // rays stay (voxelize.again: every object anew).

@@ -216,6 +216,85 @@ Emitter emitter_for(const shaders::LightParams& light, const passes::GridGeometr
     return e;
 }
 
+// Where a light's photons go: a part of its emitter (TransportParams::photon_cone, photon_part,
+// photon_rect) and that part's share of the emitter's samples (1: the whole emitter).
+struct PhotonPart {
+    glm::vec4 cone{0.0f}, across{0.0f}, rect{0.0f, 0.0f, 1.0f, 1.0f};
+    double share = 1.0;
+    // Of `emitted` photons over the whole emitter, those in the part (at least one where any are).
+    uint32_t traced(uint32_t emitted) const {
+        if (share >= 1.0 || emitted == 0) return emitted;
+        return std::max(1u, static_cast<uint32_t>(std::ceil(emitted * share)));
+    }
+};
+
+// The photons' part of a light's emitter `e`: the rays that may meet one of options.bending (world spheres
+// that hold every gradient of n and every object). Photons that would go straight
+// land where the direct light (or, with nothing that scatters, the floor's closed form) already holds
+// their light, from `near_world` (metres) from the light on; random walks scatter photons anywhere.
+PhotonPart photon_part_for(const shaders::LightParams& light, const Emitter& e,
+                           const passes::GridGeometry& grid, float near_world,
+                           const protocol::SceneDocument& document, const TransportOptions& options) {
+    PhotonPart part;
+    const std::vector<glm::vec4>& bending = options.bending;
+    const bool direct_elsewhere =
+        photon_bounces(document, options.bounce_cap) == 0 &&
+        (!any_scattering(document) || (options.direct_light && document.volumes.empty()));
+    if (!direct_elsewhere || bending.empty()) return part;
+    const protocol::Floor& floor = document.floor;
+    const float floor_height = static_cast<float>(floor.height);
+    if (light.type.x == LIGHT_DIRECTIONAL) {
+        // Light that rises from below the floor is the floor's shadow, not a straight ray's.
+        if (floor.enabled && light.direction.y >= 0.0f) return part;
+        const glm::vec3 u(e.u), v(e.v), corner(e.origin);
+        glm::vec2 lo(1.0f), hi(0.0f);
+        for (const glm::vec4& b : bending) {
+            const glm::vec3 rel = glm::vec3(b) - corner;
+            const glm::vec2 at(glm::dot(rel, u) / glm::dot(u, u), glm::dot(rel, v) / glm::dot(v, v));
+            const glm::vec2 reach(b.w / glm::length(u), b.w / glm::length(v));
+            lo = glm::min(lo, at - reach);
+            hi = glm::max(hi, at + reach);
+        }
+        lo = glm::clamp(lo, 0.0f, 1.0f);
+        hi = glm::clamp(hi, 0.0f, 1.0f);
+        const double share = static_cast<double>(std::max(hi.x - lo.x, 0.0f)) *
+                             static_cast<double>(std::max(hi.y - lo.y, 0.0f));
+        if (share <= 0.0 || share >= 1.0) return part;
+        part.rect = glm::vec4(lo, hi);
+        part.across.w = 1.0f;
+        part.share = share;
+        return part;
+    }
+    const glm::vec3 light_position(light.position);
+    if (floor.enabled && light_position.y <= floor_height) return part;
+    // Every point of the grid at least `near` from the light, or the direct light would miss the rest there.
+    const glm::vec3 nearest = glm::clamp(light_position, grid.origin, grid.max_corner());
+    if (glm::length(nearest - light_position) < near_world) return part;
+    glm::vec3 towards(0.0f);
+    for (const glm::vec4& b : bending) {
+        const glm::vec3 to = glm::vec3(b) - light_position;
+        if (glm::length(to) <= b.w) return part;  // the light inside: every direction may bend
+        towards += glm::normalize(to);
+    }
+    if (glm::length(towards) < 1e-6f) return part;
+    const glm::vec3 axis = glm::normalize(towards);
+    float half_angle = 0.0f;
+    for (const glm::vec4& b : bending) {
+        const glm::vec3 to = glm::vec3(b) - light_position;
+        const float distance = glm::length(to);
+        const float off_axis = std::acos(std::clamp(glm::dot(axis, to / distance), -1.0f, 1.0f));
+        half_angle = std::max(half_angle, off_axis + std::asin(b.w / distance));
+    }
+    if (half_angle >= 0.5f * std::numbers::pi_v<float>) return part;
+    const float cos_part = std::cos(half_angle);
+    const double share = (1.0 - static_cast<double>(cos_part)) / (1.0 - static_cast<double>(e.axis.w));
+    if (share >= 1.0) return part;
+    part.cone = glm::vec4(axis, cos_part);
+    part.across = glm::vec4(unit_across(axis), 1.0f);
+    part.share = share;
+    return part;
+}
+
 }  // namespace
 
 shaders::Material material_for(const protocol::Object& object, const protocol::Medium& medium,
@@ -327,7 +406,8 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
     const bool scatters = any_scattering(document);
     // A guard against photons that never finish, not a budget: a random walk's free paths each take
     // their own steps, so the guard grows with the bounces allowed.
-    const uint32_t max_steps = 4 * (grid.dims.x + grid.dims.y + grid.dims.z) * (1 + photon_bounces(document, options.bounce_cap));
+    const uint32_t bounces = photon_bounces(document, options.bounce_cap);
+    const uint32_t max_steps = 4 * (grid.dims.x + grid.dims.y + grid.dims.z) * (1 + bounces);
     // Each light's photons, and the environment's when it lights the scene: shares of the count in
     // proportion to the flux each sends towards the grid (the channels' mean), so every photon carries
     // about the same flux. An environment sends its photons into the grid through a disc around the grid's
@@ -368,13 +448,24 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
     while (carrier + 1 < lights.size() && shares[carrier] == 0) ++carrier;
     std::vector<shaders::TransportParams> per_light;
     for (size_t i = 0; i < lights.size(); ++i) {
-        const uint32_t photons = shares[i];
+        const uint32_t emitted = shares[i];
         const uint32_t environment_share = i == carrier ? from_environment : 0u;
         const uint32_t volume_share = i == carrier ? from_volumes : 0u;
-        if (photons == 0 && environment_share == 0 && volume_share == 0) continue;
+        if (emitted == 0 && environment_share == 0 && volume_share == 0) continue;
         shaders::TransportParams q = p;
         const shaders::LightParams& light = lights[i];
         const Emitter& e = emitters[i];
+        // Direct light from UNBENT_MIN_DISTANCE radiance voxels (plus one, for the voxel's own extent) from
+        // a point or spot light on: every voxel it reaches takes unbent deposits (transport.h).
+        const float near = light.type.x == LIGHT_DIRECTIONAL
+                               ? 0.0f
+                               : (UNBENT_MIN_DISTANCE + 1.0f) * static_cast<float>(options.radiance_factor);
+        // Of the `emitted` photons the light sends over its emitter, those in the photons' part are traced.
+        const PhotonPart part = photon_part_for(light, e, grid, near * grid.voxel_size, document, options);
+        const uint32_t photons = part.traced(emitted);
+        q.photon_cone = part.cone;
+        q.photon_part = part.across;
+        q.photon_rect = part.rect;
         q.light_set.y = static_cast<uint32_t>(per_light.size());
         q.models.z = light.type.x;
         q.light_position = light.position;
@@ -384,7 +475,8 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
         q.emit_u = e.u;
         q.emit_v = e.v;
         q.emit_origin = e.origin;
-        const glm::vec3 flux = photons > 0 ? e.flux / static_cast<float>(photons) : glm::vec3(0.0f);
+        const glm::vec3 part_flux = part.share < 1.0 ? e.flux * static_cast<float>(part.share) : e.flux;
+        const glm::vec3 flux = photons > 0 ? part_flux / static_cast<float>(photons) : glm::vec3(0.0f);
         float reference = std::max({flux.r, flux.g, flux.b, 1e-30f});
         if (environment_share > 0) {
             // Environment photons carry their pixel's colour over its mean times this, at most channel_ratio.
@@ -415,17 +507,13 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
         const double n = static_cast<double>(count);
         q.stepping = glm::vec4(options.shell_step, 0.02f, power_of_two_below(2147483647.0 / (4.0 * n)),
                                power_of_two_below(2147483647.0 / n));
-        // Direct light from UNBENT_MIN_DISTANCE radiance voxels (plus one, for the voxel's own extent) from
-        // a point or spot light on: every voxel it reaches takes unbent deposits (transport.h).
-        const float near = light.type.x == LIGHT_DIRECTIONAL
-                               ? 0.0f
-                               : (UNBENT_MIN_DISTANCE + 1.0f) * static_cast<float>(options.radiance_factor);
         // The floor's shadow in closed form needs only the light map's traced runs: on wherever the light's
         // photons reach a floor, fog or none.
         const bool floor_shadow = options.direct_light && document.floor.enabled && photons > 0;
-        q.direct_light = glm::vec4(static_cast<float>(passes::light_map_texels(grid, std::max(photons, 1u))), near,
-                                   floor_shadow ? 1.0f : 0.0f,
-                                   options.direct_light && scatters && photons > 0 && document.volumes.empty() ? 1.0f : 0.0f);
+        q.direct_light = glm::vec4(
+            static_cast<float>(passes::light_map_texels(grid, std::max(emitted, 1u))), near,
+            floor_shadow ? 1.0f : 0.0f,
+            options.direct_light && scatters && photons > 0 && document.volumes.empty() ? 1.0f : 0.0f);
         per_light.push_back(q);
     }
     return per_light;

@@ -25,6 +25,9 @@ struct TransportOptions {
     uint32_t max_level = 0;    // octree levels present
     uint32_t radiance_factor = 1;  // index-field voxels per radiance voxel along each axis (1 or 2)
     bool direct_light = true;  // unbent light in closed form (DirectLightPass) rather than by photons
+    // World spheres (centre, radius) that hold every gradient of n and every object (VolumeStage::bending):
+    // a light traces photons only along the rays that may meet one. Empty: over its whole emitter.
+    std::vector<glm::vec4> bending;
     uint32_t photon_batch = 0;  // progressive refinement: which batch of photons (0: the document's seed)
     float photon_history = 0.0f;    // RunOptions::photon_history
     uint32_t history_frame = 0;     // RunOptions::history_frame

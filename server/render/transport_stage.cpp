@@ -329,6 +329,38 @@ std::vector<glm::vec4> TransportStage::read_floor_map() const {
     return widen(read_image<uint16_t>(kit_.context, floor_map_));
 }
 
+namespace {
+// What the medium lets through along the straight segment from world point x along unit d for `distance`
+// metres, as medium_transmittance() in shaders/shared/transport_common.glsl takes it, but by the midpoint
+// rule over the density (medium_density) rather than its closed-form integral: an independent check.
+glm::vec3 medium_transmittance(const shaders::TransportParams& p, glm::vec3 x, glm::vec3 d, float distance) {
+    const glm::vec3 extinction(p.medium_extinction);
+    if (extinction == glm::vec3(0.0f)) return glm::vec3(1.0f);
+    const float h = p.grid_origin.w;
+    const glm::vec3 dims(p.grid_dims);
+    const glm::vec3 q = (x - glm::vec3(p.grid_origin)) / h;
+    const glm::vec3 t0 = (glm::vec3(0.0f) - q) / d, t1 = (dims - q) / d;
+    const glm::vec3 lo = glm::min(t0, t1), hi = glm::max(t0, t1);
+    const float enter = std::max({lo.x, lo.y, lo.z, 0.0f});
+    const float leave = std::min({hi.x, hi.y, hi.z, distance / h});
+    if (leave <= enter) return glm::vec3(1.0f);
+    const glm::vec3 low_faces(0.0f, p.medium_fade.y, 0.0f);
+    const auto density = [&](glm::vec3 v) {
+        if (p.medium_fade.x <= 0.0f) return 1.0f;
+        const glm::vec3 nearest = glm::min(v - low_faces, dims - v);
+        const float u = std::clamp(std::min({nearest.x, nearest.y, nearest.z}) * p.medium_fade.z, 0.0f, 1.0f);
+        return u * u * (3.0f - 2.0f * u);
+    };
+    constexpr int kSteps = 256;
+    const float step = (leave - enter) / kSteps;
+    double depth = 0.0;  // voxels at full density
+    for (int i = 0; i < kSteps; ++i)
+        depth += static_cast<double>(density(q + (enter + (static_cast<float>(i) + 0.5f) * step) * d));
+    return glm::exp(-extinction *
+                    static_cast<float>(depth * static_cast<double>(step) * static_cast<double>(h)));
+}
+}  // namespace
+
 std::vector<glm::vec4> TransportStage::read_floor_irradiance() const {
     std::vector<glm::vec4> map = read_floor_map();
     const shaders::TransportParams& p = light_params_.front();
@@ -342,7 +374,8 @@ std::vector<glm::vec4> TransportStage::read_floor_irradiance() const {
             for (uint32_t k = 0; k < p.light_set.x; ++k) {
                 const shaders::LightParams& light = p.lights[k];
                 if (light.type.x == LIGHT_DIRECTIONAL) {
-                    direct += glm::vec3(light.power) * std::max(0.0f, -light.direction.y);
+                    direct += glm::vec3(light.power) * std::max(0.0f, -light.direction.y) *
+                              medium_transmittance(p, x, -glm::vec3(light.direction), 1e30f);
                     continue;
                 }
                 const glm::vec3 l = glm::vec3(light.position) - x;
@@ -350,7 +383,9 @@ std::vector<glm::vec4> TransportStage::read_floor_irradiance() const {
                 const glm::vec3 to_light = l / std::sqrt(r2);
                 const bool in_cone = light.type.x != LIGHT_SPOT ||
                                      glm::dot(-to_light, glm::vec3(light.direction)) >= light.position.w;
-                if (in_cone) direct += glm::vec3(light.power) * std::max(0.0f, to_light.y) / r2;
+                if (in_cone)
+                    direct += glm::vec3(light.power) * std::max(0.0f, to_light.y) / r2 *
+                              medium_transmittance(p, x, to_light, std::sqrt(r2));
             }
             direct += glm::vec3(p.environment_light);
             glm::vec4& texel_value = map[size_t{j} * floor_texels_ + i];

@@ -43,6 +43,28 @@ std::map<std::string, passes::ObjectBox> object_boxes(const passes::GridGeometry
     return boxes;
 }
 
+std::vector<glm::vec4> bending_spheres(const passes::GridGeometry& lattice, const FrameInputs::Volume& in,
+                                       const WorldMeshes& worlds) {
+    const float apron = static_cast<float>(object_apron(in.smoothing)) * lattice.voxel_size;
+    std::vector<glm::vec4> spheres;
+    for (const auto& [name, world] : worlds) {
+        if (world.positions.empty()) continue;
+        glm::vec3 lo = world.positions.front(), hi = lo;
+        for (const glm::vec3& p : world.positions) {
+            lo = glm::min(lo, p);
+            hi = glm::max(hi, p);
+        }
+        const glm::vec3 centre = 0.5f * (lo + hi);
+        float radius = 0.0f;
+        for (const glm::vec3& p : world.positions) radius = std::max(radius, glm::length(p - centre));
+        spheres.emplace_back(centre, radius + apron);
+    }
+    for (const auto& [name, shape] : in.objects)
+        if (shape.kind == INDEX_KIND_LUNEBURG || shape.kind == INDEX_KIND_MAXWELL)
+            spheres.emplace_back(glm::vec3(shape.sphere), shape.sphere.w + apron);
+    return spheres;
+}
+
 namespace {
 passes::VoxelRange range_of(const passes::ObjectBox& b) {
     return {b.offset, b.offset + glm::uvec3(b.box.dims.x, b.box.dims.y, b.box.dims.z)};
@@ -72,6 +94,7 @@ VolumeStage::VolumeStage(PassKit& kit) : kit_(kit) {}
 void VolumeStage::clear() {
     // Drop the old volume first so peak memory is one volume, not two.
     objects_.clear();
+    bending_.clear();
     pyramid_ = {};
     levels_ = {};
     index_field_ = {};
@@ -86,6 +109,7 @@ bool VolumeStage::lay_out(const passes::GridGeometry& lattice, const FrameInputs
     boxes_.clear();
     if (!(stale & kVoxelize)) return false;
     if (!in.imported) boxes_ = object_boxes(lattice_, worlds, in.smoothing);
+    bending_ = in.imported ? std::vector<glm::vec4>{} : bending_spheres(lattice_, in, worlds);
     FieldAtlas layout = field_atlas_for(lattice_, boxes_, in.imported || in.objects.size() < 2,
                                         kit_.context.limits().maxImageDimension3D);
     if (layout == atlas_ && index_field_.get()) return false;

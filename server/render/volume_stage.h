@@ -36,6 +36,11 @@ uint32_t object_apron(double sigma);
 std::map<std::string, passes::ObjectBox> object_boxes(const passes::GridGeometry& lattice, const WorldMeshes& worlds,
                                                       double sigma);
 
+// World spheres (centre, radius) that hold every gradient of n and every object's coverage in `lattice`:
+// each object's world mesh (and a procedural lens's own sphere) grown by its apron.
+std::vector<glm::vec4> bending_spheres(const passes::GridGeometry& lattice, const FrameInputs::Volume& in,
+                                       const WorldMeshes& worlds);
+
 // How a frame's voxelize pass runs (RunOptions::voxelize).
 struct VoxelizeOptions {
     // Every object voxelized anew, even one whose coverage still fits (what a benchmark of a whole
@@ -55,6 +60,9 @@ public:
     // that makes new field images (the index field and octree are then not built).
     bool lay_out(const passes::GridGeometry& lattice, const FrameInputs::Volume& in, const WorldMeshes& worlds,
                  PassSet stale, PassSet built);
+    // Where n may vary, as of the last lay_out that voxelized (bending_spheres); empty for an imported grid,
+    // which may vary anywhere.
+    const std::vector<glm::vec4>& bending() const { return bending_; }
     // Records the stale volume passes (`built`: what is resident and whole). False when the run stopped
     // at a part. `voxelized` gets the objects voxelized, by name.
     bool record(FrameRecording& recording, PassSet stale, PassSet built, const FrameInputs::Volume& in,
@@ -109,6 +117,7 @@ private:
     FieldAtlas atlas_;
     vk::Buffer atlas_map_;  // a sparse atlas's map (transport.h)
     std::map<std::string, passes::ObjectBox> boxes_;  // this run's, when it voxelizes
+    std::vector<glm::vec4> bending_;
     bool field_fresh_ = false;                          // this run made new field images
     // This run's: the clusters a new layout carries over from the old images, and what its commands
     // read (uploads, scratch), held until they complete.

@@ -3,6 +3,21 @@
 // Needs transport_common.glsl (params). The environment's emitter is beside it: emit_environment_ray.
 #include "environment.glsl"
 
+// The unit direction of sample s of a cone uniform in solid angle around `axis` (w: the cos of its
+// half-angle), u and v across it.
+vec3 cone_direction(vec2 s, vec4 axis, vec3 u, vec3 v) {
+    float cos_t = 1.0 - s.x * (1.0 - axis.w);
+    float sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
+    float phi = 6.28318530717959 * s.y;
+    return normalize(cos_t * axis.xyz + sin_t * (cos(phi) * u + sin(phi) * v));
+}
+
+// Whether a spot lets the ray along `direction` out (a point or directional light lets every ray out).
+bool spot_lets_out(vec3 direction) {
+    return params.models.z != LIGHT_SPOT ||
+           dot(direction, params.light_direction.xyz) >= params.light_position.w;
+}
+
 // The ray of emission sample s: world origin and unit direction; false outside a spot's cone.
 bool emit_ray(vec2 s, out vec3 origin, out vec3 direction) {
     if (params.models.z == LIGHT_DIRECTIONAL) {
@@ -10,13 +25,54 @@ bool emit_ray(vec2 s, out vec3 origin, out vec3 direction) {
         direction = params.emit_axis.xyz;
         return true;
     }
-    // Uniform in solid angle over the cone around emit_axis.
-    float cos_t = 1.0 - s.x * (1.0 - params.emit_axis.w);
-    float sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
-    float phi = 6.28318530717959 * s.y;
-    direction = normalize(cos_t * params.emit_axis.xyz + sin_t * (cos(phi) * params.emit_u.xyz + sin(phi) * params.emit_v.xyz));
+    direction = cone_direction(s, params.emit_axis, params.emit_u.xyz, params.emit_v.xyz);
     origin = params.emit_origin.xyz;
-    return params.models.z != LIGHT_SPOT || dot(direction, params.light_direction.xyz) >= params.light_position.w;
+    return spot_lets_out(direction);
+}
+
+// The emission sample of the cone ray along unit `direction` (point, spot).
+vec2 cone_sample(vec3 direction) {
+    float phi = atan(dot(direction, params.emit_v.xyz), dot(direction, params.emit_u.xyz)) * (1.0 / kTwoPi);
+    float from_axis = (1.0 - dot(direction, params.emit_axis.xyz)) / (1.0 - params.emit_axis.w);
+    return vec2(from_axis, phi < 0.0 ? phi + 1.0 : phi);
+}
+
+bool photons_in_part() { return params.photon_part.w > 0.5; }
+
+// Whether the ray of emission sample s along `direction` lies in the photons' part of the emitter.
+bool in_photon_part(vec2 s, vec3 direction) {
+    if (!photons_in_part()) return true;
+    if (params.models.z == LIGHT_DIRECTIONAL)
+        return all(greaterThanEqual(s, params.photon_rect.xy)) && all(lessThan(s, params.photon_rect.zw));
+    return dot(direction, params.photon_cone.xyz) >= params.photon_cone.w;
+}
+
+// The ray of photon sample s in [0,1)^2, uniform over the photons' part of the emitter (in solid angle
+// for a cone), and `s_emitter`, its emission sample (the light map's texel); false where no photon goes.
+bool emit_photon_ray(vec2 s, out vec3 origin, out vec3 direction, out vec2 s_emitter) {
+    if (!photons_in_part()) {
+        s_emitter = s;
+        return emit_ray(s, origin, direction);
+    }
+    if (params.models.z == LIGHT_DIRECTIONAL) {
+        s_emitter = mix(params.photon_rect.xy, params.photon_rect.zw, s);
+        return emit_ray(s_emitter, origin, direction);
+    }
+    vec3 u = params.photon_part.xyz;
+    direction = cone_direction(s, params.photon_cone, u, cross(params.photon_cone.xyz, u));
+    origin = params.emit_origin.xyz;
+    s_emitter = cone_sample(direction);
+    return s_emitter.x < 1.0 && spot_lets_out(direction);
+}
+
+// Photon samples per emission sample, over the photons' part: the inverse of its share of the emitter.
+float photon_samples_per_emission_sample() {
+    if (!photons_in_part()) return 1.0;
+    if (params.models.z == LIGHT_DIRECTIONAL) {
+        vec2 side = params.photon_rect.zw - params.photon_rect.xy;
+        return 1.0 / (side.x * side.y);
+    }
+    return (1.0 - params.emit_axis.w) / (1.0 - params.photon_cone.w);
 }
 
 // The first of `count` CDF values (inclusive, ascending) at map.texels[first + k * stride] above s, and
@@ -109,10 +165,15 @@ bool emission_sample(vec3 x, out vec2 s, out float along, out vec3 direction) {
                  dot(rel, params.emit_v.xyz) / dot(params.emit_v.xyz, params.emit_v.xyz));
         return all(greaterThanEqual(s, vec2(0.0))) && all(lessThan(s, vec2(1.0)));
     }
-    float phi = atan(dot(direction, params.emit_v.xyz), dot(direction, params.emit_u.xyz)) * (1.0 / 6.28318530717959);
-    s = vec2((1.0 - dot(direction, params.emit_axis.xyz)) / (1.0 - params.emit_axis.w), phi < 0.0 ? phi + 1.0 : phi);
-    return s.x < 1.0 &&
-           (params.models.z != LIGHT_SPOT || dot(direction, params.light_direction.xyz) >= params.light_position.w);
+    s = cone_sample(direction);
+    return s.x < 1.0 && spot_lets_out(direction);
+}
+
+// What the medium lets through of the light's straight ray to world point x (medium_transmittance).
+vec3 straight_transmittance(vec3 x) {
+    float along;
+    vec3 d = ray_through(x, along);
+    return medium_transmittance(x, -d, params.models.z == LIGHT_DIRECTIONAL ? 1e30 : along * voxel_size());
 }
 
 // Whether light at a field sample (n, grad n) with this coverage goes on straight through the medium,

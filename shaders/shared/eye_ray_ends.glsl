@@ -15,11 +15,11 @@ float to_floor_plane(vec3 p, vec3 d) {
     return (floor_enabled() && d.y < 0.0) ? (p.y - floor_height_voxels()) / -d.y : 1e30;
 }
 
-// Irradiance straight from every light at a floor point (normal +y), without occlusion, over a pixel's
-// footprint there, the box with edges `along` and `across` (metres, on the floor): a spot's cone edge is
-// box-filtered across it (the share of the footprint inside the cone, by the angle off the spot's axis,
-// which changes across the box by the box's extent along that angle's gradient), so the lit disc's rim
-// is not stair-stepped.
+// Irradiance straight from every light at a floor point (normal +y), through the medium but past no
+// object (medium_transmittance), over a pixel's footprint there, the box with edges `along` and `across`
+// (metres, on the floor): a spot's cone edge is box-filtered across it (the share of the footprint inside
+// the cone, by the angle off the spot's axis, which changes across the box by the box's extent along that
+// angle's gradient), so the lit disc's rim is not stair-stepped.
 vec3 direct_irradiance(vec3 x, vec3 along, vec3 across) {
     vec3 irradiance = vec3(0.0);
     for (uint k = 0u; k < (kOneLight ? 1u : params.light_set.x); ++k) {
@@ -28,7 +28,8 @@ vec3 direct_irradiance(vec3 x, vec3 along, vec3 across) {
         // lavapipe loads it lane by lane inside the loop, by a constant index once (16.2-17.4 -> 14.1-14.4).
         LightParams light = frame_params.lights[kOneLight ? 0u : k];
         if (light.type.x == LIGHT_DIRECTIONAL) {
-            irradiance += light.power.rgb * max(0.0, -light.direction.y);
+            irradiance += light.power.rgb * max(0.0, -light.direction.y) *
+                          medium_transmittance(x, -light.direction.xyz, 1e30);
             continue;
         }
         vec3 l = light.position.xyz - x;
@@ -45,7 +46,8 @@ vec3 direct_irradiance(vec3 x, vec3 along, vec3 across) {
             float width = abs(dot(gradient, along)) + abs(dot(gradient, across));
             inside = width > 1e-6 ? clamp((rim - off_axis) / width + 0.5, 0.0, 1.0) : (off_axis <= rim ? 1.0 : 0.0);
         }
-        irradiance += inside * light.power.rgb * max(0.0, to_light.y) / r2;
+        irradiance += inside * light.power.rgb * max(0.0, to_light.y) / r2 *
+                      medium_transmittance(x, to_light, sqrt(r2));
     }
     return irradiance;
 }

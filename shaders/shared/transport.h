@@ -327,6 +327,14 @@ struct TransportParams {
     vec4 emit_u;              // rectangle first edge (world, full length); a cone's unit x across its axis; w: unused
     vec4 emit_v;              // rectangle second edge; a cone's unit y (axis x emit_u); w: unused
     vec4 emit_origin;         // rectangle corner (world) or cone apex (light position)
+    // The photons' own part of the emitter (emission.glsl, emit_photon_ray): the rays that may meet a
+    // gradient of n or an object. The rest go straight to the floor or out of the grid, and the direct
+    // light's closed form takes their light whole, so tracing them would add nothing (transport.h,
+    // Direct light).
+    vec4 photon_cone;         // point, spot: xyz its axis, w the cos of its half-angle
+    vec4 photon_part;         // xyz: the cone's unit x across its axis; w: 1 = photons only in this part,
+                              // 0 = over the whole emitter
+    vec4 photon_rect;         // directional: the part of the emitter's sample square, xy low, zw high corner
     vec4 photon_flux;         // rgb: flux carried by each photon at emission (W); w: reference flux
     uvec4 photon_info;        // x: photon count, y: seed, z: max steps per photon, w: fixed step (1) or adaptive (0)
     vec4 stepping;            // x: shell step (voxels), y: leaf-exit overshoot (voxels), z: deposit scale
@@ -569,7 +577,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == (51 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == (54 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
 static_assert(sizeof(refract::shaders::Material) == 80);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);

@@ -328,6 +328,22 @@ vec2 grid_interval(vec3 origin, vec3 d) {
     return vec2(max(max(lo.x, lo.y), max(lo.z, 0.0)), min(hi.x, min(hi.y, hi.z)));
 }
 
+// What the medium lets through along the straight segment from world point x along unit d for
+// `distance` metres (the part inside the grid; the medium is only there): its extinction thinned by
+// medium_density, as a straight photon's weight falls. The floor's closed form takes it for each light's
+// light on its way down (eye_ray_ends.glsl, direct_irradiance), and a photon takes away where it would
+// have landed straight what that closed form counts (photon_trace.comp), so that photons that go
+// straight leave the floor as they found it. The volumes' fields are left to the photons.
+vec3 medium_transmittance(vec3 x, vec3 d, float distance) {
+    if (all(equal(params.medium_extinction.rgb, vec3(0.0)))) return vec3(1.0);
+    vec3 p = to_voxel(x);
+    vec2 span = grid_interval(p, d);
+    float end = min(span.y, distance / voxel_size());
+    if (end <= span.x) return vec3(1.0);
+    float depth = medium_depth(p + span.x * d, d, end - span.x) * voxel_size();  // metres at full density
+    return exp(-params.medium_extinction.rgb * depth);
+}
+
 // The largest safe step (voxels) at p along d for a leaf of `level`: the exit of the leaf cube,
 // slightly past it; the shell step where n varies (level 0).
 float safe_step(uint level, vec3 p, vec3 d, float shell_step) {
