@@ -71,7 +71,9 @@ REFRACT_SHADERS_BEGIN
 // light or the emitter's plane) the rays of that texel certainly still go straight: the least of the
 // traced stops of the texel and its neighbours, less a margin. So a photon crosses that part of its
 // path in one straight step; one that lands where n varies or on the object (the map was wrong for
-// it) is counted in PhotonStats::direct_overlaps.
+// it) is counted in PhotonStats::direct_overlaps. Rays outside the photons' part of the emitter
+// (photon_cone, photon_rect) meet nothing that bends them: the pass takes their whole way from `near` to
+// the floor, and no photon is traced there.
 #define DIRECT_CONSTANT_MODE TRANSPORT_CONSTANT_COUNT
 #define DIRECT_MODE_TRACE 0u     // one ray per light-map texel: where it stops going straight
 #define DIRECT_MODE_MARGIN 1u    // the light map: the least stop around each texel, less the margin
