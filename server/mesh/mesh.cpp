@@ -824,16 +824,23 @@ Mesh load_obj_file(const std::string& path, const MeshLimits& limits) {
 // ---------------------------------------------------------------------------------------------------------
 // Inspection and transforms
 
+Bounds bounds(const Mesh& mesh) {
+    Bounds b;
+    for (const auto& p : mesh.positions) {
+        b.min = glm::min(b.min, p);
+        b.max = glm::max(b.max, p);
+    }
+    return b;
+}
+
 MeshReport inspect(const Mesh& mesh) {
     MeshReport report;
     report.vertices = mesh.positions.size();
     report.triangles = mesh.triangles.size();
     if (!mesh.positions.empty()) {
-        report.min = report.max = mesh.positions.front();
-        for (const auto& p : mesh.positions) {
-            report.min = glm::min(report.min, p);
-            report.max = glm::max(report.max, p);
-        }
+        const Bounds box = bounds(mesh);
+        report.min = box.min;
+        report.max = box.max;
     }
 
     const std::vector<uint32_t> canonical = weld(mesh.positions);

@@ -17,6 +17,12 @@ struct Mesh {
     std::vector<glm::uvec3> triangles;  // indices into positions, counter-clockwise seen from outside
 };
 
+// The axis-aligned box around a mesh's positions; an empty mesh's is empty (min above max).
+struct Bounds {
+    glm::vec3 min{1e30f}, max{-1e30f};
+};
+Bounds bounds(const Mesh& mesh);
+
 // A mesh that cannot be used; the message says why in words a user can act on.
 class MeshError : public std::runtime_error {
 public:

@@ -23,11 +23,7 @@ GridGeometry fit_grid(glm::vec3 lo, glm::vec3 hi, uint32_t resolution) {
 }
 
 ObjectBox object_box(const GridGeometry& lattice, const mesh::Mesh& world, uint32_t apron) {
-    glm::vec3 lo(1e30f), hi(-1e30f);
-    for (const auto& p : world.positions) {
-        lo = glm::min(lo, p);
-        hi = glm::max(hi, p);
-    }
+    const auto [lo, hi] = mesh::bounds(world);
     const glm::vec3 dims(static_cast<float>(lattice.dims.x), static_cast<float>(lattice.dims.y),
                          static_cast<float>(lattice.dims.z));
     const float reach = static_cast<float>(apron);

@@ -16,11 +16,11 @@ passes::GridGeometry scene_grid(const protocol::SceneDocument& document, const s
                         volume.resolution);
     }
     glm::vec3 lo(1e30f), hi(-1e30f);
-    for (const auto& [name, world] : worlds)
-        for (const auto& p : world.positions) {
-            lo = glm::min(lo, p);
-            hi = glm::max(hi, p);
-        }
+    for (const auto& [name, world] : worlds) {
+        const mesh::Bounds box = mesh::bounds(world);
+        lo = glm::min(lo, box.min);
+        hi = glm::max(hi, box.max);
+    }
     for (const auto& [name, member] : document.volumes) {
         const auto grids = densities.find(name);
         if (grids == densities.end()) continue;

@@ -49,12 +49,8 @@ std::vector<glm::vec4> bending_spheres(const passes::GridGeometry& lattice, cons
     std::vector<glm::vec4> spheres;
     for (const auto& [name, world] : worlds) {
         if (world.positions.empty()) continue;
-        glm::vec3 lo = world.positions.front(), hi = lo;
-        for (const glm::vec3& p : world.positions) {
-            lo = glm::min(lo, p);
-            hi = glm::max(hi, p);
-        }
-        const glm::vec3 centre = 0.5f * (lo + hi);
+        const mesh::Bounds box = mesh::bounds(world);
+        const glm::vec3 centre = 0.5f * (box.min + box.max);
         float radius = 0.0f;
         for (const glm::vec3& p : world.positions) radius = std::max(radius, glm::length(p - centre));
         spheres.emplace_back(centre, radius + apron);
