@@ -18,6 +18,7 @@
 #include "http/metrics.h"
 #include "http/service.h"
 #include "http/static_files.h"
+#include "http/stop_deadline.h"
 #include "image/environment_map.h"
 #include "render/invalidation.h"
 #include "render/render_queue.h"
@@ -46,6 +47,40 @@ TEST(DaemonConfig, ParsesFlagsAndRejectsNonsense) {
     EXPECT_THROW(http::parse_command_line({"--port"}, defaults), http::ConfigError);
     EXPECT_THROW(http::parse_command_line({"--port", "9000", "--ws-port", "9000"}, defaults),
                  http::ConfigError);
+}
+
+TEST(DaemonConfig, TheStopTimeoutIsWholeSecondsWithinAnHour) {
+    http::DaemonConfig defaults;
+    EXPECT_EQ(http::parse_command_line({}, defaults).config.stop_timeout_s, 10u);
+    EXPECT_EQ(http::parse_command_line({"--stop-timeout", "3"}, defaults).config.stop_timeout_s, 3u);
+    EXPECT_EQ(http::parse_command_line({"--stop-timeout=3600"}, defaults).config.stop_timeout_s, 3600u);
+    for (const char* bad : {"0", "3601", "-1", "1.5", "", "ten", "99999999999999999999"})
+        EXPECT_THROW(http::parse_command_line({"--stop-timeout", bad}, defaults), http::ConfigError) << bad;
+    EXPECT_THROW(http::parse_command_line({"--stop-timeout"}, defaults), http::ConfigError);
+}
+
+// A stop stuck in a step is ended at the deadline, told which step; one that finishes is never ended.
+TEST(DaemonStop, AStopPastItsDeadlineIsEndedInTheStepItWaitsFor) {
+    std::mutex mutex;
+    std::vector<std::string> ended;
+    auto record = [&](const std::string& step) {
+        std::lock_guard lock(mutex);
+        ended.push_back(step);
+    };
+    {
+        http::StopDeadline deadline(std::chrono::milliseconds(50), record);
+        deadline.step("the render thread");
+        deadline.step("the WebSocket sessions");
+        std::this_thread::sleep_for(std::chrono::milliseconds(400));
+    }
+    EXPECT_EQ(ended, std::vector<std::string>{"the WebSocket sessions"});
+    ended.clear();
+    {
+        http::StopDeadline deadline(std::chrono::seconds(3), record);
+        deadline.step("the device");
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    EXPECT_TRUE(ended.empty());
 }
 
 TEST(DaemonConfig, ListensBeyondLoopbackOnlyWithATokenOrWhenToldToBeOpen) {

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <iostream>
 #include <memory>
@@ -20,6 +21,7 @@
 #include "http/examples.h"
 #include "http/metrics.h"
 #include "http/service.h"
+#include "http/stop_deadline.h"
 #include "http/ws_server.h"
 #include "mesh/mesh.h"
 #include "render/render_queue.h"
@@ -274,11 +276,21 @@ int run(const http::DaemonConfig& config) {
     // The render thread first: the frame it is on stops at its next part (acknowledged edits are durable
     // already), and every waiter is answered "shutting down", so that no HTTP worker waits on a frame.
     // Then the listeners (WebSocket first, as its sessions on the HTTP port close on that port's threads),
-    // and the HTTP workers are joined.
+    // and the HTTP workers are joined. A step that outlasts --stop-timeout (a pipeline the driver compiles
+    // within one part, on a loaded machine) ends the process there: what it would have finished is frames.
+    http::StopDeadline deadline(std::chrono::seconds(config.stop_timeout_s), [](const std::string& step) {
+        std::fprintf(stderr, "refractd: stopped without waiting longer for %s (past --stop-timeout)\n",
+                     step.c_str());
+        std::_Exit(0);
+    });
+    deadline.step("the render thread (its frame in progress, or a step of its warm-up)");
     queue.stop();
+    deadline.step("the WebSocket sessions");
     ws.stop();
+    deadline.step("the HTTP workers");
     api.stop();
     http_thread.join();
+    deadline.step("the device");
     device.renderer.reset();
     device.context.reset();
     std::fprintf(stderr, "refractd: stopped\n");

@@ -118,6 +118,8 @@ CommandLine parse_command_line(const std::vector<std::string>& args, DaemonConfi
             c.max_image = static_cast<uint32_t>(parse_unsigned(flag, next(), 1, 4096));
         } else if (flag == "--request-timeout") {
             c.request_timeout_s = static_cast<unsigned>(parse_unsigned(flag, next(), 1, 3600));
+        } else if (flag == "--stop-timeout") {
+            c.stop_timeout_s = static_cast<unsigned>(parse_unsigned(flag, next(), 1, 3600));
         } else if (flag == "--threads") {
             c.threads = static_cast<unsigned>(parse_unsigned(flag, next(), 8, 256));
         } else {
@@ -145,7 +147,8 @@ std::string usage_text(const DaemonConfig& d) {
         << "  --device NAME          use the Vulkan device whose name contains NAME (or REFRACT_DEVICE)\n"
         << "  --data-dir DIR         where scenes, meshes and index grids persist (default " << d.data_dir
         << ")\n"
-        << "  --store URL            keep scenes, meshes and grids in PostgreSQL (postgresql://USER@HOST:PORT/DB),\n"
+        << "  --store URL            keep scenes, meshes and grids in PostgreSQL "
+           "(postgresql://USER@HOST:PORT/DB),\n"
         << "                         shared by every replica given the same URL; --data-dir is then unused\n"
         << "  --token T              require 'Authorization: Bearer T' (or ?token=T) on everything but\n"
         << "                         /api/health and static files\n"
@@ -171,6 +174,9 @@ std::string usage_text(const DaemonConfig& d) {
         << "  --max-image N          largest image side in pixels (default " << d.max_image << ")\n"
         << "  --request-timeout S    longest wait for a frame in seconds (default " << d.request_timeout_s
         << ")\n"
+        << "  --stop-timeout S       longest orderly stop in seconds (default " << d.stop_timeout_s
+        << "); past it the daemon\n"
+        << "                         exits where it stands (acknowledged edits are stored already)\n"
         << "  --threads N            HTTP worker threads (default " << d.threads << "); frame requests may\n"
         << "                         hold all but 4 of them, the rest keep the API answering\n"
         << "  --help                 print this and exit\n\n"

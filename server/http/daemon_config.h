@@ -29,6 +29,7 @@ struct DaemonConfig {
     uint32_t max_photons = 1u << 22;
     uint32_t max_image = 2048;        // pixels per image side
     unsigned request_timeout_s = 60;  // longest wait for a frame
+    unsigned stop_timeout_s = 10;     // longest orderly stop after SIGINT or SIGTERM (http/stop_deadline.h)
     unsigned threads = 32;            // HTTP worker threads; a frame request holds one while it waits
 
     uint16_t effective_ws_port() const { return ws_port != 0 ? ws_port : static_cast<uint16_t>(port + 1); }
