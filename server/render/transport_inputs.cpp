@@ -475,7 +475,8 @@ std::vector<shaders::TransportParams> per_light_params(shaders::TransportParams 
         q.emit_u = e.u;
         q.emit_v = e.v;
         q.emit_origin = e.origin;
-        const glm::vec3 part_flux = part.share < 1.0 ? e.flux * static_cast<float>(part.share) : e.flux;
+        // The part's flux (times 1 exactly for the whole emitter).
+        const glm::vec3 part_flux = e.flux * static_cast<float>(part.share);
         const glm::vec3 flux = photons > 0 ? part_flux / static_cast<float>(photons) : glm::vec3(0.0f);
         float reference = std::max({flux.r, flux.g, flux.b, 1e-30f});
         if (environment_share > 0) {
