@@ -245,8 +245,12 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
     passes::clear_photon_accumulators(recorder, *accum_, grey());
     // Light by light: each one's sums hold its own unbent light (transport.h), so each is resolved into
     // the radiance grid and floor map, the first replacing this batch's share and the rest adding theirs.
-    // A refinement step gives way after the direct light and after each resolve too (each a tenth of
-    // a second or more on two cores), not only between parts of the photons.
+    // A refinement step gives way after the direct light and after each resolve but the last too (each a
+    // tenth of a second or more on two cores), not only between parts of the photons. After the last
+    // light's resolve the grid holds the whole batch, and the step goes on (its lit pyramid, a few
+    // milliseconds) to its view's first chance, where the batch is kept: given way there, a batch in the
+    // grid but not counted whole was traced anew by the frame after it, a drag that interrupted it shading
+    // from its own few photons.
     const passes::BetweenParts gap = recording.between_parts(kPhotons);
     const uint32_t radiance_factor = options.radiance_factor * lattice.light_factor;
     for (size_t i = 0; i < light_params_.size(); ++i) {
@@ -274,7 +278,7 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
                                      !spread && i + 1 == light_params_.size());
         resolved = true;
         recorder.compute_barrier();
-        if (gap && gap()) return false;
+        if (i + 1 < light_params_.size() && gap && gap()) return false;
     }
     if (raw_flux_.get()) {
         kit_.radiance_spread.record(recorder, params_buffer(), grey(),
