@@ -20,7 +20,9 @@ class GpuTest : public ::testing::Test {
 protected:
     static void SetUpTestSuite() {
         if (!context_) {
-            context_ = std::make_unique<vk::Context>(vk::options_from_environment({}));
+            vk::ContextOptions options;
+            options.compile_on_first_use = true;  // a binary's tests use few of the passes' variants
+            context_ = std::make_unique<vk::Context>(vk::options_from_environment(options));
             kit_ = std::make_unique<scene::PassKit>(*context_);
         }
     }

@@ -118,7 +118,11 @@ TEST(Invalidation, EachEditRerunsExactlyWhatDependsOnIt) {
 
 class RendererTest : public ::testing::Test {
 protected:
-    void SetUp() override { context = std::make_unique<vk::Context>(vk::options_from_environment({})); }
+    void SetUp() override {
+        vk::ContextOptions options;
+        options.compile_on_first_use = true;  // each Renderer makes its passes, and a test uses few of them
+        context = std::make_unique<vk::Context>(vk::options_from_environment(options));
+    }
     void TearDown() override { EXPECT_EQ(context->validation_error_count(), 0u) << context->last_validation_message(); }
     std::unique_ptr<vk::Context> context;
     Assets no_assets;

@@ -46,32 +46,43 @@ TEST_F(VkContextTest, ListsDevicesAndChoosesASuitableOne) {
 
 TEST_F(VkContextTest, ValidationIsOnInTests) { EXPECT_TRUE(context->validation_enabled()); }
 
-TEST_F(VkContextTest, ComputeRoundTripIsExact) {
-    constexpr uint32_t n = 10007;  // not a multiple of the workgroup size: the bounds check matters
-    std::vector<uint32_t> input(n);
-    std::iota(input.begin(), input.end(), 3u);
-    const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-    vk::Buffer in(*context, n * 4, usage, vk::MemoryUse::upload, "in");
-    vk::Buffer out(*context, n * 4, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::readback, "out");
-    vk::Buffer samples(*context, 16, usage, vk::MemoryUse::upload, "samples");
-    vk::Image3D image(*context, {2, 2, 2}, VK_FORMAT_R32_SFLOAT, "volume");
-    auto sampler = vk::make_linear_sampler(*context);
-    in.write(input.data(), n * 4);
-    auto pipeline = make_selftest(*context);
-    vk::run_once(*context, [&](vk::CommandRecorder& r) {
-        r.init_image(image);
-        r.fill(out, 0xffffffffu);
-        r.transfer_to_compute_barrier();
-        pipeline.dispatch(r.get(),
-                          {vk::Binding::storage_buffer(SELFTEST_BINDING_INPUT, in),
-                           vk::Binding::storage_buffer(SELFTEST_BINDING_OUTPUT, out),
-                           vk::Binding::sampled_image(SELFTEST_BINDING_IMAGE, image, sampler.get()),
-                           vk::Binding::storage_buffer(SELFTEST_BINDING_SAMPLES, samples)},
-                          SelftestPush{n, 7u, 0u, 0u}, vk::group_count(n, SELFTEST_GROUP_SIZE));
-        r.to_host_barrier();
-    });
-    const auto result = out.mapped_span<uint32_t>();
-    for (uint32_t i = 0; i < n; ++i) ASSERT_EQ(result[i], input[i] * 7u + i) << "at " << i;
+// The same dispatch with the pipeline compiled when it is made (the daemon's and the CLI's contexts)
+// and at its first dispatch (ContextOptions::compile_on_first_use, the tests').
+TEST_F(VkContextTest, ComputeRoundTripIsExactCompiledUpFrontOrOnFirstUse) {
+    vk::ContextOptions on_first_use;
+    on_first_use.compile_on_first_use = true;
+    const auto lazy = std::make_unique<vk::Context>(vk::options_from_environment(on_first_use));
+    ASSERT_TRUE(lazy->compiles_on_first_use());
+    ASSERT_FALSE(context->compiles_on_first_use());
+    for (vk::Context* ctx : {context.get(), lazy.get()}) {
+        SCOPED_TRACE(ctx->compiles_on_first_use() ? "compiled at its first dispatch" : "compiled up front");
+        constexpr uint32_t n = 10007;  // not a multiple of the workgroup size: the bounds check matters
+        std::vector<uint32_t> input(n);
+        std::iota(input.begin(), input.end(), 3u);
+        const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+        vk::Buffer in(*ctx, n * 4, usage, vk::MemoryUse::upload, "in");
+        vk::Buffer out(*ctx, n * 4, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUse::readback, "out");
+        vk::Buffer samples(*ctx, 16, usage, vk::MemoryUse::upload, "samples");
+        vk::Image3D image(*ctx, {2, 2, 2}, VK_FORMAT_R32_SFLOAT, "volume");
+        auto sampler = vk::make_linear_sampler(*ctx);
+        in.write(input.data(), n * 4);
+        auto pipeline = make_selftest(*ctx);
+        vk::run_once(*ctx, [&](vk::CommandRecorder& r) {
+            r.init_image(image);
+            r.fill(out, 0xffffffffu);
+            r.transfer_to_compute_barrier();
+            pipeline.dispatch(r.get(),
+                              {vk::Binding::storage_buffer(SELFTEST_BINDING_INPUT, in),
+                               vk::Binding::storage_buffer(SELFTEST_BINDING_OUTPUT, out),
+                               vk::Binding::sampled_image(SELFTEST_BINDING_IMAGE, image, sampler.get()),
+                               vk::Binding::storage_buffer(SELFTEST_BINDING_SAMPLES, samples)},
+                              SelftestPush{n, 7u, 0u, 0u}, vk::group_count(n, SELFTEST_GROUP_SIZE));
+            r.to_host_barrier();
+        });
+        const auto result = out.mapped_span<uint32_t>();
+        for (uint32_t i = 0; i < n; ++i) ASSERT_EQ(result[i], input[i] * 7u + i) << "at " << i;
+        EXPECT_EQ(ctx->validation_error_count(), 0u) << ctx->last_validation_message();
+    }
 }
 
 TEST_F(VkContextTest, ThreeDImageIsWrittenAndSampledTrilinearly) {

@@ -206,7 +206,7 @@ std::vector<DeviceInfo> list_devices() {
     return result;
 }
 
-Context::Context(const ContextOptions& options) {
+Context::Context(const ContextOptions& options) : compile_on_first_use_(options.compile_on_first_use) {
     if (options.validation && !has_instance_layer(kValidationLayer))
         throw Error("validation requested but VK_LAYER_KHRONOS_validation is not installed "
                     "(Debian package vulkan-validationlayers)");

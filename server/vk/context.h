@@ -32,6 +32,11 @@ struct DeviceInfo {
 struct ContextOptions {
     std::string device_name;  // substring of the device name to force; empty: best suitable device
     bool validation = false;  // enable VK_LAYER_KHRONOS_validation and count its errors
+    // Compile each compute pipeline at its first dispatch instead of when its pass is made. The passes
+    // hold variants for every kind of scene, and creating them all took 74% of a small GPU test's time
+    // on lavapipe with validation (tests, each a process, opt in); the daemon and the CLI compile up
+    // front, so that no frame waits on the driver's compiler.
+    bool compile_on_first_use = false;
 };
 
 // Reads REFRACT_DEVICE (device name) and REFRACT_VALIDATION=1 into options, unless already set.
@@ -80,6 +85,7 @@ public:
     size_t validation_error_count() const { return validation_errors_.load(); }
     std::string last_validation_message() const;
     bool validation_enabled() const { return messenger_ != VK_NULL_HANDLE; }
+    bool compiles_on_first_use() const { return compile_on_first_use_; }
 
     // Queue submission is serialized: the queue has one owner at a time.
     void submit_and_wait(VkCommandBuffer command_buffer);
@@ -112,6 +118,7 @@ private:
     VkPhysicalDeviceMemoryProperties memory_properties_{};
     PFN_vkSetDebugUtilsObjectNameEXT set_object_name_ = nullptr;
     bool float_atomics_ = false;
+    bool compile_on_first_use_ = false;
     VkDeviceSize max_memory_allocation_size_ = 0;
     std::atomic<int64_t> allocated_bytes_{0};
     std::atomic<size_t> validation_errors_{0};

@@ -20,21 +20,34 @@ Binding Binding::sampled_image(uint32_t binding, const Image3D& image, VkSampler
 ComputePipeline::ComputePipeline(Context& context, std::span<const uint32_t> spirv,
                                  std::span<const BindingLayout> layout, uint32_t push_constant_bytes,
                                  const char* name, std::span<const uint32_t> constants)
-    : context_(context), push_constant_bytes_(push_constant_bytes), name_(name) {
-    const VkDevice device = context.device();
+    : context_(context),
+      spirv_(spirv),
+      bindings_(layout.begin(), layout.end()),
+      constants_(constants.begin(), constants.end()),
+      push_constant_bytes_(push_constant_bytes),
+      name_(name) {
     if (push_constant_bytes > context.limits().maxPushConstantsSize)
         throw Error(std::string(name) + ": push constants exceed the device limit");
+    if (!context.compiles_on_first_use()) compiled();
+}
 
+const ComputePipeline::Compiled& ComputePipeline::compiled() const {
+    std::call_once(compiled_->once, [this] { compile(*compiled_); });
+    return *compiled_;
+}
+
+void ComputePipeline::compile(Compiled& into) const {
+    const VkDevice device = context_.device();
     VkShaderModuleCreateInfo module_info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-    module_info.codeSize = spirv.size_bytes();
-    module_info.pCode = spirv.data();
+    module_info.codeSize = spirv_.size_bytes();
+    module_info.pCode = spirv_.data();
     VkShaderModule module = VK_NULL_HANDLE;
     REFRACT_VK_CHECK(vkCreateShaderModule(device, &module_info, nullptr, &module));
-    module_ = UniqueShaderModule(device, module);
-    context.set_name(VK_OBJECT_TYPE_SHADER_MODULE, module, name);
+    into.module = UniqueShaderModule(device, module);
+    context_.set_name(VK_OBJECT_TYPE_SHADER_MODULE, module, name_);
 
     std::vector<VkDescriptorSetLayoutBinding> bindings;
-    for (const auto& [binding, type] : layout)
+    for (const auto& [binding, type] : bindings_)
         bindings.push_back({binding, type, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
     VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
     set_info.flags = VK_DESCRIPTOR_SET_LAYOUT_CREATE_PUSH_DESCRIPTOR_BIT_KHR;
@@ -42,17 +55,17 @@ ComputePipeline::ComputePipeline(Context& context, std::span<const uint32_t> spi
     set_info.pBindings = bindings.data();
     VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
     REFRACT_VK_CHECK(vkCreateDescriptorSetLayout(device, &set_info, nullptr, &set_layout));
-    set_layout_ = UniqueDescriptorSetLayout(device, set_layout);
+    into.set_layout = UniqueDescriptorSetLayout(device, set_layout);
 
-    VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, push_constant_bytes};
+    VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, push_constant_bytes_};
     VkPipelineLayoutCreateInfo layout_info{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
     layout_info.setLayoutCount = 1;
     layout_info.pSetLayouts = &set_layout;
-    layout_info.pushConstantRangeCount = push_constant_bytes ? 1u : 0u;
+    layout_info.pushConstantRangeCount = push_constant_bytes_ ? 1u : 0u;
     layout_info.pPushConstantRanges = &range;
     VkPipelineLayout pipeline_layout = VK_NULL_HANDLE;
     REFRACT_VK_CHECK(vkCreatePipelineLayout(device, &layout_info, nullptr, &pipeline_layout));
-    layout_ = UniquePipelineLayout(device, pipeline_layout);
+    into.layout = UniquePipelineLayout(device, pipeline_layout);
 
     VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
     info.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
@@ -60,16 +73,16 @@ ComputePipeline::ComputePipeline(Context& context, std::span<const uint32_t> spi
     info.stage.module = module;
     info.stage.pName = "main";
     std::vector<VkSpecializationMapEntry> entries;
-    for (uint32_t id = 0; id < constants.size(); ++id)
+    for (uint32_t id = 0; id < constants_.size(); ++id)
         entries.push_back({id, id * static_cast<uint32_t>(sizeof(uint32_t)), sizeof(uint32_t)});
     const VkSpecializationInfo specialization{static_cast<uint32_t>(entries.size()), entries.data(),
-                                              constants.size_bytes(), constants.data()};
-    if (!constants.empty()) info.stage.pSpecializationInfo = &specialization;
+                                              constants_.size() * sizeof(uint32_t), constants_.data()};
+    if (!constants_.empty()) info.stage.pSpecializationInfo = &specialization;
     info.layout = pipeline_layout;
     VkPipeline pipeline = VK_NULL_HANDLE;
     REFRACT_VK_CHECK(vkCreateComputePipelines(device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline));
-    pipeline_ = UniquePipeline(device, pipeline);
-    context.set_name(VK_OBJECT_TYPE_PIPELINE, pipeline, name);
+    into.pipeline = UniquePipeline(device, pipeline);
+    context_.set_name(VK_OBJECT_TYPE_PIPELINE, pipeline, name_);
 }
 
 void ComputePipeline::dispatch(VkCommandBuffer cmd, std::span<const Binding> bindings,
@@ -116,11 +129,13 @@ void ComputePipeline::bind(VkCommandBuffer cmd, std::span<const Binding> binding
         writes.push_back(write);
         ++i;
     }
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.get());
-    context_.push_descriptor_set(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), 0,
+    const Compiled& made = compiled();
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, made.pipeline.get());
+    context_.push_descriptor_set(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, made.layout.get(), 0,
                                  static_cast<uint32_t>(writes.size()), writes.data());
     if (push_bytes)
-        vkCmdPushConstants(cmd, layout_.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push_constants);
+        vkCmdPushConstants(cmd, made.layout.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes,
+                           push_constants);
 }
 
 }  // namespace refract::vk

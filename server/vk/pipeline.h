@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cstdint>
 #include <initializer_list>
+#include <memory>
+#include <mutex>
 #include <span>
 #include <type_traits>
 #include <utility>
@@ -34,7 +36,9 @@ using BindingLayout = std::pair<uint32_t, VkDescriptorType>;
 class ComputePipeline {
 public:
     // `constants` specialize the shader: constant_id i takes constants[i] (32-bit values, bools as 0/1),
-    // so the driver compiles each variant with its dead branches removed.
+    // so the driver compiles each variant with its dead branches removed. Compiled here, or at the first
+    // dispatch where the context says so (ContextOptions::compile_on_first_use); `spirv` and `name` must
+    // then outlive the pipeline (the compiled-in shaders and string literals do).
     ComputePipeline(Context& context, std::span<const uint32_t> spirv, std::span<const BindingLayout> layout,
                     uint32_t push_constant_bytes, const char* name, std::span<const uint32_t> constants = {});
     ComputePipeline(Context& context, std::span<const uint32_t> spirv, std::initializer_list<BindingLayout> layout,
@@ -70,16 +74,26 @@ public:
                            uint32_t push_bytes, const Buffer& args, VkDeviceSize offset) const;
 
 private:
+    // The driver's objects, made once (std::call_once: whichever thread dispatches first).
+    struct Compiled {
+        std::once_flag once;
+        UniqueShaderModule module;
+        UniqueDescriptorSetLayout set_layout;
+        UniquePipelineLayout layout;
+        UniquePipeline pipeline;
+    };
+    const Compiled& compiled() const;
+    void compile(Compiled& into) const;
     void bind(VkCommandBuffer cmd, std::span<const Binding> bindings, const void* push_constants,
               uint32_t push_bytes) const;
 
     Context& context_;
-    UniqueShaderModule module_;
-    UniqueDescriptorSetLayout set_layout_;
-    UniquePipelineLayout layout_;
-    UniquePipeline pipeline_;
+    std::span<const uint32_t> spirv_;
+    std::vector<BindingLayout> bindings_;
+    std::vector<uint32_t> constants_;
     uint32_t push_constant_bytes_ = 0;
     const char* name_;
+    std::unique_ptr<Compiled> compiled_ = std::make_unique<Compiled>();
 };
 
 // Workgroups needed to cover `items` with groups of `group_size`.

@@ -118,6 +118,13 @@ function sumTimings(timings) {
   return values.length ? values.reduce((a, b) => a + b, 0) : null;
 }
 
+// Each pass's median milliseconds over `frames` (over those that ran it), rounded: where a drag's
+// frames spend their time.
+function medianTimings(frames) {
+  const names = [...new Set(frames.flatMap((f) => Object.keys(f.timings ?? {})))];
+  return roundTimings(Object.fromEntries(names.map((n) => [n, median(frames.map((f) => f.timings?.[n]))])));
+}
+
 // Per-pass milliseconds of a frame, rounded for the JSON line: where a slow frame spent its time.
 function roundTimings(timings) {
   if (!timings || typeof timings !== 'object') return null;
@@ -274,6 +281,7 @@ async function drag(page, sceneId, size, what, refined = false) {
     steady_fps: steadySpan > 0 ? (answering.length - 1) / steadySpan : null,
     interactive_size: interactive.length ? `${median(interactive.map((f) => f.width))}x${median(interactive.map((f) => f.height))}` : null,
     interactive_pass_ms: median(interactive.map((f) => f.passMs)),
+    interactive_timings: medianTimings(interactive),
     release_to_full_ms: still.t - released,
     still_pass_ms: still.passMs,
     still_level: still.level,
