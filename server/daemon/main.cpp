@@ -102,6 +102,9 @@ Device open_device(const http::DaemonConfig& config) {
     try {
         vk::ContextOptions options;
         options.device_name = config.device;
+        // Its warm-up renders what first frames need before it takes requests, compiling those pipelines
+        // (as it always did the transport passes' variants): the rest wait until a frame uses them.
+        options.compile_on_first_use = true;
         device.context = std::make_unique<vk::Context>(vk::options_from_environment(options));
         const vk::DeviceInfo& info = device.context->info();
         device.status = {info.name,
