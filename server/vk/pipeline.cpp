@@ -32,11 +32,12 @@ ComputePipeline::ComputePipeline(Context& context, std::span<const uint32_t> spi
 }
 
 const ComputePipeline::Compiled& ComputePipeline::compiled() const {
-    std::call_once(compiled_->once, [this] { compile(*compiled_); });
+    std::call_once(compiled_->once, [this] { compile(); });
     return *compiled_;
 }
 
-void ComputePipeline::compile(Compiled& into) const {
+void ComputePipeline::compile() const {
+    Compiled& into = *compiled_;
     const VkDevice device = context_.device();
     VkShaderModuleCreateInfo module_info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
     module_info.codeSize = spirv_.size_bytes();

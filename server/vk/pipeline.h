@@ -83,7 +83,7 @@ private:
         UniquePipeline pipeline;
     };
     const Compiled& compiled() const;
-    void compile(Compiled& into) const;
+    void compile() const;
     void bind(VkCommandBuffer cmd, std::span<const Binding> bindings, const void* push_constants,
               uint32_t push_bytes) const;
 
