@@ -2,7 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <numeric>
+#include <string>
 #include <vector>
 
 #include "selftest.h"
@@ -209,6 +211,25 @@ TEST(LinearGroups, FoldPastTheDispatchLimitIntoBalancedRows) {
         EXPECT_LT(uint64_t{g.x} * (g.y - 1), groups) << "a whole row would be idle";
     }
     EXPECT_EQ(vk::linear_groups(65536ull * 64, 64).x, 32768u);
+}
+
+TEST(CpuDispatches, FourThreadsACoreUnlessTheUserChose) {
+    // This process's own setting (ctest pins it) is put back whatever the checks find.
+    const char* pinned = std::getenv("LP_NUM_THREADS");
+    const std::string kept = pinned ? pinned : "";
+    unsetenv("LP_NUM_THREADS");
+    EXPECT_EQ(vk::split_cpu_dispatches_finely(2), "8");
+    EXPECT_STREQ(std::getenv("LP_NUM_THREADS"), "8");
+    EXPECT_EQ(vk::split_cpu_dispatches_finely(16), "8") << "a value in effect is never replaced";
+    unsetenv("LP_NUM_THREADS");
+    EXPECT_EQ(vk::split_cpu_dispatches_finely(0), "4") << "an unknown core count counts as one";
+    setenv("LP_NUM_THREADS", "3", 1);
+    EXPECT_EQ(vk::split_cpu_dispatches_finely(2), "3");
+    EXPECT_STREQ(std::getenv("LP_NUM_THREADS"), "3");
+    if (pinned)
+        setenv("LP_NUM_THREADS", kept.c_str(), 1);
+    else
+        unsetenv("LP_NUM_THREADS");
 }
 
 TEST(VkValidation, ValidationLayerReportsMisuseAsCountedError) {

@@ -218,9 +218,12 @@ RenderQueueSetup render_queue_setup(const http::DaemonConfig& config, Device& de
 
 // The start-up line, and a loud warning when anyone on the network may use the daemon.
 void announce(const http::DaemonConfig& config, const http::DeviceStatus& device, const scene::Store& store) {
-    std::fprintf(stderr, "refractd %s: http://%s:%u  ws://%s:%u  device: %s  data: %s  scenes: %zu\n",
+    // lavapipe's threads (split_cpu_dispatches_finely), where they are the device.
+    const char* threads = device.driver_name == "llvmpipe" ? std::getenv("LP_NUM_THREADS") : nullptr;
+    std::fprintf(stderr, "refractd %s: http://%s:%u  ws://%s:%u  device: %s%s%s  data: %s  scenes: %zu\n",
                  REFRACT_VERSION, config.bind.c_str(), unsigned{config.port}, config.bind.c_str(),
                  unsigned{config.effective_ws_port()}, device.error.empty() ? device.name.c_str() : "none",
+                 threads ? ", threads: " : "", threads ? threads : "",
                  config.store.empty() ? config.data_dir.c_str() : store.location().c_str(), store.size());
     if (!http::is_loopback(config.bind) && config.token.empty())
         std::fprintf(
@@ -313,6 +316,7 @@ int main(int argc, char** argv) {
             std::cout << http::usage_text(defaults);
             return 0;
         }
+        vk::split_cpu_dispatches_finely(std::thread::hardware_concurrency());
         return run(command_line.config);
     } catch (const http::ConfigError& e) {
         std::fprintf(stderr, "refractd: %s\n", e.what());

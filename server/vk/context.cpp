@@ -185,6 +185,14 @@ ContextOptions options_from_environment(ContextOptions options) {
     return options;
 }
 
+std::string split_cpu_dispatches_finely(unsigned cores) {
+    constexpr const char* kThreads = "LP_NUM_THREADS";
+    if (const char* set = std::getenv(kThreads)) return set;
+    const std::string threads = std::to_string(4 * std::max(cores, 1u));
+    if (setenv(kThreads, threads.c_str(), 0) != 0) return {};
+    return threads;
+}
+
 std::vector<DeviceInfo> list_devices() {
     VkInstance instance = create_instance(false, false);
     std::vector<DeviceInfo> result;

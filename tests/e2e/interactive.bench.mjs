@@ -4,9 +4,10 @@
 //
 //   node tests/e2e/interactive.bench.mjs PATH/TO/refractd [PATH/TO/web-client] [LABEL]
 //
-// Starts refractd on free loopback ports with a temporary data directory (LP_NUM_THREADS=2 unless
-// set), opens the client in Debian's headless Chromium (playwright-core, no browser download) at the
-// default URL and window size, on the default scene document, and measures:
+// Starts refractd on free loopback ports with a temporary data directory (lavapipe's threads as the
+// daemon chooses them, four a core, unless LP_NUM_THREADS is set), opens the client in Debian's
+// headless Chromium (playwright-core, no browser download) at the default URL and window size, on the
+// default scene document, and measures:
 //   - the daemon's warm-up (health's warming_up), which navigation waits for, as a user opening the
 //     client on a running daemon would;
 //   - navigation to the first frame received and drawn, and to the first full-resolution still;

@@ -30,13 +30,13 @@ export function freePort() {
   });
 }
 
-// Starts `binary` with `args` (LP_NUM_THREADS=2 unless set), its output appended to `logStream`.
+// Starts `binary` with `args` (lavapipe's threads: LP_NUM_THREADS if set, else the daemon's own choice),
+// its output appended to `logStream`.
 // `child.exited` resolves with { code, signal }.
 export function startRefractd(binary, args, logStream, log) {
   log('starting', binary, args.join(' '));
   const child = spawn(binary, args, {
     stdio: ['ignore', 'pipe', 'pipe'],
-    env: { LP_NUM_THREADS: '2', ...process.env },
   });
   child.stdout.pipe(logStream, { end: false });
   child.stderr.pipe(logStream, { end: false });
