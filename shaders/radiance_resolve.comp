@@ -14,7 +14,7 @@ layout(std140, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { Tran
 layout(std430, binding = TRANSPORT_BINDING_ACCUM_FLOOR) readonly buffer AccumFloor { uint accum_floor[]; };
 layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform image3D radiance;
 layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform image3D flux;
-layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform image3D floor_map;
+layout(std430, binding = TRANSPORT_BINDING_FLOOR_MAP) buffer FloorMap { uvec2 floor_map[]; };
 
 // A refinement batch joins the running mean of the batches before it (refinement.x = 1/batches); the
 // first replaces whatever the images held. Each light after the first adds its share of the batch.
@@ -76,11 +76,11 @@ void resolve_floor_texel(uint texel) {
     vec3 irradiance = vec3(float(int(accum_floor[at])), float(int(accum_floor[at + 1u])),
                            float(int(accum_floor[at + 2u]))) * to_irradiance;
     if (add_floor_shadow != 0u) irradiance -= floor_shadow_taken[texel].rgb;
-    ivec3 t = ivec3(texel % side, texel / side, 0);
     // w: the sum of the photons' squared shares, for the adaptive density estimate (radiance_spread.comp),
     // kept within half-float range.
     float squares = min(float(accum_floor[at + 3u]) * (1.0 / FLOOR_SQUARE_SCALE), 6.0e4);
-    imageStore(floor_map, t, batch_mean(imageLoad(floor_map, t), vec4(irradiance, squares)));
+    vec4 texel_value = batch_mean(floor_map_texel(floor_map[texel]), vec4(irradiance, squares));
+    floor_map[texel] = floor_map_words(texel_value);
 }
 
 // Two dispatches, one per job (kFloorMap): lavapipe would run both jobs' code in every invocation.

@@ -22,8 +22,10 @@ layout(binding = TRANSPORT_BINDING_RAW_RADIANCE, rgba32f) uniform readonly image
 layout(binding = TRANSPORT_BINDING_RAW_FLUX, rgba32f) uniform readonly image3D raw_flux;
 layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) uniform image3D radiance;
 layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) uniform image3D flux;
-layout(binding = TRANSPORT_BINDING_RAW_FLOOR_MAP, rgba16f) uniform readonly image3D raw_floor_map;
-layout(binding = TRANSPORT_BINDING_FLOOR_MAP, rgba16f) uniform writeonly image3D floor_map;
+layout(std430, binding = TRANSPORT_BINDING_RAW_FLOOR_MAP) readonly buffer RawFloorMap {
+    uvec2 raw_floor_map[];
+};
+layout(std430, binding = TRANSPORT_BINDING_FLOOR_MAP) writeonly buffer FloorMap { uvec2 floor_map[]; };
 layout(binding = TRANSPORT_BINDING_SPREAD_FLUX_SHARES, rgba32f) uniform image3D flux_shares;
 layout(binding = TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, rgba32f) uniform image3D radiance_shares;
 layout(std430, binding = TRANSPORT_BINDING_SPREAD_FLOOR_SUMS) buffer FloorSums { ivec4 floor_sums[]; };
@@ -76,7 +78,8 @@ void floor_cell_start(uint i) {
     int cells = int(params.floor_map.w) + 1;
     if (i >= uint(cells * cells)) return;
     ivec2 c = ivec2(int(i) % cells, int(i) / cells);
-    float events = c.x > 0 && c.y > 0 ? imageLoad(raw_floor_map, ivec3(c - 1, 0)).w : 0.0;
+    int side = cells - 1;
+    float events = c.x > 0 && c.y > 0 ? floor_map_texel(raw_floor_map[(c.y - 1) * side + c.x - 1]).w : 0.0;
     floor_sums[i] = ivec4(0, 0, 0, int(events * SPREAD_EVENT_UNITS + 0.5));
 }
 
@@ -131,7 +134,7 @@ void floor_texel_scatter(uint i) {
     int side = int(params.floor_map.w);
     if (i >= uint(side * side)) return;
     ivec2 j = ivec2(int(i) % side, int(i) / side);
-    vec4 source = imageLoad(raw_floor_map, ivec3(j, 0));
+    vec4 source = floor_map_texel(raw_floor_map[i]);
     if (source.rgb == vec3(0.0) || keeps_light(j, source)) return;
     int r = floor_texel_radius(j, source);
     ivec2 lo = max(j - r, ivec2(0)), hi = min(j + r, ivec2(side - 1)) + 1;
@@ -156,10 +159,10 @@ void floor_texel_light(uint i) {
     if (i >= uint(side * side)) return;
     ivec2 t = ivec2(int(i) % side, int(i) / side);
     ivec3 sum = floor_sums[floor_cell(t.x, t.y)].xyz;
-    vec4 source = imageLoad(raw_floor_map, ivec3(t, 0));
+    vec4 source = floor_map_texel(raw_floor_map[i]);
     vec3 kept = keeps_light(t, source) ? source.rgb : vec3(0.0);
     vec3 change = vec3(sum) * (floor_unit() / SPREAD_FLOOR_UNITS) + kept - floor_shadow_taken[i].rgb;
-    imageStore(floor_map, ivec3(t, 0), vec4(change, 0.0));
+    floor_map[i] = floor_map_words(vec4(change, 0.0));
 }
 
 // The radius of radiance voxel j's box, from the photon tracks behind its fluence.

@@ -16,7 +16,7 @@
 layout(local_size_x = VIEW_GROUP_SIZE, local_size_y = VIEW_GROUP_SIZE) in;
 layout(binding = TRANSPORT_BINDING_RADIANCE) uniform sampler3D radiance;
 layout(binding = TRANSPORT_BINDING_FLUX) uniform sampler3D flux;
-layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
+layout(std430, binding = TRANSPORT_BINDING_FLOOR_MAP) readonly buffer FloorMap { uvec2 floor_map[]; };
 layout(std430, binding = TRANSPORT_BINDING_HDR) buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
 layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) writeonly buffer Ends { ViewEnd ends[]; };

@@ -15,7 +15,7 @@
 #include "tone_map.glsl"
 
 layout(local_size_x = VIEW_GROUP_SIZE, local_size_y = VIEW_GROUP_SIZE) in;
-layout(binding = TRANSPORT_BINDING_FLOOR_MAP) uniform sampler3D floor_map;
+layout(std430, binding = TRANSPORT_BINDING_FLOOR_MAP) readonly buffer FloorMap { uvec2 floor_map[]; };
 layout(std430, binding = TRANSPORT_BINDING_HDR) readonly buffer Hdr { vec4 hdr[]; };  // the traced frame
 layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) readonly buffer Ends { ViewEnd ends[]; };
 layout(std430, binding = TRANSPORT_BINDING_VIEWER_HDR) writeonly buffer ViewerHdr { vec4 viewer_hdr[]; };

@@ -13,7 +13,7 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_ACCUM_FLOOR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
-    {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_FLOOR_SHADOW, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 }  // namespace
@@ -34,19 +34,20 @@ RadianceResolvePass::RadianceResolvePass(vk::Context& context) {
 
 void RadianceResolvePass::record(vk::CommandRecorder& recorder, const vk::Buffer& params,
                                  const PhotonAccumulators& accum, bool grey, const vk::Image3D& radiance,
-                                 const vk::Image3D& flux, const vk::Image3D& floor_map, bool add_floor_shadow) const {
-    const vk::Binding bindings[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
-                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
-                                    vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map),
-                                    vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_SHADOW, accum.floor_shadow)};
+                                 const vk::Image3D& flux, const vk::Buffer& floor_map, uint32_t floor_side,
+                                 bool add_floor_shadow) const {
+    const vk::Binding bindings[] = {
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, params),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_ACCUM_FLOOR, accum.floor),
+        vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
+        vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_MAP, floor_map),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_SHADOW, accum.floor_shadow)};
     const uint32_t push = add_floor_shadow ? 1u : 0u;
     const uint32_t variant = grey ? 1u : 0u;
     const auto voxel_groups = vk::linear_groups(flux.extent().count(), TRANSPORT_GROUP_SIZE);
     pipelines_[variant].dispatch(recorder.get(), bindings, &push, sizeof(push), voxel_groups.x, voxel_groups.y);
-    const auto texel_groups =
-        vk::linear_groups(uint64_t{floor_map.extent().x} * floor_map.extent().y, TRANSPORT_GROUP_SIZE);
+    const auto texel_groups = vk::linear_groups(uint64_t{floor_side} * floor_side, TRANSPORT_GROUP_SIZE);
     pipelines_[variant + 2].dispatch(recorder.get(), bindings, &push, sizeof(push), texel_groups.x, texel_groups.y);
 }
 

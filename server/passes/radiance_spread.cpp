@@ -15,8 +15,8 @@ constexpr vk::BindingLayout kLayout[] = {
     {TRANSPORT_BINDING_RAW_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
-    {TRANSPORT_BINDING_RAW_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
-    {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_RAW_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+    {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_SPREAD_FLUX_SHARES, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_SPREAD_FLOOR_SUMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -65,22 +65,21 @@ void RadianceSpreadPass::record(vk::CommandRecorder& recorder, const vk::Buffer&
         vk::Binding::storage_image(TRANSPORT_BINDING_RAW_FLUX, raw.flux),
         vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, out.radiance),
         vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, out.flux),
-        vk::Binding::storage_image(TRANSPORT_BINDING_RAW_FLOOR_MAP, raw.floor_map),
-        vk::Binding::storage_image(TRANSPORT_BINDING_FLOOR_MAP, out.floor_map),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_RAW_FLOOR_MAP, raw.floor_map),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_MAP, out.floor_map),
         vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_FLUX_SHARES, shares.flux),
         vk::Binding::storage_image(TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES, shares.radiance),
         vk::Binding::storage_buffer(TRANSPORT_BINDING_SPREAD_FLOOR_SUMS, shares.floor_sums),
         vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_SHADOW, floor_shadow)};
     const uint32_t variant = grey ? 1u : 0u;
-    const uint32_t side = out.floor_map.extent().x;
     auto run = [&](uint32_t job, uint64_t items) {
         const auto groups = vk::linear_groups(items, TRANSPORT_GROUP_SIZE);
         pipelines_[2 * job + variant].dispatch(recorder.get(), bindings, nullptr, 0, groups.x, groups.y);
     };
-    const uint64_t voxels = out.flux.extent().count(), texels = out.floor_map.extent().count();
+    const uint64_t voxels = out.flux.extent().count(), texels = uint64_t{out.floor_side} * out.floor_side;
     // The voxels' four steps (jobs 0-3) and the texels' seven (jobs 4-10) side by side: threads per cell of
     // the sums, per line, per line, per texel, per line, per line, per texel.
-    const uint64_t cells = uint64_t{side + 1} * (side + 1), lines = side + 1;
+    const uint64_t cells = uint64_t{out.floor_side + 1} * (out.floor_side + 1), lines = out.floor_side + 1;
     const uint64_t texel_items[] = {cells, lines, lines, texels, lines, lines, texels};
     for (uint32_t step = 0; step < 7; ++step) {
         if (step < 4) run(step, voxels);

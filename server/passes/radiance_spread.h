@@ -12,11 +12,12 @@
 namespace refract::passes {
 
 // The resolve's images: per-channel fluence (coloured transport only; grey transport binds any image),
-// net flux and fluence, the floor map.
+// net flux and fluence; and the floor map (transport.h, floor_map_texel) of `floor_side` texels a side.
 struct SpreadImages {
     const vk::Image3D& radiance;
     const vk::Image3D& flux;
-    const vk::Image3D& floor_map;
+    const vk::Buffer& floor_map;
+    uint32_t floor_side;
 };
 
 // Between the spread's steps: what each voxel gives the voxels its box reaches (rgba32f images of the

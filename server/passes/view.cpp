@@ -18,7 +18,7 @@ static_assert(FRESNEL_EYE_REFLECTIONS == 3u);
 constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
     {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
-    {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_HDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -32,7 +32,7 @@ ViewPass::ViewPass(vk::Context& context)
     : context_(context), pipeline_(context, view_spv, kLayout, sizeof(shaders::ViewPush), "view"), refine_(context) {}
 
 bool ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, const vk::Image3D& radiance,
-                      const vk::Image3D& flux, const vk::Image3D& floor_map, const ViewOutputs& out,
+                      const vk::Image3D& flux, const vk::Buffer& floor_map, const ViewOutputs& out,
                       uint32_t width, uint32_t height, bool adaptive, bool ends, const BetweenParts& between,
                       PartPacer& pacer) const {
     // Only the view's counters restart (steps and its two pixel queues, adjacent): the photon pass's
@@ -52,7 +52,7 @@ bool ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
     recorder.transfer_to_compute_barrier();
     const vk::Binding own[] = {vk::Binding::sampled_image(TRANSPORT_BINDING_RADIANCE, radiance, in.sampler),
                                vk::Binding::sampled_image(TRANSPORT_BINDING_FLUX, flux, in.sampler),
-                               vk::Binding::sampled_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map, in.sampler),
+                               vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_MAP, floor_map),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, out.hdr),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, out.lit_blocks),

@@ -24,7 +24,7 @@ public:
     // `between` running between parts. False when `between` stopped the run: part of the pixels
     // are traced. `ends`: also write where each eye ray ends (for ViewUpscalePass).
     bool record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const vk::Image3D& radiance,
-                const vk::Image3D& flux, const vk::Image3D& floor_map, const ViewOutputs& outputs,
+                const vk::Image3D& flux, const vk::Buffer& floor_map, const ViewOutputs& outputs,
                 uint32_t width, uint32_t height, bool adaptive, bool ends, const BetweenParts& between,
                 PartPacer& pacer) const;
 

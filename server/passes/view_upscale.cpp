@@ -10,7 +10,7 @@ namespace refract::passes {
 
 namespace {
 constexpr vk::BindingLayout kOwnLayout[] = {
-    {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_HDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_VIEW_ENDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_VIEWER_HDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -43,10 +43,10 @@ ViewUpscalePass::ViewUpscalePass(vk::Context& context) {
 }
 
 void ViewUpscalePass::record(vk::CommandRecorder& recorder, const TransportInputs& in,
-                             const vk::Image3D& floor_map, const UpscaleBuffers& buffers, glm::uvec2 traced,
+                             const vk::Buffer& floor_map, const UpscaleBuffers& buffers, glm::uvec2 traced,
                              uint32_t width, uint32_t height, bool one_light) const {
     const vk::Binding own[] = {
-        vk::Binding::sampled_image(TRANSPORT_BINDING_FLOOR_MAP, floor_map, in.sampler),
+        vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_MAP, floor_map),
         vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, buffers.traced_hdr),
         vk::Binding::storage_buffer(TRANSPORT_BINDING_VIEW_ENDS, buffers.ends),
         vk::Binding::storage_buffer(TRANSPORT_BINDING_VIEWER_HDR, buffers.viewer_hdr),

@@ -28,7 +28,7 @@ public:
     explicit ViewUpscalePass(vk::Context& context);
     // Over width x height viewer pixels from a frame traced at `traced` (the params' image size, whose
     // camera and exposure it takes); `one_light`: the params hold exactly one light.
-    void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const vk::Image3D& floor_map,
+    void record(vk::CommandRecorder& recorder, const TransportInputs& inputs, const vk::Buffer& floor_map,
                 const UpscaleBuffers& buffers, glm::uvec2 traced, uint32_t width, uint32_t height,
                 bool one_light) const;
 

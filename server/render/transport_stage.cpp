@@ -103,17 +103,22 @@ void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t phot
         flux_shares_ = vk::Image3D(ctx, radiance_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "spread flux shares");
         radiance_shares_ = vk::Image3D(ctx, colour_dims, VK_FORMAT_R32G32B32A32_SFLOAT, "spread radiance shares");
     }
+    const uint64_t floor_bytes = uint64_t{floor_texels} * floor_texels * 4 * sizeof(uint16_t);
     if (floor_texels != floor_texels_ || !floor_map_.get()) {
-        floor_map_ = vk::Image3D(ctx, {floor_texels, floor_texels, 1}, VK_FORMAT_R16G16B16A16_SFLOAT, "floor caustic map");
+        floor_map_ = {};
+        floor_map_ = vk::Buffer(ctx, floor_bytes,
+                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                                vk::MemoryUse::device, "floor caustic map");
         floor_texels_ = floor_texels;
     }
     if (!adaptive_density) {
         raw_floor_map_ = {};
         floor_spread_sums_ = {};
-    } else if (!raw_floor_map_.get() || !(raw_floor_map_.extent() == floor_map_.extent())) {
+    } else if (!raw_floor_map_.get() || raw_floor_map_.size() != floor_bytes) {
         raw_floor_map_ = {};
         floor_spread_sums_ = {};
-        raw_floor_map_ = vk::Image3D(ctx, floor_map_.extent(), VK_FORMAT_R16G16B16A16_SFLOAT, "floor map before the spread");
+        raw_floor_map_ = vk::Buffer(ctx, floor_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                    vk::MemoryUse::device, "floor map before the spread");
         floor_spread_sums_ =
             vk::Buffer(ctx, passes::floor_spread_bytes(floor_texels), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                        vk::MemoryUse::device, "floor map spread sums");
@@ -236,8 +241,8 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
         field_upload_.reset();
     }
     if (stale & kPhotons && !(built & kPhotons)) {
-        for (const vk::Image3D* image : {&radiance_, &flux_, &floor_map_, &raw_radiance_, &raw_flux_,
-                                         &raw_floor_map_, &radiance_shares_, &flux_shares_})
+        for (const vk::Image3D* image :
+             {&radiance_, &flux_, &raw_radiance_, &raw_flux_, &radiance_shares_, &flux_shares_})
             if (image->get()) recorder.init_image(*image);
     }
     if (!(stale & kPhotons)) return true;
@@ -273,8 +278,9 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
             return false;
         recorder.compute_barrier();
         const bool spread = raw_flux_.get() != VK_NULL_HANDLE;
-        kit_.radiance_resolve.record(recorder, params_buffers_[i], *accum_, grey(), spread ? raw_radiance_ : radiance_,
-                                     spread ? raw_flux_ : flux_, spread ? raw_floor_map_ : floor_map_,
+        kit_.radiance_resolve.record(recorder, params_buffers_[i], *accum_, grey(),
+                                     spread ? raw_radiance_ : radiance_, spread ? raw_flux_ : flux_,
+                                     spread ? raw_floor_map_ : floor_map_, floor_texels_,
                                      !spread && i + 1 == light_params_.size());
         resolved = true;
         recorder.compute_barrier();
@@ -282,9 +288,9 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
     }
     if (raw_flux_.get()) {
         kit_.radiance_spread.record(recorder, params_buffer(), grey(),
-                                    {raw_radiance_, raw_flux_, raw_floor_map_},
+                                    {raw_radiance_, raw_flux_, raw_floor_map_, floor_texels_},
                                     {radiance_shares_, flux_shares_, floor_spread_sums_},
-                                    {radiance_, flux_, floor_map_}, accum_->floor_shadow);
+                                    {radiance_, flux_, floor_map_, floor_texels_}, accum_->floor_shadow);
         recorder.compute_barrier();
     }
     kit_.lit_pyramid.record(recorder, params_buffer(), flux_, accum_->lit_blocks, lattice.coarsened(lattice.light_factor));
@@ -330,7 +336,7 @@ std::vector<glm::vec4> widen(const std::vector<uint16_t>& half) {
 }  // namespace
 
 std::vector<glm::vec4> TransportStage::read_floor_map() const {
-    return widen(read_image<uint16_t>(kit_.context, floor_map_));
+    return widen(read_buffer<uint16_t>(kit_.context, floor_map_));
 }
 
 namespace {

@@ -61,7 +61,7 @@ public:
     const passes::PhotonAccumulators& accumulators() const { return *accum_; }
     const vk::Image3D& radiance() const { return radiance_; }
     const vk::Image3D& flux() const { return flux_; }
-    const vk::Image3D& floor_map() const { return floor_map_; }
+    const vk::Buffer& floor_map() const { return floor_map_; }
 
     // Read-backs (see SceneGpu).
     uint32_t channels() const { return channels_; }
@@ -93,10 +93,12 @@ private:
     std::optional<passes::PhotonAccumulators> accum_;
     std::vector<vk::Buffer> params_buffers_;  // one per entry of light_params_
     vk::Buffer materials_;
-    vk::Image3D radiance_, flux_, floor_map_;  // radiance_: per-channel fluence, coloured transport only
+    vk::Image3D radiance_, flux_;  // radiance_: per-channel fluence, coloured transport only
+    vk::Buffer floor_map_;         // floor_texels_ a side (transport.h, floor_map_texel)
     // Under adaptive density, what the resolve writes and the spread reads, and the spread's shares
     // between its two steps (else empty).
-    vk::Image3D raw_radiance_, raw_flux_, raw_floor_map_;
+    vk::Image3D raw_radiance_, raw_flux_;
+    vk::Buffer raw_floor_map_;
     vk::Image3D radiance_shares_, flux_shares_;
     vk::Buffer floor_spread_sums_;
     passes::EnvironmentLight environment_light_;

@@ -61,6 +61,21 @@ float filtered_square(float u, float w) {
     return (checker_integral(u + 0.5 * w) - checker_integral(u - 0.5 * w)) / w;
 }
 
+// The floor map at m (0 to 1 across it), interpolated bilinearly between its texels' centres and held at
+// its edge, as a linear sampler clamped to the edge reads an image.
+vec3 floor_map_at(vec2 m) {
+    int side = int(params.floor_map.w);
+    vec2 t = m * float(side) - 0.5;
+    vec2 low = floor(t), f = t - low;
+    ivec2 lo = clamp(ivec2(low), ivec2(0), ivec2(side - 1));
+    ivec2 hi = clamp(ivec2(low) + 1, ivec2(0), ivec2(side - 1));
+    vec3 a = floor_map_texel(floor_map[lo.y * side + lo.x]).rgb;
+    vec3 b = floor_map_texel(floor_map[lo.y * side + hi.x]).rgb;
+    vec3 c = floor_map_texel(floor_map[hi.y * side + lo.x]).rgb;
+    vec3 d = floor_map_texel(floor_map[hi.y * side + hi.x]).rgb;
+    return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
+}
+
 // The floor's radiance at x over a pixel's footprint there: the box with edges `along` and `across`
 // (metres on the floor, conjugate half-axes of the footprint's ellipse), the checker filtered over the
 // box around that ellipse, `checker_width` (its extent along the floor's x and z, in cells).
@@ -69,7 +84,7 @@ vec3 floor_radiance_over(vec3 x, vec3 along, vec3 across, vec2 checker_width) {
     vec2 m = (x.xz - params.floor_map.xy) / params.floor_map.z;
     vec3 irradiance = direct_irradiance(x, along, across) + params.environment_light.rgb;
     if (all(greaterThanEqual(m, vec2(0.0))) && all(lessThanEqual(m, vec2(1.0))))
-        irradiance = max(irradiance + textureLod(floor_map, vec3(m, 0.5), 0.0).rgb, vec3(0.0));
+        irradiance = max(irradiance + floor_map_at(m), vec3(0.0));
     vec3 albedo = params.floor_albedo.rgb;
     if (params.floor_plane.w > 0.5) {
         vec2 c = x.xz / params.floor_plane.y;

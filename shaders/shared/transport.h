@@ -52,7 +52,7 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_STATS 11          // photon statistics (see PhotonStats)
 #define TRANSPORT_BINDING_RADIANCE 12       // rgba32f: fluence rate (W/m^2) rgb; coloured transport only
 #define TRANSPORT_BINDING_FLUX 13           // rgba32f: net flux vector (W/m^2) xyz, w fluence rate (channel mean)
-#define TRANSPORT_BINDING_FLOOR_MAP 14      // rgba16f (z = 1): change of floor irradiance by the grid (W/m^2)
+#define TRANSPORT_BINDING_FLOOR_MAP 14      // FloorMap texels: change of floor irradiance by the grid (W/m^2)
 #define TRANSPORT_BINDING_HDR 15            // vec4 per pixel: linear radiance before exposure
 #define TRANSPORT_BINDING_LDR 16            // uint per pixel: tone-mapped sRGB RGBA8
 #define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when flags.x == 1
@@ -105,7 +105,7 @@ REFRACT_SHADERS_BEGIN
 // resolve left it, before each voxel's light is spread over a box sized by the photon tracks behind it.
 #define TRANSPORT_BINDING_RAW_RADIANCE 24  // rgba32f, as TRANSPORT_BINDING_RADIANCE
 #define TRANSPORT_BINDING_RAW_FLUX 25      // rgba32f, as TRANSPORT_BINDING_FLUX
-#define TRANSPORT_BINDING_RAW_FLOOR_MAP 26  // rgba16f, as TRANSPORT_BINDING_FLOOR_MAP
+#define TRANSPORT_BINDING_RAW_FLOOR_MAP 26  // FloorMap texels, as TRANSPORT_BINDING_FLOOR_MAP
 // The spread's shares (radiance_spread.comp): rgba32f, what each voxel gives each one its box reaches.
 #define TRANSPORT_BINDING_SPREAD_FLUX_SHARES 30
 #define TRANSPORT_BINDING_SPREAD_RADIANCE_SHARES 31
@@ -513,6 +513,21 @@ struct ViewEnd {
     uint leg_direction;  // a bent end: its last leg's direction, octahedral (pack_direction)
     vec4 leg_start;      // xyz: where that leg leaves the glass (the last shell step's end), world; w: 0
 };
+// The floor map (TRANSPORT_BINDING_FLOOR_MAP, TRANSPORT_BINDING_RAW_FLOOR_MAP): a storage buffer of its
+// side x side texels row by row, each RGBA as four half floats in two words (rg, ba; the first in the low
+// half), as an rgba16f image lays them out. A buffer rather than an image: the eye-ray ends read four
+// texels of it for every pixel that sees the floor, and on lavapipe a filtered image sample cost twice
+// the four buffer loads and the interpolation
+// (docs/perf-log/2026-12-07-lavapipe-threads-and-the-floor-map.md).
+#ifndef __cplusplus
+vec4 floor_map_texel(uvec2 words) {
+    return vec4(unpackHalf2x16(words.x), unpackHalf2x16(words.y));
+}
+uvec2 floor_map_words(vec4 texel) {
+    return uvec2(packHalf2x16(texel.xy), packHalf2x16(texel.zw));
+}
+#endif
+
 #ifndef __cplusplus
 // A unit direction in 32 bits, octahedral (the sphere folded onto the octahedron |x| + |y| + |z| = 1, its
 // lower half unfolded around the y axis): within 1e-4 radians, a tenth of a viewer pixel's cone.
