@@ -223,6 +223,8 @@ TEST(CpuDispatches, FourThreadsACoreUnlessTheUserChose) {
     EXPECT_EQ(vk::split_cpu_dispatches_finely(16), "8") << "a value in effect is never replaced";
     unsetenv("LP_NUM_THREADS");
     EXPECT_EQ(vk::split_cpu_dispatches_finely(0), "4") << "an unknown core count counts as one";
+    setenv("LP_NUM_THREADS", "", 1);
+    EXPECT_EQ(vk::split_cpu_dispatches_finely(2), "8") << "lavapipe reads an empty value as unset";
     setenv("LP_NUM_THREADS", "3", 1);
     EXPECT_EQ(vk::split_cpu_dispatches_finely(2), "3");
     EXPECT_STREQ(std::getenv("LP_NUM_THREADS"), "3");

@@ -187,9 +187,9 @@ ContextOptions options_from_environment(ContextOptions options) {
 
 std::string split_cpu_dispatches_finely(unsigned cores) {
     constexpr const char* kThreads = "LP_NUM_THREADS";
-    if (const char* set = std::getenv(kThreads)) return set;
+    if (const char* set = std::getenv(kThreads); set && *set) return set;  // lavapipe reads empty as unset
     const std::string threads = std::to_string(4 * std::max(cores, 1u));
-    if (setenv(kThreads, threads.c_str(), 0) != 0) return {};
+    if (setenv(kThreads, threads.c_str(), 1) != 0) return {};
     return threads;
 }
 

@@ -46,8 +46,8 @@ ContextOptions options_from_environment(ContextOptions options);
 // lavapipe (Vulkan on the CPU) splits each dispatch into one equal, fixed share per thread, one thread
 // a core by default, and a dispatch ends with its last share: where another process takes turns on a
 // core (the browser showing the frames), the share on that core holds up every dispatch. Four threads a
-// core let the OS even the shares out. Sets LP_NUM_THREADS to four times `cores` unless it is set, before
-// the first instance reads it (GPU drivers ignore it); returns the value in effect.
+// core let the OS even the shares out. Sets LP_NUM_THREADS to four times `cores` unless it is set (not
+// empty), before the first instance reads it (GPU drivers ignore it); returns the value in effect.
 std::string split_cpu_dispatches_finely(unsigned cores);
 
 // Lists every device the loader sees, with each one's suitability. Throws Error if Vulkan is unusable.
