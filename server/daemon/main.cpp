@@ -218,12 +218,13 @@ RenderQueueSetup render_queue_setup(const http::DaemonConfig& config, Device& de
 
 // The start-up line, and a loud warning when anyone on the network may use the daemon.
 void announce(const http::DaemonConfig& config, const http::DeviceStatus& device, const scene::Store& store) {
-    // lavapipe's threads (split_cpu_dispatches_finely), where they are the device.
+    // lavapipe's thread setting (split_cpu_dispatches_finely), where it is the device: the value as set,
+    // which lavapipe reads (a value it cannot read leaves its own default).
     const char* threads = device.driver_name == "llvmpipe" ? std::getenv("LP_NUM_THREADS") : nullptr;
     std::fprintf(stderr, "refractd %s: http://%s:%u  ws://%s:%u  device: %s%s%s  data: %s  scenes: %zu\n",
                  REFRACT_VERSION, config.bind.c_str(), unsigned{config.port}, config.bind.c_str(),
                  unsigned{config.effective_ws_port()}, device.error.empty() ? device.name.c_str() : "none",
-                 threads ? ", threads: " : "", threads ? threads : "",
+                 threads ? ", LP_NUM_THREADS=" : "", threads ? threads : "",
                  config.store.empty() ? config.data_dir.c_str() : store.location().c_str(), store.size());
     if (!http::is_loopback(config.bind) && config.token.empty())
         std::fprintf(
