@@ -79,11 +79,7 @@ TEST(Daemon, TheWarmUpBuildsTheDefaultScenesVolumeBeforeTheFirstFrame) {
     Daemon daemon(dir.path() / "data");
     auto client = daemon.client();
     const json stored = get_json(client, "/api/scenes/default");
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-    while (get_json(client, "/api/health")["warming_up"] != false) {
-        ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the warm-up did not end\n" << daemon.log();
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
+    ASSERT_TRUE(daemon.wait_until_warm()) << "the warm-up did not end\n" << daemon.log();
     // Its end says the scene is resident: nothing asked for a frame, so the warm-up ran to its end.
     EXPECT_EQ(get_json(client, "/api/health")["scenes_resident"], 1) << daemon.log();
     EXPECT_EQ(get_json(client, "/api/scenes/default"), stored);
@@ -112,11 +108,7 @@ TEST(Daemon, TheWarmUpPreparesLoadingEachExample) {
     std::ofstream(examples / "broken.json") << "{";
     Daemon daemon(dir.path() / "data", {"--examples-dir", examples.string(), "--max-photons", "1000000"});
     auto client = daemon.client();
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-    while (get_json(client, "/api/health")["warming_up"] != false) {
-        ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the warm-up did not end\n" << daemon.log();
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
+    ASSERT_TRUE(daemon.wait_until_warm()) << "the warm-up did not end\n" << daemon.log();
     EXPECT_NE(daemon.log().find("warmed up loading 1 of 3 examples"), std::string::npos) << daemon.log();
     EXPECT_EQ(get_json(client, "/api/health")["scenes_resident"], 1) << daemon.log();
     const json cube = get_json(client, "/api/examples/cube");

@@ -330,7 +330,7 @@ TEST(DaemonVolumesTest, RefusedUploadsLeaveTheDaemonsMemoryWhereItWas) {
         EXPECT_EQ(put->status, 400) << put->body;
     };
     // The warm-up compiles pipelines and builds the default scene meanwhile: measured after it.
-    while (get_json(client, "/api/health")["warming_up"] != false) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    ASSERT_TRUE(daemon.wait_until_warm()) << daemon.log();
     for (int i = 0; i < 5; ++i) refuse(i);  // the daemon's own buffers, grown once
     const int64_t before = daemon.rss_bytes();
     for (int i = 0; i < 40; ++i) refuse(i);

@@ -12,6 +12,7 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -149,6 +150,17 @@ void Daemon::start() {
     }
     kill9();
     throw std::runtime_error("refractd did not answer /api/health within 60 s:\n" + log());
+}
+
+bool Daemon::wait_until_warm(std::chrono::seconds limit) const {
+    httplib::Client probe = client();
+    return wait_until(
+        [&] {
+            const auto res = probe.Get("/api/health");
+            return res && res->status == 200 &&
+                   nlohmann::json::parse(res->body).value("warming_up", true) == false;
+        },
+        limit);
 }
 
 int64_t Daemon::rss_bytes() const {

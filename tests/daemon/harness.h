@@ -70,6 +70,9 @@ public:
     std::string log() const;
     // Resident set size now (VmRSS), bytes; -1 when the process is gone.
     int64_t rss_bytes() const;
+    // Waits until health says the warm-up has ended (it answers health while it compiles pipelines and
+    // builds the stored scenes, growing the process meanwhile); false after `limit`.
+    bool wait_until_warm(std::chrono::seconds limit = std::chrono::seconds(120)) const;
 
 private:
     void start();
