@@ -20,10 +20,10 @@ namespace refract::passes {
 // Work items (photons, pixels) per part of a dispatch split into parts: the passes whose invocations take
 // their work items from a queue in order (take_from_queue) can stop after any part, and a refinement
 // step submits between parts, so that waiting work comes before the rest of it (scene::RunOptions).
-constexpr uint32_t kWorkPart = 32768;
+constexpr uint32_t kWorkPart = 16384;
 // Pixels per part of the viewing pass: an eye ray costs about half a photon (the default scene on two
 // cores: 1 against 2.2 microseconds), so its parts take about as long as the photons', and a 512 x 512
-// frame is 4 submissions, not 8 (each costs a wait for the device).
+// frame is 8 submissions, not 16 (each costs a wait for the device).
 constexpr uint32_t kViewPart = 2 * kWorkPart;
 // Runs between two parts of a split dispatch; it may submit the command buffer and begin another (the
 // pass records the next part into recorder.get()). True: the run stops there, and the pass records
@@ -33,8 +33,10 @@ using BetweenParts = std::function<bool()>;
 // About how long a part of a split dispatch takes at most: what waiting work (a viewer's next edit, a
 // newly loaded scene's preview) waits for. Parts of kWorkPart photons take about this long in the default
 // scene on two cores; where a work item costs far more (photons that scatter up to 32 times in dense fog:
-// 1.5 s a part of kWorkPart), parts shrink to it.
-constexpr double kPartMs = 100.0;
+// 0.75 s a part of kWorkPart), parts shrink to it. Halved from 100 ms (and 2^15 photons): a drag begun
+// during refinement waited 62-72 ms for the part in flight (median; at most 151-158), now 44-47 (82-85),
+// and a level's refinement took as long as before (docs/perf-log/2026-12-07-first-drag-frames.md).
+constexpr double kPartMs = 50.0;
 
 // Sizes the parts of a pass's split dispatches by time, from the rate its parts ran at before (kept by
 // the stage that records the pass, for one scene): a part has the items that rate gives kPartMs, in

@@ -55,6 +55,12 @@ FrameBudget::PhotonKind FrameBudget::photon_kind(const protocol::SceneDocument& 
     return kind;
 }
 
+uint32_t FrameBudget::floor_photons(const protocol::SceneDocument& document) {
+    const double count = document.photons.count;
+    return static_cast<uint32_t>(
+        std::min(count, std::max<double>(kMinPhotons, std::round(count * kMinPhotonShare))));
+}
+
 InteractiveSettings FrameBudget::choose(const protocol::SceneDocument& document, bool photons_rerun, bool view_rerun,
                                         const InteractiveSettings* resident, double budget_ms) const {
     // What the viewer's size costs comes first; the passes share what is left, and never less than a

@@ -47,6 +47,10 @@ public:
     static constexpr double kMinPhotonShare = 1.0 / 64.0;
     static constexpr uint32_t kMinPhotons = 4096;
 
+    // The fewest photons an interactive frame of `document` traces: kMinPhotonShare of its count, not
+    // below kMinPhotons (nor above its count).
+    static uint32_t floor_photons(const protocol::SceneDocument& document);
+
     // The settings for the next interactive frame of `document`, to land within `budget_ms`.
     // `photons_rerun`: the edit reruns the photon pass anyway, so its count may change (otherwise the
     // resident count must be kept, or a camera drag would retrace photons). `resident`: the settings the

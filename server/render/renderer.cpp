@@ -779,32 +779,24 @@ void Renderer::warm_up(const protocol::SceneDocument& document, const Assets& as
     FrameOptions options;
     options.quality = quality;
     render(scene.id, reduced, assets, options);
-    if (quality == Quality::still) {
-        // The light drags after a still frame are upscaled by the variant that takes each viewer pixel's
-        // eye ray from the still's ends, a pipeline for each share of loads as below: a still at a viewer's
-        // size, then a drag's frame traced at the budget's least.
-        for (const uint32_t viewer_scale : {2u, 4u}) {
-            protocol::SceneDocument viewed = reduced;
-            viewed.image.width *= viewer_scale;
-            viewed.image.height *= viewer_scale;
-            render(scene.id, viewed, assets, options);
-            for (auto& [name, light] : viewed.lights) light.position[1] += 0.5;
-            FrameOptions drag;
-            drag.quality = Quality::interactive;
-            drag.budget_ms = 1.0;
-            render(scene.id, viewed, assets, drag);
-        }
-        return;
+    // A drag's frames are traced a fraction of their viewer's size and upscaled by a pipeline for each
+    // share of the traced pixels' loads (upscale_shared_loads: each lane its own four over half the
+    // viewer's size, two loads a lane down to 2/7 of it, one below), which lavapipe compiles at its first
+    // dispatch; after a still frame, by the variant that takes each viewer pixel's eye ray from the still's
+    // ends. So, at viewers 1.5, 2 and 4 times the reduced frame's size: (a still there, then) a drag's
+    // frame traced at the budget's least, the reduced size. (Without the still, the first two frames of
+    // the first orbit compiled theirs: 40-68 ms of upscale, not 20.)
+    for (const uint32_t viewer_side :
+         {3 * FrameBudget::kMinSide / 2, 2 * FrameBudget::kMinSide, 4 * FrameBudget::kMinSide}) {
+        protocol::SceneDocument viewed = reduced;
+        viewed.image.width = viewed.image.height = viewer_side;
+        if (quality == Quality::still) render(scene.id, viewed, assets, options);
+        for (auto& [name, light] : viewed.lights) light.position[1] += 0.5;
+        FrameOptions drag;
+        drag.quality = Quality::interactive;
+        drag.budget_ms = 1.0;
+        render(scene.id, viewed, assets, drag);
     }
-    // That frame came at its own size; a drag's are traced a fraction of their viewer's, whose upscale
-    // shares the traced pixels' loads across a subgroup, a pipeline for each share (upscale_shared_loads:
-    // two loads a lane at half the viewer's size, one at a quarter), which lavapipe compiles at its first
-    // dispatch.
-    std::lock_guard lock(impl_->mutex);
-    const auto it = impl_->scenes.find(scene.id);
-    if (it == impl_->scenes.end() || !it->second.gpu->has_view_ends()) return;
-    for (const uint32_t viewer_scale : {2u, 4u})
-        it->second.gpu->upscale(viewer_scale * reduced.image.width, viewer_scale * reduced.image.height);
 }
 
 void Renderer::warm_up_load(const protocol::SceneDocument& before, const protocol::SceneDocument& loaded,
@@ -837,25 +829,39 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
     // The photons of the scene's first interactive frame: their count does not depend on the image size
     // (the viewer's own), and a budget that has measured nothing chooses it from the document alone.
     const InteractiveSettings settings = resident.budget.choose(document, true, true, nullptr, kDefaultBudgetMs);
-    const protocol::SceneDocument interactive = with_settings(document, settings);
+    // What photons cost sizes the first frame that traces them (a light drag's; a camera drag's frames
+    // shade from the resident grid and measure none): measured at the floor's count too, so that the
+    // budget knows the pass's fixed part from that frame on. From one count it took the cost for one in
+    // proportion to the count, and the default scene's first light-drag frame took 123 ms of passes.
+    InteractiveSettings fewest = settings;
+    fewest.photons = FrameBudget::floor_photons(document);
+    std::vector<std::pair<PassSet, InteractiveSettings>> runs = {{kVoxelize, settings},
+                                                                 {kIndexField, settings},
+                                                                 {kOctree, settings},
+                                                                 {kPhotons, fewest},
+                                                                 {kPhotons, settings}};
+    if (fewest.photons == settings.photons) runs.erase(runs.begin() + 3);
+    InteractiveSettings built =
+        settings;  // what the resident photons were traced with (a stop may come between)
     try {
         // One pass a submission, so that a request waits for one pass at most; render() runs what is left.
-        for (PassSet pass : {kVoxelize, kIndexField, kOctree, kPhotons}) {
+        for (const auto& [pass, run] : runs) {
             if (stop()) break;
             RunOptions run_options = run_options_for(Quality::interactive);
             run_options.limit = pass;
             const RunStats stats =
-                resident.gpu->run(pass, interactive, worlds, resolved.grid.get(), run_options, resolved.environment.get(),
-                              resolved.densities);
-            // What these photons cost sizes the first frame that traces photons (a light drag's): a camera
-            // drag's frames shade from the resident grid and measure none.
-            if (pass == kPhotons) resident.budget.observe(document, settings, stats.gpu_ms.front().second, 0.0, 0.0);
+                resident.gpu->run(pass, with_settings(document, run), worlds, resolved.grid.get(),
+                                  run_options, resolved.environment.get(), resolved.densities);
+            if (pass == kPhotons) {
+                resident.budget.observe(document, run, stats.gpu_ms.front().second, 0.0, 0.0);
+                built = run;
+            }
         }
     } catch (...) {
         evict(scene_id);  // partially built state is not trusted
         throw;
     }
-    resident.document = interactive;
+    resident.document = with_settings(document, built);
     resident.meshes = resolved.meshes;
     resident.grid = resolved.grid;
     resident.environment = resolved.environment;

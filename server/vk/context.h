@@ -94,6 +94,9 @@ public:
     std::string last_validation_message() const;
     bool validation_enabled() const { return messenger_ != VK_NULL_HANDLE; }
     bool compiles_on_first_use() const { return compile_on_first_use_; }
+    // Pipelines compiled so far (ComputePipeline counts each): what a warm-up left a frame to compile.
+    uint64_t pipelines_compiled() const { return pipelines_compiled_.load(); }
+    void count_compiled_pipeline() { pipelines_compiled_.fetch_add(1); }
 
     // Queue submission is serialized: the queue has one owner at a time.
     void submit_and_wait(VkCommandBuffer command_buffer);
@@ -129,6 +132,7 @@ private:
     bool compile_on_first_use_ = false;
     VkDeviceSize max_memory_allocation_size_ = 0;
     std::atomic<int64_t> allocated_bytes_{0};
+    std::atomic<uint64_t> pipelines_compiled_{0};
     std::atomic<size_t> validation_errors_{0};
     mutable std::mutex message_mutex_;
     std::string last_validation_message_;

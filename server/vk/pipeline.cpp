@@ -83,6 +83,7 @@ void ComputePipeline::compile() const {
     VkPipeline pipeline = VK_NULL_HANDLE;
     REFRACT_VK_CHECK(vkCreateComputePipelines(device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline));
     into.pipeline = UniquePipeline(device, pipeline);
+    context_.count_compiled_pipeline();
     context_.set_name(VK_OBJECT_TYPE_PIPELINE, pipeline, name_);
 }
 

@@ -18,9 +18,9 @@ inline const nlohmann::json kSmallScene = {{"image", {{"width", 64}, {"height", 
                                            {"volume", {{"resolution", 32}}},
                                            {"photons", {{"count", 256}}}};
 
-// A frame far heavier than any other: 2^24 photons (the most --max-photons allows) scattering up to 1024 times in
-// dense white fog (albedo 1) take minutes on two CPU cores and seconds on an H200; a part of them
-// (passes::kWorkPart, 2^15) about a second on the cores.
+// A frame far heavier than any other: 2^24 photons (the most --max-photons allows) scattering up to 1024
+// times in dense white fog (albedo 1) take minutes on two CPU cores and seconds on an H200; a part of them
+// (passes::kWorkPart, 2^14) about half a second on the cores.
 inline constexpr const char* kHeavyPhotons = "16777216";  // the daemon's --max-photons for it
 inline const nlohmann::json kHeavyScene = {{"image", {{"width", 64}, {"height", 64}}},
                                            {"volume", {{"resolution", 32}}},
