@@ -832,7 +832,8 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
     // What photons cost sizes the first frame that traces them (a light drag's; a camera drag's frames
     // shade from the resident grid and measure none): measured at the floor's count too, so that the
     // budget knows the pass's fixed part from that frame on. From one count it took the cost for one in
-    // proportion to the count, and the default scene's first light-drag frame took 123 ms of passes.
+    // proportion to the count, and the default scene's first light-drag frame traced more photons than
+    // the floor's, for 54-59 ms against 35-37 at the floor (docs/perf-log/2026-12-07-first-drag-frames.md).
     InteractiveSettings fewest = settings;
     fewest.photons = FrameBudget::floor_photons(document);
     std::vector<std::pair<PassSet, InteractiveSettings>> runs = {{kVoxelize, settings},
@@ -841,8 +842,8 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
                                                                  {kPhotons, fewest},
                                                                  {kPhotons, settings}};
     if (fewest.photons == settings.photons) runs.erase(runs.begin() + 3);
-    InteractiveSettings built =
-        settings;  // what the resident photons were traced with (a stop may come between)
+    // What the resident photons were traced with: a stop may come between the two counts.
+    InteractiveSettings built = settings;
     try {
         // One pass a submission, so that a request waits for one pass at most; render() runs what is left.
         for (const auto& [pass, run] : runs) {
