@@ -836,12 +836,10 @@ bool Renderer::prepare(const std::string& scene_id, const protocol::SceneDocumen
     // the floor's, for 54-59 ms against 35-37 at the floor (docs/perf-log/2026-12-07-first-drag-frames.md).
     InteractiveSettings fewest = settings;
     fewest.photons = FrameBudget::floor_photons(document);
-    std::vector<std::pair<PassSet, InteractiveSettings>> runs = {{kVoxelize, settings},
-                                                                 {kIndexField, settings},
-                                                                 {kOctree, settings},
-                                                                 {kPhotons, fewest},
-                                                                 {kPhotons, settings}};
-    if (fewest.photons == settings.photons) runs.erase(runs.begin() + 3);
+    std::vector<std::pair<PassSet, InteractiveSettings>> runs = {
+        {kVoxelize, settings}, {kIndexField, settings}, {kOctree, settings}};
+    if (fewest.photons != settings.photons) runs.emplace_back(kPhotons, fewest);
+    runs.emplace_back(kPhotons, settings);
     // What the resident photons were traced with: a stop may come between the two counts.
     InteractiveSettings built = settings;
     try {

@@ -154,13 +154,15 @@ void Daemon::start() {
 
 bool Daemon::wait_until_warm(std::chrono::seconds limit) const {
     httplib::Client probe = client();
-    return wait_until(
-        [&] {
-            const auto res = probe.Get("/api/health");
-            return res && res->status == 200 &&
-                   nlohmann::json::parse(res->body).value("warming_up", true) == false;
-        },
-        limit);
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    // Every 50 ms, not wait_until's 5: each probe is a request the warming daemon answers and logs.
+    for (;;) {
+        const auto res = probe.Get("/api/health");
+        if (res && res->status == 200 && nlohmann::json::parse(res->body).value("warming_up", true) == false)
+            return true;
+        if (std::chrono::steady_clock::now() >= deadline) return false;
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
 }
 
 int64_t Daemon::rss_bytes() const {
