@@ -18,7 +18,6 @@ layout(binding = TRANSPORT_BINDING_RADIANCE) uniform sampler3D radiance;
 layout(binding = TRANSPORT_BINDING_FLUX) uniform sampler3D flux;
 layout(std430, binding = TRANSPORT_BINDING_FLOOR_MAP) readonly buffer FloorMap { uvec2 floor_map[]; };
 layout(std430, binding = TRANSPORT_BINDING_HDR) buffer Hdr { vec4 hdr[]; };
-layout(std430, binding = TRANSPORT_BINDING_LIT_BLOCKS) readonly buffer LitBlocks { uint lit_blocks[]; };
 layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) writeonly buffer Ends { ViewEnd ends[]; };
 layout(std430, binding = TRANSPORT_BINDING_REFINE) readonly buffer Refine {
     WorkListHeader refine;
@@ -26,16 +25,6 @@ layout(std430, binding = TRANSPORT_BINDING_REFINE) readonly buffer Refine {
 };
 layout(push_constant) uniform Push { ViewPush push; };
 #include "eye_ray_ends.glsl"
-
-// The side (voxels) of the largest cell of the lit pyramid that holds p and no light; 0 where p's block
-// is lit. Level 0 holds the count of unlit levels per block, so this is one lookup.
-float unlit_cell(vec3 p) {
-    uint block = LIT_BLOCK * params.lit_grid.w;  // lattice voxels
-    uvec3 b = uvec3(clamp(p, vec3(0.0), grid_dims() - 1.0)) / block;  // p's level-0 block
-    uvec3 cells = lit_cells(params.lit_grid.xyz, 0u);
-    uint unlit = lit_blocks[params.lit_offsets[0] + (b.z * cells.y + b.y) * cells.x + b.x];
-    return unlit == 0u ? 0.0 : float(block << (unlit - 1u));
-}
 
 // Fluence x phase at voxel point x for an eye ray travelling along d: what one unit of scattering
 // coefficient sends back along -d. The phase function is centred on the net flux's direction and
@@ -243,14 +232,10 @@ void shade(uvec2 pixel) {
             marches = !straight;
         }
         uint steps = 0u;
-        // Unlit fog is crossed in pieces of a leaf: the ray as it entered the leaf, and how far along it.
-        Ray leaf_start = ray;
-        float into_leaf = 0.0;
         // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch
-        // appears once: the loop below takes one octree leaf (or shell step, or piece of unlit fog) per
-        // pass, and the inner loop, which holds the only in-scattering fetches, takes its view steps.
+        // appears once: the loop below takes one octree leaf (or shell step) per pass, and the inner
+        // loop, which holds the only in-scattering fetches, takes its view steps.
         while (marches && steps < 8192u) {
-            if (into_leaf == 0.0) leaf_start = ray;
             float coverage = coverage_for(max(params.flags.y, params.flags.z), ray);
             float scatter_coverage = coverage_as(params.flags.z, coverage);
             float extinction_coverage = coverage_as(params.flags.y, coverage);
@@ -266,32 +251,15 @@ void shade(uvec2 pixel) {
             float to_floor = to_floor_plane(ray.p, ray.d);
             float to_end = min(to_exit, to_floor);
             // Refracting shells (level 0) take the photons' shell step, for the same refraction, and
-            // gather once over it; lit fog in a leaf (n constant, the ray straight) gathers every view
-            // step to the leaf's end; clear space is crossed to the end of its leaf, and so is unlit fog
-            // that lasts that far, else it is crossed in whole view steps towards the end of its unlit
-            // cell (within half a view step of that end, a view step gathers and the ray looks again).
-            // No leaf step is shorter than the shell step, and none longer than the leaf, so coarse view
-            // steps never step over a shell. So the ray gathers only where a march gathering every view
-            // step of the leaf would, and the pieces of a leaf go on along its straight start, the leaf's
-            // one ray step taken at its end as that march takes it: the lit cells change as refinement
-            // adds photons, and a skip to the unlit cell's own end moved the gathering points along a
-            // beam's sharp edge and where a grazing ray enters the glass, changing a pixel by 7% at once.
-            float unlit = unlit_cell(ray.p);
+            // gather once over it; fog in a leaf (n constant, the ray straight) gathers every view step
+            // to the leaf's end, lit or not (crossing unlit fog in cells of a pyramid of lit cells cost
+            // more than the steps it saved: docs/perf-log/2026-12-07-unlit-fog-gathered.md); space that
+            // does not scatter is crossed to the leaf's end in one step. No leaf step is shorter than
+            // the shell step, and none longer than the leaf, so coarse view steps never step over a
+            // shell.
             float shell_step = shell_step_for(ray, params.stepping.x);
-            float leaf_run = field_step(ray.p, ray.d, level == 0u ? shell_step : safe_step(level, ray.p, ray.d, shell_step));
-            bool in_unlit = scatters && level != 0u && unlit > 0.0;
-            float skip = 0.0;
-            if (in_unlit) {
-                float to_unlit_end = cell_exit(ray.p, ray.d, unlit);
-                // Every view step whose gathering point (its midpoint) lies in the unlit cell gathers 0.
-                skip = to_unlit_end + params.stepping.y >= leaf_run ? leaf_run
-                                                                    : view_step * floor(to_unlit_end / view_step + 0.5);
-            }
-            bool gathers = scatters && skip == 0.0;
-            float run = min(skip > 0.0 ? skip : in_unlit ? view_step : leaf_run, leaf_run);
-            bool piece = in_unlit && run < leaf_run;  // ends inside the leaf
-            run = min(run, to_end);
-            if (gathers) {
+            float run = min(field_step(ray.p, ray.d, safe_step(level, ray.p, ray.d, shell_step)), to_end);
+            if (scatters) {
                 uint model = phase_model_at(scatter_coverage, object);
                 float g = phase_g_at(scatter_coverage, object);
                 float gather_step = level == 0u ? run : view_step;
@@ -299,11 +267,8 @@ void shade(uvec2 pixel) {
                 vec3 step_path = transmitted_path(kappa, gather_step, step_attenuation);
                 float t = 0.0;
                 vec3 gathered_before = radiance_sum;
-                // A run that enters unlit fog inside its leaf gathers zeros there rather than stopping:
-                // a lit-pyramid lookup on every step cost more (~10% of a camera edit in the default
-                // scene) than the unlit steps it saved in a narrow beam. Leaves that start unlit are
-                // crossed in pyramid cells. The medium's density at a view step's midpoint stands for the
-                // step (medium.fade): a view step is a voxel or two, a seventh of the default fade or less.
+                // The medium's density at a view step's midpoint stands for the step (medium.fade): a
+                // view step is a voxel or two, a seventh of the default fade or less.
                 while (t < run) {
                     float len = min(gather_step, run - t);
                     vec3 x = ray.p + (t + 0.5 * len) * ray.d;
@@ -337,25 +302,11 @@ void shade(uvec2 pixel) {
                 weighted_inverse_depth += share * (surface_inverse_depth >= 0.0 ? surface_inverse_depth
                     : 1.0 / max(length(to_world(ray.p + (0.5 * run) * ray.d) - params.camera_position.xyz), 1e-6));
             } else {
+                // Space that does not scatter, crossed in one step: never where volumes lie (kMediumField
+                // scatters everywhere), so only the medium and the object dim it.
                 float density = run > 0.0 ? medium_depth(ray.p, ray.d, run) / run : 1.0;
                 vec3 kappa_run = thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density);
-                vec3 x = ray.p + (0.5 * run) * ray.d;
-                FieldSample at = field_at(x);
-                vec3 field_sigma = field_extinction(at);
-                if (kMediumField) kappa_run += field_sigma * h;
-                vec3 attenuation = exp(-kappa_run * run);
-                if (field_emits()) {
-                    // Unlit or not, what the volumes emit along the run reaches the eye (the run is a
-                    // field voxel at most where they do: field_step).
-                    vec3 emitted = transmittance * field_emission(at) * h * transmitted_path(kappa_run, run, attenuation);
-                    radiance_sum += emitted;
-                    float share = (emitted.r + emitted.g + emitted.b) * (1.0 / 3.0);
-                    light_weight += share;
-                    weighted_inverse_depth += share * (surface_inverse_depth >= 0.0 ? surface_inverse_depth
-                        : 1.0 / max(length(to_world(x) - params.camera_position.xyz), 1e-6));
-                }
-                transmittance *= attenuation;
-                if (kMediumField) transmittance *= eye_ratio(track, at, field_sigma, ray.p, ray.d, run, h);
+                transmittance *= exp(-kappa_run * run);
                 ++steps;
             }
             if (run >= to_end) {
@@ -363,16 +314,7 @@ void shade(uvec2 pixel) {
                 on_floor = to_floor <= to_exit;
                 break;
             }
-            if (piece) {
-                into_leaf += run;
-                ray.p = leaf_start.p + into_leaf * leaf_start.d;
-                ray.cell = field_entry(ray.p);
-                continue;
-            }
-            run += into_leaf;
-            into_leaf = 0.0;
-            Ray before = leaf_start;
-            ray = leaf_start;
+            Ray before = ray;
             ray_step(ray, run);
             if (kDispersive && path == 0u && !(channel_free(before.field) && channel_free(ray.field))) {
                 // What this step gathered lay on its straight start, the same in every channel.

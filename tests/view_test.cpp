@@ -374,15 +374,15 @@ TEST_F(ViewTest, CoarseRadianceGridLinesUpWithTheIndexFieldOnGridsItDoesNotDivid
         }
 }
 
-// A narrow spot beam in the same medium: eye rays gather light only where they cross the beam and cross
-// the unlit medium around it in whole cells of the lit pyramid, attenuated all the same. Pixels whose
+// A narrow spot beam in the same medium: eye rays gather light only where they cross the beam, and the
+// unlit medium around it only dims them. Pixels whose
 // rays cross the beam's core (3x3 blocks whose reference is at least half the brightest) must match
 // the airlight integral restricted to the cone within the point light's 5%: the beam's edge is blurred
 // by one voxel (trilinear fluence), which moves light along a ray but keeps its integral to first
 // order. Pixels whose rays pass more than two voxels outside the cone (1 degree at the box) must show
 // no in-scattered light beyond 0.1% of the beam's: photons cannot reach them, and their difference
-// from the dark frame is transmittance alone, which must be the same whether the medium is crossed in
-// view steps or in pyramid cells.
+// from the dark frame is transmittance alone, the same whether the medium is crossed in view steps (it
+// scatters) or in one step a run (the dark frame's does not).
 TEST_F(ViewTest, SingleScatteringOfASpotBeamMatchesTheAirlightIntegralInItsCone) {
     const double cone_deg = 6.0, cos_cone = std::cos(cone_deg * kPi / 180.0);
     const double cos_wide = std::cos((cone_deg + 1.0) * kPi / 180.0);
@@ -434,13 +434,6 @@ TEST_F(ViewTest, SingleScatteringOfASpotBeamMatchesTheAirlightIntegralInItsCone)
     EXPECT_LT(worst_outside, 1e-3);
 }
 
-// The lit pyramid, which decides where eye rays gather, against its definition applied on the host to
-// the radiance grid the photons left: a cell of level k (LIT_BLOCK << k voxels a side) is lit exactly
-// when some radiance voxel with fluence lies within one radiance voxel of it; level 0 holds, per block,
-// the number of levels unlit there. Checked with the radiance grid at full, half and a third of the
-// resolution (interactive frames), for a narrow beam that lights some cells only; and on a lattice
-// twice as fine as the scene's voxel (an object asking for it), where blocks are LIT_BLOCK of the
-// scene's voxels.
 // Interactive frames' adaptive density estimate (radiance_spread.comp): each radiance voxel's and
 // floor-map texel's light spread over a box sized by the photons behind it. Spreading moves light and
 // never makes or loses any, so the grid's and the floor map's totals are what the resolve left (to float
@@ -794,68 +787,6 @@ TEST_F(ViewTest, SpotRimOnTheFloorIsBoxFilteredOverThePixelsFootprint) {
     std::printf("spot rim: %d pixels straddle it, %d lie wholly on one side\n", straddling, whole);
     EXPECT_GT(straddling, 20);
     EXPECT_GT(whole, 1000);
-}
-
-TEST_F(ViewTest, LitPyramidMarksExactlyTheCellsWithinReachOfLitRadianceVoxels) {
-    const json isotropic = {{"model", "isotropic"}, {"g", 0}};
-    json scene = airlight_scene(isotropic, kSigma, 6.0);
-    scene["photons"]["count"] = 1 << 14;
-    const SceneDocument doc = document(scene);
-    scene["object"]["resolution"] = 48;  // 2 cm of the scene's 3.1 cm
-    const SceneDocument fine = document(scene);
-    for (const auto& [d, factor] : {std::pair{&doc, 1u}, std::pair{&doc, 2u}, std::pair{&doc, 3u}, std::pair{&fine, 1u}}) {
-        scene::SceneGpu gpu(kit());
-        scene::RunOptions options;
-        options.radiance_factor = factor;
-        gpu.run(scene::kAllPasses, *d, worlds(*d), nullptr, options);
-        EXPECT_EQ(gpu.grid().light_factor, d == &fine ? 2u : 1u);
-        const auto params = gpu.params();
-        const glm::ivec3 dims(params.grid_dims), radiance(params.radiance_grid), lit_dims(params.lit_grid);
-        const int f = static_cast<int>(params.radiance_grid.w), block = LIT_BLOCK * static_cast<int>(params.lit_grid.w);
-        const auto flux = gpu.read_flux();
-        std::vector<uint32_t> expected(gpu.read_lit_pyramid().size(), 0u);
-        for (int z = 0; z < radiance.z; ++z)
-            for (int y = 0; y < radiance.y; ++y)
-                for (int x = 0; x < radiance.x; ++x) {
-                    if (!(flux[static_cast<size_t>((z * radiance.y + y) * radiance.x + x)].w > 0.0f)) continue;
-                    const glm::ivec3 v(x, y, z);
-                    const glm::ivec3 lo = glm::max(f * (v - 1), glm::ivec3(0)) / block;
-                    const glm::ivec3 hi = glm::min(f * (v + 2) - 1, dims - 1) / block;
-                    for (uint32_t level = 0; level < LIT_LEVELS; ++level) {
-                        const glm::ivec3 cells(shaders::lit_cells(glm::uvec3(lit_dims), level));
-                        const int offset = static_cast<int>(params.lit_offsets[static_cast<int>(level)]);
-                        for (int cz = lo.z >> level; cz <= hi.z >> level; ++cz)
-                            for (int cy = lo.y >> level; cy <= hi.y >> level; ++cy)
-                                for (int cx = lo.x >> level; cx <= hi.x >> level; ++cx)
-                                    expected[static_cast<size_t>(offset + (cz * cells.y + cy) * cells.x + cx)] = 1u;
-                    }
-                }
-        const glm::ivec3 blocks(shaders::lit_cells(glm::uvec3(lit_dims), 0));
-        for (int z = 0; z < blocks.z; ++z)
-            for (int y = 0; y < blocks.y; ++y)
-                for (int x = 0; x < blocks.x; ++x) {
-                    uint32_t unlit = 0;
-                    for (uint32_t level = 0; level < LIT_LEVELS; ++level) {
-                        const glm::ivec3 cells(shaders::lit_cells(glm::uvec3(lit_dims), level));
-                        const glm::ivec3 c = glm::ivec3(x, y, z) >> static_cast<int>(level);
-                        const int offset = static_cast<int>(params.lit_offsets[static_cast<int>(level)]);
-                        unlit += expected[static_cast<size_t>(offset + (c.z * cells.y + c.y) * cells.x + c.x)] == 0u;
-                    }
-                    expected[static_cast<size_t>((z * blocks.y + y) * blocks.x + x)] = unlit;
-                }
-        const auto lit = gpu.read_lit_pyramid();
-        size_t lit_cells = 0, mismatches = 0;
-        for (size_t i = 0; i < lit.size(); ++i) {
-            lit_cells += i < params.lit_offsets[1] ? lit[i] == 0u : lit[i];
-            mismatches += lit[i] != expected[i];
-        }
-        std::printf("radiance voxels per axis %d: %zu of %zu cells lit, %zu differ from the definition\n",
-                    radiance.x, lit_cells, lit.size(), mismatches);
-        // Not trivially all lit or all dark: the narrow beam lights a third to a half of the cells.
-        EXPECT_GT(lit_cells, 0u);
-        EXPECT_LT(lit_cells, lit.size() * 2 / 3);
-        EXPECT_EQ(mismatches, 0u) << "radiance factor " << factor;
-    }
 }
 
 // ---------------------------------------------------------------------------------------------------

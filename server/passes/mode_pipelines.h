@@ -1,8 +1,7 @@
-// A shader that does several jobs (octree: level-1 ranges, reduce, level map; voxelize: columns, combine;
-// index field: one per kind of field; lit pyramid: level 0, merge, unlit counts), compiled once per job
-// with the job as a specialization constant (VOLUME_CONSTANT_MODE in shaders/shared/volume_build.h,
-// LIT_CONSTANT_MODE in transport.h). lavapipe runs both sides of every branch, so a branch on a push
-// constant would run every job in every dispatch.
+// A shader that does several jobs (octree: level-1 ranges, reduce, level map; voxelize: columns,
+// combine; index field: one per kind of field), compiled once per job with the job as a
+// specialization constant (VOLUME_CONSTANT_MODE in shaders/shared/volume_build.h). lavapipe runs both
+// sides of every branch, so a branch on a push constant would run every job in every dispatch.
 #pragma once
 
 #include <initializer_list>

@@ -14,9 +14,9 @@ uint64_t direct_reach_words(vk::Extent3 radiance_dims) {
     return uint64_t{(radiance_dims.x + 32) / 32} * (radiance_dims.y + 1) * (radiance_dims.z + 1) + 1;
 }
 
-PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, vk::Extent3 radiance_dims,
-                                            uint32_t floor_texels, uint32_t light_map_side, uint32_t exit_count,
-                                            bool grey) {
+PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 radiance_dims,
+                                            uint32_t floor_texels, uint32_t light_map_side,
+                                            uint32_t exit_count, bool grey) {
     const uint64_t voxels = radiance_dims.count();
     const auto usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     PhotonAccumulators accum;
@@ -31,12 +31,8 @@ PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 di
                              vk::MemoryUse::device, "floor flux sum");
     accum.floor_shadow = vk::Buffer(context, uint64_t{floor_texels} * floor_texels * 4 * sizeof(float), usage,
                                     vk::MemoryUse::device, "floor shadow (closed form)");
-    accum.stats = vk::Buffer(context, sizeof(shaders::PhotonStats), usage, vk::MemoryUse::readback, "photon stats");
-    const uint64_t lit_cells = passes::lit_pyramid_offsets(dims)[LIT_LEVELS];
-    // Every cell is written by the lit-pyramid pass (no clear); read back by the tests.
-    accum.lit_blocks = vk::Buffer(context, lit_cells * sizeof(uint32_t),
-                                  VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                                  vk::MemoryUse::device, "lit pyramid");
+    accum.stats =
+        vk::Buffer(context, sizeof(shaders::PhotonStats), usage, vk::MemoryUse::readback, "photon stats");
     const uint64_t light_map_bytes = uint64_t{light_map_side} * light_map_side * sizeof(float);
     accum.light_map_traced = vk::Buffer(context, light_map_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                                         vk::MemoryUse::device, "light map (traced)");

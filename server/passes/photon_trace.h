@@ -16,7 +16,6 @@ struct PhotonAccumulators {
     vk::Buffer floor_shadow;          // vec4 per floor texel: the floor shadow's closed form, the frame's lights
     vk::Buffer stats;                 // PhotonStats (host-readable)
     vk::Buffer exits;                 // PhotonExit per photon path when recorded (tests), else one entry
-    vk::Buffer lit_blocks;            // the lit pyramid (transport.h), written by LitPyramidPass
     vk::Buffer light_map_traced;      // float per light-map texel (DirectLightPass)
     vk::Buffer light_map;             // float per light-map texel: where each texel's direct light ends
     vk::Buffer direct_edges;          // WorkListHeader + radiance voxels the direct light's edge crosses
@@ -26,11 +25,10 @@ struct PhotonAccumulators {
 // Words of direct_reach for a radiance grid of `radiance_dims` voxels: rows of 32 corners along x.
 uint64_t direct_reach_words(vk::Extent3 radiance_dims);
 
-// `dims`: the scene's own voxels (lit blocks cover those); `radiance_dims`: the radiance grid's; `grey`:
-// grey transport, which keeps no red and green sums.
-PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 dims, vk::Extent3 radiance_dims,
-                                            uint32_t floor_texels, uint32_t light_map_side, uint32_t exit_count,
-                                            bool grey);
+// `radiance_dims`: the radiance grid's voxels; `grey`: grey transport, which keeps no red and green sums.
+PhotonAccumulators make_photon_accumulators(vk::Context& context, vk::Extent3 radiance_dims,
+                                            uint32_t floor_texels, uint32_t light_map_side,
+                                            uint32_t exit_count, bool grey);
 
 // Zeroes the sums, counters and exits before a frame's direct light and photons add to them.
 void clear_photon_accumulators(vk::CommandRecorder& recorder, const PhotonAccumulators& accum, bool grey);

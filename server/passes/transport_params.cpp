@@ -25,15 +25,6 @@ uint32_t light_map_texels(const passes::GridGeometry& grid, uint32_t photons) {
     return std::max(std::min(light_map_capacity(grid), quarter_root), 32u);
 }
 
-std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 dims) {
-    std::array<uint32_t, LIT_LEVELS + 1> offsets{};
-    for (uint32_t level = 0; level < LIT_LEVELS; ++level) {
-        const glm::uvec3 cells = shaders::lit_cells(glm::uvec3(dims.x, dims.y, dims.z), level);
-        offsets[level + 1] = offsets[level] + cells.x * cells.y * cells.z;
-    }
-    return offsets;
-}
-
 uint32_t photon_exit_count(uint32_t photons, uint32_t channels) {
     return channels == CHANNELS_DISPERSIVE ? 3 * photons : photons;
 }

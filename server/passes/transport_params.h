@@ -1,5 +1,5 @@
 // What the transport passes size and sequence alike, from the lattice alone: the floor map's and light
-// map's texels, the lit pyramid's layout, photon shares and exits, eye-ray sample offsets, dispersion.
+// map's texels, photon shares and exits, eye-ray sample offsets, dispersion.
 // The frame's parameters themselves are made from the scene document on the render side
 // (render/transport_inputs.h).
 #pragma once
@@ -28,10 +28,6 @@ uint32_t photon_exit_count(uint32_t photons, uint32_t channels);
 // Each channel's index contrast against the medium relative to the field's (TransportParams::dispersion)
 // for Abbe number `abbe` (0: none, all 1).
 glm::vec3 dispersion_scales(double abbe);
-
-// Where each level of the lit pyramid starts in the lit-blocks buffer; the last entry is its length.
-// `scene_dims`: the scene's own voxels (GridGeometry::coarsened(light_factor)), the blocks' unit.
-std::array<uint32_t, LIT_LEVELS + 1> lit_pyramid_offsets(vk::Extent3 scene_dims);
 
 // Texels per side of the floor caustic map for this grid.
 uint32_t floor_map_texels(const passes::GridGeometry& grid);

@@ -21,7 +21,6 @@ constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_HDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-    {TRANSPORT_BINDING_LIT_BLOCKS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_REFINE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_VIEW_ENDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
@@ -55,7 +54,6 @@ bool ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_MAP, floor_map),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, out.hdr),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats),
-                               vk::Binding::storage_buffer(TRANSPORT_BINDING_LIT_BLOCKS, out.lit_blocks),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_REFINE, out.refine),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_VIEW_ENDS, out.ends)};
     const auto bindings = transport_bindings(in, own);

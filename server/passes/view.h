@@ -9,8 +9,7 @@ namespace refract::passes {
 
 struct ViewOutputs {
     const vk::Buffer& hdr;  // vec4 per pixel
-    const vk::Buffer& stats;  // PhotonStats; the view pass counts view_steps
-    const vk::Buffer& lit_blocks;
+    const vk::Buffer& stats;   // PhotonStats; the view pass counts view_steps
     const vk::Buffer& refine;  // WorkListHeader + a pixel index per pixel (transport.h), for adaptive frames
     const vk::Buffer& ends;  // a shaders::ViewEnd per pixel (TRANSPORT_BINDING_VIEW_ENDS), with `ends`
 };

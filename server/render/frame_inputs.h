@@ -29,7 +29,7 @@ struct FrameInputs {
         std::vector<std::pair<std::string, passes::FieldShape>> objects;
         float octree_epsilon = 0.0f;
     };
-    // Direct light, photons, resolve, lit pyramid.
+    // Direct light, photons, resolve.
     struct Transport {
         uint32_t channels = CHANNELS_RGB;  // how the colour channels travel (transport_channels)
         uint32_t bounces = 0;              // scattering events per photon (photon_bounces)

@@ -3,7 +3,6 @@
 
 #include "passes/direct_light.h"
 #include "passes/index_field.h"
-#include "passes/lit_pyramid.h"
 #include "passes/octree.h"
 #include "passes/photon_trace.h"
 #include "passes/radiance_resolve.h"
@@ -28,7 +27,6 @@ struct PassKit {
     passes::PhotonTracePass photon_trace;
     passes::RadianceResolvePass radiance_resolve;
     passes::RadianceSpreadPass radiance_spread;
-    passes::LitPyramidPass lit_pyramid;
     passes::ViewPass view;
     passes::ViewUpscalePass view_upscale;
     passes::ToneMapPass tone_map;

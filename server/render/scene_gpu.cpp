@@ -27,7 +27,6 @@ PassKit::PassKit(vk::Context& ctx)
       photon_trace(ctx),
       radiance_resolve(ctx),
       radiance_spread(ctx),
-      lit_pyramid(ctx),
       view(ctx),
       view_upscale(ctx),
       tone_map(ctx),
@@ -41,12 +40,12 @@ int64_t estimate_scene_bytes(const passes::GridGeometry& grid, uint64_t field_vo
     // (4 / 8). Per radiance voxel: packed accumulators (RADIANCE_FLUX_WORDS x 8, and 8 for red and green
     // in colour), net flux (16), coloured radiance (16); the direct light's edge list (4) and reach bits
     // (1/8 + rows). Per voxel of the objects' boxes: coverage and the voxelize pass's scratch (4 + 4), and
-    // its per-axis scratch (12) while it runs. Over the lattice: the lit pyramid and a field atlas's map.
+    // its per-axis scratch (12) while it runs. Over the lattice: a field atlas's map.
     const int64_t per_field_voxel = 16 + 8 + 2 + 1;
     const int64_t per_radiance_voxel = (RADIANCE_FLUX_WORDS + 1) * 8 + 16 + 16 + 4 + 1;
     const int64_t per_object_voxel = 4 + 4 + 12;
-    const int64_t lattice = int64_t{passes::lit_pyramid_offsets(grid.coarsened(grid.light_factor))[LIT_LEVELS]} * 4 +
-                            static_cast<int64_t>(grid.dims.count() / (FIELD_CELL * FIELD_CELL * FIELD_CELL)) * 4;
+    const int64_t lattice =
+        static_cast<int64_t>(grid.dims.count() / (FIELD_CELL * FIELD_CELL * FIELD_CELL)) * 4;
     // Per floor-map texel: its sums (FLOOR_WORDS words) and the map (8); and for interactive frames' adaptive
     // density the map before the spread (8) and the spread's sums (16).
     const int64_t floor = int64_t{passes::floor_map_texels(grid)} * passes::floor_map_texels(grid) *

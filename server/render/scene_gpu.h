@@ -181,10 +181,7 @@ public:
     // Net flux vector xyz, fluence rate w (channel mean; W/m^2).
     std::vector<glm::vec4> read_flux() const { return transport_.read_flux(); }
     uint32_t channels() const { return transport_.channels(); }  // how the photons last ran carried colour (CHANNELS_*)
-    bool grey() const { return transport_.grey(); }  // one fluence for all channels (transport.h)
-    // The lit pyramid, levels one after another (passes::lit_pyramid_offsets): 1 per lit cell above
-    // level 0, and per level-0 block the number of levels unlit there (transport.h).
-    std::vector<uint32_t> read_lit_pyramid() const { return transport_.read_lit_pyramid(); }
+    bool grey() const { return transport_.grey(); }              // one fluence for all channels (transport.h)
     // The change of floor irradiance the grid causes (W/m^2, signed), floor_map_side()^2 texels.
     std::vector<glm::vec4> read_floor_map() const { return transport_.read_floor_map(); }
     // Total floor irradiance at the floor map's texel centres, as the viewing pass shades it: the

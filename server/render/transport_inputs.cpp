@@ -576,11 +576,6 @@ std::vector<shaders::TransportParams> make_transport_params(const protocol::Scen
                          scatters ? 1u : 0u);
     const vk::Extent3 radiance_dims = grid.coarsened(options.radiance_factor);
     p.radiance_grid = glm::uvec4(radiance_dims.x, radiance_dims.y, radiance_dims.z, options.radiance_factor);
-    const vk::Extent3 scene_dims = grid.coarsened(grid.light_factor);
-    const auto lit = passes::lit_pyramid_offsets(scene_dims);
-    p.lit_grid = glm::uvec4(scene_dims.x, scene_dims.y, scene_dims.z, grid.light_factor);
-    static_assert(LIT_LEVELS == 4);
-    p.lit_offsets = glm::uvec4(lit[0], lit[1], lit[2], lit[3]);
     const shaders::Material first = material_for(object, medium, grid);
     p.shell = glm::vec4(first.extinction.w, glm::vec3(first.shell.y, first.shell.z, first.shell.w));
     p.film = first.film;

@@ -71,8 +71,8 @@ void TransportStage::allocate(const passes::GridGeometry& lattice, uint32_t phot
     if (!accum_ || floor_texels != floor_texels_ || exits != exit_capacity_ || f != radiance_factor_ ||
         to_grey != grey()) {
         accum_.reset();
-        accum_.emplace(passes::make_photon_accumulators(ctx, lattice.coarsened(lattice.light_factor), radiance_dims,
-                                                        floor_texels, passes::light_map_capacity(lattice), exits, to_grey));
+        accum_.emplace(passes::make_photon_accumulators(ctx, radiance_dims, floor_texels,
+                                                        passes::light_map_capacity(lattice), exits, to_grey));
         exit_capacity_ = exits;
     }
     if (!flux_.get() || f != radiance_factor_) {
@@ -252,10 +252,9 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
     // the radiance grid and floor map, the first replacing this batch's share and the rest adding theirs.
     // A refinement step gives way after the direct light and after each resolve but the last too (each a
     // tenth of a second or more on two cores), not only between parts of the photons. After the last
-    // light's resolve the grid holds the whole batch, and the step goes on (its lit pyramid, a few
-    // milliseconds) to its view's first chance, where the batch is kept: given way there, a batch in the
-    // grid but not counted whole was traced anew by the frame after it, a drag that interrupted it shading
-    // from its own few photons.
+    // light's resolve the grid holds the whole batch, and the step goes on to its view's first chance,
+    // where the batch is kept: given way there, a batch in the grid but not counted whole was traced anew
+    // by the frame after it, a drag that interrupted it shading from its own few photons.
     const passes::BetweenParts gap = recording.between_parts(kPhotons);
     const uint32_t radiance_factor = options.radiance_factor * lattice.light_factor;
     for (size_t i = 0; i < light_params_.size(); ++i) {
@@ -293,18 +292,12 @@ bool TransportStage::record(FrameRecording& recording, PassSet stale, PassSet bu
                                     {radiance_, flux_, floor_map_, floor_texels_}, accum_->floor_shadow);
         recorder.compute_barrier();
     }
-    kit_.lit_pyramid.record(recorder, params_buffer(), flux_, accum_->lit_blocks, lattice.coarsened(lattice.light_factor));
-    recorder.compute_barrier();
     recording.end();
     photon_batches_ = options.photon_batch + 1;
     return !((stale & kView) && recording.part(kView));
 }
 
 std::vector<glm::vec4> TransportStage::read_flux() const { return read_image<glm::vec4>(kit_.context, flux_); }
-
-std::vector<uint32_t> TransportStage::read_lit_pyramid() const {
-    return read_buffer<uint32_t>(kit_.context, accum_->lit_blocks);
-}
 
 std::vector<glm::vec4> TransportStage::read_radiance() const {
     if (!grey()) return read_image<glm::vec4>(kit_.context, radiance_);

@@ -70,7 +70,6 @@ public:
     uint32_t floor_map_side() const { return floor_texels_; }
     std::vector<glm::vec4> read_radiance() const;
     std::vector<glm::vec4> read_flux() const;
-    std::vector<uint32_t> read_lit_pyramid() const;
     std::vector<glm::vec4> read_floor_map() const;
     std::vector<glm::vec4> read_floor_irradiance() const;
     std::vector<shaders::PhotonExit> read_photon_exits() const;

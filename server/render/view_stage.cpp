@@ -82,8 +82,8 @@ bool ViewStage::record(FrameRecording& recording, PassSet stale, bool adaptive, 
                                     : ends == Ends::still ? still_ends_
                                                           : no_ends_;
         if (!kit_.view.record(recorder, transport.view_inputs(volume), transport.radiance(), transport.flux(),
-                              transport.floor_map(), {hdr_, accum.stats, accum.lit_blocks, refine_, written},
-                              width_, height_, adaptive, ends != Ends::none, recording.between_parts(kView),
+                              transport.floor_map(), {hdr_, accum.stats, refine_, written}, width_, height_,
+                              adaptive, ends != Ends::none, recording.between_parts(kView),
                               parts_.paced(paced)))
             return false;
         ends_kept_ = ends == Ends::traced;

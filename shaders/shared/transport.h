@@ -56,7 +56,6 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_HDR 15            // vec4 per pixel: linear radiance before exposure
 #define TRANSPORT_BINDING_LDR 16            // uint per pixel: tone-mapped sRGB RGBA8
 #define TRANSPORT_BINDING_PHOTON_EXITS 17   // PhotonExit per photon, when flags.x == 1
-#define TRANSPORT_BINDING_LIT_BLOCKS 18     // the lit pyramid: uint per cell per level (see LIT_BLOCK)
 #define TRANSPORT_BINDING_REFINE 19         // WorkListHeader + pixels the viewing pass traces after the coarse ones
 #define TRANSPORT_BINDING_LIGHT_MAP 20      // float per light-map texel: where its photons' direct light ends
 #define TRANSPORT_BINDING_LIGHT_MAP_TRACED 21  // float per texel: where the texel's own ray stops going straight
@@ -183,15 +182,6 @@ REFRACT_SHADERS_BEGIN
 // Gaussian's tails leave values of 1e-15 and so far from any object, which over a 1000-voxel path bend
 // light by under 1e-3 rad and change its extinction by a millionth of the object's.
 #define DIRECT_FLAT 1e-6f
-
-// Eye rays cross unlit fog in whole cells of the lit pyramid: a level-0 cell of LIT_BLOCK^3 voxels (of the
-// scene's own voxel: TransportParams::lit_grid) is
-// lit when photons reached any voxel whose trilinear footprint overlaps it; each level above merges 2^3
-// cells of the one below (1 where lit), so a ray far from the light crosses fog in cells of up to
-// LIT_BLOCK << (LIT_LEVELS - 1) voxels. Level 0 finally holds, per block, how many levels are unlit
-// there (0: the block is lit; k: the cells of levels 0..k-1 around it are unlit).
-#define LIT_BLOCK 4
-#define LIT_LEVELS 4
 
 #define LIGHT_POINT 0u
 #define LIGHT_SPOT 1u
@@ -364,7 +354,6 @@ struct TransportParams {
     uvec4 radiance_grid;      // xyz: radiance grid voxels; w: index-field voxels per radiance voxel along
                               // each axis (1; 3 for interactive frames: 1/27 the voxels to clear and
                               // resolve, 1/3 as many for a photon to cross)
-    uvec4 lit_offsets;        // where each level of the lit pyramid starts in the lit-blocks buffer
     vec4 direct_light;        // x: light-map texels per side; y: near, where direct light may begin (voxels
                               // from a point or spot light); z: 1 = the floor's shadow in closed form
                               // (DIRECT_MODE_FLOOR_SHADOW); w: 1 = direct light in closed form
@@ -399,9 +388,7 @@ struct TransportParams {
                               // name order (TRANSPORT_CONSTANT_MATERIALS); z: objects; w: unused
     uvec4 field_atlas;        // a field atlas (TRANSPORT_CONSTANT_FIELD_ATLAS): xy: device address (low, high)
                               // of the field atlas's map (FIELD_* above); zw: unused
-    uvec4 atlas_dims;         // xyz: the atlas's voxels (the index field's and coverage image's size); w: unused
-    uvec4 lit_grid;           // xyz: the scene's own voxels (the lattice's, GridGeometry::light_factor to one),
-                              // in which the lit pyramid's blocks are LIT_BLOCK a side; w: that factor
+    uvec4 atlas_dims;  // xyz: the atlas's voxels (the index field's and coverage image's size); w: unused
     vec4 medium_fade;         // the medium's density (medium_density): x: the width (voxels) over which it falls
                               // to 0 at the grid's faces, 0: none; y: where the lowest face that fades lies
                               // (voxels: 0, or -1e30 where the floor hides the bottom face); z: 1 / x (0
@@ -445,24 +432,6 @@ REFRACT_INLINE vec3 grey_colour(vec4 photon_flux) {
 // The radiance resolve, one specialization per job (constant RESOLVE_CONSTANT_FLOOR, after the transport
 // constants): true for the dispatch that resolves the floor map, false for the radiance grid's voxels.
 #define RESOLVE_CONSTANT_FLOOR TRANSPORT_CONSTANT_COUNT
-
-// The lit-pyramid pass, one specialization per job (constant LIT_CONSTANT_MODE, after the transport
-// constants, which every transport shader declares): find level 0 from the radiance grid; merge a
-// level's cells into the level above (push.level); finally replace each level-0 flag by the number of
-// levels that are unlit at that block, so an eye ray finds its largest unlit cell with one lookup.
-#define LIT_CONSTANT_MODE TRANSPORT_CONSTANT_COUNT
-#define LIT_MODE_BASE 0u
-#define LIT_MODE_MERGE 1u
-#define LIT_MODE_COUNT 2u
-struct LitPyramidPush {
-    uint level;  // the level a merge writes (>= 1)
-};
-
-// Cells per axis of level `level` of the lit pyramid over a grid of `dims` voxels.
-REFRACT_INLINE uvec3 lit_cells(uvec3 dims, uint level) {
-    uint side = uint(LIT_BLOCK) << level;
-    return (dims + (side - 1u)) / side;
-}
 
 // Where a photon left the grid (or stopped), for the optics tests.
 struct PhotonExit {
@@ -594,7 +563,7 @@ REFRACT_INLINE uint work_list_groups_begun(uint first, uint end, uint group) {
 REFRACT_SHADERS_END
 
 #ifdef __cplusplus
-static_assert(sizeof(refract::shaders::TransportParams) == (54 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
+static_assert(sizeof(refract::shaders::TransportParams) == (52 + 4 * TRANSPORT_MAX_LIGHTS) * 16);
 static_assert(sizeof(refract::shaders::Material) == 80);
 static_assert(sizeof(refract::shaders::PhotonStats) == 36);
 static_assert(sizeof(refract::shaders::WorkListHeader) == 16);
