@@ -1,8 +1,9 @@
 // The frame's second stage: light through the field (the paper's section 4.3). Each light's unbent
 // light in closed form, its photons along curved paths, both resolved into the radiance grid and the
-// floor's caustic map, then the lit pyramid the eye rays skip dark space with. It owns those images,
-// the photon accumulators, the environment's map and the frame's parameters, and knows what its
-// radiance grid was made with (so an interactive frame may shade from a still frame's photons).
+// floor's caustic map (spread, for interactive frames, over boxes sized by the photons behind each). It
+// owns those images, the photon accumulators, the environment's map and the frame's parameters, and
+// knows what its radiance grid was made with (so an interactive frame may shade from a still frame's
+// photons).
 #pragma once
 
 #include <optional>
