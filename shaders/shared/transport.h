@@ -388,7 +388,8 @@ struct TransportParams {
                               // name order (TRANSPORT_CONSTANT_MATERIALS); z: objects; w: unused
     uvec4 field_atlas;        // a field atlas (TRANSPORT_CONSTANT_FIELD_ATLAS): xy: device address (low, high)
                               // of the field atlas's map (FIELD_* above); zw: unused
-    uvec4 atlas_dims;  // xyz: the atlas's voxels (the index field's and coverage image's size); w: unused
+    uvec4 atlas_dims;         // xyz: the atlas's voxels (the index field's and coverage image's size);
+                              // w: unused
     vec4 medium_fade;         // the medium's density (medium_density): x: the width (voxels) over which it falls
                               // to 0 at the grid's faces, 0: none; y: where the lowest face that fades lies
                               // (voxels: 0, or -1e30 where the floor hides the bottom face); z: 1 / x (0

@@ -67,11 +67,12 @@ std::string read_file(const fs::path& path) {
     return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
-bool wait_until(const std::function<bool()>& done, std::chrono::milliseconds limit) {
+bool wait_until(const std::function<bool()>& done, std::chrono::milliseconds limit,
+                std::chrono::milliseconds interval) {
     const auto end = std::chrono::steady_clock::now() + limit;
     while (!done()) {
         if (std::chrono::steady_clock::now() > end) return false;
-        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        std::this_thread::sleep_for(interval);
     }
     return true;
 }
@@ -154,15 +155,14 @@ void Daemon::start() {
 
 bool Daemon::wait_until_warm(std::chrono::seconds limit) const {
     httplib::Client probe = client();
-    const auto deadline = std::chrono::steady_clock::now() + limit;
-    // Every 50 ms, not wait_until's 5: each probe is a request the warming daemon answers and logs.
-    for (;;) {
-        const auto res = probe.Get("/api/health");
-        if (res && res->status == 200 && nlohmann::json::parse(res->body).value("warming_up", true) == false)
-            return true;
-        if (std::chrono::steady_clock::now() >= deadline) return false;
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
+    // Every 50 ms, not 5: each probe is a request the warming daemon answers and logs.
+    return wait_until(
+        [&] {
+            const auto res = probe.Get("/api/health");
+            return res && res->status == 200 &&
+                   nlohmann::json::parse(res->body).value("warming_up", true) == false;
+        },
+        limit, std::chrono::milliseconds(50));
 }
 
 int64_t Daemon::rss_bytes() const {

@@ -30,8 +30,9 @@ inline constexpr char kTetrahedronObj[] =
 // The whole of a file's bytes ("" when unreadable).
 std::string read_file(const std::filesystem::path& path);
 
-// Polls `done` every 5 ms until it holds (true) or `limit` has passed (false).
-bool wait_until(const std::function<bool()>& done, std::chrono::milliseconds limit);
+// Polls `done` every `interval` until it holds (true) or `limit` has passed (false).
+bool wait_until(const std::function<bool()>& done, std::chrono::milliseconds limit,
+                std::chrono::milliseconds interval = std::chrono::milliseconds(5));
 
 // A fresh directory under the system temp dir, removed with everything in it on destruction.
 class TempDir {
