@@ -192,9 +192,13 @@ void write_json(const std::filesystem::path& path, const json& j) {
     if (!out) throw std::runtime_error("cannot write " + path.string());
 }
 
+// A one-shot command compiles only the pipelines its frames dispatch: with every pass's set compiled up
+// front a 32^2 render took 0.74-0.84 s on lavapipe against 0.40 s (the 512^2 one against POV-Ray: 1.87-1.96
+// against 1.58-1.59 s).
 vk::Context make_context_for(const Arguments& args) {
     vk::ContextOptions options;
     options.device_name = args.device;
+    options.compile_on_first_use = true;
     return vk::Context(vk::options_from_environment(options));
 }
 

@@ -34,9 +34,9 @@ struct ContextOptions {
     bool validation = false;  // enable VK_LAYER_KHRONOS_validation and count its errors
     // Compile each compute pipeline at its first dispatch instead of when its pass is made. The passes
     // hold variants for every kind of scene, and creating them all took 74% of a small GPU test's time
-    // on lavapipe with validation, and 0.3 s of the daemon's 1.9 to the end of its warm-up. The tests
-    // and the daemon (whose warm-up compiles what first frames need) opt in; the CLI compiles up front,
-    // so that its timings never hold the driver's compiler.
+    // on lavapipe with validation, and 0.3 s of the daemon's 1.9 to the end of its warm-up. The tests,
+    // the daemon (whose warm-up compiles what first frames need) and the one-shot commands opt in;
+    // `refract bench` compiles up front, so that its timings never hold the driver's compiler.
     bool compile_on_first_use = false;
 };
 
