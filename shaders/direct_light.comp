@@ -10,7 +10,9 @@
 #include "radiance_sums.glsl"
 layout(local_size_x = TRANSPORT_GROUP_SIZE) in;
 #include "linear_id.glsl"
-layout(constant_id = DIRECT_CONSTANT_MODE) const uint kMode = DIRECT_MODE_TRACE;
+// Each job its own SPIR-V (DIRECT_MODE, defined per build of this shader: cmake/shaders.cmake), so that a
+// pipeline's driver compile sees only its job's code.
+const uint kMode = uint(DIRECT_MODE);
 
 layout(std430, binding = TRANSPORT_BINDING_LIGHT_MAP_TRACED) buffer Traced { float traced[]; };
 layout(std430, binding = TRANSPORT_BINDING_LIGHT_MAP) buffer LightMap { float light_map[]; };

@@ -4,7 +4,7 @@
 #include <cstddef>
 #include <iterator>
 
-#include "direct_light_spv.h"
+#include "direct_light_modes_spv.h"
 #include "transport.h"
 
 namespace refract::passes {
@@ -19,11 +19,7 @@ constexpr vk::BindingLayout kOwnLayout[] = {
     {TRANSPORT_BINDING_FLOOR_SHADOW, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
 };
 constexpr auto kLayout = transport_layout(kOwnLayout);
-static_assert(DIRECT_CONSTANT_MODE == TRANSPORT_CONSTANT_COUNT);
-constexpr uint32_t kTrace[] = {DIRECT_MODE_TRACE}, kMargin[] = {DIRECT_MODE_MARGIN}, kReach[] = {DIRECT_MODE_REACH},
-                   kDeposit[] = {DIRECT_MODE_DEPOSIT}, kDepositFull[] = {DIRECT_MODE_DEPOSIT_FULL},
-                   kEdge[] = {DIRECT_MODE_EDGE}, kFloorCorners[] = {DIRECT_MODE_FLOOR_CORNERS},
-                   kFloorShadow[] = {DIRECT_MODE_FLOOR_SHADOW};
+static_assert(std::size(direct_light_modes_spv) == DIRECT_MODE_FLOOR_SHADOW + 1);
 
 std::array<vk::Binding, kLayout.size()> bindings(const TransportInputs& in, const PhotonAccumulators& accum) {
     const vk::Binding own[] = {vk::Binding::storage_buffer(TRANSPORT_BINDING_LIGHT_MAP_TRACED, accum.light_map_traced),
@@ -52,14 +48,16 @@ void dispatch(const TransportPipeline& pipeline, vk::CommandRecorder& recorder, 
 }  // namespace
 
 DirectLightPass::DirectLightPass(vk::Context& context)
-    : trace_(context, direct_light_spv, kLayout, 0, "light map (trace)", kTrace),
-      margin_(context, direct_light_spv, kLayout, 0, "light map (margin)", kMargin),
-      reach_(context, direct_light_spv, kLayout, 0, "direct light (reach)", kReach),
-      deposit_(context, direct_light_spv, kLayout, 0, "direct light", kDeposit),
-      deposit_full_(context, direct_light_spv, kLayout, 0, "direct light (edge list full)", kDepositFull),
-      edge_(context, direct_light_spv, kLayout, 0, "direct light (edge voxels)", kEdge),
-      floor_corners_(context, direct_light_spv, kLayout, 0, "floor shadow (corners)", kFloorCorners),
-      floor_shadow_(context, direct_light_spv, kLayout, 0, "floor shadow", kFloorShadow) {}
+    : trace_(context, direct_light_modes_spv[DIRECT_MODE_TRACE], kLayout, 0, "light map (trace)"),
+      margin_(context, direct_light_modes_spv[DIRECT_MODE_MARGIN], kLayout, 0, "light map (margin)"),
+      reach_(context, direct_light_modes_spv[DIRECT_MODE_REACH], kLayout, 0, "direct light (reach)"),
+      deposit_(context, direct_light_modes_spv[DIRECT_MODE_DEPOSIT], kLayout, 0, "direct light"),
+      deposit_full_(context, direct_light_modes_spv[DIRECT_MODE_DEPOSIT_FULL], kLayout, 0,
+                    "direct light (edge list full)"),
+      edge_(context, direct_light_modes_spv[DIRECT_MODE_EDGE], kLayout, 0, "direct light (edge voxels)"),
+      floor_corners_(context, direct_light_modes_spv[DIRECT_MODE_FLOOR_CORNERS], kLayout, 0,
+                     "floor shadow (corners)"),
+      floor_shadow_(context, direct_light_modes_spv[DIRECT_MODE_FLOOR_SHADOW], kLayout, 0, "floor shadow") {}
 
 void DirectLightPass::record(vk::CommandRecorder& recorder, const TransportInputs& inputs,
                              const PhotonAccumulators& accum, uint32_t light_map_side, vk::Extent3 radiance_dims) const {

@@ -1,7 +1,8 @@
 // A shader that does several jobs (octree: level-1 ranges, reduce, level map; voxelize: columns,
 // combine; index field: one per kind of field), compiled once per job with the job as a
 // specialization constant (VOLUME_CONSTANT_MODE in shaders/shared/volume_build.h). lavapipe runs both
-// sides of every branch, so a branch on a push constant would run every job in every dispatch.
+// sides of every branch, so a branch on a push constant would run every job in every dispatch. Where the
+// jobs are large, a shader is built once per job instead (cmake/shaders.cmake; direct_light.comp).
 #pragma once
 
 #include <initializer_list>

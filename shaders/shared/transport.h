@@ -72,8 +72,8 @@ REFRACT_SHADERS_BEGIN
 // path in one straight step; one that lands where n varies or on the object (the map was wrong for
 // it) is counted in PhotonStats::direct_overlaps. Rays outside the photons' part of the emitter
 // (photon_cone, photon_rect) meet nothing that bends them: the pass takes their whole way from `near` to
-// the floor, and no photon is traced there.
-#define DIRECT_CONSTANT_MODE TRANSPORT_CONSTANT_COUNT
+// the floor, and no photon is traced there. The pass's jobs, direct_light.comp built once for each
+// (DIRECT_MODE):
 #define DIRECT_MODE_TRACE 0u     // one ray per light-map texel: where it stops going straight
 #define DIRECT_MODE_MARGIN 1u    // the light map: the least stop around each texel, less the margin
 #define DIRECT_MODE_REACH 2u     // one invocation per 32 radiance-voxel corners along x: which of them
