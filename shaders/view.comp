@@ -268,7 +268,7 @@ void shade(uvec2 pixel) {
                 float t = 0.0;
                 vec3 gathered_before = radiance_sum;
                 // The medium's density at a view step's midpoint stands for the step (medium.fade): a
-                // view step is a voxel or two, a seventh of the default fade or less.
+                // view step is one to three voxels, under a quarter of the default fade.
                 while (t < run) {
                     float len = min(gather_step, run - t);
                     vec3 x = ray.p + (t + 0.5 * len) * ray.d;
