@@ -173,9 +173,9 @@ json homogeneous(double extinction, double scattering, const json& phase, uint32
 // multiplied step by step rather than over the cell, so rounded otherwise: the still hashes of the scenes
 // with fog, the ball lens's interactive one; in the ball lens example at 512^2, 424 pixels one 8-bit level
 // apart, and 7 grazing rays at the ball's rim that enter the glass elsewhere by a rounding), and previews
-// stepping a voxel of their radiance grid through fog, not two lattice voxels (run_options_for: the
-// interactive hashes of the scenes with fog; 0.36 8-bit RMS in the ball lens in fog at 256^2, its
-// difference from the still the same).
+// stepping a voxel of their own radiance grid through fog, not two lattice voxels (transport_inputs in
+// frame_inputs.cpp: the interactive hashes of the scenes with fog; 0.36 8-bit RMS in the ball lens in fog
+// at 256^2, its difference from the still the same).
 // The hashes are the frames of this tree.
 uint64_t fnv1a_pfm_order(const std::vector<glm::vec4>& hdr, uint32_t width, uint32_t height) {
     uint64_t h = 0xcbf29ce484222325ull;

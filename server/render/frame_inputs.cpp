@@ -1,5 +1,7 @@
 #include "render/frame_inputs.h"
 
+#include <algorithm>
+
 #include "render/scene_gpu.h"
 #include "render/transport_inputs.h"
 
@@ -53,7 +55,13 @@ FrameInputs::Transport transport_inputs(const protocol::SceneDocument& document,
     in.film = film_reflects(document);
     TransportOptions transport;
     transport.fixed_step = options.fixed_step;
-    transport.view_step = options.view_step;
+    // Eye rays step at least radiance_factor lattice voxels through fog: a voxel of the radiance grid they
+    // gather from (less where objects refine the lattice), so a preview shading from its own grid takes
+    // three, not two. Two cost its view 1.09-1.15x, for a frame 0.36 8-bit RMS apart whose difference from
+    // the still is the same (8.571 against 8.574; docs/perf-log,
+    // 2026-12-07-where-issue-41-stands-measured-directly.md). A camera drag shading from a still's grid keeps
+    // its two.
+    transport.view_step = std::max(options.view_step, static_cast<float>(options.radiance_factor));
     transport.reflected_view_step = options.reflected_view_step;
     transport.traced_reflection_share = options.traced_reflection_share;
     transport.neighbour_footprints = options.neighbour_footprints;

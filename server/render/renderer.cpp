@@ -377,14 +377,9 @@ RunOptions run_options_for(Quality quality) {
     // (docs/perf-log/2026-12-04-sampled-deposits-for-stills.md).
     options.sampled_deposits = true;
     if (quality == Quality::interactive) {
+        options.view_step = 2.0f;
         options.traced_reflection_share = FRESNEL_PREVIEW_TRACED_SHARE;
         options.radiance_factor = 3;
-        // A preview's eye rays step a voxel of its radiance grid in fog (radiance_factor lattice voxels, a
-        // finer share of one where objects refine the lattice), as a still's step one voxel of its own.
-        // Two lattice voxels cost the view 1.09-1.15x and differ by 0.36 8-bit RMS, and the preview's
-        // difference from the still is the same (8.571 against 8.574; docs/perf-log,
-        // 2026-12-07-where-issue-41-stands-measured-directly.md).
-        options.view_step = static_cast<float>(options.radiance_factor);
         options.adaptive_view = true;
         options.neighbour_footprints = false;
         options.adaptive_density = true;

@@ -62,7 +62,8 @@ struct RunOptions {
     // The voxelize pass keeps each object's resident coverage while its world mesh, box, smoothing and
     // rays stay (voxelize.again: every object anew).
     VoxelizeOptions voxelize;
-    float view_step = 1.0f;  // eye-ray step in scattering media (voxels); interactive: a radiance voxel
+    float view_step = 1.0f;  // eye-ray step in scattering media (voxels); interactive frames use 2
+                             // (at least radiance_factor: transport_inputs, frame_inputs.cpp)
     // The view step of reflected eye paths, in view steps (FRESNEL_REFLECTED_VIEW_STEP; 1: as the first).
     float reflected_view_step = FRESNEL_REFLECTED_VIEW_STEP;
     // A reflected eye path whose share of the pixel's light is below this in every channel takes the floor
