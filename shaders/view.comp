@@ -12,10 +12,11 @@
 #include "phase.h"
 #include "view_tiles.glsl"
 #include "environment.glsl"
+#include "trilinear.glsl"
 
 layout(local_size_x = VIEW_GROUP_SIZE, local_size_y = VIEW_GROUP_SIZE) in;
-layout(binding = TRANSPORT_BINDING_RADIANCE) uniform sampler3D radiance;
-layout(binding = TRANSPORT_BINDING_FLUX) uniform sampler3D flux;
+layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) readonly uniform image3D radiance;
+layout(binding = TRANSPORT_BINDING_FLUX, rgba32f) readonly uniform image3D flux;
 layout(std430, binding = TRANSPORT_BINDING_FLOOR_MAP) readonly buffer FloorMap { uvec2 floor_map[]; };
 layout(std430, binding = TRANSPORT_BINDING_HDR) buffer Hdr { vec4 hdr[]; };
 layout(std430, binding = TRANSPORT_BINDING_VIEW_ENDS) writeonly buffer Ends { ViewEnd ends[]; };
@@ -34,8 +35,10 @@ vec3 in_scattered(vec3 x, vec3 d, uint model, float g) {
     // The radiance grid's voxel v spans index-field voxels [f v, f (v + 1)) (transport.h), so its
     // texture covers f x its dims: more than the index field where a side is not a multiple of f.
     vec3 q = x / (vec3(params.radiance_grid.xyz) * float(params.radiance_grid.w));
-    vec4 net = textureLod(flux, q, 0.0);  // xyz: net flux vector, w: fluence (channel mean)
-    vec3 fluence = kGreyTransport ? net.w * grey_colour(params.photon_flux) : textureLod(radiance, q, 0.0).rgb;
+    TrilinearCell cell = trilinear_cell(q, imageSize(flux));  // the radiance image's size too
+    vec4 net = trilinear_blend(cell, TRILINEAR_CORNERS(flux, cell));  // xyz: net flux vector, w: fluence (channel mean)
+    vec3 fluence = kGreyTransport ? net.w * grey_colour(params.photon_flux)
+                                  : trilinear_blend(cell, TRILINEAR_CORNERS(radiance, cell)).rgb;
     float along = length(net.xyz);
     float coherence = min(along / max(net.w, 1e-30), 1.0);
     float cos_theta = dot(net.xyz, -d) / max(along, 1e-30);

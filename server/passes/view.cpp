@@ -16,8 +16,8 @@ namespace {
 static_assert(FRESNEL_EYE_REFLECTIONS == 3u);
 
 constexpr vk::BindingLayout kOwnLayout[] = {
-    {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
-    {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_RADIANCE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_FLUX, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_FLOOR_MAP, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_HDR, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
     {TRANSPORT_BINDING_STATS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -49,8 +49,8 @@ bool ViewPass::record(vk::CommandRecorder& recorder, const TransportInputs& in, 
     const shaders::WorkListHeader empty{0, 1, 1, 0};
     recorder.update(out.refine, 0, &empty, sizeof(empty));
     recorder.transfer_to_compute_barrier();
-    const vk::Binding own[] = {vk::Binding::sampled_image(TRANSPORT_BINDING_RADIANCE, radiance, in.sampler),
-                               vk::Binding::sampled_image(TRANSPORT_BINDING_FLUX, flux, in.sampler),
+    const vk::Binding own[] = {vk::Binding::storage_image(TRANSPORT_BINDING_RADIANCE, radiance),
+                               vk::Binding::storage_image(TRANSPORT_BINDING_FLUX, flux),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_FLOOR_MAP, floor_map),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_HDR, out.hdr),
                                vk::Binding::storage_buffer(TRANSPORT_BINDING_STATS, out.stats),

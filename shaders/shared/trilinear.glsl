@@ -1,0 +1,40 @@
+// Trilinear interpolation of a 3D storage image read texel by texel: what a linear, clamp-to-edge
+// sampler returns at level 0 for normalized coordinates, up to rounding. lavapipe runs a filtered fetch
+// of a float format as an out-of-line function, around which the calling loop's live registers go to the
+// stack; an image load is inlined (the viewing pass 5-10% faster:
+// docs/perf-log/2026-12-07-the-fluence-read-texel-by-texel.md). The sampler fuses each interpolation's
+// multiply and add; these round them apart (lavapipe splits every fma), so results differ from its in
+// the last bits. GLSL passes no image to a function: TRILINEAR_CORNERS lists a cell's eight loads.
+
+// The texels around normalized point q of an image of `size` texels, and q's weights between them.
+struct TrilinearCell {
+    ivec3 lo;
+    ivec3 hi;
+    vec3 w;
+};
+
+TrilinearCell trilinear_cell(vec3 q, ivec3 size) {
+    vec3 n = vec3(size);
+    vec3 u = max(min(q * n, n) - 0.5, vec3(0.0));
+    vec3 low = floor(u);
+    ivec3 lo = ivec3(low);
+    return TrilinearCell(lo, min(lo + 1, size - 1), u - low);
+}
+
+// The corners in TRILINEAR_CORNERS' order: x fastest, then y, then z.
+#define TRILINEAR_CORNERS(image, c)                                                                       \
+    imageLoad(image, c.lo), imageLoad(image, ivec3(c.hi.x, c.lo.y, c.lo.z)),                              \
+        imageLoad(image, ivec3(c.lo.x, c.hi.y, c.lo.z)), imageLoad(image, ivec3(c.hi.x, c.hi.y, c.lo.z)), \
+        imageLoad(image, ivec3(c.lo.x, c.lo.y, c.hi.z)), imageLoad(image, ivec3(c.hi.x, c.lo.y, c.hi.z)), \
+        imageLoad(image, ivec3(c.lo.x, c.hi.y, c.hi.z)), imageLoad(image, c.hi)
+
+// The sampler's form of an interpolation (closer to its results than mix, which lavapipe lowers otherwise).
+vec4 trilinear_lerp(vec4 a, vec4 b, float t) { return a + t * (b - a); }
+
+// Along x, then y, then z, as the sampler interpolates.
+vec4 trilinear_blend(TrilinearCell c, vec4 v000, vec4 v100, vec4 v010, vec4 v110, vec4 v001, vec4 v101, vec4 v011,
+                     vec4 v111) {
+    vec4 y0 = trilinear_lerp(trilinear_lerp(v000, v100, c.w.x), trilinear_lerp(v010, v110, c.w.x), c.w.y);
+    vec4 y1 = trilinear_lerp(trilinear_lerp(v001, v101, c.w.x), trilinear_lerp(v011, v111, c.w.x), c.w.y);
+    return trilinear_lerp(y0, y1, c.w.z);
+}
