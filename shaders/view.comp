@@ -12,7 +12,6 @@
 #include "phase.h"
 #include "view_tiles.glsl"
 #include "environment.glsl"
-#include "trilinear.glsl"
 
 layout(local_size_x = VIEW_GROUP_SIZE, local_size_y = VIEW_GROUP_SIZE) in;
 layout(binding = TRANSPORT_BINDING_RADIANCE, rgba32f) readonly uniform image3D radiance;
@@ -36,9 +35,9 @@ vec3 in_scattered(vec3 x, vec3 d, uint model, float g) {
     // texture covers f x its dims: more than the index field where a side is not a multiple of f.
     vec3 q = x / (vec3(params.radiance_grid.xyz) * float(params.radiance_grid.w));
     TrilinearCell cell = trilinear_cell(q, imageSize(flux));  // the radiance image's size too
-    vec4 net = trilinear_blend(cell, TRILINEAR_CORNERS(flux, cell));  // xyz: net flux vector, w: fluence (channel mean)
+    vec4 net = TRILINEAR_AT(flux, cell);  // xyz: net flux vector, w: fluence (channel mean)
     vec3 fluence = kGreyTransport ? net.w * grey_colour(params.photon_flux)
-                                  : trilinear_blend(cell, TRILINEAR_CORNERS(radiance, cell)).rgb;
+                                  : TRILINEAR_AT(radiance, cell).rgb;
     float along = length(net.xyz);
     float coherence = min(along / max(net.w, 1e-30), 1.0);
     float cos_theta = dot(net.xyz, -d) / max(along, 1e-30);

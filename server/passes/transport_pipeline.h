@@ -89,18 +89,17 @@ struct TransportInputs {
     const vk::Image3D& medium_extinction;
     const vk::Image3D& medium_scattering;
     const vk::Image3D& medium_emission;
-    VkSampler sampler;
     TransportVariant variant;
 };
 
 inline constexpr vk::BindingLayout kTransportInputLayout[] = {
     {TRANSPORT_BINDING_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-    {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
-    {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_INDEX_FIELD, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_COVERAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
     {TRANSPORT_BINDING_LEVELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-    {TRANSPORT_BINDING_MEDIUM_EXTINCTION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
-    {TRANSPORT_BINDING_MEDIUM_SCATTERING, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
-    {TRANSPORT_BINDING_MEDIUM_EMISSION, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER},
+    {TRANSPORT_BINDING_MEDIUM_EXTINCTION, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_MEDIUM_SCATTERING, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+    {TRANSPORT_BINDING_MEDIUM_EMISSION, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
 };
 constexpr size_t kTransportInputCount = std::size(kTransportInputLayout);
 
@@ -118,12 +117,12 @@ template <size_t N>
 std::array<vk::Binding, kTransportInputCount + N> transport_bindings(const TransportInputs& in, const vk::Binding (&own)[N]) {
     std::array<vk::Binding, kTransportInputCount + N> bindings{
         vk::Binding::storage_buffer(TRANSPORT_BINDING_PARAMS, in.params),
-        vk::Binding::sampled_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field, in.sampler),
-        vk::Binding::sampled_image(TRANSPORT_BINDING_COVERAGE, in.coverage, in.sampler),
+        vk::Binding::storage_image(TRANSPORT_BINDING_INDEX_FIELD, in.index_field),
+        vk::Binding::storage_image(TRANSPORT_BINDING_COVERAGE, in.coverage),
         vk::Binding::storage_buffer(TRANSPORT_BINDING_LEVELS, in.levels),
-        vk::Binding::sampled_image(TRANSPORT_BINDING_MEDIUM_EXTINCTION, in.medium_extinction, in.sampler),
-        vk::Binding::sampled_image(TRANSPORT_BINDING_MEDIUM_SCATTERING, in.medium_scattering, in.sampler),
-        vk::Binding::sampled_image(TRANSPORT_BINDING_MEDIUM_EMISSION, in.medium_emission, in.sampler)};
+        vk::Binding::storage_image(TRANSPORT_BINDING_MEDIUM_EXTINCTION, in.medium_extinction),
+        vk::Binding::storage_image(TRANSPORT_BINDING_MEDIUM_SCATTERING, in.medium_scattering),
+        vk::Binding::storage_image(TRANSPORT_BINDING_MEDIUM_EMISSION, in.medium_emission)};
     for (size_t i = 0; i < N; ++i) bindings[kTransportInputCount + i] = own[i];
     return bindings;
 }

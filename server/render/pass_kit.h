@@ -32,7 +32,6 @@ struct PassKit {
     passes::ToneMapPass tone_map;
     passes::TemporalNeighbourhoodPass temporal_neighbourhood;
     passes::TemporalReusePass temporal_reuse;
-    vk::UniqueSampler linear_sampler;
 };
 
 }  // namespace refract::scene

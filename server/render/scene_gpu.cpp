@@ -31,8 +31,7 @@ PassKit::PassKit(vk::Context& ctx)
       view_upscale(ctx),
       tone_map(ctx),
       temporal_neighbourhood(ctx),
-      temporal_reuse(ctx),
-      linear_sampler(vk::make_linear_sampler(ctx)) {}
+      temporal_reuse(ctx) {}
 
 int64_t estimate_scene_bytes(const passes::GridGeometry& grid, uint64_t field_voxels, uint64_t object_voxels,
                              uint64_t radiance_voxels, uint32_t width, uint32_t height) {

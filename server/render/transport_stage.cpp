@@ -216,8 +216,13 @@ void TransportStage::prepare(const FrameInputs::Transport& in, PassSet stale, co
 }
 
 passes::TransportInputs TransportStage::inputs_for(const vk::Buffer& params, const VolumeStage& volume) const {
-    return passes::TransportInputs{params,           volume.index_field(), volume.coverage_image(), volume.levels(),
-                                   medium_extinction_, medium_scattering_, medium_emission_, kit_.linear_sampler.get(),
+    return passes::TransportInputs{params,
+                                   volume.index_field(),
+                                   volume.coverage_image(),
+                                   volume.levels(),
+                                   medium_extinction_,
+                                   medium_scattering_,
+                                   medium_emission_,
                                    variant_};
 }
 

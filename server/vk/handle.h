@@ -42,7 +42,6 @@ using UniqueBuffer = DeviceHandle<VkBuffer, vkDestroyBuffer>;
 using UniqueImage = DeviceHandle<VkImage, vkDestroyImage>;
 using UniqueImageView = DeviceHandle<VkImageView, vkDestroyImageView>;
 using UniqueMemory = DeviceHandle<VkDeviceMemory, vkFreeMemory>;
-using UniqueSampler = DeviceHandle<VkSampler, vkDestroySampler>;
 using UniqueShaderModule = DeviceHandle<VkShaderModule, vkDestroyShaderModule>;
 using UniqueDescriptorSetLayout = DeviceHandle<VkDescriptorSetLayout, vkDestroyDescriptorSetLayout>;
 using UniquePipelineLayout = DeviceHandle<VkPipelineLayout, vkDestroyPipelineLayout>;

@@ -5,16 +5,13 @@
 namespace refract::vk {
 
 Binding Binding::storage_buffer(uint32_t binding, const Buffer& buffer) {
-    return {binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, buffer.get(), VK_NULL_HANDLE, VK_NULL_HANDLE};
+    return {binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, buffer.get(), VK_NULL_HANDLE};
 }
 Binding Binding::uniform_buffer(uint32_t binding, const Buffer& buffer) {
-    return {binding, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, buffer.get(), VK_NULL_HANDLE, VK_NULL_HANDLE};
+    return {binding, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, buffer.get(), VK_NULL_HANDLE};
 }
 Binding Binding::storage_image(uint32_t binding, const Image3D& image) {
-    return {binding, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, VK_NULL_HANDLE, image.view(), VK_NULL_HANDLE};
-}
-Binding Binding::sampled_image(uint32_t binding, const Image3D& image, VkSampler sampler) {
-    return {binding, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, VK_NULL_HANDLE, image.view(), sampler};
+    return {binding, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, VK_NULL_HANDLE, image.view()};
 }
 
 ComputePipeline::ComputePipeline(Context& context, std::span<const uint32_t> spirv,
@@ -125,7 +122,7 @@ void ComputePipeline::bind(VkCommandBuffer cmd, std::span<const Binding> binding
             buffer_infos[i] = {b.buffer, 0, VK_WHOLE_SIZE};
             write.pBufferInfo = &buffer_infos[i];
         } else {
-            image_infos[i] = {b.sampler, b.view, VK_IMAGE_LAYOUT_GENERAL};
+            image_infos[i] = {VK_NULL_HANDLE, b.view, VK_IMAGE_LAYOUT_GENERAL};
             write.pImageInfo = &image_infos[i];
         }
         writes.push_back(write);

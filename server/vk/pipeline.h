@@ -23,12 +23,10 @@ struct Binding {
     VkDescriptorType type = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
     VkBuffer buffer = VK_NULL_HANDLE;
     VkImageView view = VK_NULL_HANDLE;
-    VkSampler sampler = VK_NULL_HANDLE;
 
     static Binding storage_buffer(uint32_t binding, const Buffer& buffer);
     static Binding uniform_buffer(uint32_t binding, const Buffer& buffer);
     static Binding storage_image(uint32_t binding, const Image3D& image);
-    static Binding sampled_image(uint32_t binding, const Image3D& image, VkSampler sampler);
 };
 
 using BindingLayout = std::pair<uint32_t, VkDescriptorType>;

@@ -176,17 +176,4 @@ uint32_t Image3D::texel_bytes() const {
     }
 }
 
-UniqueSampler make_linear_sampler(Context& context) {
-    VkSamplerCreateInfo info{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
-    info.magFilter = VK_FILTER_LINEAR;
-    info.minFilter = VK_FILTER_LINEAR;
-    info.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
-    info.addressModeU = info.addressModeV = info.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
-    info.maxLod = 0.0f;
-    VkSampler sampler = VK_NULL_HANDLE;
-    REFRACT_VK_CHECK(vkCreateSampler(context.device(), &info, nullptr, &sampler));
-    context.set_name(VK_OBJECT_TYPE_SAMPLER, sampler, "linear clamp sampler");
-    return UniqueSampler(context.device(), sampler);
-}
-
 }  // namespace refract::vk

@@ -84,7 +84,4 @@ private:
     std::atomic<int64_t>* account_ = nullptr;
 };
 
-// Trilinear, clamp-to-edge, unnormalized=false sampler shared by passes that read volumes.
-UniqueSampler make_linear_sampler(Context& context);
-
 }  // namespace refract::vk

@@ -17,7 +17,7 @@ using uint = uint32_t;
 struct SelftestPush {
     uint count;
     uint multiplier;
-    uint mode;  // 0: out = in * multiplier + index; 1: sample the 3D image at fixed points
+    uint mode;  // 0: out = in * multiplier + index; 1: interpolate the 3D image at the samples' points
     uint pad;
 };
 

@@ -17,8 +17,8 @@ REFRACT_SHADERS_BEGIN
 // executable mapping and 0.5 MiB of resident memory per camera frame, 1.5 MiB per frame that reruns
 // photons (issue 20). Storage-buffer loads are never folded.
 #define TRANSPORT_BINDING_PARAMS 0
-#define TRANSPORT_BINDING_INDEX_FIELD 1     // sampler3D rgba32f (n, grad n per voxel)
-#define TRANSPORT_BINDING_COVERAGE 2        // sampler3D r32f
+#define TRANSPORT_BINDING_INDEX_FIELD 1     // image3D rgba32f (n, grad n per voxel)
+#define TRANSPORT_BINDING_COVERAGE 2        // image3D rg32f: coverage, 1 + the object of most coverage
 #define TRANSPORT_BINDING_LEVELS 3          // uint per level-1 octree node (its voxels' leaf level)
 // The radiance sums (reached by device address, TransportParams::radiance_sums; radiance_sums.glsl).
 // Per voxel, fixed-point sums packed in pairs into 64-bit words, so one 64-bit atomic adds two. Colour
@@ -128,11 +128,13 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_FLOOR_SHADOW 36
 // The medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): the scene's volumes resampled on a coarse copy of the
 // lattice (render/medium_field.h), trilinearly filtered; a texel of zeros where a scene has none.
-#define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27  // sampler3D rgba32f, bricks (below): rgb extinction per metre
-#define TRANSPORT_BINDING_MEDIUM_SCATTERING 28  // sampler3D rgba32f, bricks: rgb scattering per metre; a: the phase
-                                                // g of each volume there times its channels' mean scattering
-#define TRANSPORT_BINDING_MEDIUM_EMISSION 29    // sampler3D rgba32f, bricks: rgb the volumes' emitted radiance
-                                                // per metre of path; one texel of zeros where none emits
+#define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27  // image3D rgba32f, bricks (below): rgb extinction per metre
+#define TRANSPORT_BINDING_MEDIUM_SCATTERING \
+    28  // image3D rgba32f, bricks: rgb scattering per metre; a: the phase
+        // g of each volume there times its channels' mean scattering
+#define TRANSPORT_BINDING_MEDIUM_EMISSION \
+    29  // image3D rgba32f, bricks: rgb the volumes' emitted radiance
+        // per metre of path; one texel of zeros where none emits
 // The field is stored sparse: per block of MEDIUM_FIELD_BLOCK^3 field voxels a brick of MEDIUM_BRICK_SIDE^3
 // texels in each atlas above (the block and the voxel around it, so filtering is the dense field's),
 // found through the map of blocks (medium_blocks: uvec2 per block, x fastest: its brick and its

@@ -6,6 +6,7 @@
 #extension GL_EXT_buffer_reference_uvec2 : require
 #include "transport.h"
 #include "hash.glsl"
+#include "trilinear.glsl"
 
 // The frame parameters (a storage buffer: transport.h says why), read through a private copy: lavapipe
 // loads a buffer field inside divergent control flow (the passes' loops) lane by lane, a bounds-checked
@@ -15,13 +16,17 @@
 layout(std140, binding = TRANSPORT_BINDING_PARAMS) readonly buffer Params { TransportParams frame_params; };
 TransportParams params;
 void load_params() { params = frame_params; }
-layout(binding = TRANSPORT_BINDING_INDEX_FIELD) uniform sampler3D index_field;
-layout(binding = TRANSPORT_BINDING_COVERAGE) uniform sampler3D coverage_field;
+// Every grid is read texel by texel and interpolated here (trilinear.glsl says why).
+layout(binding = TRANSPORT_BINDING_INDEX_FIELD, rgba32f) readonly uniform image3D index_field;
+layout(binding = TRANSPORT_BINDING_COVERAGE, rg32f) readonly uniform image3D coverage_field;
 layout(std430, binding = TRANSPORT_BINDING_LEVELS) readonly buffer Levels { uint levels[]; };
 layout(std430, binding = TRANSPORT_BINDING_STATS) buffer Stats { PhotonStats stats; };
-layout(binding = TRANSPORT_BINDING_MEDIUM_EXTINCTION) uniform sampler3D medium_extinction_field;
-layout(binding = TRANSPORT_BINDING_MEDIUM_SCATTERING) uniform sampler3D medium_scattering_field;
-layout(binding = TRANSPORT_BINDING_MEDIUM_EMISSION) uniform sampler3D medium_emission_field;
+layout(binding = TRANSPORT_BINDING_MEDIUM_EXTINCTION, rgba32f)
+readonly uniform image3D medium_extinction_field;
+layout(binding = TRANSPORT_BINDING_MEDIUM_SCATTERING, rgba32f)
+readonly uniform image3D medium_scattering_field;
+layout(binding = TRANSPORT_BINDING_MEDIUM_EMISSION, rgba32f)
+readonly uniform image3D medium_emission_field;
 
 // The index of the work item (pixel, photon) this invocation takes from `queue` (QUEUE_*), a subgroup's
 // worth at a time in the order subgroups run, rather than by invocation ID. lavapipe hands each CPU
@@ -66,15 +71,20 @@ vec3 atlas_shift(uint entry, vec3 p) {
 
 // (n, dn/dx, dn/dy, dn/dz) per voxel length, trilinearly interpolated: the medium's outside every
 // object's cluster.
+// The index field's and coverage's texels around p (in the atlas where kFieldAtlas, its entry not empty).
+TrilinearCell field_cell(vec3 p, uint entry) {
+    vec3 q = kFieldAtlas ? (p + atlas_shift(entry, p)) / vec3(params.atlas_dims.xyz) : p / grid_dims();
+    return trilinear_cell(q, imageSize(index_field));
+}
 vec4 index_at(vec3 p, uint entry) {
-    if (!kFieldAtlas) return textureLod(index_field, p / grid_dims(), 0.0);
-    if (entry >= FIELD_EMPTY) return vec4(params.medium_extinction.w, 0.0, 0.0, 0.0);
-    return textureLod(index_field, (p + atlas_shift(entry, p)) / vec3(params.atlas_dims.xyz), 0.0);
+    if (kFieldAtlas && entry >= FIELD_EMPTY) return vec4(params.medium_extinction.w, 0.0, 0.0, 0.0);
+    TrilinearCell cell = field_cell(p, entry);
+    return TRILINEAR_AT(index_field, cell);
 }
 float coverage_at(vec3 p, uint entry) {
-    if (!kFieldAtlas) return textureLod(coverage_field, p / grid_dims(), 0.0).r;
-    if (entry >= FIELD_EMPTY) return 0.0;
-    return textureLod(coverage_field, (p + atlas_shift(entry, p)) / vec3(params.atlas_dims.xyz), 0.0).r;
+    if (kFieldAtlas && entry >= FIELD_EMPTY) return 0.0;
+    TrilinearCell cell = field_cell(p, entry);
+    return TRILINEAR_AT(coverage_field, cell).r;
 }
 
 // The object whose material mixes with the medium's at p: the one the index-field pass left in the voxel
@@ -87,7 +97,7 @@ uint object_at(vec3 p, uint entry) {
         if (entry >= FIELD_EMPTY) return 0u;
         v += ivec3(atlas_shift(entry, p));
     }
-    float held = texelFetch(coverage_field, v, 0).g;
+    float held = imageLoad(coverage_field, v).g;
     return uint(max(held - 1.0, 0.0));
 }
 
@@ -177,14 +187,15 @@ uvec2 medium_block(vec3 f) {
     return MediumBlocks(params.medium_blocks.xy).blocks[(b.z * blocks.y + b.y) * blocks.x + b.x];
 }
 
-// The atlas's filtered value at field point f of the block `block` (medium_block(f)); 0 without a brick.
-vec4 brick_fetch(sampler3D atlas, vec3 f, uvec2 block) {
-    if (block.x == MEDIUM_NO_BRICK) return vec4(0.0);
+// The atlases' texels around field point f of the block `block` (medium_block(f)), which has a brick.
+// The three atlases share one layout.
+TrilinearCell brick_cell(vec3 f, uvec2 block) {
     uint row = params.medium_blocks.z, column = params.medium_blocks.w;
     uvec3 brick = uvec3(block.x % row, block.x / row % column, block.x / (row * column));
     vec3 local = f - vec3(min(uvec3(f), uvec3(params.medium_field.xyz) - 1u) / MEDIUM_FIELD_BLOCK * MEDIUM_FIELD_BLOCK);
     vec3 texel = vec3(brick * MEDIUM_BRICK_SIDE) + 1.0 + local;
-    return textureLod(atlas, texel / vec3(textureSize(atlas, 0)), 0.0);
+    ivec3 size = imageSize(medium_extinction_field);
+    return trilinear_cell(texel / vec3(size), size);
 }
 
 // Where the medium field is read at voxel point p: its field point and block (one map lookup serves
@@ -203,15 +214,21 @@ FieldSample field_at(vec3 p) {
 // they lie (kMediumField only; 0 without). Scattering's w: the volumes' phase g times their channels'
 // mean scattering.
 vec3 field_extinction(FieldSample at) {
-    return kMediumField ? brick_fetch(medium_extinction_field, at.f, at.block).rgb : vec3(0.0);
+    if (!kMediumField || at.block.x == MEDIUM_NO_BRICK) return vec3(0.0);
+    TrilinearCell cell = brick_cell(at.f, at.block);
+    return TRILINEAR_AT(medium_extinction_field, cell).rgb;
 }
 vec4 field_scattering(FieldSample at) {
-    return kMediumField ? brick_fetch(medium_scattering_field, at.f, at.block) : vec4(0.0);
+    if (!kMediumField || at.block.x == MEDIUM_NO_BRICK) return vec4(0.0);
+    TrilinearCell cell = brick_cell(at.f, at.block);
+    return TRILINEAR_AT(medium_scattering_field, cell);
 }
 // Whether the volumes emit, and what there (radiance per metre of path).
 bool field_emits() { return kMediumField && params.volume_emission.y > 0u; }
 vec3 field_emission(FieldSample at) {
-    return field_emits() ? brick_fetch(medium_emission_field, at.f, at.block).rgb : vec3(0.0);
+    if (!field_emits() || at.block.x == MEDIUM_NO_BRICK) return vec3(0.0);
+    TrilinearCell cell = brick_cell(at.f, at.block);
+    return TRILINEAR_AT(medium_emission_field, cell).rgb;
 }
 
 // A small random stream (a PCG step and its output hash): the next number uniform in [0, 1).

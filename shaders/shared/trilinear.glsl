@@ -1,10 +1,10 @@
 // Trilinear interpolation of a 3D storage image read texel by texel: what a linear, clamp-to-edge
-// sampler returns at level 0 for normalized coordinates, up to rounding. lavapipe runs a filtered fetch
-// of a float format as an out-of-line function, around which the calling loop's live registers go to the
-// stack; an image load is inlined (the viewing pass 5-10% faster:
-// docs/perf-log/2026-12-07-the-fluence-read-texel-by-texel.md). The sampler fuses each interpolation's
-// multiply and add; these round them apart (lavapipe splits every fma), so results differ from its in
-// the last bits. GLSL passes no image to a function: TRILINEAR_CORNERS lists a cell's eight loads.
+// sampler returns at level 0 for normalized coordinates, up to rounding (lavapipe's sampler fuses each
+// interpolation's multiply-add, which it lowers no GLSL to). lavapipe runs a filtered fetch of a float
+// format as an out-of-line function, around which the calling loop's live registers go to the stack; an
+// image load is inlined. So the transport reads every grid this way: a still's view 0.8-0.9x, a volume's
+// view 0.8x (docs/perf-log/2026-12-07-grids-read-texel-by-texel.md). GLSL passes no image to a function:
+// TRILINEAR_CORNERS lists a cell's eight loads.
 
 // The texels around normalized point q of an image of `size` texels, and q's weights between them.
 struct TrilinearCell {
@@ -28,13 +28,13 @@ TrilinearCell trilinear_cell(vec3 q, ivec3 size) {
         imageLoad(image, ivec3(c.lo.x, c.lo.y, c.hi.z)), imageLoad(image, ivec3(c.hi.x, c.lo.y, c.hi.z)), \
         imageLoad(image, ivec3(c.lo.x, c.hi.y, c.hi.z)), imageLoad(image, c.hi)
 
-// The sampler's form of an interpolation (closer to its results than mix, which lavapipe lowers otherwise).
-vec4 trilinear_lerp(vec4 a, vec4 b, float t) { return a + t * (b - a); }
-
 // Along x, then y, then z, as the sampler interpolates.
-vec4 trilinear_blend(TrilinearCell c, vec4 v000, vec4 v100, vec4 v010, vec4 v110, vec4 v001, vec4 v101, vec4 v011,
-                     vec4 v111) {
-    vec4 y0 = trilinear_lerp(trilinear_lerp(v000, v100, c.w.x), trilinear_lerp(v010, v110, c.w.x), c.w.y);
-    vec4 y1 = trilinear_lerp(trilinear_lerp(v001, v101, c.w.x), trilinear_lerp(v011, v111, c.w.x), c.w.y);
-    return trilinear_lerp(y0, y1, c.w.z);
+vec4 trilinear_blend(TrilinearCell c, vec4 v000, vec4 v100, vec4 v010, vec4 v110,
+                     vec4 v001, vec4 v101, vec4 v011, vec4 v111) {
+    vec4 y0 = mix(mix(v000, v100, c.w.x), mix(v010, v110, c.w.x), c.w.y);
+    vec4 y1 = mix(mix(v001, v101, c.w.x), mix(v011, v111, c.w.x), c.w.y);
+    return mix(y0, y1, c.w.z);
 }
+
+// The interpolated value of `image` at the point of `cell`.
+#define TRILINEAR_AT(image, cell) trilinear_blend(cell, TRILINEAR_CORNERS(image, cell))
