@@ -2,9 +2,9 @@
 // sampler returns at level 0 for normalized coordinates, up to rounding (lavapipe's sampler fuses each
 // interpolation's multiply-add, which it lowers no GLSL to). lavapipe runs a filtered fetch of a float
 // format as an out-of-line function, around which the calling loop's live registers go to the stack; an
-// image load is inlined. So the transport reads every grid this way: a still's view 0.8-0.9x, a volume's
-// view 0.8x (docs/perf-log/2026-12-07-grids-read-texel-by-texel.md). GLSL passes no image to a function:
-// TRILINEAR_CORNERS lists a cell's eight loads.
+// image load is inlined. So the transport reads every grid this way: a still's view 0.88-0.93x, the smoke
+// past glass's camera edit 0.77-0.79x (docs/perf-log/2026-12-07-grids-read-texel-by-texel.md). GLSL passes
+// no image to a function: TRILINEAR_CORNERS lists a cell's eight loads.
 
 // The texels around normalized point q of an image of `size` texels, and q's weights between them.
 struct TrilinearCell {
