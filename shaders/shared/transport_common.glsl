@@ -69,13 +69,14 @@ vec3 atlas_shift(uint entry, vec3 p) {
     return vec3(atlas_cell * FIELD_CELL) - vec3((uvec3(voxel_of(p)) / FIELD_CELL) * FIELD_CELL);
 }
 
-// (n, dn/dx, dn/dy, dn/dz) per voxel length, trilinearly interpolated: the medium's outside every
-// object's cluster.
 // The index field's and coverage's texels around p (in the atlas where kFieldAtlas, its entry not empty).
 TrilinearCell field_cell(vec3 p, uint entry) {
     vec3 q = kFieldAtlas ? (p + atlas_shift(entry, p)) / vec3(params.atlas_dims.xyz) : p / grid_dims();
     return trilinear_cell(q, imageSize(index_field));
 }
+
+// (n, dn/dx, dn/dy, dn/dz) per voxel length, trilinearly interpolated: the medium's outside every
+// object's cluster.
 vec4 index_at(vec3 p, uint entry) {
     if (kFieldAtlas && entry >= FIELD_EMPTY) return vec4(params.medium_extinction.w, 0.0, 0.0, 0.0);
     TrilinearCell cell = field_cell(p, entry);

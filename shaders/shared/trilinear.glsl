@@ -1,6 +1,6 @@
 // Trilinear interpolation of a 3D storage image read texel by texel: what a linear, clamp-to-edge
 // sampler returns at level 0 for normalized coordinates, up to rounding (lavapipe's sampler fuses each
-// interpolation's multiply-add, which it lowers no GLSL to). lavapipe runs a filtered fetch of a float
+// interpolation's multiply and add; a shader's are rounded apart). lavapipe runs a filtered fetch of a float
 // format as an out-of-line function, around which the calling loop's live registers go to the stack; an
 // image load is inlined. So the transport reads every grid this way: a still's view 0.88-0.93x, the smoke
 // past glass's camera edit 0.77-0.79x (docs/perf-log/2026-12-07-grids-read-texel-by-texel.md). GLSL passes
@@ -21,7 +21,7 @@ TrilinearCell trilinear_cell(vec3 q, ivec3 size) {
     return TrilinearCell(lo, min(lo + 1, size - 1), u - low);
 }
 
-// The corners in TRILINEAR_CORNERS' order: x fastest, then y, then z.
+// A cell's eight texels, x fastest, then y, then z: trilinear_blend's arguments.
 #define TRILINEAR_CORNERS(image, c)                                                                       \
     imageLoad(image, c.lo), imageLoad(image, ivec3(c.hi.x, c.lo.y, c.lo.z)),                              \
         imageLoad(image, ivec3(c.lo.x, c.hi.y, c.lo.z)), imageLoad(image, ivec3(c.hi.x, c.hi.y, c.lo.z)), \
