@@ -128,13 +128,12 @@ REFRACT_SHADERS_BEGIN
 #define TRANSPORT_BINDING_FLOOR_SHADOW 36
 // The medium field (TRANSPORT_CONSTANT_MEDIUM_FIELD): the scene's volumes resampled on a coarse copy of the
 // lattice (render/medium_field.h), trilinearly filtered; a texel of zeros where a scene has none.
-#define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27  // image3D rgba32f, bricks (below): rgb extinction per metre
-#define TRANSPORT_BINDING_MEDIUM_SCATTERING \
-    28  // image3D rgba32f, bricks: rgb scattering per metre; a: the phase
-        // g of each volume there times its channels' mean scattering
-#define TRANSPORT_BINDING_MEDIUM_EMISSION \
-    29  // image3D rgba32f, bricks: rgb the volumes' emitted radiance
-        // per metre of path; one texel of zeros where none emits
+// Three image3D rgba32f atlases of bricks (below): rgb extinction per metre; rgb scattering per metre with
+// a: the phase g of each volume there times its channels' mean scattering; rgb the volumes' emitted
+// radiance per metre of path (one texel of zeros where none emits).
+#define TRANSPORT_BINDING_MEDIUM_EXTINCTION 27
+#define TRANSPORT_BINDING_MEDIUM_SCATTERING 28
+#define TRANSPORT_BINDING_MEDIUM_EMISSION 29
 // The field is stored sparse: per block of MEDIUM_FIELD_BLOCK^3 field voxels a brick of MEDIUM_BRICK_SIDE^3
 // texels in each atlas above (the block and the voxel around it, so filtering is the dense field's),
 // found through the map of blocks (medium_blocks: uvec2 per block, x fastest: its brick and its
