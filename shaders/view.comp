@@ -46,6 +46,8 @@ vec3 in_scattered(vec3 x, vec3 d, uint model, float g) {
 
 // The transmittance-weighted length of a step: the integral of exp(-kappa t) over it.
 vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
+    // One channel's under grey transport, as beer_lambert.
+    if (kGreyTransport) return vec3(kappa.r > 1e-7 ? (1.0 - attenuation.r) / kappa.r : len);
     return mix(vec3(len), (1.0 - attenuation) / kappa, greaterThan(kappa, vec3(1e-7)));
 }
 
@@ -265,7 +267,7 @@ void shade(uvec2 pixel) {
                 uint model = phase_model_at(scatter_coverage, object);
                 float g = phase_g_at(scatter_coverage, object);
                 float gather_step = level == 0u ? run : view_step;
-                vec3 step_attenuation = exp(-kappa * gather_step);
+                vec3 step_attenuation = beer_lambert(kappa, gather_step);
                 vec3 step_path = transmitted_path(kappa, gather_step, step_attenuation);
                 float t = 0.0;
                 vec3 gathered_before = radiance_sum;
@@ -281,7 +283,7 @@ void shade(uvec2 pixel) {
                     vec4 field_s = field_scattering(at);
                     vec3 field_sigma = field_extinction(at);
                     if (kMediumField) kappa_here += field_sigma * h;
-                    vec3 attenuation = whole ? step_attenuation : exp(-kappa_here * len);
+                    vec3 attenuation = whole ? step_attenuation : beer_lambert(kappa_here, len);
                     vec3 path_length = whole ? step_path : transmitted_path(kappa_here, len, attenuation);
                     vec3 sigma_here = thinned(sigma_s, params.medium_scattering.rgb * h, scatter_coverage, density);
                     radiance_sum += transmittance * sigma_here * path_length * in_scattered(x, ray.d, model, g);
@@ -308,7 +310,7 @@ void shade(uvec2 pixel) {
                 // scatters everywhere), so only the medium and the object dim it.
                 float density = run > 0.0 ? medium_depth(ray.p, ray.d, run) / run : 1.0;
                 vec3 kappa_run = thinned(kappa, params.medium_extinction.rgb * h, extinction_coverage, density);
-                transmittance *= exp(-kappa_run * run);
+                transmittance *= beer_lambert(kappa_run, run);
                 ++steps;
             }
             if (run >= to_end) {
