@@ -44,6 +44,13 @@ vec3 in_scattered(vec3 x, vec3 d, uint model, float g) {
     return fluence * mix(phase_isotropic(), phase_value(model, cos_theta, g), coherence);
 }
 
+// Beer-Lambert: what extinction `kappa` (per channel, per unit of `len`) lets through over `len`. Under
+// grey transport every channel's extinction is the same float, so one exponential serves all three, to
+// the bit: lavapipe evaluates each component of a vector's on its own.
+vec3 beer_lambert(vec3 kappa, float len) {
+    return kGreyTransport ? vec3(exp(-kappa.r * len)) : exp(-kappa * len);
+}
+
 // The transmittance-weighted length of a step: the integral of exp(-kappa t) over it.
 vec3 transmitted_path(vec3 kappa, float len, vec3 attenuation) {
     // One channel's under grey transport, as beer_lambert.

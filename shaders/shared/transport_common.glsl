@@ -169,13 +169,6 @@ float medium_depth(vec3 p, vec3 d, float len) {
     return params.medium_fade.x > 0.0 ? depth : len;
 }
 
-// Beer-Lambert: what extinction `kappa` (per channel, per unit of `len`) lets through over `len`. Under
-// grey transport every channel's extinction is the same float, so one exponential serves all three, to
-// the bit: lavapipe evaluates each component of a vector's on its own.
-vec3 beer_lambert(vec3 kappa, float len) {
-    return kGreyTransport ? vec3(exp(-kappa.r * len)) : exp(-kappa * len);
-}
-
 // A coefficient (per length, per channel) at coverage c where the medium's density is `density`: the
 // medium's share, `medium` in the same units, thinned by it. The coefficient itself where density is 1.
 vec3 thinned(vec3 coefficient, vec3 medium, float c, float density) {
