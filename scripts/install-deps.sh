@@ -7,11 +7,11 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
 # REFRACT_RUNTIME_ONLY=1: only what the built binaries need to run (the container image's final stage).
-runtime=(libvulkan1 mesa-vulkan-drivers libpng16-16 libpq5 libopenexr-3-1-30 libtinygltf2d libcpp-httplib0.11 libopenvdb10.0 curl ca-certificates)
+runtime=(libvulkan1 libpng16-16 libpq5 libopenexr-3-1-30 libtinygltf2d libcpp-httplib0.11 libopenvdb10.0 curl ca-certificates)
 
 packages=(
   build-essential cmake pkg-config git ca-certificates curl
-  libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
+  libvulkan-dev vulkan-validationlayers vulkan-tools
   glslang-tools
   libcpp-httplib-dev nlohmann-json3-dev libpng-dev zlib1g-dev libglm-dev libgtest-dev
   libboost1.81-dev
@@ -53,4 +53,19 @@ done
 if [ "${#missing[@]}" -gt 0 ]; then
   $SUDO apt-get update -qq
   $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+# lavapipe, the default device, from bookworm-backports (Mesa 25.0; Debian 12 itself has 22.3): its
+# llvmpipe jumps over the code of a branch no invocation of a subgroup takes, which 22.3 ran for every one,
+# so each frame is 0.87-0.97x of 22.3's and the frames are the same to a few last bits
+# (docs/perf-log/2026-12-07-lavapipe-from-backports.md). Its name and release are all a machine needs.
+lavapipe_from="25.0"
+installed="$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true)"
+if [ -z "$installed" ] || dpkg --compare-versions "$installed" lt "$lavapipe_from"; then
+  if ! grep -rqs "bookworm-backports" /etc/apt/sources.list /etc/apt/sources.list.d/; then
+    echo "deb http://deb.debian.org/debian bookworm-backports main" |
+      $SUDO tee /etc/apt/sources.list.d/bookworm-backports.list > /dev/null
+  fi
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends mesa-vulkan-drivers/bookworm-backports
 fi
