@@ -202,7 +202,7 @@ void mark_reach(uint i) {
 
 // 32 radiance voxels along x (one word of reach bits): where all of a voxel's corners take direct light,
 // the fluence at its centre (the midpoint rule); where some do, the voxel is listed for
-// deposit_edge_voxel, or done at once if the list is full (DIRECT_MODE_DEPOSIT_FULL only: lavapipe would
+// deposit_edge_voxel, or done at once if the list is full (DIRECT_MODE_DEPOSIT_FULL only: lavapipe 22.3 would
 // run that under an empty mask in every iteration where the list holds every voxel).
 void deposit_run(uint i) {
     uvec3 dims = params.radiance_grid.xyz;

@@ -302,7 +302,8 @@ void main() {
     // Multiple scattering (random_walk.glsl): compiled out where photons do not scatter.
     Walk walk = start_walk(kRandomWalks ? next_unit() : 0.0, hash(i ^ hash(params.photon_info.y + 7u)));
     Walk split_walk = walk;
-    // One loop and one floor deposit for all paths: lavapipe runs every line of a loop body on each pass.
+    // One loop and one floor deposit for all paths: lavapipe 22.3 runs every line of a loop body on each
+    // pass.
     for (uint path = 0u; path < (kDispersive ? 4u : 1u); ++path) {
         uint first_step = 0u;
         fresnel_rng = fresnel_seed;  // each channel chooses as a photon of its own index would

@@ -83,7 +83,7 @@ void resolve_floor_texel(uint texel) {
     floor_map[texel] = floor_map_words(texel_value);
 }
 
-// Two dispatches, one per job (kFloorMap): lavapipe would run both jobs' code in every invocation.
+// Two dispatches, one per job (kFloorMap): lavapipe 22.3 would run both jobs' code in every invocation.
 void main() {
     reach_radiance_sums(params.radiance_sums);
     if (kFloorMap) resolve_floor_texel(linear_invocation());

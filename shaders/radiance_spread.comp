@@ -225,7 +225,7 @@ void gather_voxel(uint i) {
     if (!kGreyTransport) imageStore(radiance, v, vec4(colour, 0.0));
 }
 
-// Two jobs and their steps, one dispatch each (kFloorMap, kStep): lavapipe would run every branch's code
+// Two jobs and their steps, one dispatch each (kFloorMap, kStep): lavapipe 22.3 would run every branch's code
 // in every invocation.
 void main() {
     uint i = linear_invocation();

@@ -198,8 +198,8 @@ void shade(uvec2 pixel) {
     // What the path being traced is, for neighbour_footprint: 0 the eye's, else which reflection of which
     // channel.
     uint path_kind = 0u;
-    // One march and one floor_radiance_over call site for all paths: lavapipe runs every call (and its fetches)
-    // for every pixel.
+    // One march and one floor_radiance_over call site for all paths: lavapipe 22.3 runs every call (and its
+    // fetches) for every pixel.
     for (uint path = 0u; path < kPaths; ++path) {
         bool split = false;
         if (path > 0u) {
@@ -243,7 +243,7 @@ void shade(uvec2 pixel) {
             marches = !straight;
         }
         uint steps = 0u;
-        // lavapipe runs every line of a loop body for all lanes whatever the branches say, so each fetch
+        // lavapipe 22.3 runs every line of a loop body for all lanes whatever the branches say, so each fetch
         // appears once: the loop below takes one octree leaf (or shell step) per pass, and the inner
         // loop, which holds the only in-scattering fetches, takes its view steps.
         while (marches && steps < 8192u) {

@@ -6,7 +6,7 @@
 // (robust to inconsistent parity and to meshes wound inside out, as some OBJ exporters write them). A
 // column whose crossings do not balance (a hole in the mesh) or overflow marks its rays unreliable (count
 // -1) so the other two axes decide there.
-// GATHER_*: one thread per voxel column, into that axis's coverage (bound as x: lavapipe runs every side
+// GATHER_*: one thread per voxel column, into that axis's coverage (bound as x: lavapipe 22.3 runs every side
 // of a branch, so one binding beats choosing among three). Along the axis the filter is exact, the
 // kernel's integral over each inside interval; across it each ray stands for the 1/S x 1/S of the plane
 // around it, weighted by the kernel at its own position. BOX: the kernel is the voxel, so the value is

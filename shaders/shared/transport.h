@@ -217,7 +217,7 @@ struct LightParams {
 #define CHANNELS_DISPERSIVE 2u
 // Specialization constant of the same passes: some coefficient finds its coverage by a fetch
 // (COVERAGE_FETCH). Without it the coverage texture is never read: lavapipe would fetch it on every
-// step whatever the mode.
+// step whatever the mode (lavapipe 22.3; 25.0 jumps over a branch no lane takes).
 #define TRANSPORT_CONSTANT_COVERAGE_FETCH 1
 // Specialization constant of the same passes: the object's boundary reflects (Fresnel, fresnel.glsl). Off
 // where nothing can reflect (Fresnel off in the document, or no index step at the boundary), so such
@@ -248,7 +248,7 @@ struct LightParams {
 // Specialization constant of the same passes: the homogeneous medium thins out towards the grid's faces
 // (medium.fade above 0, in a medium that extincts or scatters: TransportParams::medium_fade). Off, its
 // density is 1 wherever it matters and the fade's code (a step's exact integral, the density at each view
-// step) is compiled out: lavapipe pays for the code a shader holds whether its lanes take it or not, 15%
+// step) is compiled out: lavapipe 22.3 paid for the code a shader held whether its lanes took it or not, 15%
 // of the view and 10% of the photons (docs/perf-log/2026-12-04-where-the-still-frame-stands.md).
 #define TRANSPORT_CONSTANT_MEDIUM_FADE 7
 #define TRANSPORT_CONSTANT_COUNT 8  // a pass's own constants are numbered from here

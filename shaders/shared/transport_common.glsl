@@ -281,7 +281,7 @@ float phase_g_at(float c, uint o) {
 }
 
 // Coverage at p where the index there is n, found the cheapest way `mode` allows (COVERAGE_*). lavapipe
-// runs both sides of a branch, so a pass that needs coverage for several modes should call this once
+// 22.3 runs both sides of a branch, so a pass that needs coverage for several modes should call this once
 // with the most demanding mode and derive the others with coverage_as; and the fetch is compiled out
 // of pipelines whose frames never need it (kCoverageFetch).
 float coverage_for(uint mode, vec3 p, uint entry, float n) {

@@ -11,7 +11,7 @@ REFRACT_SHADERS_BEGIN
 #define VOLUME_GROUP_3D 4  // 4x4x4 workgroups for per-voxel passes
 
 // Specialization constant: which job (*_MODE_*, INDEX_KIND_*) a pipeline of a multi-job shader does.
-// lavapipe runs both sides of every branch, even one on a push constant, so a shader that branched on
+// lavapipe 22.3 runs both sides of every branch, even one on a push constant, so a shader that branched on
 // its job at run time would run all of them in every dispatch.
 #define VOLUME_CONSTANT_MODE 0
 #ifndef __cplusplus
