@@ -60,8 +60,8 @@ fi
 # so each frame is 0.87-0.97x of 22.3's and the frames are the same to a few last bits
 # (docs/perf-log/2026-12-07-lavapipe-from-backports.md). Its name and release are all a machine needs.
 lavapipe_from="25.0"
-installed="$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true)"
-if [ -z "$installed" ] || dpkg --compare-versions "$installed" lt "$lavapipe_from"; then
+installed="$(dpkg-query -W -f='${Status} ${Version}' mesa-vulkan-drivers 2>/dev/null || true)"
+if [[ "$installed" != "install ok installed "* ]] || dpkg --compare-versions "${installed##* }" lt "$lavapipe_from"; then
   if ! grep -rqs "bookworm-backports" /etc/apt/sources.list /etc/apt/sources.list.d/; then
     echo "deb http://deb.debian.org/debian bookworm-backports main" |
       $SUDO tee /etc/apt/sources.list.d/bookworm-backports.list > /dev/null
