@@ -56,9 +56,9 @@ if [ "${#missing[@]}" -gt 0 ]; then
 fi
 
 # lavapipe, the default device, from bookworm-backports (Mesa 25.0; Debian 12 itself has 22.3): its
-# llvmpipe jumps over the code of a branch no invocation of a subgroup takes, which 22.3 ran for every one,
-# so each frame is 0.84-0.99x of 22.3's and the frames are the same to a few last bits
-# (docs/perf-log/2026-12-07-lavapipe-from-backports.md). Its name and release are all a machine needs.
+# llvmpipe jumps over the code of a branch no invocation of a subgroup takes, which 22.3 ran for every one:
+# every frame cheaper, the same to a few last bits (docs/perf-log/2026-12-07-lavapipe-from-backports.md).
+# Installed here, not in the lists above, because the installed release matters, not only the name.
 lavapipe_from="25.0"
 installed="$(dpkg-query -W -f='${Status} ${Version}' mesa-vulkan-drivers 2>/dev/null || true)"
 if [[ "$installed" != "install ok installed "* ]] || dpkg --compare-versions "${installed##* }" lt "$lavapipe_from"; then

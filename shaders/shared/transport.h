@@ -216,8 +216,8 @@ struct LightParams {
 #define CHANNELS_GREY 1u
 #define CHANNELS_DISPERSIVE 2u
 // Specialization constant of the same passes: some coefficient finds its coverage by a fetch
-// (COVERAGE_FETCH). Without it the coverage texture is never read: lavapipe would fetch it on every
-// step whatever the mode (lavapipe 22.3; 25.0 jumps over a branch no lane takes).
+// (COVERAGE_FETCH). Without it the coverage texture is never read: lavapipe 22.3 would fetch it on
+// every step whatever the mode.
 #define TRANSPORT_CONSTANT_COVERAGE_FETCH 1
 // Specialization constant of the same passes: the object's boundary reflects (Fresnel, fresnel.glsl). Off
 // where nothing can reflect (Fresnel off in the document, or no index step at the boundary), so such
